@@ -1,0 +1,102 @@
+//! Error types of the core. Third-party errors are rendered into messages, never exposed.
+
+use std::path::PathBuf;
+
+/// Where in a file something is wrong.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Location {
+    /// The file, as the user named it.
+    pub file: PathBuf,
+    /// 1-based line, when known.
+    pub line: Option<usize>,
+    /// 1-based column, when known.
+    pub column: Option<usize>,
+}
+
+/// One problem found in a robot file: where it is, which field, and what was expected.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Issue {
+    /// Dotted field path, e.g. `kinematics.joints[2].limits`.
+    pub path: String,
+    /// What is wrong and what was expected.
+    pub message: String,
+    /// 1-based line in the file, when it could be found.
+    pub line: Option<usize>,
+}
+
+impl Issue {
+    /// A problem at `path`; the line is filled in by the loader.
+    pub fn new(path: impl Into<String>, message: impl Into<String>) -> Self {
+        Issue {
+            path: path.into(),
+            message: message.into(),
+            line: None,
+        }
+    }
+}
+
+/// A list of [`Issue`]s collected while checking a file.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Issues(pub Vec<Issue>);
+
+impl Issues {
+    /// Records a problem.
+    pub fn push(&mut self, path: impl Into<String>, message: impl Into<String>) {
+        self.0.push(Issue::new(path, message));
+    }
+    /// True when nothing was recorded.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+}
+
+/// Errors of the core library.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file could not be read or written.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        message: String,
+    },
+    /// A file is not valid: every problem, each with its field and line.
+    #[error("{}", render_issues(file, issues))]
+    InvalidFile {
+        /// The file.
+        file: PathBuf,
+        /// The problems found.
+        issues: Vec<Issue>,
+    },
+    /// A model could not be built from its description (no file context).
+    #[error("invalid model: {}", .0.iter().map(|i| format!("{}: {}", i.path, i.message)).collect::<Vec<_>>().join("; "))]
+    InvalidModel(Vec<Issue>),
+    /// Wrong number of values, e.g. joint values for a robot with another joint count.
+    #[error("{what}: expected {expected} values, got {got}")]
+    Dimension {
+        /// What was given.
+        what: String,
+        /// How many were expected.
+        expected: usize,
+        /// How many were given.
+        got: usize,
+    },
+    /// Anything else a caller gave that cannot be used, with the reason.
+    #[error("{0}")]
+    Input(String),
+}
+
+fn render_issues(file: &std::path::Path, issues: &[Issue]) -> String {
+    issues
+        .iter()
+        .map(|i| match i.line {
+            Some(l) => format!("{}:{}: {}: {}", file.display(), l, i.path, i.message),
+            None => format!("{}: {}: {}", file.display(), i.path, i.message),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Result with the core's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,127 @@
+//! Elementary rigid transforms and small-motion algebra used by every convention.
+//!
+//! All lengths in metres, all angles in radians.
+
+use nalgebra::{Isometry3, Matrix3, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
+
+/// Rotation about the x axis by `a` rad.
+pub fn rx(a: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), a),
+    )
+}
+
+/// Rotation about the y axis by `a` rad.
+pub fn ry(a: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), a),
+    )
+}
+
+/// Rotation about the z axis by `a` rad.
+pub fn rz(a: f64) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), a),
+    )
+}
+
+/// Translation along x by `d` m.
+pub fn tx(d: f64) -> Isometry3<f64> {
+    Isometry3::translation(d, 0.0, 0.0)
+}
+
+/// Translation along z by `d` m.
+pub fn tz(d: f64) -> Isometry3<f64> {
+    Isometry3::translation(0.0, 0.0, d)
+}
+
+/// Pose from a translation (m) and URDF roll-pitch-yaw angles (rad): `R = Rz(yaw) Ry(pitch) Rx(roll)`.
+pub fn xyz_rpy(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(xyz[0], xyz[1], xyz[2]),
+        UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+    )
+}
+
+/// Skew-symmetric matrix of `v`, so that `skew(v) * w = v × w`.
+pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+/// Exponential of a twist `(d, δ)` = `[dx, dy, dz, δx, δy, δz]` (translation first, as in the
+/// deflection paper's Eq. 5). The result agrees with `I + Δ` (Eq. 3) to first order and is an
+/// exact rigid motion, so perturbed chains stay orthonormal.
+pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
+    let v = Vector3::new(twist[0], twist[1], twist[2]);
+    let w = Vector3::new(twist[3], twist[4], twist[5]);
+    let theta = w.norm();
+    if theta < 1e-12 {
+        return Isometry3::from_parts(Translation3::from(v), UnitQuaternion::identity());
+    }
+    let rot = UnitQuaternion::from_scaled_axis(w);
+    let k = skew(&w);
+    let k2 = k * k;
+    let (s, c) = theta.sin_cos();
+    let t2 = theta * theta;
+    // Left Jacobian of SO(3): V = I + (1-cos)/θ² K + (θ-sin)/θ³ K².
+    let vmat = Matrix3::identity() + k * ((1.0 - c) / t2) + k2 * ((theta - s) / (t2 * theta));
+    Isometry3::from_parts(Translation3::from(vmat * v), rot)
+}
+
+/// A unit vector, or `None` when `v` is (numerically) zero.
+pub fn unit(v: Vector3<f64>) -> Option<Unit<Vector3<f64>>> {
+    Unit::try_new(v, 1e-12)
+}
+
+/// A rotation taking the z axis onto `dir` (the shortest arc; any roll about `dir` would do).
+pub fn rotation_z_to(dir: &Unit<Vector3<f64>>) -> UnitQuaternion<f64> {
+    UnitQuaternion::rotation_between(&Vector3::z(), dir).unwrap_or_else(|| {
+        // Antiparallel: rotate half a turn about x.
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn xyz_rpy_matches_urdf_fixed_axis_convention() {
+        // URDF: rpy are fixed-axis rotations applied roll, then pitch, then yaw.
+        let (r, p, y) = (0.3, -0.4, 1.1);
+        let a = xyz_rpy([0.0; 3], [r, p, y]);
+        let b = rz(y) * ry(p) * rx(r);
+        assert!((a.to_homogeneous() - b.to_homogeneous()).norm() < 1e-14);
+    }
+
+    #[test]
+    fn exp_twist_is_first_order_identity_plus_delta() {
+        let t = Vector6::new(1e-6, -2e-6, 3e-6, 2e-6, 1e-6, -1e-6);
+        let e = exp_twist(&t).to_homogeneous();
+        let mut delta = nalgebra::Matrix4::zeros();
+        delta
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&skew(&Vector3::new(t[3], t[4], t[5])));
+        delta[(0, 3)] = t[0];
+        delta[(1, 3)] = t[1];
+        delta[(2, 3)] = t[2];
+        let lin = nalgebra::Matrix4::identity() + delta;
+        assert!((e - lin).norm() < 1e-11);
+    }
+
+    #[test]
+    fn exp_twist_pure_rotation_about_offset_axis() {
+        // A screw about z through (1,0,0): v = -w × r = (0, 1, 0)·θ for w = z.
+        let th = 0.7;
+        let r = Vector3::new(1.0, 0.0, 0.0);
+        let w = Vector3::z() * th;
+        let v = -w.cross(&r);
+        let e = exp_twist(&Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z));
+        // The point on the axis stays fixed.
+        let p = e.transform_point(&nalgebra::Point3::from(r));
+        assert!((p.coords - r).norm() < 1e-12);
+    }
+}

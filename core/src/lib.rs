@@ -1,0 +1,35 @@
+//! armcomp-core: the kinematic tree, the plugin traits and the robot file.
+//!
+//! Everything inside is SI (m, rad, kg, N); units are converted where files are read.
+//! The model/workspace split follows Pinocchio: [`KinematicTree`] is immutable, all buffers
+//! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
+
+pub mod error;
+pub mod geom;
+pub mod mass;
+pub mod param;
+pub mod perturbation;
+pub mod plugin;
+pub mod robot;
+pub mod robot_file;
+pub mod tree;
+pub mod units;
+pub mod workspace;
+
+pub use error::{Error, Issue, Issues, Result};
+pub use param::{ParamInfo, Quantity};
+pub use perturbation::Perturbation;
+pub use plugin::{
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, ModelContext, PluginInfo,
+    PredictorSpec, Role, StaticState, TrainingSet,
+};
+pub use robot::{Robot, RobotWorkspace};
+pub use robot_file::{RobotFile, SourceFile};
+pub use tree::{Body, Coordinate, Joint, KinematicTree, Limits, Motion, Point};
+pub use units::{AngleUnit, LengthUnit, Units};
+pub use workspace::TreeWorkspace;
+
+// Plugin crates implement the typetag traits; they re-export these so they need not depend on
+// the macro crates' versions themselves.
+pub use schemars;
+pub use typetag;

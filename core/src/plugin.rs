@@ -1,0 +1,188 @@
+//! The three plugin roles and the registry entry every plugin provides.
+//!
+//! Each role is a pair, in the linfa/pinocchio spirit: a serialisable *spec* read from the robot
+//! file through `typetag` (its `type` field names the plugin), and the built object the
+//! pipelines use. Specs derive `schemars::JsonSchema` so the robot-file schema covers them.
+
+use std::fmt::Debug;
+use std::path::Path;
+
+use nalgebra::Vector3;
+use schemars::{Schema, SchemaGenerator};
+
+use crate::error::{Issues, Result};
+use crate::mass::MassModel;
+use crate::param::ParamInfo;
+use crate::perturbation::Perturbation;
+use crate::tree::KinematicTree;
+use crate::units::Units;
+use crate::workspace::TreeWorkspace;
+
+/// What a plugin is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// A kinematic convention (`kinematics = { type = ... }`).
+    Kinematics,
+    /// A physical error model (`[[error_models]]`).
+    ErrorModel,
+    /// A residual predictor (`[predictor]`).
+    Predictor,
+}
+
+impl Role {
+    /// The robot-file field the role's specs appear in.
+    pub fn field(self) -> &'static str {
+        match self {
+            Role::Kinematics => "kinematics",
+            Role::ErrorModel => "error_models",
+            Role::Predictor => "predictor",
+        }
+    }
+}
+
+/// A registry entry: what `armcomp plugins` lists and `armcomp schema` composes.
+#[derive(Clone, Copy)]
+pub struct PluginInfo {
+    /// The stable `type` name used in robot files.
+    pub type_name: &'static str,
+    /// Its role.
+    pub role: Role,
+    /// One line saying what it is.
+    pub doc: &'static str,
+    /// Whether the diagnosis workflow may try it as a missing effect.
+    pub diagnosis_candidate: bool,
+    /// Generates the JSON Schema of its spec (without the `type` field).
+    pub schema: fn(&mut SchemaGenerator) -> Schema,
+}
+
+impl Debug for PluginInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PluginInfo")
+            .field("type_name", &self.type_name)
+            .field("role", &self.role)
+            .finish()
+    }
+}
+
+/// What a spec needs to know about the file it came from.
+#[derive(Debug, Clone, Copy)]
+pub struct BuildContext<'a> {
+    /// The file's declared units.
+    pub units: Units,
+    /// Folder of the robot file, for relative paths (URDF, plugin libraries).
+    pub base_dir: &'a Path,
+    /// Field path of the spec in the file, for issues (e.g. `kinematics`, `error_models[1]`).
+    pub path: &'a str,
+}
+
+// ---------------------------------------------------------------------------------------------
+// Kinematics
+
+/// A kinematic convention as written in a robot file (MDH table, DH table, POE screws, URDF...).
+#[typetag::serde(tag = "type")]
+pub trait KinematicsSpec: Debug + Send + Sync {
+    /// Checks the description and compiles it into a [`Chain`] (SI units). Every problem is
+    /// reported with its field path relative to the file's root.
+    fn build(&self, ctx: &BuildContext<'_>) -> Result<Box<dyn Chain>, Issues>;
+}
+
+/// A compiled convention: its identifiable parameters and the tree they produce.
+pub trait Chain: Debug + Send + Sync {
+    /// Identifiable parameters with their nominal values (SI), in a fixed order.
+    fn params(&self) -> &[ParamInfo];
+    /// The kinematic tree for parameter `values` (same order as [`params`](Chain::params)).
+    /// Bodies carry names that points and links in the robot file refer to.
+    fn tree(&self, values: &[f64]) -> Result<KinematicTree>;
+    /// The spec with `values` written back in the file's units, for model files.
+    fn spec_with(&self, values: &[f64]) -> Box<dyn KinematicsSpec>;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Error models
+
+/// What an error model may look at when it is built.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelContext<'a> {
+    /// File context (units, folder, field path).
+    pub build: BuildContext<'a>,
+    /// The nominal tree (body and joint names and indices).
+    pub tree: &'a KinematicTree,
+    /// Masses, centres of mass and beam sections of the bodies.
+    pub mass: &'a MassModel,
+}
+
+/// The static state an error model perturbs: joint values, the rigid frames, the loads.
+#[derive(Debug, Clone, Copy)]
+pub struct StaticState<'a> {
+    /// Independent joint values (rad, m).
+    pub q: &'a [f64],
+    /// The tree being evaluated.
+    pub tree: &'a KinematicTree,
+    /// Rigid forward kinematics of `q` (world = robot base).
+    pub frames: &'a TreeWorkspace,
+    /// Mass model, payload included.
+    pub mass: &'a MassModel,
+    /// Gravity in the base frame (m/s²).
+    pub gravity: Vector3<f64>,
+    /// Ambient temperature (°C), when the measurement gives one.
+    pub temperature: Option<f64>,
+}
+
+/// A physical error model as written in a robot file.
+#[typetag::serde(tag = "type")]
+pub trait ErrorModelSpec: Debug + Send + Sync {
+    /// Checks the description against the robot and builds the model.
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues>;
+}
+
+/// A built error model: named parameters and the deformation they cause.
+pub trait ErrorModel: Debug + Send + Sync {
+    /// Identifiable parameters with their nominal values (SI).
+    fn params(&self) -> &[ParamInfo];
+    /// Adds this model's deformation at `state` for parameter `values` to `out`. Must not
+    /// allocate: it runs inside FK, IK and calibration loops.
+    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation);
+    /// The spec with `values` written back in the file's units, for model files.
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec>;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Residual predictors
+
+/// Training data for a residual predictor: one row per sample.
+#[derive(Debug, Clone, Copy)]
+pub struct TrainingSet<'a> {
+    /// Inputs, row-major, `n × n_inputs` (joint values first, then optional extra inputs).
+    pub inputs: &'a [f64],
+    /// Targets, row-major, `n × n_outputs` (residual position error in m, or pose error).
+    pub targets: &'a [f64],
+    /// Number of inputs per row.
+    pub n_inputs: usize,
+    /// Number of outputs per row.
+    pub n_outputs: usize,
+}
+
+/// A residual predictor's hyper-parameters as written in a robot file.
+#[typetag::serde(tag = "type")]
+pub trait PredictorSpec: Debug + Send + Sync {
+    /// Fits the predictor; deterministic for the spec's seed.
+    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>>;
+}
+
+/// A fitted residual predictor, stored in model files.
+#[typetag::serde(tag = "type")]
+pub trait FittedPredictor: Debug + Send + Sync {
+    /// Number of inputs it expects.
+    fn n_inputs(&self) -> usize;
+    /// Number of outputs it produces.
+    fn n_outputs(&self) -> usize;
+    /// Predicts into `out` (length `n_outputs`). `scratch` is reused between calls, so after the
+    /// first call nothing is allocated.
+    fn predict_into(&self, input: &[f64], out: &mut [f64], scratch: &mut Vec<f64>);
+    /// Predictive standard deviation per output into `out`, for predictors that have one;
+    /// returns false (and leaves `out` alone) for those that do not.
+    fn predict_std_into(&self, _input: &[f64], _out: &mut [f64], _scratch: &mut Vec<f64>) -> bool {
+        false
+    }
+}

@@ -1,0 +1,479 @@
+//! A robot built from its file: the compiled chain, named points, mass model and error models.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Isometry3, Vector3};
+
+use crate::error::{Error, Issue, Issues, Result};
+use crate::geom::xyz_rpy;
+use crate::mass::{BeamRigidity, BodyMass, MassModel, Payload};
+use crate::param::ParamInfo;
+use crate::perturbation::Perturbation;
+use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
+use crate::robot_file::{BeamSpec, RobotFile, SourceFile};
+use crate::tree::KinematicTree;
+use crate::workspace::TreeWorkspace;
+
+/// A point resolved against the tree: body index and pose in the convention's link frame.
+#[derive(Debug, Clone)]
+struct ResolvedPoint {
+    name: String,
+    body: usize,
+    local: Isometry3<f64>,
+}
+
+/// A robot ready to evaluate: built once from a [`RobotFile`], then used read-only.
+#[derive(Debug)]
+pub struct Robot {
+    /// The description it was built from.
+    pub file: RobotFile,
+    /// Where the description was read from, if from a file.
+    pub source: Option<PathBuf>,
+    chain: Box<dyn Chain>,
+    chain_values: Vec<f64>,
+    tree: KinematicTree,
+    points: Vec<ResolvedPoint>,
+    mass: MassModel,
+    gravity: Vector3<f64>,
+    tool: usize,
+    error_models: Vec<Box<dyn ErrorModel>>,
+    error_values: Vec<Vec<f64>>,
+    t_meas_base: Isometry3<f64>,
+    markers: Vec<usize>,
+}
+
+/// Buffers for evaluating a [`Robot`]: rigid frames, the deformation, the deformed frames.
+#[derive(Debug, Clone)]
+pub struct RobotWorkspace {
+    /// Rigid forward kinematics (what error models look at).
+    pub rigid: TreeWorkspace,
+    /// The deformation the error models produced.
+    pub perturbation: Perturbation,
+    /// Forward kinematics of the deformed arm (equal to `rigid` without error models).
+    pub frames: TreeWorkspace,
+}
+
+impl Robot {
+    /// Reads, checks and builds a robot file; every problem names the file, line and field.
+    pub fn from_path(path: &Path) -> Result<Robot> {
+        let (file, src) = RobotFile::read(path)?;
+        Robot::from_source(file, &src)
+    }
+
+    /// Checks and builds a parsed robot file, mapping problems to lines of `src`.
+    pub fn from_source(file: RobotFile, src: &SourceFile) -> Result<Robot> {
+        let dir = src.path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut robot = Robot::build(file, &dir).map_err(|issues| src.invalid(issues))?;
+        robot.source = Some(src.path.clone());
+        Ok(robot)
+    }
+
+    /// Checks and builds a robot description; `base_dir` resolves relative paths in it.
+    pub fn build(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
+        let mut issues = Issues::default();
+        let units = file.units;
+        let ctx = BuildContext {
+            units,
+            base_dir,
+            path: "kinematics",
+        };
+        let chain = file.kinematics.build(&ctx).map_err(|i| i.0)?;
+        let chain_values: Vec<f64> = chain.params().iter().map(|p| p.nominal).collect();
+        let base_tree = chain
+            .tree(&chain_values)
+            .map_err(|e| vec![Issue::new("kinematics", e.to_string())])?;
+
+        if file.gravity.iter().any(|g| !g.is_finite()) {
+            issues.push("gravity", "expected three finite numbers (m/s²)");
+        }
+        let gravity = Vector3::from(file.gravity);
+
+        // Points.
+        let mut points = Vec::new();
+        for (i, p) in file.points.iter().enumerate() {
+            let path = format!("points[{i}]");
+            if points.iter().any(|q: &ResolvedPoint| q.name == p.name) {
+                issues.push(format!("{path}.name"), format!("point `{}` is defined twice", p.name));
+            }
+            if p.xyz.iter().chain(p.rpy.iter()).any(|v| !v.is_finite()) {
+                issues.push(format!("{path}.xyz"), "expected finite numbers");
+                continue;
+            }
+            match base_tree.body_index(&p.link) {
+                Some(body) => {
+                    let local = xyz_rpy(units.len3(p.xyz), units.ang3(p.rpy));
+                    points.push(ResolvedPoint {
+                        name: p.name.clone(),
+                        body,
+                        local,
+                    });
+                }
+                None => issues.push(
+                    format!("{path}.link"),
+                    format!(
+                        "point `{}` is on link `{}`, which does not exist; links are: {}",
+                        p.name,
+                        p.link,
+                        body_names(&base_tree)
+                    ),
+                ),
+            }
+        }
+        let tool = points.iter().position(|p| p.name == file.tool);
+        if tool.is_none() && !file.points.iter().any(|p| p.name == file.tool) {
+            issues.push(
+                "tool",
+                format!(
+                    "the tool point `{}` is not among the points ([[points]] with name = \"{}\")",
+                    file.tool, file.tool
+                ),
+            );
+        }
+
+        // Mass model.
+        let mut mass = MassModel::massless(base_tree.bodies().len());
+        for (i, l) in file.links.iter().enumerate() {
+            let path = format!("links[{i}]");
+            let Some(body) = base_tree.body_index(&l.name) else {
+                issues.push(
+                    format!("{path}.name"),
+                    format!(
+                        "link `{}` does not exist; links are: {}",
+                        l.name,
+                        body_names(&base_tree)
+                    ),
+                );
+                continue;
+            };
+            let frame = base_tree.bodies()[body].convention_frame;
+            if let Some(m) = l.mass
+                && !(m.is_finite() && m > 0.0)
+            {
+                issues.push(
+                    format!("{path}.mass"),
+                    format!("expected a positive mass in kg, got {m}"),
+                );
+            }
+            if let Some(c) = l.com
+                && c.iter().any(|v| !v.is_finite())
+            {
+                issues.push(format!("{path}.com"), "expected three finite numbers");
+            }
+            let com = frame
+                .transform_point(&units.len3(l.com.unwrap_or([0.0; 3])).into())
+                .coords;
+            let beam = l
+                .beam
+                .as_ref()
+                .and_then(|b| beam_rigidity(b, units.length.to_si(), &format!("{path}.beam"), &mut issues));
+            mass.bodies[body] = BodyMass {
+                mass: l.mass.unwrap_or(0.0),
+                com,
+                beam,
+            };
+        }
+
+        // Payload.
+        if let Some(p) = &file.payload {
+            if !(p.mass.is_finite() && p.mass >= 0.0) {
+                issues.push(
+                    "payload.mass",
+                    format!("expected a mass of zero or more kg, got {}", p.mass),
+                );
+            }
+            let name = p.point.as_deref().unwrap_or(&file.tool);
+            match points.iter().find(|q| q.name == name) {
+                Some(q) => {
+                    let local = base_tree.bodies()[q.body].convention_frame * q.local;
+                    mass.payload = Some(Payload {
+                        mass: p.mass,
+                        body: q.body,
+                        com: local.translation.vector,
+                    });
+                }
+                None => issues.push("payload.point", format!("point `{name}` does not exist")),
+            }
+        }
+
+        // Measurement setup.
+        let (t_meas_base, marker_names) = match &file.measurement {
+            Some(m) => (
+                xyz_rpy(units.len3(m.base_xyz), units.ang3(m.base_rpy)),
+                m.markers.clone(),
+            ),
+            None => (Isometry3::identity(), Vec::new()),
+        };
+        let mut markers = Vec::new();
+        for (i, name) in marker_names.iter().enumerate() {
+            match points.iter().position(|p| &p.name == name) {
+                Some(k) => markers.push(k),
+                None => issues.push(
+                    format!("measurement.markers[{i}]"),
+                    format!("point `{name}` does not exist"),
+                ),
+            }
+        }
+        if markers.is_empty()
+            && let Some(t) = tool
+        {
+            markers.push(t);
+        }
+
+        if !issues.is_empty() {
+            return Err(issues.0);
+        }
+
+        let mut robot = Robot {
+            file,
+            source: None,
+            chain,
+            chain_values,
+            tree: base_tree,
+            points,
+            mass,
+            gravity,
+            tool: tool.unwrap_or(0),
+            error_models: Vec::new(),
+            error_values: Vec::new(),
+            t_meas_base,
+            markers,
+        };
+        robot.tree = robot
+            .tree_for(&robot.chain_values)
+            .map_err(|e| vec![Issue::new("kinematics", e.to_string())])?;
+
+        // Error models see the finished tree and mass model.
+        let mut models = Vec::new();
+        for (i, spec) in robot.file.error_models.iter().enumerate() {
+            let path = format!("error_models[{i}]");
+            let mctx = ModelContext {
+                build: BuildContext {
+                    units,
+                    base_dir,
+                    path: &path,
+                },
+                tree: &robot.tree,
+                mass: &robot.mass,
+            };
+            match spec.build(&mctx) {
+                Ok(m) => models.push(m),
+                Err(e) => issues.0.extend(e.0),
+            }
+        }
+        if !issues.is_empty() {
+            return Err(issues.0);
+        }
+        robot.error_values = models
+            .iter()
+            .map(|m| m.params().iter().map(|p| p.nominal).collect())
+            .collect();
+        robot.error_models = models;
+        Ok(robot)
+    }
+
+    /// The tree for chain parameter `values`, with the robot's points attached.
+    pub fn tree_for(&self, values: &[f64]) -> Result<KinematicTree> {
+        let mut tree = self.chain.tree(values)?;
+        for p in &self.points {
+            let local = tree.bodies()[p.body].convention_frame * p.local;
+            tree.add_point(p.name.clone(), p.body, local)?;
+        }
+        Ok(tree)
+    }
+
+    /// The compiled kinematic convention.
+    pub fn chain(&self) -> &dyn Chain {
+        self.chain.as_ref()
+    }
+    /// Current values of the chain parameters (SI).
+    pub fn chain_values(&self) -> &[f64] {
+        &self.chain_values
+    }
+    /// Identifiable parameters of the chain.
+    pub fn chain_params(&self) -> &[ParamInfo] {
+        self.chain.params()
+    }
+    /// The kinematic tree at the current parameters, with points.
+    pub fn tree(&self) -> &KinematicTree {
+        &self.tree
+    }
+    /// Mass model, payload included.
+    pub fn mass(&self) -> &MassModel {
+        &self.mass
+    }
+    /// Gravity in the base frame (m/s²).
+    pub fn gravity(&self) -> Vector3<f64> {
+        self.gravity
+    }
+    /// Index of the tool point in [`tree().points()`](KinematicTree::points).
+    pub fn tool(&self) -> usize {
+        self.tool
+    }
+    /// Indices of the points the tracker measures.
+    pub fn markers(&self) -> &[usize] {
+        &self.markers
+    }
+    /// Guess of the robot base pose in the measurement frame.
+    pub fn t_meas_base(&self) -> Isometry3<f64> {
+        self.t_meas_base
+    }
+    /// The built error models.
+    pub fn error_models(&self) -> &[Box<dyn ErrorModel>] {
+        &self.error_models
+    }
+    /// Current parameter values of each error model (SI).
+    pub fn error_values(&self) -> &[Vec<f64>] {
+        &self.error_values
+    }
+
+    /// Sets the chain parameters and rebuilds the tree.
+    pub fn set_chain_values(&mut self, values: &[f64]) -> Result<()> {
+        if values.len() != self.chain_values.len() {
+            return Err(Error::Dimension {
+                what: "chain parameters".into(),
+                expected: self.chain_values.len(),
+                got: values.len(),
+            });
+        }
+        self.tree = self.tree_for(values)?;
+        self.chain_values = values.to_vec();
+        Ok(())
+    }
+
+    /// Buffers sized for this robot.
+    pub fn workspace(&self) -> RobotWorkspace {
+        RobotWorkspace {
+            rigid: TreeWorkspace::new(&self.tree),
+            perturbation: Perturbation::zeros(&self.tree),
+            frames: TreeWorkspace::new(&self.tree),
+        }
+    }
+
+    /// Forward kinematics of the full model (chain + error models) into `ws.frames`.
+    /// `temperature` (°C) is passed to models that use it.
+    pub fn forward_into(&self, q: &[f64], temperature: Option<f64>, ws: &mut RobotWorkspace) {
+        self.tree.forward_into(q, &mut ws.rigid);
+        if self.error_models.is_empty() {
+            ws.frames.clone_from(&ws.rigid);
+            return;
+        }
+        ws.perturbation.clear();
+        let state = StaticState {
+            q,
+            tree: &self.tree,
+            frames: &ws.rigid,
+            mass: &self.mass,
+            gravity: self.gravity,
+            temperature,
+        };
+        for (m, v) in self.error_models.iter().zip(&self.error_values) {
+            m.perturb(&state, v, &mut ws.perturbation);
+        }
+        self.tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+    }
+
+    /// Allocating convenience: checks `q`, evaluates the full model, returns the frames.
+    pub fn forward(&self, q: &[f64]) -> Result<TreeWorkspace> {
+        self.tree.check_q(q)?;
+        let mut ws = self.workspace();
+        self.forward_into(q, None, &mut ws);
+        Ok(ws.frames)
+    }
+
+    /// The description with the current parameter values written back, in the file's units.
+    pub fn to_file(&self) -> RobotFile {
+        let mut out = RobotFile {
+            name: self.file.name.clone(),
+            description: self.file.description.clone(),
+            units: self.file.units,
+            gravity: self.file.gravity,
+            kinematics: self.chain.spec_with(&self.chain_values),
+            links: self.file.links.clone(),
+            points: self.file.points.clone(),
+            tool: self.file.tool.clone(),
+            payload: self.file.payload.clone(),
+            error_models: self
+                .error_models
+                .iter()
+                .zip(&self.error_values)
+                .map(|(m, v)| m.spec_with(v))
+                .collect(),
+            predictor: None,
+            measurement: self.file.measurement.clone(),
+        };
+        // Predictor specs are not clonable trait objects; round-trip through JSON keeps them.
+        if let Some(p) = &self.file.predictor {
+            out.predictor = serde_json::to_value(p)
+                .ok()
+                .and_then(|v| serde_json::from_value(v).ok());
+        }
+        out
+    }
+}
+
+fn body_names(tree: &KinematicTree) -> String {
+    tree.bodies()
+        .iter()
+        .map(|b| format!("`{}`", b.name))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Rigidities of a beam description, or issues naming what is missing or not positive.
+fn beam_rigidity(b: &BeamSpec, to_m: f64, path: &str, issues: &mut Issues) -> Option<BeamRigidity> {
+    let mut positive = |field: &str, v: f64, unit: &str| {
+        let ok = v.is_finite() && v > 0.0;
+        if !ok {
+            issues.push(
+                format!("{path}.{field}"),
+                format!("expected a positive {unit}, got {v}"),
+            );
+        }
+        ok
+    };
+    match (&b.section, b.ei_y, b.ei_z, b.gj) {
+        (None, Some(ei_y), Some(ei_z), Some(gj)) => {
+            let ok = positive("ei_y", ei_y, "rigidity in N m²")
+                & positive("ei_z", ei_z, "rigidity in N m²")
+                & positive("gj", gj, "rigidity in N m²");
+            ok.then_some(BeamRigidity { ei_y, ei_z, gj })
+        }
+        (Some(section), None, None, None) => {
+            let mut ok = true;
+            for (field, v) in section.dimensions() {
+                ok &= positive(&format!("section.{field}"), v, "length");
+            }
+            let e = b.youngs_modulus;
+            let Some(e) = e else {
+                issues.push(
+                    format!("{path}.youngs_modulus"),
+                    "a section needs a Young's modulus in Pa",
+                );
+                return None;
+            };
+            ok &= positive("youngs_modulus", e, "modulus in Pa");
+            let g = b.shear_modulus.unwrap_or(e / 2.6);
+            ok &= positive("shear_modulus", g, "modulus in Pa");
+            if !ok {
+                return None;
+            }
+            let s = section.properties(to_m);
+            if !(s.area > 0.0 && s.iy > 0.0 && s.iz > 0.0 && s.j > 0.0) {
+                issues.push(
+                    format!("{path}.section"),
+                    "the walls or flanges are thicker than the section allows",
+                );
+                return None;
+            }
+            Some(BeamRigidity {
+                ei_y: e * s.iy,
+                ei_z: e * s.iz,
+                gj: g * s.j,
+            })
+        }
+        _ => {
+            issues.push(path.to_string(), "expected either `section` with `youngs_modulus` (and optional `shear_modulus`), or all of `ei_y`, `ei_z`, `gj`");
+            None
+        }
+    }
+}

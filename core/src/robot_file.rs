@@ -1,0 +1,417 @@
+//! The robot file: what users write (TOML, or JSON), read with errors that name the file, the
+//! line and the field.
+
+use std::borrow::Cow;
+use std::path::{Path, PathBuf};
+
+use schemars::{JsonSchema, Schema, SchemaGenerator, json_schema};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Issue, Result};
+use crate::mass::Section;
+use crate::plugin::{ErrorModelSpec, KinematicsSpec, PredictorSpec};
+use crate::units::Units;
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+
+fn default_tool() -> String {
+    "tool".to_string()
+}
+
+/// A robot description: kinematics, mass model, named points, error models, predictor.
+#[derive(Debug, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+#[schemars(title = "armcomp robot file")]
+pub struct RobotFile {
+    /// Name of the robot.
+    pub name: String,
+    /// What the robot is, where its numbers come from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// Units of every length and angle in this file.
+    #[serde(default)]
+    pub units: Units,
+    /// Gravity in the robot base frame (m/s², always SI).
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 3],
+    /// The kinematic convention and its parameters.
+    #[schemars(with = "KinematicsPlugin")]
+    pub kinematics: Box<dyn KinematicsSpec>,
+    /// Mass properties and beam sections of links (by link name).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<LinkSpec>,
+    /// Named points fixed to links: the tool, measurement markers.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub points: Vec<PointSpec>,
+    /// Name of the point that is the tool (default `tool`).
+    #[serde(default = "default_tool")]
+    pub tool: String,
+    /// A payload carried at a point.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub payload: Option<PayloadSpec>,
+    /// Physical error models composed into the chain.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(with = "Vec<ErrorModelPlugin>")]
+    pub error_models: Vec<Box<dyn ErrorModelSpec>>,
+    /// The residual predictor learned on what the physical model leaves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<PredictorPlugin>")]
+    pub predictor: Option<Box<dyn PredictorSpec>>,
+    /// The measurement setup: where the tracker is, which points it sees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measurement: Option<MeasurementSpec>,
+}
+
+/// Mass properties and beam section of one link.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LinkSpec {
+    /// The link's name as the kinematics defines it.
+    pub name: String,
+    /// Mass (kg).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mass: Option<f64>,
+    /// Centre of mass in the link frame (length unit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub com: Option<[f64; 3]>,
+    /// The link seen as a beam, for the deflection model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beam: Option<BeamSpec>,
+}
+
+/// A link's beam: a section and a material, or the rigidities directly.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BeamSpec {
+    /// Cross-section (dimensions in the length unit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub section: Option<Section>,
+    /// Young's modulus E (Pa).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub youngs_modulus: Option<f64>,
+    /// Shear modulus G (Pa); defaults to E / 2.6 (Poisson ratio 0.3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shear_modulus: Option<f64>,
+    /// Flexural rigidity E·Iy (N m²), instead of section and material.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ei_y: Option<f64>,
+    /// Flexural rigidity E·Iz (N m²), instead of section and material.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ei_z: Option<f64>,
+    /// Torsional rigidity G·J (N m²), instead of section and material.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gj: Option<f64>,
+}
+
+/// A named point (with orientation) on a link.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PointSpec {
+    /// Name, e.g. `tool` or `marker_1`.
+    pub name: String,
+    /// The link it is fixed to (`base` or a link the kinematics defines).
+    pub link: String,
+    /// Position in the link frame (length unit).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation in the link frame as URDF roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// A payload carried at a point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PayloadSpec {
+    /// Mass (kg).
+    pub mass: f64,
+    /// The point it hangs at (default: the tool).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<String>,
+}
+
+/// The measurement setup.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeasurementSpec {
+    /// Guess of the robot base position in the tracker frame (length unit).
+    #[serde(default)]
+    pub base_xyz: [f64; 3],
+    /// Guess of the robot base orientation in the tracker frame, roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub base_rpy: [f64; 3],
+    /// The points the tracker measures (default: the tool).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub markers: Vec<String>,
+}
+
+macro_rules! plugin_placeholder {
+    ($ty:ident, $name:literal, $doc:literal) => {
+        #[doc = concat!("Schema placeholder for one `", $name, "`; the registry fills in the plugins.")]
+        pub struct $ty;
+        impl JsonSchema for $ty {
+            fn schema_name() -> Cow<'static, str> {
+                Cow::Borrowed($name)
+            }
+            fn json_schema(_: &mut SchemaGenerator) -> Schema {
+                json_schema!({ "description": $doc })
+            }
+        }
+    };
+}
+
+plugin_placeholder!(
+    KinematicsPlugin,
+    "KinematicsPlugin",
+    "A kinematics plugin, chosen by `type`."
+);
+plugin_placeholder!(
+    ErrorModelPlugin,
+    "ErrorModelPlugin",
+    "An error-model plugin, chosen by `type`."
+);
+plugin_placeholder!(
+    PredictorPlugin,
+    "PredictorPlugin",
+    "A residual-predictor plugin, chosen by `type`."
+);
+
+/// The format of a robot or model file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// TOML (`.toml`).
+    Toml,
+    /// JSON (`.json`).
+    Json,
+}
+
+/// A text file kept in memory so that field paths can be mapped back to lines.
+#[derive(Debug, Clone)]
+pub struct SourceFile {
+    /// The path as the user gave it.
+    pub path: PathBuf,
+    /// The whole text.
+    pub text: String,
+    /// How it is written.
+    pub format: Format,
+}
+
+impl SourceFile {
+    /// Reads a file; the format follows the extension (`.json` is JSON, anything else TOML).
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let format = match path.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("json") => Format::Json,
+            _ => Format::Toml,
+        };
+        Ok(SourceFile {
+            path: path.to_path_buf(),
+            text,
+            format,
+        })
+    }
+
+    /// 1-based line of a byte offset.
+    pub fn line_of_offset(&self, offset: usize) -> usize {
+        self.text.as_bytes()[..offset.min(self.text.len())]
+            .iter()
+            .filter(|b| **b == b'\n')
+            .count()
+            + 1
+    }
+
+    /// 1-based line where the field at a dotted path (`a.b[2].c`) is written, if found.
+    pub fn line_of_path(&self, path: &str) -> Option<usize> {
+        match self.format {
+            Format::Toml => toml_span_of_path(&self.text, path).map(|o| self.line_of_offset(o)),
+            Format::Json => None,
+        }
+    }
+
+    /// Deserialises the whole file into `T`; failures name the line and the field path.
+    pub fn parse<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
+        let issue = match self.format {
+            Format::Toml => {
+                let de = toml::Deserializer::parse(&self.text).map_err(|e| self.toml_error(&e, String::new()))?;
+                match serde_path_to_error::deserialize(de) {
+                    Ok(v) => return Ok(v),
+                    Err(e) => {
+                        let path = clean_path(&e.path().to_string());
+                        return Err(self.toml_error(e.inner(), path));
+                    }
+                }
+            }
+            Format::Json => {
+                let mut de = serde_json::Deserializer::from_str(&self.text);
+                match serde_path_to_error::deserialize(&mut de) {
+                    Ok(v) => return Ok(v),
+                    Err(e) => {
+                        let path = clean_path(&e.path().to_string());
+                        let inner = e.into_inner();
+                        Issue {
+                            path,
+                            message: strip_json_position(&inner.to_string()),
+                            line: Some(inner.line()),
+                        }
+                    }
+                }
+            }
+        };
+        Err(Error::InvalidFile {
+            file: self.path.clone(),
+            issues: vec![issue],
+        })
+    }
+
+    fn toml_error(&self, e: &toml::de::Error, path: String) -> Error {
+        let line = e.span().map(|s| self.line_of_offset(s.start));
+        // A deeper path than serde's (inside typetag-buffered plugin specs) is often in the message.
+        let line = line.or_else(|| self.line_of_path(&path));
+        let message = e.message().trim().to_string();
+        Error::InvalidFile {
+            file: self.path.clone(),
+            issues: vec![Issue { path, message, line }],
+        }
+    }
+
+    /// Attaches lines to issues found after parsing and wraps them as an error for this file.
+    pub fn invalid(&self, issues: Vec<Issue>) -> Error {
+        let issues = issues
+            .into_iter()
+            .map(|mut i| {
+                if i.line.is_none() {
+                    i.line = self.line_of_path(&i.path);
+                }
+                i
+            })
+            .collect();
+        Error::InvalidFile {
+            file: self.path.clone(),
+            issues,
+        }
+    }
+}
+
+/// serde_path_to_error writes `.` for the root and `?` for unknown positions.
+fn clean_path(p: &str) -> String {
+    if p == "." {
+        String::new()
+    } else {
+        p.replace(".?", "").replace('?', "")
+    }
+}
+
+fn strip_json_position(msg: &str) -> String {
+    match msg.rfind(" at line ") {
+        Some(i) => msg[..i].to_string(),
+        None => msg.to_string(),
+    }
+}
+
+/// Splits `a.b[2].c` into segments.
+enum Seg<'a> {
+    Key(&'a str),
+    Index(usize),
+}
+
+fn segments(path: &str) -> Vec<Seg<'_>> {
+    let mut out = Vec::new();
+    for part in path.split('.').filter(|s| !s.is_empty()) {
+        let (key, rest) = match part.find('[') {
+            Some(i) => (&part[..i], &part[i..]),
+            None => (part, ""),
+        };
+        if !key.is_empty() {
+            out.push(Seg::Key(key));
+        }
+        for idx in rest.split('[').filter(|s| !s.is_empty()) {
+            if let Ok(i) = idx.trim_end_matches(']').parse() {
+                out.push(Seg::Index(i));
+            }
+        }
+    }
+    out
+}
+
+/// A position inside a parsed TOML document.
+#[derive(Clone, Copy)]
+enum Node<'a> {
+    Item(&'a toml_edit::Item),
+    Table(&'a toml_edit::Table),
+    Value(&'a toml_edit::Value),
+}
+
+/// The child of `node` at `seg`, with the byte offset where it is written.
+fn child<'a>(node: Node<'a>, seg: &Seg<'_>) -> Option<(Option<usize>, Node<'a>)> {
+    use toml_edit::{Item, Value};
+    let start = |s: Option<std::ops::Range<usize>>| s.map(|r| r.start);
+    match (node, seg) {
+        (Node::Item(Item::Table(t)) | Node::Table(t), Seg::Key(k)) => {
+            t.get_key_value(k).map(|(key, it)| (start(key.span()), Node::Item(it)))
+        }
+        (Node::Item(Item::ArrayOfTables(a)), Seg::Index(i)) => a.get(*i).map(|t| (start(t.span()), Node::Table(t))),
+        (Node::Item(Item::Value(v)) | Node::Value(v), seg) => match (v, seg) {
+            (Value::InlineTable(t), Seg::Key(k)) => {
+                t.get_key_value(k).map(|(key, it)| (start(key.span()), Node::Item(it)))
+            }
+            (Value::Array(a), Seg::Index(i)) => a.get(*i).map(|v| (start(v.span()), Node::Value(v))),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+/// Byte offset of the deepest element of `path` that exists in a TOML text.
+fn toml_span_of_path(text: &str, path: &str) -> Option<usize> {
+    let doc = toml_edit::Document::parse(text).ok()?;
+    let mut node = Node::Item(doc.as_item());
+    let mut best = None;
+    for seg in segments(path) {
+        let Some((span, next)) = child(node, &seg) else { break };
+        best = span.or(best);
+        node = next;
+    }
+    best
+}
+
+impl RobotFile {
+    /// Reads and parses a robot file (TOML, or JSON by extension). Semantic checks happen when
+    /// the robot is built ([`Robot::from_source`](crate::Robot::from_source)).
+    pub fn read(path: &Path) -> Result<(RobotFile, SourceFile)> {
+        let src = SourceFile::read(path)?;
+        let file = src.parse()?;
+        Ok((file, src))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn src(text: &str) -> SourceFile {
+        SourceFile {
+            path: "t.toml".into(),
+            text: text.into(),
+            format: Format::Toml,
+        }
+    }
+
+    #[test]
+    fn finds_lines_of_nested_paths() {
+        let s = src(
+            "name = \"x\"\n\n[kinematics]\ntype = \"mdh\"\n\n[[kinematics.joints]]\nname = \"a\"\n\n[[kinematics.joints]]\nname = \"b\"\nlimits = [1, 2]\n\n[[points]]\nname = \"tool\"\nlink = { x = 1 }\n",
+        );
+        assert_eq!(s.line_of_path("name"), Some(1));
+        assert_eq!(s.line_of_path("kinematics.type"), Some(4));
+        assert_eq!(s.line_of_path("kinematics.joints[1].limits"), Some(11));
+        assert_eq!(s.line_of_path("kinematics.joints[1].limits[1]"), Some(11));
+        assert_eq!(s.line_of_path("kinematics.joints[0].name"), Some(7));
+        assert_eq!(s.line_of_path("points[0].link.x"), Some(15));
+        assert_eq!(s.line_of_path("points[0].nothing"), Some(13));
+    }
+}

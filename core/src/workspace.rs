@@ -1,0 +1,143 @@
+//! Forward kinematics and Jacobians into a reusable workspace (no allocation per call).
+
+use nalgebra::{Isometry3, Matrix3xX, Matrix6xX, Point3, Vector3};
+
+use crate::geom::exp_twist;
+use crate::perturbation::Perturbation;
+use crate::tree::{Coordinate, KinematicTree, Motion};
+
+/// Buffers for one evaluation of a [`KinematicTree`]: world poses of bodies, joint frames and
+/// points. Create once per thread with [`TreeWorkspace::new`] and reuse.
+#[derive(Debug, Clone)]
+pub struct TreeWorkspace {
+    /// World pose of each body (index 0 = base).
+    pub body: Vec<Isometry3<f64>>,
+    /// World pose of each joint frame (before the joint's motion).
+    pub joint_frame: Vec<Isometry3<f64>>,
+    /// World pose of each point.
+    pub point: Vec<Isometry3<f64>>,
+    /// Value of each joint used in the last evaluation (rad or m), offsets included.
+    pub joint_value: Vec<f64>,
+}
+
+impl TreeWorkspace {
+    /// Buffers sized for `tree`.
+    pub fn new(tree: &KinematicTree) -> Self {
+        TreeWorkspace {
+            body: vec![Isometry3::identity(); tree.bodies().len()],
+            joint_frame: vec![Isometry3::identity(); tree.joints().len()],
+            point: vec![Isometry3::identity(); tree.points().len()],
+            joint_value: vec![0.0; tree.joints().len()],
+        }
+    }
+
+    /// World position of point `p` from the last evaluation.
+    pub fn point_position(&self, p: usize) -> Vector3<f64> {
+        self.point[p].translation.vector
+    }
+}
+
+impl KinematicTree {
+    /// Rigid forward kinematics of every body, joint frame and point, with the base at the
+    /// origin. `q` must hold [`nq`](KinematicTree::nq) values (see [`check_q`](KinematicTree::check_q)).
+    pub fn forward_into(&self, q: &[f64], ws: &mut TreeWorkspace) {
+        self.forward_impl(q, None, ws);
+    }
+
+    /// Forward kinematics of the chain deformed by `pert` (Eq. 1–2 composed along the tree).
+    pub fn forward_perturbed_into(&self, q: &[f64], pert: &Perturbation, ws: &mut TreeWorkspace) {
+        self.forward_impl(q, Some(pert), ws);
+    }
+
+    fn forward_impl(&self, q: &[f64], pert: Option<&Perturbation>, ws: &mut TreeWorkspace) {
+        debug_assert_eq!(q.len(), self.nq());
+        ws.body[0] = Isometry3::identity();
+        for (j, joint) in self.joints.iter().enumerate() {
+            let mut value = self.joint_value(j, q);
+            let mut frame = ws.body[joint.parent] * joint.placement;
+            if let Some(p) = pert {
+                value += p.joint_offset[j];
+                if p.joint_twist[j] != nalgebra::Vector6::zeros() {
+                    frame *= exp_twist(&p.joint_twist[j]);
+                }
+            }
+            ws.joint_value[j] = value;
+            ws.joint_frame[j] = frame;
+            ws.body[j + 1] = frame * joint.motion.transform(value);
+        }
+        for (i, point) in self.points.iter().enumerate() {
+            let mut pose = ws.body[point.body] * point.local;
+            if let Some(p) = pert
+                && p.point_twist[i] != nalgebra::Vector6::zeros()
+            {
+                pose *= exp_twist(&p.point_twist[i]);
+            }
+            ws.point[i] = pose;
+        }
+    }
+
+    /// Allocating convenience: world positions of every point (m).
+    pub fn point_positions(&self, q: &[f64]) -> Vec<Vector3<f64>> {
+        let mut ws = TreeWorkspace::new(self);
+        self.forward_into(q, &mut ws);
+        ws.point.iter().map(|p| p.translation.vector).collect()
+    }
+
+    /// Jacobian of the world position of point `p` with respect to `q` (3 × nq), from the frames
+    /// of the last evaluation in `ws`. Mimic joints contribute to the columns of the
+    /// coordinates they follow. Error-model perturbations are treated as constant.
+    pub fn point_jacobian_into(&self, ws: &TreeWorkspace, p: usize, out: &mut Matrix3xX<f64>) {
+        let pos = ws.point[p].translation.vector;
+        out.fill(0.0);
+        for &j in &self.support[self.points[p].body] {
+            if let Some(col) = self.joint_velocity(ws, j, &pos) {
+                self.scatter(j, |c, k| {
+                    let mut dst = out.column_mut(c);
+                    dst += col.0 * k;
+                });
+            }
+        }
+    }
+
+    /// Jacobian of the pose of point `p` (6 × nq): rows 0–2 the linear velocity of the point,
+    /// rows 3–5 the angular velocity, both in world coordinates (the "space-at-point" form).
+    pub fn pose_jacobian_into(&self, ws: &TreeWorkspace, p: usize, out: &mut Matrix6xX<f64>) {
+        let pos = ws.point[p].translation.vector;
+        out.fill(0.0);
+        for &j in &self.support[self.points[p].body] {
+            if let Some((lin, ang)) = self.joint_velocity(ws, j, &pos) {
+                self.scatter(j, |c, k| {
+                    for r in 0..3 {
+                        out[(r, c)] += lin[r] * k;
+                        out[(r + 3, c)] += ang[r] * k;
+                    }
+                });
+            }
+        }
+    }
+
+    /// Linear velocity of `pos` and angular velocity produced by unit speed of joint `j`.
+    #[inline]
+    fn joint_velocity(&self, ws: &TreeWorkspace, j: usize, pos: &Vector3<f64>) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let frame = &ws.joint_frame[j];
+        match self.joints[j].motion {
+            Motion::Revolute(axis) => {
+                let w = frame.rotation * axis.into_inner();
+                let origin: Point3<f64> = frame.translation.vector.into();
+                Some((w.cross(&(pos - origin.coords)), w))
+            }
+            Motion::Prismatic(axis) => Some((frame.rotation * axis.into_inner(), Vector3::zeros())),
+            Motion::Fixed => None,
+        }
+    }
+
+    /// Calls `f(column, d value_j / d q_column)` for each coordinate joint `j` depends on.
+    #[inline]
+    fn scatter(&self, j: usize, mut f: impl FnMut(usize, f64)) {
+        match &self.joints[j].coordinate {
+            Coordinate::Independent(i) => f(*i, 1.0),
+            Coordinate::Mimic { terms, .. } => terms.iter().for_each(|(i, k)| f(*i, *k)),
+            Coordinate::None => {}
+        }
+    }
+}

@@ -1,0 +1,390 @@
+//! What every convention shares: joint kinds, limits, mimic couplings, tree topology, priors,
+//! and the compiler from per-joint geometry to a [`KinematicTree`].
+
+use armcomp_core::geom::xyz_rpy;
+use armcomp_core::{BuildContext, Issues, KinematicTree, Limits, Motion, ParamInfo, Quantity, Result, Units};
+use nalgebra::{Isometry3, Unit, Vector3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// How a joint moves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum JointKind {
+    /// Rotation; value in the file's angle unit.
+    #[default]
+    Revolute,
+    /// Translation; value in the file's length unit.
+    Prismatic,
+    /// No motion (a fixed frame in the chain).
+    Fixed,
+}
+
+/// A joint that follows others: `value = offset + Σ multiplier·value(joint)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MimicSpec {
+    /// The independent joints it follows (declared earlier).
+    pub joints: Vec<String>,
+    /// One multiplier per joint (default 1 each).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub multipliers: Vec<f64>,
+    /// Constant offset, in the joint's own unit (default 0).
+    #[serde(default)]
+    pub offset: f64,
+}
+
+/// A fixed frame inserted before a joint's convention transform.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(deny_unknown_fields)]
+pub struct OriginSpec {
+    /// Translation (length unit).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// URDF roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// Prior standard deviations of the geometric parameters, in the file's units.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PriorSpec {
+    /// For lengths (default 5 mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub length: Option<f64>,
+    /// For angles (default 1 deg).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle: Option<f64>,
+}
+
+impl PriorSpec {
+    fn sigma(&self, q: Quantity, units: &Units) -> f64 {
+        match q {
+            Quantity::Length => self.length.map_or(0.005, |v| units.len(v)),
+            Quantity::Angle => self.angle.map_or(1f64.to_radians(), |v| units.ang(v)),
+            _ => f64::INFINITY,
+        }
+    }
+}
+
+/// Declares a convention's joint struct: the shared fields plus the convention's own geometry.
+macro_rules! joint_spec {
+    ($(#[$m:meta])* $name:ident { $($(#[$fm:meta])* $field:ident : $ty:ty,)* }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema)]
+        #[serde(deny_unknown_fields)]
+        pub struct $name {
+            /// Joint name, unique in the robot; its link is named after it unless `link` is given.
+            pub name: String,
+            /// `revolute` (default), `prismatic` or `fixed`.
+            #[serde(default)]
+            pub kind: $crate::common::JointKind,
+            /// The link this joint hangs from (default: the previous joint's link, `base` first).
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub parent: Option<String>,
+            /// Name of the link this joint moves (default: the joint's name).
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub link: Option<String>,
+            /// `[lower, upper]` in the file's angle (revolute) or length (prismatic) unit.
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub limits: Option<[f64; 2]>,
+            /// Coupling to earlier joints instead of an own coordinate.
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub mimic: Option<$crate::common::MimicSpec>,
+            /// A fixed frame between the parent link and this joint's convention transform.
+            #[serde(default, skip_serializing_if = "Option::is_none")]
+            pub origin: Option<$crate::common::OriginSpec>,
+            $($(#[$fm])* pub $field: $ty,)*
+        }
+
+        impl $name {
+            pub(crate) fn common(&self) -> $crate::common::JointCommon<'_> {
+                $crate::common::JointCommon {
+                    name: &self.name,
+                    kind: self.kind,
+                    parent: self.parent.as_deref(),
+                    link: self.link.as_deref(),
+                    limits: self.limits,
+                    mimic: self.mimic.as_ref(),
+                    origin: self.origin,
+                }
+            }
+        }
+    };
+}
+pub(crate) use joint_spec;
+
+/// The shared fields of one joint, borrowed from its spec.
+pub(crate) struct JointCommon<'a> {
+    pub name: &'a str,
+    pub kind: JointKind,
+    pub parent: Option<&'a str>,
+    pub link: Option<&'a str>,
+    pub limits: Option<[f64; 2]>,
+    pub mimic: Option<&'a MimicSpec>,
+    pub origin: Option<OriginSpec>,
+}
+
+/// One joint of a compiled chain: topology, limits, coupling, and where its parameters are.
+#[derive(Debug, Clone)]
+struct JointTopo {
+    name: String,
+    kind: JointKind,
+    parent: usize,
+    child: String,
+    limits: Option<Limits>,
+    mimic: Option<(Vec<(usize, f64)>, f64)>,
+    origin: Isometry3<f64>,
+    first_param: usize,
+}
+
+/// The part of a convention that varies: a joint's frames from its parameter values.
+pub(crate) struct JointGeometry {
+    /// Joint frame in the parent link's convention frame (after any `origin`).
+    pub pre: Isometry3<f64>,
+    /// Motion axis in the joint frame.
+    pub axis: Unit<Vector3<f64>>,
+    /// The convention frame of the child link in the joint's moving frame.
+    pub post: Isometry3<f64>,
+}
+
+/// Topology and parameters of a compiled chain, shared by every convention.
+#[derive(Debug, Clone)]
+pub(crate) struct ChainCore {
+    base: String,
+    joints: Vec<JointTopo>,
+    params: Vec<ParamInfo>,
+}
+
+impl ChainCore {
+    /// Resolves names, limits and couplings, and lays out the parameters: joint `i` owns
+    /// `per_joint[i]` = `(suffix, quantity, nominal SI)` entries, named `<joint>.<suffix>`.
+    pub fn resolve(
+        base: &str,
+        joints: &[JointCommon<'_>],
+        per_joint: Vec<Vec<(&'static str, Quantity, f64)>>,
+        prior: &PriorSpec,
+        ctx: &BuildContext<'_>,
+    ) -> Result<ChainCore, Issues> {
+        let mut issues = Issues::default();
+        let units = ctx.units;
+        let mut bodies: Vec<String> = vec![base.to_string()];
+        let mut coord_of: Vec<(String, Option<usize>)> = Vec::new();
+        let mut ncoord = 0;
+        let mut topo = Vec::new();
+        let mut params = Vec::new();
+        if joints.is_empty() {
+            issues.push(format!("{}.joints", ctx.path), "expected at least one joint");
+        }
+        for (i, (j, geo)) in joints.iter().zip(per_joint).enumerate() {
+            let path = format!("{}.joints[{i}]", ctx.path);
+            if coord_of.iter().any(|(n, _)| n == j.name) {
+                issues.push(format!("{path}.name"), format!("joint `{}` is defined twice", j.name));
+            }
+            let child = j.link.unwrap_or(j.name).to_string();
+            if bodies.contains(&child) {
+                issues.push(format!("{path}.link"), format!("link `{child}` is defined twice"));
+            }
+            let parent = match j.parent {
+                None => bodies.len() - 1,
+                Some(p) => match bodies.iter().position(|b| b == p) {
+                    Some(k) => k,
+                    None => {
+                        issues.push(
+                            format!("{path}.parent"),
+                            format!(
+                                "link `{p}` is not defined before this joint; defined so far: {}",
+                                bodies.join(", ")
+                            ),
+                        );
+                        0
+                    }
+                },
+            };
+            let scale = |v: f64| {
+                if j.kind == JointKind::Prismatic {
+                    units.len(v)
+                } else {
+                    units.ang(v)
+                }
+            };
+            let limits = match j.limits {
+                Some([lo, hi]) if !(lo.is_finite() && hi.is_finite()) => {
+                    issues.push(format!("{path}.limits"), "expected two finite numbers [lower, upper]");
+                    None
+                }
+                Some([lo, hi]) if lo > hi => {
+                    issues.push(
+                        format!("{path}.limits"),
+                        format!("lower limit {lo} is above upper limit {hi}"),
+                    );
+                    None
+                }
+                Some(_) if j.kind == JointKind::Fixed => {
+                    issues.push(format!("{path}.limits"), "a fixed joint has no limits");
+                    None
+                }
+                Some([lo, hi]) => Some(Limits {
+                    lower: scale(lo),
+                    upper: scale(hi),
+                }),
+                None => None,
+            };
+            let mimic = j.mimic.map(|m| {
+                if j.kind == JointKind::Fixed {
+                    issues.push(format!("{path}.mimic"), "a fixed joint cannot follow other joints");
+                }
+                if j.limits.is_some() {
+                    issues.push(
+                        format!("{path}.limits"),
+                        "a mimic joint takes its range from the joints it follows; remove `limits`",
+                    );
+                }
+                if !m.multipliers.is_empty() && m.multipliers.len() != m.joints.len() {
+                    issues.push(
+                        format!("{path}.mimic.multipliers"),
+                        format!(
+                            "expected one multiplier per followed joint ({}), got {}",
+                            m.joints.len(),
+                            m.multipliers.len()
+                        ),
+                    );
+                }
+                if m.joints.is_empty() {
+                    issues.push(format!("{path}.mimic.joints"), "expected at least one joint to follow");
+                }
+                let terms = m
+                    .joints
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, name)| {
+                        let mult = m.multipliers.get(k).copied().unwrap_or(1.0);
+                        match coord_of.iter().find(|(n, _)| n == name) {
+                            Some((_, Some(c))) => Some((*c, mult)),
+                            Some((_, None)) => {
+                                issues.push(
+                                    format!("{path}.mimic.joints[{k}]"),
+                                    format!("joint `{name}` is fixed or itself a mimic joint"),
+                                );
+                                None
+                            }
+                            None => {
+                                issues.push(
+                                    format!("{path}.mimic.joints[{k}]"),
+                                    format!("joint `{name}` is not defined before this joint"),
+                                );
+                                None
+                            }
+                        }
+                    })
+                    .collect();
+                (terms, scale(m.offset))
+            });
+            let own_coord = if j.kind != JointKind::Fixed && mimic.is_none() {
+                ncoord += 1;
+                Some(ncoord - 1)
+            } else {
+                None
+            };
+            coord_of.push((j.name.to_string(), own_coord));
+            let origin = j.origin.unwrap_or_default();
+            if origin.xyz.iter().chain(&origin.rpy).any(|v| !v.is_finite()) {
+                issues.push(format!("{path}.origin"), "expected finite numbers");
+            }
+            let first_param = params.len();
+            for (suffix, quantity, nominal) in geo {
+                if !nominal.is_finite() {
+                    issues.push(format!("{path}.{suffix}"), "expected a finite number");
+                }
+                params.push(ParamInfo::new(
+                    format!("{}.{suffix}", j.name),
+                    quantity,
+                    nominal,
+                    prior.sigma(quantity, &units),
+                ));
+            }
+            topo.push(JointTopo {
+                name: j.name.to_string(),
+                kind: j.kind,
+                parent,
+                child: child.clone(),
+                limits,
+                mimic,
+                origin: xyz_rpy(units.len3(origin.xyz), units.ang3(origin.rpy)),
+                first_param,
+            });
+            bodies.push(child);
+        }
+        for (k, v) in [("length", prior.length), ("angle", prior.angle)] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                issues.push(
+                    format!("{}.prior.{k}", ctx.path),
+                    format!("expected a positive standard deviation, got {v}"),
+                );
+            }
+        }
+        if !issues.is_empty() {
+            return Err(issues);
+        }
+        Ok(ChainCore {
+            base: base.to_string(),
+            joints: topo,
+            params,
+        })
+    }
+
+    /// Identifiable parameters, in joint order.
+    pub fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    /// The parameter values of joint `j`.
+    pub fn joint_values<'v>(&self, values: &'v [f64], j: usize) -> &'v [f64] {
+        let start = self.joints[j].first_param;
+        let end = self.joints.get(j + 1).map_or(self.params.len(), |n| n.first_param);
+        &values[start..end]
+    }
+
+    /// Compiles the tree; `geometry(j, values_of_j)` gives each joint's frames.
+    pub fn tree(
+        &self,
+        values: &[f64],
+        geometry: impl Fn(usize, &[f64]) -> Result<JointGeometry>,
+    ) -> Result<KinematicTree> {
+        if values.len() != self.params.len() {
+            return Err(armcomp_core::Error::Dimension {
+                what: "chain parameters".into(),
+                expected: self.params.len(),
+                got: values.len(),
+            });
+        }
+        let mut tree = KinematicTree::new(self.base.clone());
+        for (j, t) in self.joints.iter().enumerate() {
+            let g = geometry(j, self.joint_values(values, j))?;
+            let parent_frame = tree.bodies()[t.parent].convention_frame;
+            let placement = parent_frame * t.origin * g.pre;
+            let motion = match t.kind {
+                JointKind::Revolute => Motion::Revolute(g.axis),
+                JointKind::Prismatic => Motion::Prismatic(g.axis),
+                JointKind::Fixed => Motion::Fixed,
+            };
+            let body = match &t.mimic {
+                Some((terms, offset)) => tree.add_mimic_joint(
+                    t.name.clone(),
+                    t.parent,
+                    placement,
+                    motion,
+                    terms.clone(),
+                    *offset,
+                    t.child.clone(),
+                )?,
+                None => tree.add_joint(t.name.clone(), t.parent, placement, motion, t.limits, t.child.clone())?,
+            };
+            tree.set_convention_frame(body, g.post);
+        }
+        Ok(tree)
+    }
+}
