@@ -1,1 +1,10 @@
+//! armcomp: the library behind the `armcomp` command. It gathers the built-in plugins into one
+//! registry, composes the robot-file JSON Schema from their specs, and checks robot files
+//! (schema first, then semantics), reporting every problem with file, line and field.
 
+pub mod registry;
+pub mod validate;
+
+pub use registry::{plugins, robot_schema, schema_text};
+pub use validate::{Diagnostic, validate_file};
+pub mod twins;

@@ -1,1 +1,47 @@
-fn main() {}
+//! The `armcomp` command line.
+
+mod cmd;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Calibration and compensation of long, heavy, flexible robot arms.
+#[derive(Parser)]
+#[command(name = "armcomp", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the main job on a built-in twin (default: rock-drill).
+    Demo(cmd::demo::Args),
+    /// Forward kinematics: positions of every point and the tool pose.
+    Fk(cmd::fk::Args),
+    /// Check robot files against the schema and semantically.
+    Validate(cmd::validate::Args),
+    /// Print the JSON Schema of robot files.
+    Schema(cmd::schema::Args),
+    /// List the registered plugins.
+    Plugins(cmd::plugins::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Demo(a) => cmd::demo::run(a),
+        Command::Fk(a) => cmd::fk::run(a),
+        Command::Validate(a) => cmd::validate::run(a),
+        Command::Schema(a) => cmd::schema::run(a),
+        Command::Plugins(a) => cmd::plugins::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -6,6 +6,7 @@
 
 pub mod error;
 pub mod geom;
+pub mod io;
 pub mod mass;
 pub mod param;
 pub mod perturbation;

@@ -1,0 +1,89 @@
+use std::process::ExitCode;
+
+use anyhow::bail;
+use armcomp::twins::{TWINS, Twin};
+use armcomp_core::Robot;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Which twin: `rock-drill` (default) or `industrial`.
+    #[arg(default_value = "rock-drill")]
+    twin: String,
+}
+
+/// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
+fn configurations(robot: &Robot) -> Vec<(&'static str, Vec<f64>)> {
+    let lims = robot.tree().coordinate_limits();
+    let pick = |f: fn(f64, f64) -> f64| lims.iter().map(|l| l.map_or(0.0, |l| f(l.lower, l.upper))).collect();
+    vec![
+        ("zero", vec![0.0; lims.len()]),
+        ("mid-range", pick(|a, b| 0.5 * (a + b))),
+        ("upper limits", pick(|_, b| b)),
+    ]
+}
+
+fn describe(twin: &Twin) -> anyhow::Result<Robot> {
+    let robot = twin.robot()?;
+    let tree = robot.tree();
+    println!(
+        "== {} ({}): {}",
+        robot.file.name,
+        twin.path,
+        robot.file.description.as_deref().unwrap_or("")
+    );
+    println!(
+        "   {} joints, {} identifiable chain parameters, {} points",
+        tree.nq(),
+        robot.chain_params().len(),
+        tree.points().len()
+    );
+    for (i, name) in tree.coordinate_names().iter().enumerate() {
+        let prismatic = tree.coordinate_is_prismatic()[i];
+        let (scale, unit) = if prismatic {
+            (1000.0, "mm")
+        } else {
+            (180.0 / std::f64::consts::PI, "deg")
+        };
+        match tree.coordinate_limits()[i] {
+            Some(l) => println!(
+                "   {name:<6} {:>9.1} .. {:>7.1} {unit}",
+                l.lower * scale,
+                l.upper * scale
+            ),
+            None => println!("   {name:<6} unlimited"),
+        }
+    }
+    println!("   tool position [mm]:");
+    for (label, q) in configurations(&robot) {
+        let p = robot.forward(&q)?.point[robot.tool()].translation.vector * 1000.0;
+        println!("   {label:<14} {:>10.2} {:>10.2} {:>10.2}", p.x, p.y, p.z);
+    }
+    Ok(robot)
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    match args.twin.as_str() {
+        "rock-drill" => {
+            describe(Twin::get("rock-drill").expect("built in"))?;
+        }
+        "industrial" => {
+            let mdh = describe(Twin::get("industrial").expect("built in"))?;
+            // The same arm in three conventions: report how far apart their tools are.
+            for other in ["industrial-dh", "industrial-poe"] {
+                let robot = Twin::get(other).expect("built in").robot()?;
+                let mut worst: f64 = 0.0;
+                for (_, q) in configurations(&mdh) {
+                    let a = mdh.forward(&q)?.point[mdh.tool()];
+                    let b = robot.forward(&q)?.point[robot.tool()];
+                    worst = worst.max((a.translation.vector - b.translation.vector).norm());
+                }
+                println!("   {other}: tool differs from the MDH form by at most {:.3e} m", worst);
+            }
+        }
+        other => bail!(
+            "unknown twin `{other}`; built-in robots: rock-drill, industrial (files: {})",
+            TWINS.iter().map(|t| t.path).collect::<Vec<_>>().join(", ")
+        ),
+    }
+    Ok(ExitCode::SUCCESS)
+}

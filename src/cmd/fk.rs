@@ -1,0 +1,97 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, bail};
+use armcomp_core::Robot;
+use nalgebra::UnitQuaternion;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Robot file (TOML, or JSON by extension).
+    #[arg(long)]
+    robot: PathBuf,
+    /// Joint values, comma-separated, one per independent joint in file order: revolute in rad
+    /// (deg with --deg), prismatic in m.
+    #[arg(long, allow_hyphen_values = true)]
+    q: String,
+    /// Revolute values are in degrees.
+    #[arg(long)]
+    deg: bool,
+    /// Print JSON (metres): {"points": {name: [x, y, z]}, "tool": {"position": [..], "quaternion": [w, x, y, z]}}.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Parses `--q` into SI joint values for `robot`.
+pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>> {
+    let tree = robot.tree();
+    let names = tree.coordinate_names();
+    let mut q = Vec::new();
+    for (i, part) in text.split(',').enumerate() {
+        let v: f64 = part
+            .trim()
+            .parse()
+            .with_context(|| format!("--q value {} (`{}`) is not a number", i + 1, part.trim()))?;
+        if !v.is_finite() {
+            bail!("--q value {} is not finite", i + 1);
+        }
+        let prismatic = tree.coordinate_is_prismatic().get(i).copied().unwrap_or(false);
+        q.push(if deg && !prismatic { v.to_radians() } else { v });
+    }
+    if q.len() != tree.nq() {
+        bail!(
+            "--q has {} values but the robot has {} joints: {}",
+            q.len(),
+            tree.nq(),
+            names.join(", ")
+        );
+    }
+    for (i, lim) in tree.coordinate_limits().iter().enumerate() {
+        if let Some(l) = lim
+            && (q[i] < l.lower - 1e-12 || q[i] > l.upper + 1e-12)
+        {
+            eprintln!(
+                "warning: joint `{}` = {} is outside its limits [{}, {}] (SI units)",
+                names[i], q[i], l.lower, l.upper
+            );
+        }
+    }
+    Ok(q)
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let robot = Robot::from_path(&args.robot)?;
+    let q = parse_q(&robot, &args.q, args.deg)?;
+    let frames = robot.forward(&q)?;
+    let tree = robot.tree();
+    let tool = frames.point[robot.tool()];
+    let quat: UnitQuaternion<f64> = tool.rotation;
+    if args.json {
+        let mut points = serde_json::Map::new();
+        for (i, p) in tree.points().iter().enumerate() {
+            let v = frames.point[i].translation.vector;
+            points.insert(p.name.clone(), serde_json::json!([v.x, v.y, v.z]));
+        }
+        let t = tool.translation.vector;
+        let out = serde_json::json!({
+            "points": points,
+            "tool": { "position": [t.x, t.y, t.z], "quaternion": [quat.w, quat.i, quat.j, quat.k] },
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!("{:<16} {:>12} {:>12} {:>12}", "point", "x [m]", "y [m]", "z [m]");
+        for (i, p) in tree.points().iter().enumerate() {
+            let v = frames.point[i].translation.vector;
+            println!("{:<16} {:>12.6} {:>12.6} {:>12.6}", p.name, v.x, v.y, v.z);
+        }
+        println!(
+            "tool `{}` orientation (quaternion w, x, y, z): {:.9}, {:.9}, {:.9}, {:.9}",
+            tree.points()[robot.tool()].name,
+            quat.w,
+            quat.i,
+            quat.j,
+            quat.k
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,20 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use armcomp_core::io::write_atomic;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Write the schema to this file (atomically) instead of standard output.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let text = armcomp::schema_text();
+    match args.out {
+        Some(p) => write_atomic(&p, text.as_bytes())?,
+        None => print!("{text}"),
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,58 @@
+//! The built-in robots, compiled into the binary so `armcomp demo` runs from anywhere.
+
+use std::path::Path;
+
+use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::{Result, Robot};
+
+/// A built-in robot file: its name, its path in the repository and its text.
+pub struct Twin {
+    /// Short name used on the command line.
+    pub name: &'static str,
+    /// Path in the repository (used in messages).
+    pub path: &'static str,
+    /// The robot file.
+    pub text: &'static str,
+}
+
+/// Every robot file shipped in `robots/`.
+pub const TWINS: &[Twin] = &[
+    Twin {
+        name: "rock-drill",
+        path: "robots/rock-drill.toml",
+        text: include_str!("../robots/rock-drill.toml"),
+    },
+    Twin {
+        name: "industrial",
+        path: "robots/industrial-6dof.toml",
+        text: include_str!("../robots/industrial-6dof.toml"),
+    },
+    Twin {
+        name: "industrial-dh",
+        path: "robots/industrial-6dof-dh.toml",
+        text: include_str!("../robots/industrial-6dof-dh.toml"),
+    },
+    Twin {
+        name: "industrial-poe",
+        path: "robots/industrial-6dof-poe.toml",
+        text: include_str!("../robots/industrial-6dof-poe.toml"),
+    },
+];
+
+impl Twin {
+    /// Finds a built-in robot by its short name.
+    pub fn get(name: &str) -> Option<&'static Twin> {
+        TWINS.iter().find(|t| t.name == name)
+    }
+
+    /// Builds the robot.
+    pub fn robot(&self) -> Result<Robot> {
+        let src = SourceFile {
+            path: Path::new(self.path).to_path_buf(),
+            text: self.text.to_string(),
+            format: Format::Toml,
+        };
+        let file = src.parse()?;
+        Robot::from_source(file, &src)
+    }
+}

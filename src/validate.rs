@@ -1,0 +1,133 @@
+//! `armcomp validate`: a robot file against the schema, then semantically.
+
+use std::path::{Path, PathBuf};
+
+use armcomp_core::robot_file::SourceFile;
+use armcomp_core::{Error, Robot, RobotFile};
+use serde_json::Value;
+
+/// One problem in a file.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Diagnostic {
+    /// The file.
+    pub file: PathBuf,
+    /// 1-based line, where it could be found.
+    pub line: Option<usize>,
+    /// Dotted field path (`kinematics.joints[2].limits`); empty for the whole file.
+    pub path: String,
+    /// What is wrong and what was expected.
+    pub message: String,
+}
+
+impl std::fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        if !self.path.is_empty() {
+            write!(f, ": {}", self.path)?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+fn from_error(file: &Path, e: Error) -> Vec<Diagnostic> {
+    match e {
+        Error::InvalidFile { file, issues } => issues
+            .into_iter()
+            .map(|i| Diagnostic {
+                file: file.clone(),
+                line: i.line,
+                path: i.path,
+                message: i.message,
+            })
+            .collect(),
+        other => vec![Diagnostic {
+            file: file.to_path_buf(),
+            line: None,
+            path: String::new(),
+            message: other.to_string(),
+        }],
+    }
+}
+
+/// `/kinematics/joints/2/limits` → `kinematics.joints[2].limits`.
+fn pointer_to_path(pointer: &str) -> String {
+    let mut out = String::new();
+    for seg in pointer.split('/').filter(|s| !s.is_empty()) {
+        let seg = seg.replace("~1", "/").replace("~0", "~");
+        if seg.chars().all(|c| c.is_ascii_digit()) {
+            out.push_str(&format!("[{seg}]"));
+        } else {
+            if !out.is_empty() {
+                out.push('.');
+            }
+            out.push_str(&seg);
+        }
+    }
+    out
+}
+
+/// Checks one robot file: syntax and types, then the JSON Schema, then semantics (limits
+/// ordered, positive lengths and stiffnesses, links and points that exist, known units).
+/// Returns every problem found; an empty list means the file is valid.
+pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
+    let src = match SourceFile::read(path) {
+        Ok(s) => s,
+        Err(e) => return from_error(path, e),
+    };
+    let json = match src.parse::<Value>() {
+        Ok(v) => v,
+        Err(e) => return from_error(path, e),
+    };
+    // Typed parse first: serde names the field and says what it expected in plain words.
+    let file: RobotFile = match src.parse() {
+        Ok(f) => f,
+        Err(e) => return from_error(path, e),
+    };
+    let validator = match jsonschema::validator_for(schema) {
+        Ok(v) => v,
+        Err(e) => {
+            return vec![Diagnostic {
+                file: path.to_path_buf(),
+                line: None,
+                path: String::new(),
+                message: format!("internal error: the robot schema does not compile: {e}"),
+            }];
+        }
+    };
+    let mut out: Vec<Diagnostic> = validator
+        .iter_errors(&json)
+        .map(|e| {
+            let p = pointer_to_path(e.instance_path().as_str());
+            Diagnostic {
+                file: path.to_path_buf(),
+                line: src.line_of_path(&p),
+                path: p,
+                message: e.to_string(),
+            }
+        })
+        .collect();
+    if out.is_empty()
+        && let Err(e) = Robot::from_source(file, &src)
+    {
+        out.extend(from_error(path, e));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pointers_become_dotted_paths() {
+        assert_eq!(
+            pointer_to_path("/kinematics/joints/2/limits"),
+            "kinematics.joints[2].limits"
+        );
+        assert_eq!(pointer_to_path(""), "");
+        assert_eq!(pointer_to_path("/a~1b/0"), "a/b[0]");
+    }
+}
