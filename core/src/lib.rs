@@ -26,7 +26,7 @@ pub use plugin::{
 };
 pub use robot::{Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};
-pub use tree::{Body, Coordinate, Joint, KinematicTree, Limits, Motion, Point};
+pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
 pub use units::{AngleUnit, LengthUnit, Units};
 pub use workspace::TreeWorkspace;
 

@@ -270,13 +270,30 @@ impl SourceFile {
 
     fn toml_error(&self, e: &toml::de::Error, path: String) -> Error {
         let line = e.span().map(|s| self.line_of_offset(s.start));
-        // A deeper path than serde's (inside typetag-buffered plugin specs) is often in the message.
         let line = line.or_else(|| self.line_of_path(&path));
         let message = e.message().trim().to_string();
+        // Plugin specs are buffered by typetag, so serde's path and span stop at the plugin's
+        // table; an unknown key is still findable by its name below that line.
+        let line = match (line, backticked_after(&message, "unknown field ")) {
+            (Some(from), Some(key)) => self.line_of_key(key, from).or(Some(from)),
+            (line, _) => line,
+        };
         Error::InvalidFile {
             file: self.path.clone(),
             issues: vec![Issue { path, message, line }],
         }
+    }
+
+    /// First line at or after `from` that assigns `key` (`key = ...`).
+    fn line_of_key(&self, key: &str, from: usize) -> Option<usize> {
+        self.text
+            .lines()
+            .enumerate()
+            .skip(from.saturating_sub(1))
+            .find_map(|(i, l)| {
+                let rest = l.trim_start().strip_prefix(key)?;
+                rest.trim_start().starts_with('=').then_some(i + 1)
+            })
     }
 
     /// Attaches lines to issues found after parsing and wraps them as an error for this file.
@@ -295,6 +312,13 @@ impl SourceFile {
             issues,
         }
     }
+}
+
+/// The first `name` in "...`prefix``name`..." messages.
+fn backticked_after<'m>(message: &'m str, prefix: &str) -> Option<&'m str> {
+    let rest = &message[message.find(prefix)? + prefix.len()..];
+    let rest = rest.strip_prefix('`')?;
+    Some(&rest[..rest.find('`')?])
 }
 
 /// serde_path_to_error writes `.` for the root and `?` for unknown positions.

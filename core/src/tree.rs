@@ -42,15 +42,19 @@ impl Motion {
 pub enum Coordinate {
     /// The joint is driven by independent coordinate `index` of the joint vector `q`.
     Independent(usize),
-    /// The joint follows others: `value = offset + Σ multiplier · q[index]`.
-    Mimic {
-        /// `(independent coordinate index, multiplier)` pairs.
-        terms: Vec<(usize, f64)>,
-        /// Constant offset (rad or m).
-        offset: f64,
-    },
+    /// The joint follows others.
+    Mimic(Coupling),
     /// A fixed joint has no value.
     None,
+}
+
+/// A mimic coupling: `value = offset + Σ multiplier · q[index]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Coupling {
+    /// `(independent coordinate index, multiplier)` pairs.
+    pub terms: Vec<(usize, f64)>,
+    /// Constant offset (rad or m).
+    pub offset: f64,
 }
 
 /// One joint of the tree.
@@ -162,19 +166,18 @@ impl KinematicTree {
         )
     }
 
-    /// Adds a joint that follows independent coordinates: `value = offset + Σ k·q[i]`.
+    /// Adds a joint that follows independent coordinates (see [`Coupling`]).
     pub fn add_mimic_joint(
         &mut self,
         name: impl Into<String>,
         parent: usize,
         placement: Isometry3<f64>,
         motion: Motion,
-        terms: Vec<(usize, f64)>,
-        offset: f64,
+        coupling: Coupling,
         child: impl Into<String>,
     ) -> Result<usize> {
         let name = name.into();
-        if let Some((i, _)) = terms.iter().find(|(i, _)| *i >= self.coord_names.len()) {
+        if let Some((i, _)) = coupling.terms.iter().find(|(i, _)| *i >= self.coord_names.len()) {
             return Err(Error::Input(format!(
                 "mimic joint `{name}` follows coordinate {i}, which does not exist yet"
             )));
@@ -184,7 +187,7 @@ impl KinematicTree {
             parent,
             placement,
             motion,
-            coordinate: Coordinate::Mimic { terms, offset },
+            coordinate: Coordinate::Mimic(coupling),
         };
         self.push_joint(joint, child.into())
     }
@@ -276,7 +279,7 @@ impl KinematicTree {
     pub fn joint_value(&self, j: usize, q: &[f64]) -> f64 {
         match &self.joints[j].coordinate {
             Coordinate::Independent(i) => q[*i],
-            Coordinate::Mimic { terms, offset } => offset + terms.iter().map(|(i, k)| k * q[*i]).sum::<f64>(),
+            Coordinate::Mimic(c) => c.offset + c.terms.iter().map(|(i, k)| k * q[*i]).sum::<f64>(),
             Coordinate::None => 0.0,
         }
     }

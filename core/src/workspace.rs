@@ -136,7 +136,7 @@ impl KinematicTree {
     fn scatter(&self, j: usize, mut f: impl FnMut(usize, f64)) {
         match &self.joints[j].coordinate {
             Coordinate::Independent(i) => f(*i, 1.0),
-            Coordinate::Mimic { terms, .. } => terms.iter().for_each(|(i, k)| f(*i, *k)),
+            Coordinate::Mimic(c) => c.terms.iter().for_each(|(i, k)| f(*i, *k)),
             Coordinate::None => {}
         }
     }

@@ -2,7 +2,7 @@
 //! and the compiler from per-joint geometry to a [`KinematicTree`].
 
 use armcomp_core::geom::xyz_rpy;
-use armcomp_core::{BuildContext, Issues, KinematicTree, Limits, Motion, ParamInfo, Quantity, Result, Units};
+use armcomp_core::{BuildContext, Coupling, Issues, KinematicTree, Limits, Motion, ParamInfo, Quantity, Result, Units};
 use nalgebra::{Isometry3, Unit, Vector3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -134,7 +134,7 @@ struct JointTopo {
     parent: usize,
     child: String,
     limits: Option<Limits>,
-    mimic: Option<(Vec<(usize, f64)>, f64)>,
+    mimic: Option<Coupling>,
     origin: Isometry3<f64>,
     first_param: usize,
 }
@@ -279,7 +279,10 @@ impl ChainCore {
                         }
                     })
                     .collect();
-                (terms, scale(m.offset))
+                Coupling {
+                    terms,
+                    offset: scale(m.offset),
+                }
             });
             let own_coord = if j.kind != JointKind::Fixed && mimic.is_none() {
                 ncoord += 1;
@@ -372,13 +375,12 @@ impl ChainCore {
                 JointKind::Fixed => Motion::Fixed,
             };
             let body = match &t.mimic {
-                Some((terms, offset)) => tree.add_mimic_joint(
+                Some(coupling) => tree.add_mimic_joint(
                     t.name.clone(),
                     t.parent,
                     placement,
                     motion,
-                    terms.clone(),
-                    *offset,
+                    coupling.clone(),
                     t.child.clone(),
                 )?,
                 None => tree.add_joint(t.name.clone(), t.parent, placement, motion, t.limits, t.child.clone())?,

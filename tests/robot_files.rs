@@ -1,0 +1,84 @@
+//! The shipped robot files: valid, round-trip, and the committed schema is current.
+
+use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::{Robot, RobotFile};
+
+use crate::common::{random_configurations, root};
+
+fn robot_files() -> Vec<std::path::PathBuf> {
+    let mut files: Vec<_> = std::fs::read_dir(root().join("robots"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 4, "robots/ holds the built-in twins");
+    files
+}
+
+#[test]
+fn every_robot_file_validates() {
+    let schema = armcomp::robot_schema();
+    for f in robot_files() {
+        let problems = armcomp::validate_file(&f, &schema);
+        assert!(problems.is_empty(), "{}: {problems:?}", f.display());
+    }
+}
+
+#[test]
+fn every_robot_file_round_trips_through_toml_and_json() {
+    for f in robot_files() {
+        let robot = Robot::from_path(&f).unwrap();
+        let qs = random_configurations(&robot, 20, 7);
+        let toml_text = toml::to_string(&robot.to_file()).unwrap();
+        let json_text = serde_json::to_string_pretty(&robot.to_file()).unwrap();
+        for (text, format) in [(toml_text, Format::Toml), (json_text, Format::Json)] {
+            let src = SourceFile {
+                path: f.clone(),
+                text,
+                format,
+            };
+            let file: RobotFile = src.parse().unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            let again = Robot::from_source(file, &src).unwrap();
+            assert_eq!(again.chain_values(), robot.chain_values(), "{}", f.display());
+            for q in &qs {
+                let a = robot.forward(q).unwrap();
+                let b = again.forward(q).unwrap();
+                for (pa, pb) in a.point.iter().zip(&b.point) {
+                    assert!((pa.translation.vector - pb.translation.vector).norm() < 1e-12);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn committed_schema_is_up_to_date() {
+    let committed = std::fs::read_to_string(root().join("schemas/robot.schema.json")).unwrap();
+    assert!(
+        committed == armcomp::schema_text(),
+        "schemas/robot.schema.json is stale: run `cargo run -- schema --out schemas/robot.schema.json`"
+    );
+}
+
+#[test]
+fn schema_lists_every_registered_plugin() {
+    let schema = armcomp::robot_schema();
+    let kin = &schema["$defs"]["KinematicsPlugin"]["oneOf"];
+    let names: Vec<_> = kin
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["properties"]["type"]["const"].clone())
+        .collect();
+    for p in armcomp::plugins()
+        .iter()
+        .filter(|p| p.role == armcomp_core::Role::Kinematics)
+    {
+        assert!(
+            names.contains(&serde_json::json!(p.type_name)),
+            "{} missing",
+            p.type_name
+        );
+    }
+}
