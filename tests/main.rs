@@ -6,4 +6,5 @@ mod conventions;
 mod fk;
 mod jacobian;
 mod malformed;
+mod measurement;
 mod robot_files;

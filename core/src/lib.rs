@@ -8,6 +8,7 @@ pub mod error;
 pub mod geom;
 pub mod io;
 pub mod mass;
+pub mod measurement;
 pub mod param;
 pub mod perturbation;
 pub mod plugin;

@@ -1,0 +1,147 @@
+//! Measurement CSV: round trip, units, and every kind of bad input naming its line and column.
+
+use std::path::Path;
+
+use armcomp_core::measurement::{MeasurementSet, Sample, parse_csv, write_csv};
+use armcomp_core::{AngleUnit, LengthUnit, Robot, Units};
+use nalgebra::Vector3;
+
+use crate::common::{random_configurations, robot};
+
+fn drill() -> Robot {
+    robot("rock-drill.toml")
+}
+
+fn parse(text: &str) -> Result<MeasurementSet, String> {
+    let r = drill();
+    parse_csv(text, Path::new("m.csv"), r.tree(), r.file.units, r.tool()).map_err(|e| e.to_string())
+}
+
+const HEADER: &str = "j1[deg],j2[deg],j3[mm],j4[deg],j5[deg],j6[deg],j7[mm],x[mm],y[mm],z[mm]";
+
+#[test]
+fn write_then_read_gives_the_same_samples() {
+    let r = drill();
+    let samples: Vec<Sample> = random_configurations(&r, 50, 3)
+        .into_iter()
+        .enumerate()
+        .map(|(i, q)| Sample {
+            position: Vector3::new(0.9 + i as f64 * 1e-3, -0.1, 0.5),
+            q,
+            point: r.tool(),
+            orientation: None,
+            payload: Some(1.5),
+            temperature: Some(21.0 + i as f64 * 0.1),
+            torque: None,
+        })
+        .collect();
+    let set = MeasurementSet {
+        samples,
+        warnings: vec![],
+    };
+    for units in [
+        Units {
+            length: LengthUnit::Mm,
+            angle: AngleUnit::Deg,
+        },
+        Units::default(),
+    ] {
+        let text = write_csv(&set, r.tree(), units);
+        let back = parse_csv(&text, Path::new("m.csv"), r.tree(), Units::default(), r.tool()).unwrap();
+        assert_eq!(back.samples.len(), set.samples.len());
+        for (a, b) in set.samples.iter().zip(&back.samples) {
+            for (x, y) in a.q.iter().zip(&b.q) {
+                assert!((x - y).abs() < 1e-12, "{x} vs {y}");
+            }
+            assert!((a.position - b.position).norm() < 1e-12);
+            assert_eq!(a.payload, b.payload);
+            assert!((a.temperature.unwrap() - b.temperature.unwrap()).abs() < 1e-12);
+        }
+        assert!(back.warnings.is_empty(), "{:?}", back.warnings);
+    }
+}
+
+#[test]
+fn header_units_convert_to_si() {
+    let set = parse(&format!("{HEADER}\n10,20,50,0,-10,5,30,1000,-20,300\n")).unwrap();
+    let s = &set.samples[0];
+    assert!((s.q[0] - 10f64.to_radians()).abs() < 1e-15);
+    assert!((s.q[2] - 0.05).abs() < 1e-15);
+    assert!((s.position - Vector3::new(1.0, -0.02, 0.3)).norm() < 1e-15);
+    // Without units the robot file's (mm, deg) apply.
+    let set = parse("j1,j2,j3,j4,j5,j6,j7,x,y,z\n10,20,50,0,-10,5,30,1000,-20,300\n").unwrap();
+    assert!((set.samples[0].q[2] - 0.05).abs() < 1e-15);
+}
+
+fn assert_err(text: &str, words: &[&str]) {
+    let e = parse(text).expect_err("expected an error");
+    for w in words {
+        assert!(e.contains(w), "`{e}` lacks `{w}`");
+    }
+}
+
+#[test]
+fn bad_inputs_name_line_and_column() {
+    assert_err(
+        &format!("{HEADER}\n10,20,50,0,-10,5,30,1000,NaN,300\n"),
+        &["m.csv:2", "y[mm]", "not a finite"],
+    );
+    assert_err(
+        &format!("{HEADER}\n10,20,50,0,-10,5,30,1000,inf,300\n"),
+        &["m.csv:2", "y[mm]"],
+    );
+    assert_err(
+        &format!("{HEADER}\n10,20,50,0,-10,5,30,1000,abc,300\n"),
+        &["m.csv:2", "`abc` is not a number"],
+    );
+    assert_err(
+        &format!("{HEADER}\n10,20,50,0,-10,5,30,1000,300\n"),
+        &["m.csv:2", "expected 10 values", "got 9"],
+    );
+    assert_err(
+        &format!("{HEADER},extra\n10,20,50,0,-10,5,30,1000,-20,300,1\n"),
+        &["m.csv:1", "unexpected column `extra`"],
+    );
+    assert_err(
+        &HEADER.replace("j4[deg],", "").to_string(),
+        &["missing column for joint `j4`"],
+    );
+    assert_err(&HEADER.replace(",z[mm]", ""), &["missing column `z`"]);
+    assert_err(
+        &HEADER.replace("j3[mm]", "j3[deg]"),
+        &["j3", "unknown length unit `deg`"],
+    );
+    assert_err(&HEADER.replace("j1[deg]", "j1[mm]"), &["revolute", "`mm`"]);
+}
+
+#[test]
+fn unit_mistakes_are_detected_by_magnitude() {
+    let m = HEADER
+        .replace("[mm]", "[m]")
+        .replace("j3[m]", "j3[mm]")
+        .replace("j7[m]", "j7[mm]");
+    assert_err(
+        &format!("{m}\n10,20,50,0,-10,5,30,1000,-20,300\n10,20,50,0,-10,5,31,1000,-20,301\n"),
+        &["look like millimetres", "x[mm]"],
+    );
+    let r = HEADER.replace("j2[deg]", "j2[rad]");
+    assert_err(
+        &format!("{r}\n10,20,50,0,-10,5,30,1000,-20,300\n"),
+        &["`j2[rad]`", "looks like degrees"],
+    );
+}
+
+#[test]
+fn duplicated_rows_and_limits() {
+    assert_err(
+        &format!("{HEADER}\n10,20,50,0,-10,5,30,1000,-20,300\n10,20,50,0,-10,5,30,1000,-20,300\n"),
+        &["m.csv:3", "repeats line 2"],
+    );
+    let set = parse(&format!("{HEADER}\n10,40,50,0,-10,5,30,1000,-20,300\n")).unwrap();
+    assert_eq!(set.warnings.len(), 1);
+    assert!(
+        set.warnings[0].contains("m.csv:2") && set.warnings[0].contains("`j2`"),
+        "{:?}",
+        set.warnings
+    );
+}
