@@ -20,6 +20,8 @@ enum Command {
     Demo(cmd::demo::Args),
     /// Forward kinematics: positions of every point and the tool pose.
     Fk(cmd::fk::Args),
+    /// Simulated measurements of a truth robot file, with tracker noise.
+    Simulate(cmd::simulate::Args),
     /// Check robot files against the schema and semantically.
     Validate(cmd::validate::Args),
     /// Print the JSON Schema of robot files.
@@ -33,6 +35,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Fk(a) => cmd::fk::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
         Command::Validate(a) => cmd::validate::run(a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Plugins(a) => cmd::plugins::run(a),

@@ -8,3 +8,4 @@ mod jacobian;
 mod malformed;
 mod measurement;
 mod robot_files;
+mod simulate;

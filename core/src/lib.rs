@@ -14,6 +14,8 @@ pub mod perturbation;
 pub mod plugin;
 pub mod robot;
 pub mod robot_file;
+pub mod sampling;
+pub mod simulate;
 pub mod tree;
 pub mod units;
 pub mod workspace;

@@ -80,6 +80,23 @@ pub fn parse_csv(
     units: Units,
     default_point: usize,
 ) -> Result<MeasurementSet> {
+    parse_table(text, path, tree, units, default_point, true)
+}
+
+/// Parses a CSV of joint configurations only (joint columns, same header rules); other
+/// measurement columns, if present, are read and ignored.
+pub fn parse_poses(text: &str, path: &Path, tree: &KinematicTree, units: Units) -> Result<Vec<Vec<f64>>> {
+    Ok(parse_table(text, path, tree, units, 0, false)?.samples.into_iter().map(|s| s.q).collect())
+}
+
+fn parse_table(
+    text: &str,
+    path: &Path,
+    tree: &KinematicTree,
+    units: Units,
+    default_point: usize,
+    with_positions: bool,
+) -> Result<MeasurementSet> {
     let err = |line: Option<usize>, msg: String| {
         let at = line.map(|l| format!(":{l}")).unwrap_or_default();
         Error::Input(format!("{}{at}: {msg}", path.display()))
@@ -179,7 +196,7 @@ pub fn parse_csv(
             ));
         }
     }
-    for (axis, n) in ["x", "y", "z"].iter().enumerate() {
+    for (axis, n) in ["x", "y", "z"].iter().enumerate().filter(|_| with_positions) {
         if !has(&|k| matches!(k, Column::Position { axis: a, .. } if *a == axis)) {
             return Err(err(
                 Some(1),
@@ -269,7 +286,7 @@ pub fn parse_csv(
             }
             s.orientation = Some(UnitQuaternion::from_quaternion(q));
         }
-        if let Some(k) = set.samples.iter().position(|o| *o == s) {
+        if let Some(k) = set.samples.iter().position(|o| with_positions && *o == s) {
             return Err(err(
                 Some(line),
                 format!("this row repeats line {} exactly (a copied row?)", lines[k]),
@@ -292,7 +309,9 @@ pub fn parse_csv(
     if set.samples.is_empty() {
         return Err(err(None, "no measurements (only a header)".into()));
     }
-    check_magnitudes(&set, &columns, &headers, tree, path)?;
+    if with_positions {
+        check_magnitudes(&set, &columns, &headers, tree, path)?;
+    }
     Ok(set)
 }
 

@@ -4,4 +4,5 @@ pub mod demo;
 pub mod fk;
 pub mod plugins;
 pub mod schema;
+pub mod simulate;
 pub mod validate;

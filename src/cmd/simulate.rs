@@ -1,0 +1,67 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use armcomp_core::Robot;
+use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::measurement::{parse_poses, write_csv};
+use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::simulate::{SimulateParams, simulate};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The truth robot file (its error models carry the true values).
+    #[arg(long)]
+    robot: PathBuf,
+    /// Number of poses to draw inside the joint limits (ignored with --poses).
+    #[arg(long, default_value_t = 100)]
+    n: usize,
+    /// How to draw poses: sobol, halton, random or grid.
+    #[arg(long, default_value = "sobol")]
+    sampler: String,
+    /// Read the poses from this CSV (joint columns with units in the header) instead of drawing them.
+    #[arg(long)]
+    poses: Option<PathBuf>,
+    /// Standard deviation of the measurement noise per axis, in mm.
+    #[arg(long, default_value_t = 0.0)]
+    noise_mm: f64,
+    /// Seed for pose sampling and noise; the same seed gives the same bytes.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output CSV (written atomically; in the robot file's units).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let mut inputs = vec![args.robot.as_path()];
+    if let Some(p) = &args.poses {
+        inputs.push(p.as_path());
+    }
+    check_not_input(&args.out, &inputs)?;
+    let truth = Robot::from_path(&args.robot)?;
+    let poses = match &args.poses {
+        Some(p) => {
+            let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+            parse_poses(&text, p, truth.tree(), truth.file.units)?
+        }
+        None => configurations(truth.tree(), Sampler::parse(&args.sampler)?, args.n, args.seed)?,
+    };
+    // Noise draws use a stream of their own so that the same poses get the same noise
+    // whether they were sampled or read from a file.
+    let params = SimulateParams {
+        noise_std: args.noise_mm * 1e-3,
+        seed: args.seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
+    };
+    let set = simulate(&truth, &poses, params)?;
+    write_atomic(&args.out, write_csv(&set, truth.tree(), truth.file.units).as_bytes())?;
+    eprintln!(
+        "wrote {} measurements of {} poses to {} (noise {} mm per axis, seed {})",
+        set.samples.len(),
+        poses.len(),
+        args.out.display(),
+        args.noise_mm,
+        args.seed
+    );
+    Ok(ExitCode::SUCCESS)
+}
