@@ -163,6 +163,7 @@ impl KinematicTree {
     }
 
     /// Adds a joint that follows independent coordinates: `value = offset + Σ k·q[i]`.
+    #[allow(clippy::too_many_arguments)]
     pub fn add_mimic_joint(
         &mut self,
         name: impl Into<String>,
