@@ -86,3 +86,4 @@ impl Rng {
         lo + (hi - lo) * self.next()
     }
 }
+pub mod robots;
