@@ -507,3 +507,62 @@ fn bad_specs_are_reported_with_field_paths() {
     );
     assert!(has("error_models[3].ei_scale.j1"), "{issues:?}");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Static equilibrium of a very elastic joint.
+
+#[test]
+fn equilibrium_solves_the_fixed_point_and_reports_failure() {
+    use armcomp_elastic::{ElasticError, EquilibriumOptions, EquilibriumWorkspace, solve_equilibrium};
+    let src = r#"
+name = "soft"
+[kinematics]
+type = "mdh"
+[[kinematics.joints]]
+name = "j1"
+alpha = 1.5707963267948966
+[[links]]
+name = "j1"
+mass = 15.0
+com = [0.8, 0, 0]
+[[points]]
+name = "tool"
+link = "j1"
+xyz = [1.0, 0, 0]
+[[error_models]]
+type = "joint_compliance"
+compliance = { j1 = 3.0e-3 }
+"#;
+    let r = robot(src);
+    let (c, k) = (3.0e-3, 15.0 * G * 0.8);
+    let q = 0.3;
+    // Equilibrium: dq = -c k cos(q + dq); solved here by bisection on [-1, 0].
+    let f = |d: f64| d + c * k * (q + d).cos();
+    let (mut lo, mut hi) = (-1.0, 0.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if f(mid) > 0.0 { hi = mid } else { lo = mid }
+    }
+    let want = 0.5 * (lo + hi);
+    let mut ws = r.workspace();
+    let mut eq = EquilibriumWorkspace::new(&r);
+    let rep = solve_equilibrium(&r, &[q], None, &EquilibriumOptions::default(), &mut ws, &mut eq).unwrap();
+    assert!(
+        (ws.perturbation.joint_offset[0] - want).abs() < 1e-11,
+        "{} vs {want}",
+        ws.perturbation.joint_offset[0]
+    );
+    assert!(rep.iterations > 2);
+    // The one-shot model differs from equilibrium by more than the tolerance: the iteration matters.
+    assert!((c * -k * q.cos() - want).abs() > 1e-3);
+    // Too few iterations: reported, with the best iterate in the workspace.
+    let opts = EquilibriumOptions {
+        max_iterations: 3,
+        tolerance: 1e-14,
+    };
+    match solve_equilibrium(&r, &[q], None, &opts, &mut ws, &mut eq) {
+        Err(ElasticError::NotConverged { iterations: 3, change }) => assert!(change > 1e-14),
+        other => panic!("expected NotConverged, got {other:?}"),
+    }
+    assert!((ws.perturbation.joint_offset[0] - want).abs() < 0.05);
+}
