@@ -6,6 +6,7 @@
 
 pub mod error;
 pub mod geom;
+pub mod ik;
 pub mod io;
 pub mod mass;
 pub mod measurement;
@@ -21,6 +22,7 @@ pub mod units;
 pub mod workspace;
 
 pub use error::{Error, Issue, Issues, Result};
+pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solve_ik};
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{

@@ -86,7 +86,11 @@ pub fn parse_csv(
 /// Parses a CSV of joint configurations only (joint columns, same header rules); other
 /// measurement columns, if present, are read and ignored.
 pub fn parse_poses(text: &str, path: &Path, tree: &KinematicTree, units: Units) -> Result<Vec<Vec<f64>>> {
-    Ok(parse_table(text, path, tree, units, 0, false)?.samples.into_iter().map(|s| s.q).collect())
+    Ok(parse_table(text, path, tree, units, 0, false)?
+        .samples
+        .into_iter()
+        .map(|s| s.q)
+        .collect())
 }
 
 fn parse_table(

@@ -1,0 +1,96 @@
+//! Base tilt: the robot stands slightly tilted, by small angles about the base x and y axes.
+//! The whole arm turns with its base (applied like a base frame error), and gravity seen in the
+//! base frame tilts the other way. Other models read gravity from the static state, which this
+//! model cannot change; the gravity part is therefore modelled here, through the joint
+//! compliances given in `compliance`: `dq_i = c_i · (τ_i(Rᵀ g) − τ_i(g))`.
+
+use std::collections::BTreeMap;
+
+use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, StaticState};
+use nalgebra::{UnitQuaternion, Vector3, Vector6};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::common::{Subtrees, check_finite, joint_gravity_load, resolve_joint_table};
+use crate::geometric_offsets::{Seats, apply_base_motion, base_attachments};
+use crate::joint_compliance::check_compliance;
+
+/// Base tilt as written in the robot file.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BaseTiltSpec {
+    /// Tilt about the base x and y axes, in the file's angle unit.
+    #[serde(default)]
+    pub tilt: [f64; 2],
+    /// Joint compliances (rad/(N m)) through which the tilted gravity acts (optional).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub compliance: BTreeMap<String, f64>,
+}
+
+/// The built base-tilt model.
+#[derive(Debug, Clone)]
+pub struct BaseTiltModel {
+    spec: BaseTiltSpec,
+    units: armcomp_core::Units,
+    base_joints: Seats,
+    base_points: Seats,
+    compliance: Vec<(usize, f64)>,
+    subtrees: Subtrees,
+    params: Vec<ParamInfo>,
+}
+
+#[typetag::serde(name = "base_tilt")]
+impl ErrorModelSpec for BaseTiltSpec {
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
+        let path = ctx.build.path;
+        let mut issues = Issues::default();
+        for (k, v) in self.tilt.iter().enumerate() {
+            check_finite(&mut issues, &format!("{path}.tilt[{k}]"), *v);
+        }
+        let compliance = resolve_joint_table(ctx, "compliance", &self.compliance, &mut issues, check_compliance);
+        if !issues.is_empty() {
+            return Err(issues);
+        }
+        let u = ctx.build.units;
+        let (base_joints, base_points) = base_attachments(ctx.tree);
+        Ok(Box::new(BaseTiltModel {
+            spec: self.clone(),
+            units: u,
+            base_joints,
+            base_points,
+            compliance,
+            subtrees: Subtrees::new(ctx.tree),
+            params: vec![
+                ParamInfo::new("base_tilt.x", Quantity::Angle, u.ang(self.tilt[0]), 1f64.to_radians()),
+                ParamInfo::new("base_tilt.y", Quantity::Angle, u.ang(self.tilt[1]), 1f64.to_radians()),
+            ],
+        }))
+    }
+}
+
+impl ErrorModel for BaseTiltModel {
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
+        let eps = Vector6::new(0.0, 0.0, 0.0, values[0], values[1], 0.0);
+        apply_base_motion(&eps, &self.base_joints, &self.base_points, out);
+        if self.compliance.is_empty() {
+            return;
+        }
+        let tilt = UnitQuaternion::from_scaled_axis(Vector3::new(values[0], values[1], 0.0));
+        let mut tilted = *state;
+        tilted.gravity = tilt.inverse_transform_vector(&state.gravity);
+        for &(j, c) in &self.compliance {
+            let d = joint_gravity_load(&tilted, &self.subtrees, j) - joint_gravity_load(state, &self.subtrees, j);
+            out.joint_offset[j] += c * d;
+        }
+    }
+
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
+        let mut spec = self.spec.clone();
+        spec.tilt = [self.units.ang_out(values[0]), self.units.ang_out(values[1])];
+        Box::new(spec)
+    }
+}

@@ -1,0 +1,426 @@
+//! Gravity deflection of links as Euler–Bernoulli cantilevers (deflection paper, Sec. II.B).
+//!
+//! Each modelled link is a beam clamped at its joint and reaching to its farthest attachment:
+//! the farthest child joint's seat, or, on a link without children, its farthest point.
+//! Prismatic (telescopic) links are clamped where they leave their parent (the joint frame
+//! before the motion), so their free length follows the joint value.
+//!
+//! **Section axes.** Beam axis `x` runs from the clamp to the far end. The section's width
+//! direction `y` is the link frame's z axis (the axis the link's own joint turns it about, for
+//! MDH) made perpendicular to the beam axis; the height direction is `z = x × y`, i.e. the
+//! height lies in the plane the link swings in. When the link's z axis runs along the beam (a
+//! telescopic section sliding along its own z) the link frame's x axis takes its place.
+//! `EI_y` (section z, height) resists deflection along `z`, `EI_z` along `y` (see
+//! `armcomp_core::mass`), `GJ` twist about `x`.
+//!
+//! **Loads**, from gravity in the rigid configuration: the link's own weight spread uniformly
+//! over its free length (its centre of mass is taken at mid-span, as in the paper); at each
+//! child joint's seat the force and moment of everything that hangs beyond it, payload
+//! included; a payload on the link itself at its projection on the axis. Axial force is
+//! ignored (no buckling or stretching), as is the torsion from the link's own weight.
+//!
+//! The resulting small motion of the beam at each attachment (closed-form deflection curve at
+//! that position, a rigid offset from the axis carried along) becomes the `joint_twist` of
+//! child joints and the `point_twist` of points on the link: `Δ_i` of the paper's Eq. 1–3.
+
+use std::collections::BTreeMap;
+
+use armcomp_core::mass::BeamRigidity;
+use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, StaticState};
+use nalgebra::{Isometry3, Vector3};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::common::{Subtrees, check_positive, name_list, subtree_wrench, world_motion_to_twist};
+
+/// Links below this free length (m) are treated as rigid.
+const MIN_LENGTH: f64 = 1e-9;
+
+/// Deflection `w(x)` and slope `w'(x)` of a cantilever of length `l` under a uniform load `q`
+/// (force per length along the deflection): `q x² (6L² − 4Lx + x²) / (24 EI)`; at the tip
+/// `qL⁴/(8EI)` and `qL³/(6EI)`.
+#[inline]
+pub fn uniform_load(q: f64, l: f64, ei: f64, x: f64) -> (f64, f64) {
+    let w = q * x * x * (6.0 * l * l - 4.0 * l * x + x * x) / (24.0 * ei);
+    let lx = l - x;
+    let slope = q * (l * l * l - lx * lx * lx) / (6.0 * ei);
+    (w, slope)
+}
+
+/// Deflection and slope at `x` of a cantilever under a point force `p` at `a` (along the
+/// deflection): `P x²(3a − x)/(6EI)` before `a`, straight beyond; at the tip of a tip load
+/// `PL³/(3EI)` and `PL²/(2EI)`.
+#[inline]
+pub fn point_force(p: f64, a: f64, ei: f64, x: f64) -> (f64, f64) {
+    if x <= a {
+        (
+            p * x * x * (3.0 * a - x) / (6.0 * ei),
+            p * x * (2.0 * a - x) / (2.0 * ei),
+        )
+    } else {
+        (p * a * a * (3.0 * x - a) / (6.0 * ei), p * a * a / (2.0 * ei))
+    }
+}
+
+/// Deflection and slope at `x` of a cantilever bent by a couple `m` at `a` that curves it
+/// towards positive deflection: `M x²/(2EI)` before `a`, straight beyond; at the tip of a tip
+/// couple `ML²/(2EI)` and `ML/(EI)`.
+#[inline]
+pub fn point_moment(m: f64, a: f64, ei: f64, x: f64) -> (f64, f64) {
+    let c = m / ei;
+    if x <= a {
+        (c * x * x / 2.0, c * x)
+    } else {
+        (c * a * (x - a / 2.0), c * a)
+    }
+}
+
+/// A link seen as a beam in world coordinates (rigid configuration).
+#[derive(Debug, Clone, Copy)]
+pub struct Beam {
+    /// Clamped end (m, world).
+    pub start: Vector3<f64>,
+    /// Unit beam axis (world).
+    pub x: Vector3<f64>,
+    /// Unit section width direction (world).
+    pub y: Vector3<f64>,
+    /// Unit section height direction (world).
+    pub z: Vector3<f64>,
+    /// Free length (m).
+    pub length: f64,
+    /// Rigidities (N m²).
+    pub rigidity: BeamRigidity,
+}
+
+impl Beam {
+    /// The beam from `start` to `end`, section axes from the link's rotation (see module docs);
+    /// `None` when shorter than a nanometre.
+    pub fn new(
+        start: Vector3<f64>,
+        end: Vector3<f64>,
+        link: &nalgebra::UnitQuaternion<f64>,
+        rigidity: BeamRigidity,
+    ) -> Option<Beam> {
+        let d = end - start;
+        let length = d.norm();
+        if length.is_nan() || length <= MIN_LENGTH {
+            return None;
+        }
+        let x = d / length;
+        let mut y = link * Vector3::z();
+        y -= x * x.dot(&y);
+        if y.norm() < 1e-6 {
+            y = link * Vector3::x();
+            y -= x * x.dot(&y);
+        }
+        let y = y.normalize();
+        let z = x.cross(&y);
+        Some(Beam {
+            start,
+            x,
+            y,
+            z,
+            length,
+            rigidity,
+        })
+    }
+
+    /// Position of `p` along the axis, clamped to the beam.
+    #[inline]
+    pub fn station(&self, p: &Vector3<f64>) -> f64 {
+        (p - self.start).dot(&self.x).clamp(0.0, self.length)
+    }
+
+    /// The axis point at station `s`.
+    #[inline]
+    pub fn axis_point(&self, s: f64) -> Vector3<f64> {
+        self.start + self.x * s
+    }
+
+    /// Adds to `(u, θ)` (world displacement and rotation of the axis at station `s`) the effect
+    /// of a uniform load `q` (N/m, world) over the whole beam.
+    #[inline]
+    pub fn add_uniform(&self, s: f64, q: &Vector3<f64>, u: &mut Vector3<f64>, th: &mut Vector3<f64>) {
+        let r = &self.rigidity;
+        let (w, dw) = uniform_load(q.dot(&self.z), self.length, r.ei_y, s);
+        let (v, dv) = uniform_load(q.dot(&self.y), self.length, r.ei_z, s);
+        *u += self.z * w + self.y * v;
+        *th += self.y * (-dw) + self.z * dv;
+    }
+
+    /// Adds the effect of a force `f` (N, world) applied on the axis at station `a` with a
+    /// couple `m` (N m, world) there.
+    #[inline]
+    pub fn add_point(
+        &self,
+        s: f64,
+        a: f64,
+        f: &Vector3<f64>,
+        m: &Vector3<f64>,
+        u: &mut Vector3<f64>,
+        th: &mut Vector3<f64>,
+    ) {
+        let r = &self.rigidity;
+        // Deflection along z (EI_y): a couple about -y curves towards +z; slope w' is a
+        // rotation about -y.
+        let (w1, dw1) = point_force(f.dot(&self.z), a, r.ei_y, s);
+        let (w2, dw2) = point_moment(-m.dot(&self.y), a, r.ei_y, s);
+        // Deflection along y (EI_z): a couple about +z curves towards +y.
+        let (v1, dv1) = point_force(f.dot(&self.y), a, r.ei_z, s);
+        let (v2, dv2) = point_moment(m.dot(&self.z), a, r.ei_z, s);
+        let phi = m.dot(&self.x) * s.min(a) / r.gj;
+        *u += self.z * (w1 + w2) + self.y * (v1 + v2);
+        *th += self.y * (-(dw1 + dw2)) + self.z * (dv1 + dv2) + self.x * phi;
+    }
+}
+
+/// Cantilever deflection of links under gravity (spec as written in the robot file).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CantileverSpec {
+    /// Links modelled as beams (default: every link that has a `beam` in `[[links]]`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub links: Vec<String>,
+    /// Identified scale of the flexural rigidities EI per link (default 1 each).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub ei_scale: BTreeMap<String, f64>,
+    /// Identified scale of the torsional rigidity GJ per link (default 1 each).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub gj_scale: BTreeMap<String, f64>,
+}
+
+/// One modelled link.
+#[derive(Debug, Clone)]
+struct BeamLink {
+    name: String,
+    body: usize,
+    rigidity: BeamRigidity,
+    children: Vec<usize>,
+    points: Vec<usize>,
+}
+
+/// The built cantilever model.
+#[derive(Debug, Clone)]
+pub struct CantileverModel {
+    spec: CantileverSpec,
+    links: Vec<BeamLink>,
+    subtrees: Subtrees,
+    params: Vec<ParamInfo>,
+}
+
+#[typetag::serde(name = "cantilever_deflection")]
+impl ErrorModelSpec for CantileverSpec {
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
+        let tree = ctx.tree;
+        let path = ctx.build.path;
+        let mut issues = Issues::default();
+        let names: Vec<String> = if self.links.is_empty() {
+            (1..tree.bodies().len())
+                .filter(|&b| ctx.mass.bodies[b].beam.is_some())
+                .map(|b| tree.bodies()[b].name.clone())
+                .collect()
+        } else {
+            self.links.clone()
+        };
+        if names.is_empty() {
+            issues.push(
+                format!("{path}.links"),
+                "no link has a `beam` in [[links]]; give sections or rigidities to the links to model",
+            );
+        }
+        let mut links = Vec::new();
+        for (i, name) in names.iter().enumerate() {
+            let p = format!("{path}.links[{i}]");
+            let Some(body) = tree.body_index(name) else {
+                issues.push(
+                    p,
+                    format!(
+                        "link `{name}` does not exist; links are: {}",
+                        name_list(tree.bodies().iter().map(|b| b.name.as_str()))
+                    ),
+                );
+                continue;
+            };
+            if body == 0 {
+                issues.push(p, format!("`{name}` is the base; it does not bend"));
+                continue;
+            }
+            let Some(rigidity) = ctx.mass.bodies[body].beam else {
+                issues.push(
+                    p,
+                    format!("link `{name}` has no `beam` (section or rigidities) in [[links]]"),
+                );
+                continue;
+            };
+            if links.iter().any(|l: &BeamLink| l.body == body) {
+                issues.push(p, format!("link `{name}` is listed twice"));
+                continue;
+            }
+            let children = (0..tree.joints().len())
+                .filter(|&j| tree.joints()[j].parent == body)
+                .collect();
+            let points = (0..tree.points().len())
+                .filter(|&k| tree.points()[k].body == body)
+                .collect();
+            links.push(BeamLink {
+                name: name.clone(),
+                body,
+                rigidity,
+                children,
+                points,
+            });
+        }
+        let mut params = Vec::new();
+        for (field, table) in [("ei_scale", &self.ei_scale), ("gj_scale", &self.gj_scale)] {
+            for (name, &v) in table {
+                let p = format!("{path}.{field}.{name}");
+                if !links.iter().any(|l| &l.name == name) {
+                    issues.push(
+                        p,
+                        format!(
+                            "link `{name}` is not modelled; modelled links are: {}",
+                            name_list(links.iter().map(|l| l.name.as_str()))
+                        ),
+                    );
+                } else {
+                    check_positive(&mut issues, &p, v, "scale");
+                }
+            }
+        }
+        for l in &links {
+            for (field, table) in [("ei_scale", &self.ei_scale), ("gj_scale", &self.gj_scale)] {
+                params.push(ParamInfo::new(
+                    format!("cantilever.{}.{field}", l.name),
+                    Quantity::Dimensionless,
+                    table.get(&l.name).copied().unwrap_or(1.0),
+                    0.5,
+                ));
+            }
+        }
+        if !issues.is_empty() {
+            return Err(issues);
+        }
+        Ok(Box::new(CantileverModel {
+            spec: self.clone(),
+            links,
+            subtrees: Subtrees::new(tree),
+            params,
+        }))
+    }
+}
+
+impl CantileverModel {
+    /// The beam of modelled link `i` in the rigid configuration of `state`, scaled.
+    fn beam(&self, state: &StaticState<'_>, i: usize, ei_scale: f64, gj_scale: f64) -> Option<Beam> {
+        let l = &self.links[i];
+        let f = state.frames;
+        let start = f.joint_frame[l.body - 1].translation.vector;
+        let farthest = |it: &mut dyn Iterator<Item = Vector3<f64>>| {
+            it.max_by(|a, b| (a - start).norm_squared().total_cmp(&(b - start).norm_squared()))
+        };
+        let end = if l.children.is_empty() {
+            farthest(&mut l.points.iter().map(|&p| f.point[p].translation.vector))
+        } else {
+            farthest(&mut l.children.iter().map(|&c| f.joint_frame[c].translation.vector))
+        }?;
+        if !(ei_scale > 0.0 && gj_scale > 0.0 && ei_scale.is_finite() && gj_scale.is_finite()) {
+            return None;
+        }
+        let r = l.rigidity;
+        let rigidity = BeamRigidity {
+            ei_y: r.ei_y * ei_scale,
+            ei_z: r.ei_z * ei_scale,
+            gj: r.gj * gj_scale,
+        };
+        Beam::new(start, end, &f.body[l.body].rotation, rigidity)
+    }
+
+    /// World displacement and rotation of the material point at `p` of link `i`.
+    fn motion_at(
+        &self,
+        state: &StaticState<'_>,
+        i: usize,
+        beam: &Beam,
+        p: &Vector3<f64>,
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let l = &self.links[i];
+        let s = beam.station(p);
+        let mut u = Vector3::zeros();
+        let mut th = Vector3::zeros();
+        let own = state.mass.bodies[l.body].mass;
+        if own != 0.0 {
+            beam.add_uniform(s, &(state.gravity * (own / beam.length)), &mut u, &mut th);
+        }
+        for &c in &l.children {
+            let seat = state.frames.joint_frame[c].translation.vector;
+            let (force, moment) = subtree_wrench(state, &self.subtrees, c + 1, &seat);
+            add_offset_load(beam, s, &seat, &force, &moment, &mut u, &mut th);
+        }
+        if let Some(pl) = &state.mass.payload
+            && pl.body == l.body
+            && pl.mass != 0.0
+        {
+            let at = state.frames.body[pl.body].transform_point(&pl.com.into()).coords;
+            add_offset_load(
+                beam,
+                s,
+                &at,
+                &(state.gravity * pl.mass),
+                &Vector3::zeros(),
+                &mut u,
+                &mut th,
+            );
+        }
+        let r = p - beam.axis_point(s);
+        (u + th.cross(&r), th)
+    }
+}
+
+/// A force `f` at world point `at` with couple `m` there, moved onto the axis.
+#[inline]
+fn add_offset_load(
+    beam: &Beam,
+    s: f64,
+    at: &Vector3<f64>,
+    f: &Vector3<f64>,
+    m: &Vector3<f64>,
+    u: &mut Vector3<f64>,
+    th: &mut Vector3<f64>,
+) {
+    let a = beam.station(at);
+    let arm = at - beam.axis_point(a);
+    beam.add_point(s, a, f, &(m + arm.cross(f)), u, th);
+}
+
+impl ErrorModel for CantileverModel {
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
+        for (i, l) in self.links.iter().enumerate() {
+            let Some(beam) = self.beam(state, i, values[2 * i], values[2 * i + 1]) else {
+                continue;
+            };
+            for &c in &l.children {
+                let frame: &Isometry3<f64> = &state.frames.joint_frame[c];
+                let (u, th) = self.motion_at(state, i, &beam, &frame.translation.vector);
+                out.joint_twist[c] += world_motion_to_twist(frame, &u, &th);
+            }
+            for &p in &l.points {
+                let frame = &state.frames.point[p];
+                let (u, th) = self.motion_at(state, i, &beam, &frame.translation.vector);
+                out.point_twist[p] += world_motion_to_twist(frame, &u, &th);
+            }
+        }
+    }
+
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
+        let mut spec = self.spec.clone();
+        for (i, l) in self.links.iter().enumerate() {
+            spec.ei_scale.insert(l.name.clone(), values[2 * i]);
+            spec.gj_scale.insert(l.name.clone(), values[2 * i + 1]);
+        }
+        Box::new(spec)
+    }
+}

@@ -1,0 +1,173 @@
+//! Geometric offsets of the base and tool frames: a small rigid motion of each, identifiable
+//! (the chain's own parameter offsets are identified through the chain's parameters).
+//!
+//! The base error `ε_b` moves everything: the seat of every joint on the base and every point
+//! on the base gets `Ad(X⁻¹) ε_b` with `X` its placement, which is exactly `E · X`. The tool
+//! error is the point's own twist. Twists are `[dx, dy, dz, rx, ry, rz]` in the frame they move.
+
+use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, StaticState};
+use nalgebra::{Isometry3, Vector6};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::common::{adjoint, check_finite, name_list};
+
+fn default_point() -> String {
+    "tool".into()
+}
+
+/// Base and tool frame errors as written in the robot file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct GeometricOffsetsSpec {
+    /// Base frame error `[dx, dy, dz, rx, ry, rz]` in the file's length and angle units.
+    #[serde(default)]
+    pub base: [f64; 6],
+    /// The point whose frame error is `tool` (default `tool`).
+    #[serde(default = "default_point")]
+    pub point: String,
+    /// Tool frame error `[dx, dy, dz, rx, ry, rz]` in the point's frame, file units.
+    #[serde(default)]
+    pub tool: [f64; 6],
+}
+
+/// The built geometric-offsets model.
+#[derive(Debug, Clone)]
+pub struct GeometricOffsetsModel {
+    spec: GeometricOffsetsSpec,
+    units: armcomp_core::Units,
+    /// Joints seated on the base, with the inverse of their placement.
+    base_joints: Seats,
+    /// Points on the base, with the inverse of their pose.
+    base_points: Seats,
+    tool: usize,
+    params: Vec<ParamInfo>,
+}
+
+const SUFFIX: [&str; 6] = ["dx", "dy", "dz", "rx", "ry", "rz"];
+
+/// Six parameters of a frame error named `<prefix>.dx` ... `<prefix>.rz`, SI.
+pub(crate) fn frame_params(prefix: &str, values: &[f64; 6], units: &armcomp_core::Units) -> Vec<ParamInfo> {
+    (0..6)
+        .map(|k| {
+            if k < 3 {
+                ParamInfo::new(
+                    format!("{prefix}.{}", SUFFIX[k]),
+                    Quantity::Length,
+                    units.len(values[k]),
+                    0.01,
+                )
+            } else {
+                ParamInfo::new(
+                    format!("{prefix}.{}", SUFFIX[k]),
+                    Quantity::Angle,
+                    units.ang(values[k]),
+                    1f64.to_radians(),
+                )
+            }
+        })
+        .collect()
+}
+
+/// Rigid motions of the base (`eps`, base coordinates) as twists of the base's joints and points.
+pub(crate) fn apply_base_motion(
+    eps: &Vector6<f64>,
+    joints: &[(usize, Isometry3<f64>)],
+    points: &[(usize, Isometry3<f64>)],
+    out: &mut Perturbation,
+) {
+    for (j, inv) in joints {
+        out.joint_twist[*j] += adjoint(inv, eps);
+    }
+    for (p, inv) in points {
+        out.point_twist[*p] += adjoint(inv, eps);
+    }
+}
+
+/// Indices of frames with the inverse of their placement.
+pub(crate) type Seats = Vec<(usize, Isometry3<f64>)>;
+
+/// Joints seated on the base and points on it, with their inverse placements.
+pub(crate) fn base_attachments(tree: &armcomp_core::KinematicTree) -> (Seats, Seats) {
+    let joints = tree
+        .joints()
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| j.parent == 0)
+        .map(|(i, j)| (i, j.placement.inverse()))
+        .collect();
+    let points = tree
+        .points()
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.body == 0)
+        .map(|(i, p)| (i, p.local.inverse()))
+        .collect();
+    (joints, points)
+}
+
+#[typetag::serde(name = "geometric_offsets")]
+impl ErrorModelSpec for GeometricOffsetsSpec {
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
+        let path = ctx.build.path;
+        let mut issues = Issues::default();
+        for (field, v) in [("base", &self.base), ("tool", &self.tool)] {
+            for (k, x) in v.iter().enumerate() {
+                check_finite(&mut issues, &format!("{path}.{field}[{k}]"), *x);
+            }
+        }
+        let tool = ctx.tree.point_index(&self.point);
+        if tool.is_none() {
+            issues.push(
+                format!("{path}.point"),
+                format!(
+                    "point `{}` does not exist; points are: {}",
+                    self.point,
+                    name_list(ctx.tree.points().iter().map(|p| p.name.as_str()))
+                ),
+            );
+        }
+        let Some(tool) = tool.filter(|_| issues.is_empty()) else {
+            return Err(issues);
+        };
+        let units = ctx.build.units;
+        let mut params = frame_params("geometric_offsets.base", &self.base, &units);
+        params.extend(frame_params(
+            &format!("geometric_offsets.{}", self.point),
+            &self.tool,
+            &units,
+        ));
+        let (base_joints, base_points) = base_attachments(ctx.tree);
+        Ok(Box::new(GeometricOffsetsModel {
+            spec: self.clone(),
+            units,
+            base_joints,
+            base_points,
+            tool,
+            params,
+        }))
+    }
+}
+
+impl ErrorModel for GeometricOffsetsModel {
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    fn perturb(&self, _state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
+        let base = Vector6::from_column_slice(&values[..6]);
+        apply_base_motion(&base, &self.base_joints, &self.base_points, out);
+        out.point_twist[self.tool] += Vector6::from_column_slice(&values[6..12]);
+    }
+
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
+        let mut spec = self.spec.clone();
+        let u = &self.units;
+        for k in 0..6 {
+            let f = |v: f64| if k < 3 { u.len_out(v) } else { u.ang_out(v) };
+            spec.base[k] = f(values[k]);
+            spec.tool[k] = f(values[6 + k]);
+        }
+        Box::new(spec)
+    }
+}

@@ -1,0 +1,146 @@
+//! Lateral joint compliance (as identified for DLR's Agile Justin): a joint tilts about the
+//! two axes perpendicular to its motion axis in proportion to the bending moment it carries,
+//! `δ_u = c_u · M_u`, `δ_v = c_v · M_v`, with `M` the gravity moment of everything beyond the
+//! joint about the joint origin. The axes are the joint frame's x made perpendicular to the
+//! motion axis (`u`) and `v = axis × u` (for MDH joints: the joint frame's x and y).
+
+use std::collections::BTreeMap;
+
+use armcomp_core::{
+    ErrorModel, ErrorModelSpec, Issues, ModelContext, Motion, ParamInfo, Perturbation, Quantity, StaticState,
+};
+use nalgebra::{Vector3, Vector6};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::common::{Subtrees, check_finite, name_list, subtree_wrench};
+
+/// Lateral compliance as written in the robot file.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct LateralComplianceSpec {
+    /// Per joint name: `[c_u, c_v]` in rad/(N m) about the two axes perpendicular to its axis.
+    pub compliance: BTreeMap<String, [f64; 2]>,
+}
+
+#[derive(Debug, Clone)]
+struct LateralJoint {
+    joint: usize,
+    /// The perpendicular axes in joint-frame coordinates.
+    u: Vector3<f64>,
+    v: Vector3<f64>,
+}
+
+/// The built lateral-compliance model.
+#[derive(Debug, Clone)]
+pub struct LateralComplianceModel {
+    spec: LateralComplianceSpec,
+    joints: Vec<LateralJoint>,
+    subtrees: Subtrees,
+    params: Vec<ParamInfo>,
+}
+
+#[typetag::serde(name = "lateral_compliance")]
+impl ErrorModelSpec for LateralComplianceSpec {
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
+        let tree = ctx.tree;
+        let path = ctx.build.path;
+        let mut issues = Issues::default();
+        if self.compliance.is_empty() {
+            issues.push(
+                format!("{path}.compliance"),
+                "expected at least one joint, e.g. compliance = { j2 = [1e-6, 1e-6] }",
+            );
+        }
+        let mut joints = Vec::new();
+        let mut params = Vec::new();
+        for (name, c) in &self.compliance {
+            let p = format!("{path}.compliance.{name}");
+            let Some(j) = tree.joint_index(name) else {
+                issues.push(
+                    p,
+                    format!(
+                        "joint `{name}` does not exist; joints are: {}",
+                        name_list(tree.joints().iter().map(|j| j.name.as_str()))
+                    ),
+                );
+                continue;
+            };
+            let axis = match tree.joints()[j].motion {
+                Motion::Revolute(a) | Motion::Prismatic(a) => a.into_inner(),
+                Motion::Fixed => Vector3::z(),
+            };
+            let mut ok = true;
+            for (k, v) in c.iter().enumerate() {
+                ok &= check_finite(&mut issues, &format!("{p}[{k}]"), *v);
+                if *v < 0.0 {
+                    issues.push(
+                        format!("{p}[{k}]"),
+                        format!("expected a compliance of zero or more, got {v}"),
+                    );
+                    ok = false;
+                }
+            }
+            if !ok {
+                continue;
+            }
+            let mut u = Vector3::x() - axis * axis.x;
+            if u.norm() < 1e-6 {
+                u = Vector3::y() - axis * axis.y;
+            }
+            let u = u.normalize();
+            let v = axis.cross(&u);
+            joints.push((j, LateralJoint { joint: j, u, v }, *c));
+        }
+        if !issues.is_empty() {
+            return Err(issues);
+        }
+        joints.sort_by_key(|(j, _, _)| *j);
+        for (j, _, c) in &joints {
+            for (k, axis) in ["u", "v"].iter().enumerate() {
+                params.push(ParamInfo::new(
+                    format!("lateral_compliance.{}.{axis}", tree.joints()[*j].name),
+                    Quantity::Compliance,
+                    c[k],
+                    f64::INFINITY,
+                ));
+            }
+        }
+        Ok(Box::new(LateralComplianceModel {
+            spec: self.clone(),
+            joints: joints.into_iter().map(|(_, l, _)| l).collect(),
+            subtrees: Subtrees::new(tree),
+            params,
+        }))
+    }
+}
+
+impl ErrorModel for LateralComplianceModel {
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
+        for (i, l) in self.joints.iter().enumerate() {
+            let frame = &state.frames.joint_frame[l.joint];
+            let origin = frame.translation.vector;
+            let (_, m) = subtree_wrench(state, &self.subtrees, l.joint + 1, &origin);
+            let m_local = frame.rotation.inverse_transform_vector(&m);
+            let d = l.u * (values[2 * i] * l.u.dot(&m_local)) + l.v * (values[2 * i + 1] * l.v.dot(&m_local));
+            out.joint_twist[l.joint] += Vector6::new(0.0, 0.0, 0.0, d.x, d.y, d.z);
+        }
+    }
+
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
+        let mut spec = self.spec.clone();
+        for (i, p) in self.params.chunks(2).enumerate() {
+            let name = p[0]
+                .name
+                .trim_start_matches("lateral_compliance.")
+                .trim_end_matches(".u");
+            spec.compliance
+                .insert(name.to_string(), [values[2 * i], values[2 * i + 1]]);
+        }
+        Box::new(spec)
+    }
+}

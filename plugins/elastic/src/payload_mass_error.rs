@@ -1,0 +1,118 @@
+//! Payload mass error: the payload weighs `Δm` more than the file says. Its extra weight bends
+//! the joints it hangs from through their compliances: `dq_i = c_i · τ_i(Δm g)`, `τ_i` the
+//! torque of the extra weight about joint `i` (force along it for prismatic joints).
+
+use std::collections::BTreeMap;
+
+use armcomp_core::{
+    ErrorModel, ErrorModelSpec, Issues, ModelContext, Motion, ParamInfo, Perturbation, Quantity, StaticState,
+};
+use nalgebra::Vector3;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::common::{check_finite, name_list, resolve_joint_table};
+use crate::joint_compliance::check_compliance;
+
+/// Payload mass error as written in the robot file.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PayloadMassErrorSpec {
+    /// Extra mass (kg; negative when the payload is lighter than declared).
+    #[serde(default)]
+    pub mass: f64,
+    /// Where the extra mass hangs (default: the declared payload, or the point `tool`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub point: Option<String>,
+    /// Joint compliances (rad/(N m), m/N for prismatic joints) through which it acts.
+    pub compliance: BTreeMap<String, f64>,
+}
+
+/// The built payload-mass-error model.
+#[derive(Debug, Clone)]
+pub struct PayloadMassErrorModel {
+    spec: PayloadMassErrorSpec,
+    /// Body and position in its frame of the extra mass.
+    body: usize,
+    local: Vector3<f64>,
+    compliance: Vec<(usize, f64)>,
+    params: Vec<ParamInfo>,
+}
+
+#[typetag::serde(name = "payload_mass_error")]
+impl ErrorModelSpec for PayloadMassErrorSpec {
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
+        let path = ctx.build.path;
+        let tree = ctx.tree;
+        let mut issues = Issues::default();
+        check_finite(&mut issues, &format!("{path}.mass"), self.mass);
+        if self.compliance.is_empty() {
+            issues.push(format!("{path}.compliance"), "expected at least one joint compliance");
+        }
+        let compliance = resolve_joint_table(ctx, "compliance", &self.compliance, &mut issues, check_compliance);
+        let at = match (&self.point, &ctx.mass.payload) {
+            (Some(name), _) => tree
+                .point_index(name)
+                .map(|p| (tree.points()[p].body, tree.points()[p].local.translation.vector)),
+            (None, Some(p)) => Some((p.body, p.com)),
+            (None, None) => tree
+                .point_index("tool")
+                .map(|p| (tree.points()[p].body, tree.points()[p].local.translation.vector)),
+        };
+        if at.is_none() {
+            issues.push(
+                format!("{path}.point"),
+                format!(
+                    "point `{}` does not exist; points are: {}",
+                    self.point.as_deref().unwrap_or("tool"),
+                    name_list(tree.points().iter().map(|p| p.name.as_str()))
+                ),
+            );
+        }
+        let Some((body, local)) = at.filter(|_| issues.is_empty()) else {
+            return Err(issues);
+        };
+        let compliance = compliance
+            .into_iter()
+            .filter(|(j, _)| tree.support(body).contains(j))
+            .collect();
+        Ok(Box::new(PayloadMassErrorModel {
+            spec: self.clone(),
+            body,
+            local,
+            compliance,
+            params: vec![ParamInfo::new(
+                "payload_mass_error.mass",
+                Quantity::Mass,
+                self.mass,
+                f64::INFINITY,
+            )],
+        }))
+    }
+}
+
+impl ErrorModel for PayloadMassErrorModel {
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
+        let f = state.gravity * values[0];
+        let p = state.frames.body[self.body].transform_point(&self.local.into()).coords;
+        for &(j, c) in &self.compliance {
+            let frame = &state.frames.joint_frame[j];
+            let load = match state.tree.joints()[j].motion {
+                Motion::Revolute(a) => (frame.rotation * a.into_inner()).dot(&(p - frame.translation.vector).cross(&f)),
+                Motion::Prismatic(a) => (frame.rotation * a.into_inner()).dot(&f),
+                Motion::Fixed => 0.0,
+            };
+            out.joint_offset[j] += c * load;
+        }
+    }
+
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
+        let mut spec = self.spec.clone();
+        spec.mass = values[0];
+        Box::new(spec)
+    }
+}

@@ -1,0 +1,89 @@
+//! Test robots built in code and small helpers.
+#![allow(dead_code)]
+
+use std::path::Path;
+
+use armcomp_core::{Perturbation, Robot, RobotFile, StaticState, TreeWorkspace};
+use nalgebra::Vector3;
+
+/// Builds a robot from a TOML robot file; panics with the issues when it is invalid.
+pub fn robot(src: &str) -> Robot {
+    // Link the plugin crates so their typetag registrations are present.
+    let _ = armcomp_chains::plugins();
+    let _ = armcomp_elastic::plugins();
+    let file: RobotFile = toml::from_str(src).unwrap_or_else(|e| panic!("parse: {e}\n{src}"));
+    Robot::build(file, Path::new(".")).unwrap_or_else(|e| panic!("build: {e:?}"))
+}
+
+/// Builds a robot expecting it to fail; returns the issues' `path: message` lines.
+pub fn robot_issues(src: &str) -> Vec<String> {
+    let _ = armcomp_chains::plugins();
+    let _ = armcomp_elastic::plugins();
+    let file: RobotFile = toml::from_str(src).unwrap_or_else(|e| panic!("parse: {e}\n{src}"));
+    match Robot::build(file, Path::new(".")) {
+        Ok(_) => panic!("expected the robot to be rejected"),
+        Err(issues) => issues.iter().map(|i| format!("{}: {}", i.path, i.message)).collect(),
+    }
+}
+
+/// The perturbation model `m` of `robot` produces at `q` for parameter `values`, and the rigid frames.
+pub fn perturbation_of(
+    robot: &Robot,
+    m: usize,
+    values: &[f64],
+    q: &[f64],
+    temperature: Option<f64>,
+) -> (Perturbation, TreeWorkspace) {
+    let tree = robot.tree();
+    let mut rigid = TreeWorkspace::new(tree);
+    tree.forward_into(q, &mut rigid);
+    let mut pert = Perturbation::zeros(tree);
+    let state = StaticState {
+        q,
+        tree,
+        frames: &rigid,
+        mass: robot.mass(),
+        gravity: robot.gravity(),
+        temperature,
+    };
+    robot.error_models()[m].perturb(&state, values, &mut pert);
+    (pert, rigid)
+}
+
+/// World position of point `p` with model `m` alone at parameter `values`.
+pub fn point_with(
+    robot: &Robot,
+    m: usize,
+    values: &[f64],
+    q: &[f64],
+    temperature: Option<f64>,
+    p: usize,
+) -> Vector3<f64> {
+    let (pert, _) = perturbation_of(robot, m, values, q, temperature);
+    let mut ws = TreeWorkspace::new(robot.tree());
+    robot.tree().forward_perturbed_into(q, &pert, &mut ws);
+    ws.point[p].translation.vector
+}
+
+/// Relative difference `|a - b| / |b|`.
+pub fn rel(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    (a - b).norm() / b.norm()
+}
+
+/// A deterministic generator of uniform numbers in [0, 1) (SplitMix64).
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+}
+pub mod robots;

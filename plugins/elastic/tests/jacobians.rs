@@ -1,0 +1,222 @@
+//! Every plugin's parameter Jacobian at the tool: the analytic chain rule (the model's
+//! derivative mapped to the tool by Eq. 5) against central finite differences of the composed
+//! forward kinematics.
+
+mod common;
+
+use armcomp_core::TreeWorkspace;
+use armcomp_elastic::tool_differential_world;
+use common::{perturbation_of, robot};
+use nalgebra::Vector6;
+
+const ARM: &str = r#"
+name = "jac"
+gravity = [0.4, -0.9, -9.7]
+[kinematics]
+type = "mdh"
+[[kinematics.joints]]
+name = "j1"
+d = 0.2
+[[kinematics.joints]]
+name = "j2"
+alpha = 1.5707963267948966
+a = 0.1
+[[kinematics.joints]]
+name = "j3"
+kind = "prismatic"
+a = 0.9
+alpha = -1.5707963267948966
+[[kinematics.joints]]
+name = "j4"
+alpha = 1.5707963267948966
+a = 0.05
+d = 0.3
+[[links]]
+name = "j2"
+mass = 30.0
+com = [0.45, 0, 0]
+beam = { ei_y = 4.0e6, ei_z = 6.0e6, gj = 3.0e6 }
+[[links]]
+name = "j3"
+mass = 10.0
+com = [0, 0, 0.1]
+beam = { ei_y = 2.0e6, ei_z = 2.5e6, gj = 1.0e6 }
+[[links]]
+name = "j4"
+mass = 5.0
+com = [0.1, 0.02, 0.1]
+beam = { ei_y = 1.0e6, ei_z = 1.5e6, gj = 0.8e6 }
+[[points]]
+name = "tool"
+link = "j4"
+xyz = [0.1, 0.05, 0.25]
+[payload]
+mass = 4.0
+[[error_models]]
+type = "cantilever_deflection"
+[[error_models]]
+type = "joint_compliance"
+compliance = { j2 = 1.0e-6, j3 = 2.0e-7, j4 = 3.0e-6 }
+[[error_models]]
+type = "lateral_compliance"
+compliance = { j2 = [1.0e-6, 2.0e-6], j4 = [3.0e-6, 1.0e-6] }
+[[error_models]]
+type = "geometric_offsets"
+[[error_models]]
+type = "backlash"
+backlash = { j2 = 0.001, j4 = 0.002 }
+smoothing = 50.0
+[[error_models]]
+type = "encoder_eccentricity"
+eccentricity = { j1 = [0.001, -0.002], j4 = [0.0005, 0.001] }
+[[error_models]]
+type = "thermal_growth"
+coefficient = 1.2e-5
+[[error_models]]
+type = "base_tilt"
+[[error_models]]
+type = "payload_mass_error"
+mass = 1.0
+compliance = { j2 = 1.0e-6, j4 = 2.0e-6 }
+[[error_models]]
+type = "transmission_scale"
+scale = { j1 = 0.001, j3 = -0.002 }
+"#;
+
+/// Checks d(tool)/d(param) for every parameter of model `m`. Models linear in their
+/// parameters: the derivative of the deformation is the deformation at a unit parameter, taken
+/// at zero. The cantilever (deflection ∝ 1/scale) is checked at scale 1, where the derivative
+/// of the deformation is minus the deformation; its beams bend little (1e-5 rad), so Eq. 5 holds
+/// to that relative order. Position and orientation of the tool are both compared.
+fn check_model(m: usize, q: &[f64], temperature: Option<f64>) {
+    let r = robot(ARM);
+    let tool = r.tool();
+    let model = &r.error_models()[m];
+    let n = model.params().len();
+    assert!(n > 0);
+    let nonlinear = model.params()[0].name.starts_with("cantilever.");
+    let base: Vec<f64> = if nonlinear { vec![1.0; n] } else { vec![0.0; n] };
+    for k in 0..n {
+        let analytic = if nonlinear {
+            let (pert, rigid) = perturbation_of(&r, m, &base, q, temperature);
+            // Only the links whose scale is k contribute: isolate them by differencing.
+            let mut other = base.clone();
+            other[k] = 2.0;
+            let (pert2, _) = perturbation_of(&r, m, &other, q, temperature);
+            // d/ds (1/s)·D at s = 1 is −D_k, and D_k = 2·(D(1) − D(2)).
+            let (a, aw) = tool_differential_world(r.tree(), &rigid, &pert, tool);
+            let (b, bw) = tool_differential_world(r.tree(), &rigid, &pert2, tool);
+            let (d, w) = (-(a - b) * 2.0, -(aw - bw) * 2.0);
+            Vector6::new(d.x, d.y, d.z, w.x, w.y, w.z)
+        } else {
+            let mut unit = base.clone();
+            unit[k] = 1.0;
+            let (pert, rigid) = perturbation_of(&r, m, &unit, q, temperature);
+            let (d, w) = tool_differential_world(r.tree(), &rigid, &pert, tool);
+            Vector6::new(d.x, d.y, d.z, w.x, w.y, w.z)
+        };
+        let name = &model.params()[k].name;
+        let h = if nonlinear {
+            1e-3
+        } else if analytic.norm() > 0.0 {
+            1e-7 / analytic.norm()
+        } else {
+            1e-3
+        };
+        let mut plus = base.clone();
+        plus[k] += h;
+        let mut minus = base.clone();
+        minus[k] -= h;
+        let (pp, rp) = pose_with(&r, m, &plus, q, temperature, tool);
+        let (pm, rm) = pose_with(&r, m, &minus, q, temperature, tool);
+        let dp = (pp - pm) / (2.0 * h);
+        let dr = (rp * rm.inverse()).scaled_axis() / (2.0 * h);
+        let fd = Vector6::new(dp.x, dp.y, dp.z, dr.x, dr.y, dr.z);
+        if analytic.norm() < 1e-15 {
+            // No effect in this configuration (e.g. no torsion on the last link): none measured.
+            assert!(fd.norm() < 1e-9, "{name}: analytic 0, finite differences {fd}");
+            continue;
+        }
+        let err = (fd - analytic).norm() / analytic.norm();
+        let tol = if nonlinear { 1e-4 } else { 1e-6 };
+        assert!(
+            err < tol,
+            "{name}: analytic {analytic} vs finite differences {fd} (relative {err:e})"
+        );
+    }
+}
+
+/// Tool position and orientation with model `m` alone at `values`.
+fn pose_with(
+    r: &armcomp_core::Robot,
+    m: usize,
+    values: &[f64],
+    q: &[f64],
+    temperature: Option<f64>,
+    p: usize,
+) -> (nalgebra::Vector3<f64>, nalgebra::UnitQuaternion<f64>) {
+    let (pert, _) = perturbation_of(r, m, values, q, temperature);
+    let mut ws = TreeWorkspace::new(r.tree());
+    r.tree().forward_perturbed_into(q, &pert, &mut ws);
+    (ws.point[p].translation.vector, ws.point[p].rotation)
+}
+
+const Q: [f64; 4] = [0.4, 0.6, 0.3, -0.8];
+
+#[test]
+fn cantilever() {
+    check_model(0, &Q, None);
+}
+#[test]
+fn joint_compliance() {
+    check_model(1, &Q, None);
+}
+#[test]
+fn lateral_compliance() {
+    check_model(2, &Q, None);
+}
+#[test]
+fn geometric_offsets() {
+    check_model(3, &Q, None);
+}
+#[test]
+fn backlash() {
+    check_model(4, &Q, None);
+}
+#[test]
+fn encoder_eccentricity() {
+    check_model(5, &Q, None);
+}
+#[test]
+fn thermal_growth() {
+    check_model(6, &Q, Some(35.0));
+}
+#[test]
+fn base_tilt() {
+    check_model(7, &Q, None);
+}
+#[test]
+fn payload_mass_error() {
+    check_model(8, &Q, None);
+}
+#[test]
+fn transmission_scale() {
+    check_model(9, &Q, None);
+}
+
+#[test]
+fn every_plugin_is_registered_with_a_schema() {
+    let plugins = armcomp_elastic::plugins();
+    let r = robot(ARM);
+    for m in r.file.error_models.iter() {
+        let v = serde_json::to_value(m).unwrap();
+        let t = v["type"].as_str().unwrap().to_string();
+        assert!(plugins.iter().any(|p| p.type_name == t), "{t} not in plugins()");
+    }
+    let mut g = schemars::SchemaGenerator::default();
+    for p in &plugins {
+        assert!(p.diagnosis_candidate && !p.doc.is_empty());
+        let s = (p.schema)(&mut g);
+        assert!(s.as_object().is_some_and(|o| !o.is_empty()), "{}", p.type_name);
+    }
+}
