@@ -357,10 +357,11 @@ fn two_link_arm_matches_numerical_beam_integration() {
 // ---------------------------------------------------------------------------------------------
 // Joint compliance.
 
-#[test]
-fn compliance_under_known_torque_gives_expected_angle() {
-    // Joint axis horizontal (alpha = 90 deg turns z onto -y), 15 kg at 0.8 m along the link.
-    let src = r#"
+/// A horizontal revolute joint (alpha = 90 deg turns z onto -y) carrying 15 kg at 0.8 m, with
+/// joint compliance `c` in rad/(N m).
+fn pendulum(c: f64) -> String {
+    format!(
+        r#"
 name = "pendulum"
 [kinematics]
 type = "mdh"
@@ -377,9 +378,14 @@ link = "j1"
 xyz = [1.0, 0, 0]
 [[error_models]]
 type = "joint_compliance"
-compliance = { j1 = 2.0e-4 }
-"#;
-    let r = robot(src);
+compliance = {{ j1 = {c:e} }}
+"#
+    )
+}
+
+#[test]
+fn compliance_under_known_torque_gives_expected_angle() {
+    let r = robot(&pendulum(2.0e-4));
     let c = 2.0e-4;
     for q in [0.0, 0.4, -1.1] {
         let (pert, _) = perturbation_of(&r, 0, &[c], &[q], None);
@@ -514,26 +520,7 @@ fn bad_specs_are_reported_with_field_paths() {
 #[test]
 fn equilibrium_solves_the_fixed_point_and_reports_failure() {
     use armcomp_elastic::{ElasticError, EquilibriumOptions, EquilibriumWorkspace, solve_equilibrium};
-    let src = r#"
-name = "soft"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-alpha = 1.5707963267948966
-[[links]]
-name = "j1"
-mass = 15.0
-com = [0.8, 0, 0]
-[[points]]
-name = "tool"
-link = "j1"
-xyz = [1.0, 0, 0]
-[[error_models]]
-type = "joint_compliance"
-compliance = { j1 = 3.0e-3 }
-"#;
-    let r = robot(src);
+    let r = robot(&pendulum(3.0e-3));
     let (c, k) = (3.0e-3, 15.0 * G * 0.8);
     let q = 0.3;
     // Equilibrium: dq = -c k cos(q + dq); solved here by bisection on [-1, 0].
