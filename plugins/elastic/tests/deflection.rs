@@ -1,12 +1,10 @@
 //! Cantilever deflection against textbook values and a numerical integration of the beam
 //! equation; joint compliance against a known torque; Eq. 5 against the composed chain.
 
-mod common;
-
+use crate::common::{perturbation_of, rel, robot, robot_issues};
 use armcomp_core::geom::skew;
 use armcomp_core::{Perturbation, TreeWorkspace};
 use armcomp_elastic::tool_differential_world;
-use common::{perturbation_of, rel, robot, robot_issues};
 use nalgebra::{Matrix3, Vector3, Vector6};
 
 const G: f64 = 9.81;

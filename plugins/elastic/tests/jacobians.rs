@@ -2,11 +2,9 @@
 //! derivative mapped to the tool by Eq. 5) against central finite differences of the composed
 //! forward kinematics.
 
-mod common;
-
+use crate::common::{perturbation_of, robot};
 use armcomp_core::TreeWorkspace;
 use armcomp_elastic::tool_differential_world;
-use common::{perturbation_of, robot};
 use nalgebra::Vector6;
 
 const ARM: &str = r#"

@@ -1,5 +1,4 @@
 //! Test robots built in code and small helpers.
-#![allow(dead_code)]
 
 use std::path::Path;
 
@@ -50,40 +49,9 @@ pub fn perturbation_of(
     (pert, rigid)
 }
 
-/// World position of point `p` with model `m` alone at parameter `values`.
-pub fn point_with(
-    robot: &Robot,
-    m: usize,
-    values: &[f64],
-    q: &[f64],
-    temperature: Option<f64>,
-    p: usize,
-) -> Vector3<f64> {
-    let (pert, _) = perturbation_of(robot, m, values, q, temperature);
-    let mut ws = TreeWorkspace::new(robot.tree());
-    robot.tree().forward_perturbed_into(q, &pert, &mut ws);
-    ws.point[p].translation.vector
-}
-
 /// Relative difference `|a - b| / |b|`.
 pub fn rel(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
     (a - b).norm() / b.norm()
 }
 
-/// A deterministic generator of uniform numbers in [0, 1) (SplitMix64).
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^= z >> 31;
-        (z >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
 pub mod robots;
