@@ -26,6 +26,8 @@ enum Command {
     Calibrate(cmd::calibrate::Args),
     /// Position errors of a model on measurements, in mm.
     Evaluate(cmd::evaluate::Args),
+    /// Measurement poses: even sets, D-optimal subsets, trajectory-similar subsets.
+    Plan(cmd::plan::Args),
     /// Check robot files against the schema and semantically.
     Validate(cmd::validate::Args),
     /// Print the JSON Schema of robot files.
@@ -42,6 +44,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
+        Command::Plan(a) => cmd::plan::run(a),
         Command::Validate(a) => cmd::validate::run(a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Plugins(a) => cmd::plugins::run(a),

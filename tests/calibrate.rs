@@ -317,3 +317,86 @@ fn splits_keep_poses_together_and_cover_everything_once() {
     assert!(kfold(&samples, 31, 0).is_err());
     assert!(holdout(&samples, 1.0, 0).is_err());
 }
+
+#[test]
+fn calibrate_and_evaluate_on_the_command_line() {
+    use std::process::Command;
+    let dir = crate::common::Scratch::new("calibrate-cli");
+    let bin = env!("CARGO_BIN_EXE_armcomp");
+    let nominal_path = crate::common::root().join("robots/industrial-6dof.toml");
+    let nominal = robot("industrial-6dof.toml");
+    let (truth, _) = truth_of(&nominal, &[("j2.a", 2e-3), ("j3.alpha", 0.005), ("base.x", 0.5)]);
+    let write = |name: &str, samples: &[Sample]| {
+        let set = armcomp_core::measurement::MeasurementSet {
+            samples: samples.to_vec(),
+            warnings: vec![],
+        };
+        let text = armcomp_core::measurement::write_csv(&set, truth.tree(), truth.file.units);
+        dir.file(name, &text)
+    };
+    let train = write("train.csv", &measure(&truth, 120, 11));
+    let test = write("test.csv", &measure(&truth, 40, 12));
+    let model = dir.0.join("model.json");
+    let out = Command::new(bin)
+        .args(["calibrate", "--robot"])
+        .arg(&nominal_path)
+        .arg("--data")
+        .arg(&train)
+        .arg("--out")
+        .arg(&model)
+        .args(["--noise-mm", "0.05", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["converged"], true);
+    assert!(report["after"]["rms_mm"].as_f64().unwrap() < report["before"]["rms_mm"].as_f64().unwrap());
+
+    let evaluate = |model: &std::path::Path| {
+        let out = Command::new(bin)
+            .args(["evaluate", "--model"])
+            .arg(model)
+            .arg("--data")
+            .arg(&test)
+            .arg("--json")
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let after = evaluate(&model);
+    let before = evaluate(&nominal_path);
+    for key in ["n", "mean_mm", "std_mm", "rms_mm", "max_mm"] {
+        assert!(after[key].is_number(), "missing {key}");
+    }
+    for axis in ["x", "y", "z"] {
+        assert!(after["mean_abs_mm"][axis].is_number());
+    }
+    assert_eq!(after["n"], 40);
+    assert!(after["mean_mm"].as_f64().unwrap() < 1.15 * noise_floor_mm(NOISE));
+    assert!(before["mean_mm"].as_f64().unwrap() > 100.0);
+    // Independent check of the statistics: recompute from the errors of the written model.
+    let reloaded = Robot::from_path(&model).unwrap();
+    let samples = armcomp_core::measurement::read_csv(&test, reloaded.tree(), reloaded.file.units, reloaded.tool())
+        .unwrap()
+        .samples;
+    let errors = position_errors(&reloaded, &samples);
+    let mean = errors.iter().map(|e| e.norm()).sum::<f64>() / errors.len() as f64 * 1e3;
+    assert!((mean - after["mean_mm"].as_f64().unwrap()).abs() < 1e-9);
+
+    // The output may not be an input.
+    let out = Command::new(bin)
+        .args(["calibrate", "--robot"])
+        .arg(&nominal_path)
+        .arg("--data")
+        .arg(&train)
+        .arg("--out")
+        .arg(&train)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(
+        std::fs::read_to_string(&train).unwrap().starts_with("j1"),
+        "the input was overwritten"
+    );
+}

@@ -8,5 +8,6 @@ mod fk;
 mod jacobian;
 mod malformed;
 mod measurement;
+mod plan;
 mod robot_files;
 mod simulate;

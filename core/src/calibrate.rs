@@ -910,6 +910,48 @@ pub fn calibrate(
     })
 }
 
+/// Sensitivity of every marker's measured position at each pose to the parameters `identify`
+/// selects (as for [`calibrate`]): `3 × markers` rows per pose in pose order, one column per
+/// parameter (m per SI unit). Returns the matrix and the parameter names.
+pub fn identification_jacobian(
+    robot: &Robot,
+    poses: &[Vec<f64>],
+    identify: &[String],
+) -> Result<(DMatrix<f64>, Vec<String>)> {
+    let samples: Vec<Sample> = poses
+        .iter()
+        .flat_map(|q| {
+            robot.markers().iter().map(|&m| Sample {
+                q: q.clone(),
+                point: m,
+                position: Vector3::zeros(),
+                orientation: None,
+                payload: None,
+                temperature: None,
+                torque: None,
+            })
+        })
+        .collect();
+    for q in poses {
+        robot.tree().check_q(q)?;
+    }
+    let space = ParameterSpace::new(robot);
+    let selected = space.select(robot, identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples: &samples,
+        sigma: 1.0,
+    };
+    let theta = space.initial();
+    let (d, e, _) = problem.predict(&theta)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected)?;
+    Ok((
+        jac,
+        selected.iter().map(|&k| space.params[k].info.name.clone()).collect(),
+    ))
+}
+
 fn stats(samples: &[Sample], predicted: &[Vector3<f64>]) -> ErrorStats {
     let errors: Vec<Vector3<f64>> = samples.iter().zip(predicted).map(|(s, p)| s.position - p).collect();
     ErrorStats::from_errors(&errors)

@@ -14,6 +14,7 @@ pub mod mass;
 pub mod measurement;
 pub mod param;
 pub mod perturbation;
+pub mod plan;
 pub mod plugin;
 pub mod robot;
 pub mod robot_file;

@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod demo;
 pub mod evaluate;
 pub mod fk;
+pub mod plan;
 pub mod plugins;
 pub mod schema;
 pub mod simulate;
