@@ -400,3 +400,76 @@ fn calibrate_and_evaluate_on_the_command_line() {
         "the input was overwritten"
     );
 }
+
+/// Central differences of the measured positions through the full model, rebuilt from a
+/// robot file with the parameter moved: an independent reference for the Jacobian.
+fn fd_column(nominal: &Robot, poses: &[Vec<f64>], name: &str, h: f64) -> Vec<f64> {
+    let space = ParameterSpace::new(nominal);
+    let k = space.index(name).unwrap();
+    let at = |delta: f64| {
+        let mut theta = space.initial();
+        theta[k] += delta;
+        let r = space.apply(nominal, &theta).unwrap();
+        let mut ws = r.workspace();
+        poses
+            .iter()
+            .flat_map(|q| {
+                r.markers()
+                    .iter()
+                    .flat_map(|&m| r.measured_position(q, m, Default::default(), &mut ws).iter().copied().collect::<Vec<_>>())
+                    .collect::<Vec<_>>()
+            })
+            .collect::<Vec<f64>>()
+    };
+    let (plus, minus) = (at(h), at(-h));
+    plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * h)).collect()
+}
+
+#[test]
+fn identification_jacobian_matches_finite_differences_of_the_full_model() {
+    use armcomp_core::calibrate::identification_jacobian;
+    let models = "\n[[error_models]]\ntype = \"cantilever_deflection\"\n\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = { j2 = 2e-5, j5 = 3e-5 }\n\n[[error_models]]\ntype = \"lateral_compliance\"\ncompliance = { j4 = [1e-5, 2e-5] }\n";
+    let text = std::fs::read_to_string(crate::common::root().join("robots/rock-drill.toml")).unwrap();
+    let rock = crate::common::robot_from_toml(&format!("{text}{models}"));
+    let poe = robot("industrial-6dof-poe.toml");
+    let rigid = robot("rock-drill.toml");
+    // Tolerances relative to the column's largest entry: error-model columns compose the change
+    // of a deformation after the deformation itself, an error of the order of the deflection
+    // angles (about 1e-3 rad here); everything else is exact up to finite-difference error.
+    let cases: [(&Robot, f64, &[(&str, f64)]); 3] = [
+        (&rigid, 1e-6, &[("j2.a", 1e-6), ("j3.alpha", 1e-6), ("j6.d", 1e-6), ("base.roll", 1e-6)]),
+        (
+            &rock,
+            3e-3,
+            &[
+                ("j2.a", 1e-6),
+                ("j3.alpha", 1e-6),
+                ("j5.theta", 1e-6),
+                ("j7.d", 1e-6),
+                ("cantilever.boom.ei_scale", 1e-5),
+                ("joint_compliance.j5", 1e-8),
+                ("lateral_compliance.j4.v", 1e-8),
+                ("base.yaw", 1e-6),
+                ("marker.tool.y", 1e-6),
+            ],
+        ),
+        (&poe, 1e-6, &[("j2.axis_x", 1e-6), ("j3.point_z", 1e-6), ("j6.axis_y", 1e-6)]),
+    ];
+    for (r, tol, params) in cases {
+        let poses = configurations(r.tree(), Sampler::Halton, 12, 0).unwrap();
+        for (name, h) in params {
+            let (jac, names) = identification_jacobian(r, &poses, &[name.to_string()]).unwrap();
+            assert_eq!(names, [*name]);
+            let fd = fd_column(r, &poses, name, *h);
+            let scale = fd.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0, "{name} has no effect");
+            for (i, v) in fd.iter().enumerate() {
+                assert!(
+                    (jac[(i, 0)] - v).abs() < tol * scale,
+                    "{name} row {i}: Jacobian {} vs finite differences {v} (scale {scale})",
+                    jac[(i, 0)]
+                );
+            }
+        }
+    }
+}

@@ -452,6 +452,30 @@ impl Robot {
         tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
     }
 
+    /// Adds the deformation of error model `model` alone, with parameter `values`, to `out`,
+    /// at the rigid frames of the last [`forward_with_into`](Robot::forward_with_into) in `ws`
+    /// (same `tree`, `q` and `conditions`). Calibration differentiates models through this.
+    pub fn model_perturbation_into(
+        &self,
+        model: usize,
+        tree: &KinematicTree,
+        values: &[f64],
+        q: &[f64],
+        conditions: Conditions,
+        ws: &RobotWorkspace,
+        out: &mut Perturbation,
+    ) {
+        let state = StaticState {
+            q,
+            tree,
+            frames: &ws.rigid,
+            mass: if conditions.payload.is_some() { &ws.mass } else { &self.mass },
+            gravity: self.gravity,
+            temperature: conditions.temperature,
+        };
+        self.error_models[model].perturb(&state, values, out);
+    }
+
     /// Position of point `point` in the measurement frame for sample-like inputs, through the
     /// full model at the robot's own parameters (m).
     pub fn measured_position(

@@ -103,7 +103,9 @@ impl ErrorModelSpec for LateralComplianceSpec {
                     Quantity::Compliance,
                     c[k],
                     f64::INFINITY,
-                ));
+                )
+                // The spec accepts no negative compliance.
+                .with_bounds(0.0, f64::INFINITY));
             }
         }
         Ok(Box::new(LateralComplianceModel {
