@@ -26,10 +26,7 @@ compliance = { j2 = [1e-6, 1e-6], j4 = [1e-6, 1e-6], j5 = [1e-6, 1e-6] }
 
 fn nominal() -> Robot {
     armcomp::registry::plugins();
-    let text = format!(
-        "{}\n{MODELS}",
-        include_str!("../robots/rock-drill.toml")
-    );
+    let text = format!("{}\n{MODELS}", include_str!("../robots/rock-drill.toml"));
     let src = SourceFile {
         path: "rock-drill.toml".into(),
         text,
@@ -55,15 +52,24 @@ fn bench(c: &mut Criterion) {
     }
     let truth = space.apply(&nominal, &theta).expect("truth builds");
     let poses = configurations(truth.tree(), Sampler::Sobol, 900, 1).expect("poses");
-    let data = simulate(&truth, &poses, SimulateParams { noise_std: 0.05e-3, seed: 2 })
-        .expect("simulation")
-        .samples;
+    let data = simulate(
+        &truth,
+        &poses,
+        SimulateParams {
+            noise_std: 0.05e-3,
+            seed: 2,
+        },
+    )
+    .expect("simulation")
+    .samples;
     let params = CalibrationParams {
         identify: vec!["all".into()],
         measurement_std: 0.05e-3,
         ..CalibrationParams::default()
     };
-    let report = calibrate(&nominal, &data, &params, &mut |_| {}).expect("calibration").report;
+    let report = calibrate(&nominal, &data, &params, &mut |_| {})
+        .expect("calibration")
+        .report;
     eprintln!(
         "{} parameters, {} poses: {} iterations, converged {}, RMS {:.4} → {:.4} mm",
         report.params.len(),

@@ -310,6 +310,9 @@ pub struct CalibrationParams {
     /// Converged when an accepted step lowers `½χ²` (residuals in units of the noise) by less
     /// than this: such a change moves no parameter by a meaningful part of its uncertainty.
     pub min_improvement: f64,
+    /// Converged when an accepted step moves every parameter by less than this fraction of
+    /// its standard deviation (creeping along directions the data barely determines).
+    pub min_step: f64,
     /// Directions whose singular value is below this fraction of the largest (scaled
     /// Jacobian) count as not identifiable.
     pub rank_tolerance: f64,
@@ -326,6 +329,7 @@ impl Default for CalibrationParams {
             max_iterations: 100,
             tolerance: 1e-10,
             min_improvement: 1e-4,
+            min_step: 1e-2,
             rank_tolerance: 1e-5,
             use_priors: true,
         }
@@ -496,11 +500,11 @@ impl Problem<'_> {
 
     /// Jacobian of the measurement residuals with respect to the parameters `free`.
     ///
-    /// Error-model parameters, and on rigid robots the geometry that moves joint placements and
-    /// point frames, are differentiated through first-order twists at the deformed joint
-    /// frames: each costs a few vector operations per sample instead of a forward kinematics
-    /// run. Geometry of robots with error models, and geometry that changes a joint's motion
-    /// axis, is differenced through the full model.
+    /// On rigid robots, geometry that moves joint placements and point frames is
+    /// differentiated through first-order twists at the joint frames: a few vector operations
+    /// per sample instead of a forward kinematics run. Error-model parameters are differenced
+    /// through the deformed kinematics only (the model's share of the deformation re-evaluated,
+    /// the rigid frames reused); other geometry through the full model.
     fn jacobian(&self, theta: &[f64], d: &Decoded, e: &Evaluation, free: &[usize]) -> Result<DMatrix<f64>> {
         let plans = self.column_plans(theta, d, free)?;
         let ncols = plans.len();
@@ -513,7 +517,12 @@ impl Problem<'_> {
             .map_init(
                 || {
                     let pert = Perturbation::zeros(&d.tree);
-                    (self.robot.workspace(), self.robot.workspace(), vec![pert.clone(); n_models], pert)
+                    (
+                        self.robot.workspace(),
+                        self.robot.workspace(),
+                        vec![pert.clone(); n_models],
+                        pert,
+                    )
                 },
                 |(ws, ws_fd, base_perts, scratch), (s_idx, s)| {
                     let cond = Conditions::of(s);
@@ -532,14 +541,6 @@ impl Problem<'_> {
                         let v = f.rotation * xi.fixed_rows::<3>(0);
                         let w = f.rotation * xi.fixed_rows::<3>(3);
                         v + w.cross(&(p - f.translation.vector))
-                    };
-                    let offset_effect = |j: usize| -> Vector3<f64> {
-                        let f = &frames.joint_frame[j];
-                        match d.tree.joints()[j].motion {
-                            Motion::Revolute(a) => (f.rotation * a.into_inner()).cross(&(p - f.translation.vector)),
-                            Motion::Prismatic(a) => f.rotation * a.into_inner(),
-                            Motion::Fixed => Vector3::zeros(),
-                        }
                     };
                     let point_rot = frames.point[s.point].rotation;
                     let mut row = vec![0.0; 3 * ncols];
@@ -580,25 +581,18 @@ impl Problem<'_> {
                                 r_meas * dp
                             }
                             ColumnPlan::Model { model, index, h } => {
+                                // Total deformation with this model's share re-evaluated at
+                                // the stepped value; the rigid frames stay as they are.
                                 let mut values = d.errors[*model].clone();
                                 values[*index] += h;
-                                scratch.clear();
+                                scratch.clone_from(&ws.perturbation);
+                                subtract(scratch, &base_perts[*model]);
                                 self.robot
                                     .model_perturbation_into(*model, &d.tree, &values, &s.q, cond, ws, scratch);
-                                let base = &base_perts[*model];
-                                let mut dp = Vector3::zeros();
-                                for &j in support {
-                                    let dxi = (scratch.joint_twist[j] - base.joint_twist[j]) / *h;
-                                    if dxi != Vector6::zeros() {
-                                        dp += twist_effect(j, &dxi);
-                                    }
-                                    let doff = (scratch.joint_offset[j] - base.joint_offset[j]) / *h;
-                                    if doff != 0.0 {
-                                        dp += offset_effect(j) * doff;
-                                    }
-                                }
-                                let dpt = (scratch.point_twist[s.point] - base.point_twist[s.point]) / *h;
-                                dp += point_rot * dpt.fixed_rows::<3>(0);
+                                d.tree.forward_perturbed_into(&s.q, scratch, &mut ws_fd.frames);
+                                let dp = (ws_fd.frames.point[s.point].translation.vector
+                                    - ws.frames.point[s.point].translation.vector)
+                                    / *h;
                                 r_meas * dp
                             }
                         };
@@ -622,6 +616,22 @@ impl Problem<'_> {
     }
 }
 
+/// `out -= other`, entry by entry.
+fn subtract(out: &mut Perturbation, other: &Perturbation) {
+    out.joint_twist
+        .iter_mut()
+        .zip(&other.joint_twist)
+        .for_each(|(a, b)| *a -= b);
+    out.joint_offset
+        .iter_mut()
+        .zip(&other.joint_offset)
+        .for_each(|(a, b)| *a -= b);
+    out.point_twist
+        .iter_mut()
+        .zip(&other.point_twist)
+        .for_each(|(a, b)| *a -= b);
+}
+
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
 enum ColumnPlan {
     /// Geometry acting through joint placements and point frames: the twist per unit of the
@@ -632,7 +642,8 @@ enum ColumnPlan {
     },
     /// Geometry that changes a joint's motion: finite differences of the full model.
     Finite { tree: KinematicTree, h: f64 },
-    /// An error-model parameter: finite differences of that model's perturbation.
+    /// An error-model parameter: finite differences of the deformed kinematics with that
+    /// model's deformation re-evaluated (the rigid kinematics is reused).
     Model { model: usize, index: usize, h: f64 },
     /// A base-frame parameter: finite differences of `T_meas_base` (no kinematics).
     Base { theta: Vec<f64>, k: usize, h: f64 },
@@ -961,6 +972,15 @@ pub fn calibrate(
             g[c] += w * w * (theta[k] - theta0[k]);
         }
         let floor = 1e-12 * a.diagonal().max().max(1e-300);
+        // Standard deviations (in units of the noise) from the undamped normal matrix, to
+        // judge whether a step still moves anything that matters.
+        let std: Vec<f64> = match a.clone().cholesky() {
+            Some(c) => {
+                let inv = c.inverse();
+                (0..free.len()).map(|i| inv[(i, i)].max(0.0).sqrt()).collect()
+            }
+            None => vec![f64::INFINITY; free.len()],
+        };
         let mut accepted = false;
         while lambda <= 1e12 {
             let mut m = a.clone();
@@ -986,12 +1006,23 @@ pub fn calibrate(
             if cost1.is_finite() && cost1 < cost {
                 let improvement = cost - cost1;
                 let relative = improvement / cost.max(1e-300);
+                let moved = free
+                    .iter()
+                    .zip(&std)
+                    .map(|(&k, sd)| (trial[k] - theta[k]).abs() / sd)
+                    .fold(0.0, f64::max);
                 (theta, d, e, r, cost) = (trial, d1, e1, r1, cost1);
                 lambda = (lambda / 3.0).max(1e-12);
                 accepted = true;
                 if relative < params.tolerance || improvement < params.min_improvement {
                     converged = true;
                     stop_reason = format!("the last step improved ½χ² by only {improvement:.2e}");
+                } else if moved < params.min_step {
+                    converged = true;
+                    stop_reason = format!(
+                        "the last step moved no parameter by more than {:.1}% of its standard deviation",
+                        100.0 * moved
+                    );
                 }
                 break;
             }

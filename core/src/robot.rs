@@ -469,7 +469,11 @@ impl Robot {
             q,
             tree,
             frames: &ws.rigid,
-            mass: if conditions.payload.is_some() { &ws.mass } else { &self.mass },
+            mass: if conditions.payload.is_some() {
+                &ws.mass
+            } else {
+                &self.mass
+            },
             gravity: self.gravity,
             temperature: conditions.temperature,
         };

@@ -98,14 +98,16 @@ impl ErrorModelSpec for LateralComplianceSpec {
         joints.sort_by_key(|(j, _, _)| *j);
         for (j, _, c) in &joints {
             for (k, axis) in ["u", "v"].iter().enumerate() {
-                params.push(ParamInfo::new(
-                    format!("lateral_compliance.{}.{axis}", tree.joints()[*j].name),
-                    Quantity::Compliance,
-                    c[k],
-                    f64::INFINITY,
-                )
-                // The spec accepts no negative compliance.
-                .with_bounds(0.0, f64::INFINITY));
+                params.push(
+                    ParamInfo::new(
+                        format!("lateral_compliance.{}.{axis}", tree.joints()[*j].name),
+                        Quantity::Compliance,
+                        c[k],
+                        f64::INFINITY,
+                    )
+                    // The spec accepts no negative compliance.
+                    .with_bounds(0.0, f64::INFINITY),
+                );
             }
         }
         Ok(Box::new(LateralComplianceModel {
