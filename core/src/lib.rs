@@ -4,6 +4,7 @@
 //! The model/workspace split follows Pinocchio: [`KinematicTree`] is immutable, all buffers
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
 
+pub mod collision;
 pub mod error;
 pub mod geom;
 pub mod ik;
@@ -16,17 +17,19 @@ pub mod plugin;
 pub mod robot;
 pub mod robot_file;
 pub mod sampling;
+pub mod shape;
 pub mod simulate;
 pub mod tree;
 pub mod units;
 pub mod workspace;
 
+pub use collision::{CollisionModel, CollisionWorkspace, Contact};
 pub use error::{Error, Issue, Issues, Result};
 pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solve_ik};
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, ModelContext, PluginInfo,
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext, PluginInfo,
     PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Robot, RobotWorkspace};
