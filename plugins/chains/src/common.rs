@@ -59,7 +59,8 @@ pub struct PriorSpec {
 }
 
 impl PriorSpec {
-    fn sigma(&self, q: Quantity, units: &Units) -> f64 {
+    /// The prior standard deviation (SI) of a parameter of quantity `q`.
+    pub fn sigma(&self, q: Quantity, units: &Units) -> f64 {
         match q {
             Quantity::Length => self.length.map_or(0.005, |v| units.len(v)),
             Quantity::Angle => self.angle.map_or(1f64.to_radians(), |v| units.ang(v)),
