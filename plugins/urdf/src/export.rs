@@ -4,15 +4,16 @@
 //! The URDF parameters are URDF's own origin and axis, so every identified joint is
 //! expressible without adding frames.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use armcomp_core::{Error, KinematicTree, Motion, Result, Robot};
 
 use crate::chain::UrdfSpec;
 use crate::document::{UrdfDocument, UrdfJointType};
 
-/// The URDF text of `robot` at its current chain parameters; its kinematics must be `urdf`.
-pub fn calibrated_urdf(robot: &Robot) -> Result<String> {
+/// The URDF text of `robot` at its current chain parameters, and the URDF file it was
+/// rewritten from; the robot's kinematics must be `urdf`.
+pub fn calibrated_urdf(robot: &Robot) -> Result<(PathBuf, String)> {
     // The spec is a trait object; its serialised form says which plugin it is.
     let mut value = serde_json::to_value(&robot.file.kinematics)
         .map_err(|e| Error::Input(format!("cannot read the kinematics description: {e}")))?;
@@ -30,7 +31,7 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<String> {
     let dir = robot.source.as_deref().and_then(Path::parent).unwrap_or(Path::new("."));
     let path = dir.join(&spec.path);
     let doc = UrdfDocument::read(&path).map_err(|e| Error::Input(e.join("\n")))?;
-    Ok(rewrite(&doc, robot.tree()))
+    Ok((path, rewrite(&doc, robot.tree())))
 }
 
 /// `doc`'s text with the origins and axes of the joints of `tree` (matched by name).
