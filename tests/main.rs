@@ -1,6 +1,7 @@
 //! Integration tests of whole workflows through the library and the CLI (one test binary).
 
 mod cli;
+mod collision;
 mod common;
 mod conventions;
 mod fk;
@@ -9,3 +10,4 @@ mod malformed;
 mod measurement;
 mod robot_files;
 mod simulate;
+mod urdf;

@@ -84,7 +84,8 @@ pub struct CollisionModel {
     fixtures: Vec<(String, Pose, SharedShape)>,
     /// Shape index pairs (link vs link).
     pairs: Vec<(usize, usize)>,
-    /// (shape index, fixture index) pairs.
+    /// (shape index, fixture index) pairs. Fixtures go first in queries: parry 0.31 places a
+    /// half-space wrongly when it is the second shape of a contact query.
     fixture_pairs: Vec<(usize, usize)>,
     margin: f64,
 }
@@ -199,11 +200,13 @@ impl CollisionModel {
         }
         for &(i, f) in &self.fixture_pairs {
             let (fname, fpose, fshape) = &self.fixtures[f];
-            if let Some(c) = self.contact(&ws.poses[i], &self.shapes[i].shape, fpose, fshape) {
+            if let Some(c) = self.contact(fpose, fshape, &ws.poses[i], &self.shapes[i].shape) {
                 out.push(Contact {
                     first: name(&self.shapes[i]),
                     second: fname.clone(),
                     fixture: true,
+                    point_first: c.point_second,
+                    point_second: c.point_first,
                     ..c
                 });
             }
@@ -220,7 +223,7 @@ impl CollisionModel {
                 .is_some()
         }) || self.fixture_pairs.iter().any(|&(i, f)| {
             let (_, fpose, fshape) = &self.fixtures[f];
-            self.contact(&ws.poses[i], &self.shapes[i].shape, fpose, fshape)
+            self.contact(fpose, fshape, &ws.poses[i], &self.shapes[i].shape)
                 .is_some()
         })
     }
