@@ -64,7 +64,10 @@ fn ur5_matches_its_published_dh_table() {
     assert_eq!(r.tree().points()[r.tool()].name, "tool0");
     // Home: (a2 + a3, -(d4 + d6), d1 - d5), the figure in every UR5 kinematics note.
     let home = body_position(&r, &[0.0; 6], "tool0");
-    assert!((home - Vector3::new(-0.81725, -0.19145, -0.005491)).norm() < 1e-12, "{home:?}");
+    assert!(
+        (home - Vector3::new(-0.81725, -0.19145, -0.005491)).norm() < 1e-12,
+        "{home:?}"
+    );
     // Any pose: the classic DH product written out from the published table.
     let d = [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823];
     let a = [0.0, -0.425, -0.39225, 0.0, 0.0, 0.0];
@@ -154,7 +157,10 @@ fn tree_with_two_end_links_and_file_joint_order() {
         r.tree().coordinate_names(),
         ["right_shoulder", "torso_lift", "left_shoulder"]
     );
-    assert!(r.tree().coordinate_limits()[2].is_none(), "continuous joints have no limits");
+    assert!(
+        r.tree().coordinate_limits()[2].is_none(),
+        "continuous joints have no limits"
+    );
     let (qr, lift, ql) = (0.4, 0.1, -0.9);
     let q = [qr, lift, ql];
     // About +y by θ, x turns into (cos θ, 0, -sin θ).
@@ -274,10 +280,7 @@ fn calibrated_values_survive_the_model_file_and_export_urdf() {
         );
 
         // The model file (robot file with identified values) loads back to the same FK.
-        let model = s.file(
-            &format!("{name}.model.toml"),
-            &toml::to_string(&r.to_file()).unwrap(),
-        );
+        let model = s.file(&format!("{name}.model.toml"), &toml::to_string(&r.to_file()).unwrap());
         let again = Robot::from_path(&model).unwrap();
         assert_same_fk(&r, &again, &qs, 1e-12);
 
@@ -342,14 +345,20 @@ com = [150, 0, 0]
     assert_eq!(r.mass().bodies[right].mass, 2.0);
     assert!((r.mass().bodies[right].com - Vector3::new(0.15, 0.0, 0.0)).norm() < 1e-15);
     let file: RobotFile = toml::from_str(&toml::to_string(&r.to_file()).unwrap()).unwrap();
-    assert!(format!("{:?}", file.kinematics).contains("torso_lift"), "unchanged overrides are kept");
+    assert!(
+        format!("{:?}", file.kinematics).contains("torso_lift"),
+        "unchanged overrides are kept"
+    );
 
     let bad = s.file(
         "bad.toml",
         "name = \"b\"\n[kinematics]\ntype = \"urdf\"\npath = \"two.urdf\"\njoints = [{ name = \"nope\" }]\n",
     );
     let err = Robot::from_path(&bad).unwrap_err().to_string();
-    assert!(err.contains("bad.toml:5: kinematics.joints[0].name") && err.contains("`nope`"), "{err}");
+    assert!(
+        err.contains("bad.toml:5: kinematics.joints[0].name") && err.contains("`nope`"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -369,14 +378,15 @@ fn fk_takes_joint_values_by_name() {
     assert_eq!(v["points"].as_object().unwrap().len(), 8, "every link is a point");
     let (code, _, err) = crate::cli::armcomp(&["fk", "--robot", "robots/ur5.urdf", "--q", "wrist_9=1"]);
     assert_eq!(code, 1);
-    assert!(err.contains("no joint `wrist_9`") && err.contains("shoulder_pan_joint"), "{err}");
+    assert!(
+        err.contains("no joint `wrist_9`") && err.contains("shoulder_pan_joint"),
+        "{err}"
+    );
 }
 
 /// A URDF built around one bad piece.
 fn one_joint(joint: &str) -> String {
-    format!(
-        "<robot name=\"r\">\n<link name=\"base\"/>\n<link name=\"arm\"/>\n{joint}\n</robot>\n"
-    )
+    format!("<robot name=\"r\">\n<link name=\"base\"/>\n<link name=\"arm\"/>\n{joint}\n</robot>\n")
 }
 
 #[test]
@@ -470,7 +480,10 @@ fn ros_package_meshes_are_skipped_with_a_warning_and_stl_boxes_read() {
         panic!("{:?}", shapes[0].shape)
     };
     // STL stores single precision.
-    assert!((Vector3::from(size) - Vector3::new(0.4, 0.4, 0.1)).norm() < 1e-7, "{size:?}");
+    assert!(
+        (Vector3::from(size) - Vector3::new(0.4, 0.4, 0.1)).norm() < 1e-7,
+        "{size:?}"
+    );
     let c = shapes[0].local.translation.vector;
     assert!((c - Vector3::new(1.2, 0.0, 0.05)).norm() < 1e-7, "{c:?}");
     // The bare URDF still validates; the warning does not stop it.

@@ -29,8 +29,8 @@ pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solv
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext, PluginInfo,
-    PredictorSpec, Role, StaticState, TrainingSet,
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
+    PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};

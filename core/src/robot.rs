@@ -13,8 +13,8 @@ use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
 use crate::robot_file::{BeamSpec, RobotFile, SourceFile};
 use crate::shape::{Geometry, Shape};
-use crate::units::Units;
 use crate::tree::KinematicTree;
+use crate::units::Units;
 use crate::workspace::TreeWorkspace;
 
 /// A point resolved against the tree: body index and pose in the convention's link frame.
@@ -140,7 +140,9 @@ impl Robot {
         let mut mass = MassModel::massless(base_tree.bodies().len());
         let mut shapes = Vec::new();
         for l in chain.links() {
-            let Some(body) = base_tree.body_index(&l.name) else { continue };
+            let Some(body) = base_tree.body_index(&l.name) else {
+                continue;
+            };
             if let Some((m, com)) = l.mass {
                 mass.bodies[body].mass = m;
                 mass.bodies[body].com = com;

@@ -9,8 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Issue, Result};
 use crate::mass::Section;
-use crate::shape::Geometry;
 use crate::plugin::{ErrorModelSpec, KinematicsSpec, PredictorSpec};
+use crate::shape::Geometry;
 use crate::units::Units;
 
 fn default_gravity() -> [f64; 3] {

@@ -51,7 +51,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else if contacts.is_empty() {
         println!("no collision ({} shape pairs checked)", model.pair_count());
     } else {
-        println!("{} collision(s) ({} shape pairs checked):", contacts.len(), model.pair_count());
+        println!(
+            "{} collision(s) ({} shape pairs checked):",
+            contacts.len(),
+            model.pair_count()
+        );
         for c in &contacts {
             let what = if c.distance <= 0.0 {
                 format!("overlap {:.3} mm", -c.distance * 1e3)

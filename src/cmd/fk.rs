@@ -46,7 +46,9 @@ pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>>
         let mut seen = vec![false; tree.nq()];
         for part in parts {
             let Some((name, v)) = part.split_once('=') else {
-                bail!("--q mixes `name=value` pairs with a plain value (`{part}`); give all joints by name or all by position");
+                bail!(
+                    "--q mixes `name=value` pairs with a plain value (`{part}`); give all joints by name or all by position"
+                );
             };
             let name = name.trim();
             let Some(i) = names.iter().position(|n| n == name) else {
@@ -56,7 +58,10 @@ pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>>
                         names.join(", ")
                     );
                 }
-                bail!("--q: the robot has no joint `{name}`; its joints are: {}", names.join(", "));
+                bail!(
+                    "--q: the robot has no joint `{name}`; its joints are: {}",
+                    names.join(", ")
+                );
             };
             if std::mem::replace(&mut seen[i], true) {
                 bail!("--q gives `{name}` twice");

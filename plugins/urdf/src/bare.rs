@@ -56,10 +56,7 @@ pub fn robot_file_for_urdf(path: &Path) -> Result<RobotFile, Vec<String>> {
 pub fn robot_from_urdf(path: &Path) -> armcomp_core::Result<Robot> {
     let invalid = |messages: Vec<String>| armcomp_core::Error::InvalidFile {
         file: path.to_path_buf(),
-        issues: messages
-            .into_iter()
-            .map(|m| armcomp_core::Issue::new("", m))
-            .collect(),
+        issues: messages.into_iter().map(|m| armcomp_core::Issue::new("", m)).collect(),
     };
     let file = robot_file_for_urdf(path).map_err(invalid)?;
     let dir = path.parent().unwrap_or(Path::new("."));

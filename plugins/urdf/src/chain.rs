@@ -16,7 +16,7 @@ use std::path::PathBuf;
 
 use armcomp_chains::PriorSpec;
 use armcomp_core::{
-    BuildContext, Chain, Coupling, Issues, KinematicTree, KinematicsSpec, LinkData, Limits, Motion, ParamInfo,
+    BuildContext, Chain, Coupling, Issues, KinematicTree, KinematicsSpec, Limits, LinkData, Motion, ParamInfo,
     Quantity, Result, Units,
 };
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -130,16 +130,18 @@ fn tilt_basis(axis: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
 }
 
 impl UrdfChain {
-    fn compile(spec: &UrdfSpec, doc: &UrdfDocument, order: &[usize], ctx: &BuildContext<'_>) -> Result<UrdfChain, Issues> {
+    fn compile(
+        spec: &UrdfSpec,
+        doc: &UrdfDocument,
+        order: &[usize],
+        ctx: &BuildContext<'_>,
+    ) -> Result<UrdfChain, Issues> {
         let units = ctx.units;
         let mut issues = Issues::default();
         for (i, o) in spec.joints.iter().enumerate() {
             let path = format!("{}.joints[{i}]", ctx.path);
             match doc.joints.iter().find(|j| j.name == o.name) {
-                None => issues.push(
-                    format!("{path}.name"),
-                    format!("the URDF has no joint `{}`", o.name),
-                ),
+                None => issues.push(format!("{path}.name"), format!("the URDF has no joint `{}`", o.name)),
                 Some(j) if o.axis.is_some() && j.kind == UrdfJointType::Fixed => issues.push(
                     format!("{path}.axis"),
                     format!("joint `{}` is fixed and has no axis", o.name),
@@ -147,7 +149,10 @@ impl UrdfChain {
                 Some(_) => {}
             }
             if spec.joints[..i].iter().any(|p| p.name == o.name) {
-                issues.push(format!("{path}.name"), format!("joint `{}` is overridden twice", o.name));
+                issues.push(
+                    format!("{path}.name"),
+                    format!("joint `{}` is overridden twice", o.name),
+                );
             }
             for (field, v) in [("xyz", o.xyz), ("rpy", o.rpy), ("axis", o.axis)] {
                 if let Some(v) = v

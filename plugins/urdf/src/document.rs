@@ -227,13 +227,10 @@ impl UrdfDocument {
             {
                 errors.push(format!("{at}: <limit>: lower {lo} is above upper {hi}"));
             }
-            let mimic = j.mimic.as_ref().map(|m| {
-                (
-                    m.joint.clone(),
-                    m.multiplier.unwrap_or(1.0),
-                    m.offset.unwrap_or(0.0),
-                )
-            });
+            let mimic = j
+                .mimic
+                .as_ref()
+                .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0)));
             let child_range = |tag: &str| node.children().find(|n| n.has_tag_name(tag)).map(|n| n.range());
             joints.push(UrdfJoint {
                 name: j.name.clone(),
@@ -326,10 +323,7 @@ impl UrdfDocument {
                 !placed[i]
                     && placed_links.contains(&j.parent.as_str())
                     && j.mimic.as_ref().is_none_or(|(t, _, _)| {
-                        self.joints
-                            .iter()
-                            .position(|o| &o.name == t)
-                            .is_some_and(|k| placed[k])
+                        self.joints.iter().position(|o| &o.name == t).is_some_and(|k| placed[k])
                     })
             });
             let Some(i) = next else {
@@ -404,7 +398,10 @@ fn check_joint(el: roxmltree::Node<'_, '_>, at: &str, errors: &mut Vec<String>) 
     }
     for role in ["parent", "child"] {
         let found = el.children().find(|n| n.has_tag_name(role));
-        if found.and_then(|n| n.attribute("link")).is_none_or(|l| l.trim().is_empty()) {
+        if found
+            .and_then(|n| n.attribute("link"))
+            .is_none_or(|l| l.trim().is_empty())
+        {
             errors.push(format!("{at}: expected <{role} link=\"...\"/>"));
         }
     }

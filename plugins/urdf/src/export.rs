@@ -17,7 +17,11 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<(PathBuf, String)> {
     // The spec is a trait object; its serialised form says which plugin it is.
     let mut value = serde_json::to_value(&robot.file.kinematics)
         .map_err(|e| Error::Input(format!("cannot read the kinematics description: {e}")))?;
-    let kind = value.get("type").and_then(|t| t.as_str()).unwrap_or_default().to_string();
+    let kind = value
+        .get("type")
+        .and_then(|t| t.as_str())
+        .unwrap_or_default()
+        .to_string();
     if kind != "urdf" {
         return Err(Error::Input(format!(
             "export-urdf needs a robot whose kinematics is `type = \"urdf\"`; this one is `{kind}`"
@@ -42,11 +46,16 @@ pub fn rewrite(doc: &UrdfDocument, tree: &KinematicTree) -> String {
             continue;
         };
         // Insert missing elements just before `</joint>`.
-        let close = doc.text[j.range.clone()].rfind("</").map_or(j.range.end, |k| j.range.start + k);
+        let close = doc.text[j.range.clone()]
+            .rfind("</")
+            .map_or(j.range.end, |k| j.range.start + k);
         let p = t.placement;
         let (r, pitch, y) = p.rotation.euler_angles();
         let v = p.translation.vector;
-        let origin = format!("<origin xyz=\"{:?} {:?} {:?}\" rpy=\"{r:?} {pitch:?} {y:?}\"/>", v.x, v.y, v.z);
+        let origin = format!(
+            "<origin xyz=\"{:?} {:?} {:?}\" rpy=\"{r:?} {pitch:?} {y:?}\"/>",
+            v.x, v.y, v.z
+        );
         edits.push(match &j.origin_range {
             Some(range) => (range.clone(), origin),
             None => (close..close, format!("  {origin}\n  ")),
