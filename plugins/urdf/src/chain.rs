@@ -167,16 +167,7 @@ impl UrdfChain {
                 issues.push(format!("{path}.axis"), "expected a non-zero direction");
             }
         }
-        for (k, v) in [("length", spec.prior.length), ("angle", spec.prior.angle)] {
-            if let Some(v) = v
-                && !(v.is_finite() && v > 0.0)
-            {
-                issues.push(
-                    format!("{}.prior.{k}", ctx.path),
-                    format!("expected a positive standard deviation, got {v}"),
-                );
-            }
-        }
+        spec.prior.check(&format!("{}.prior", ctx.path), &mut issues);
         if !issues.is_empty() {
             return Err(issues);
         }
