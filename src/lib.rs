@@ -2,9 +2,11 @@
 //! registry, composes the robot-file JSON Schema from their specs, and checks robot files
 //! (schema first, then semantics), reporting every problem with file, line and field.
 
+pub mod load;
 pub mod registry;
 pub mod validate;
 
+pub use load::load_robot;
 pub use registry::{plugins, robot_schema, schema_text};
 pub use validate::{Diagnostic, validate_file};
 pub mod twins;

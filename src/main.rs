@@ -34,6 +34,10 @@ enum Command {
     Schema(cmd::schema::Args),
     /// List the registered plugins.
     Plugins(cmd::plugins::Args),
+    /// Write a model's identified URDF geometry back as a URDF.
+    ExportUrdf(cmd::export_urdf::Args),
+    /// Report self-collisions and collisions with fixtures at a configuration.
+    CheckPose(cmd::check_pose::Args),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +52,8 @@ fn main() -> ExitCode {
         Command::Validate(a) => cmd::validate::run(a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Plugins(a) => cmd::plugins::run(a),
+        Command::ExportUrdf(a) => cmd::export_urdf::run(a),
+        Command::CheckPose(a) => cmd::check_pose::run(a),
     };
     match result {
         Ok(code) => code,

@@ -69,10 +69,16 @@ fn pointer_to_path(pointer: &str) -> String {
     out
 }
 
-/// Checks one robot file: syntax and types, then the JSON Schema, then semantics (limits
+/// Checks one robot file (a bare URDF is read and built): syntax and types, then the JSON Schema, then semantics (limits
 /// ordered, positive lengths and stiffnesses, links and points that exist, known units).
 /// Returns every problem found; an empty list means the file is valid.
 pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
+    if crate::load::is_urdf(path) {
+        return match armcomp_urdf::robot_from_urdf(path) {
+            Ok(_) => Vec::new(),
+            Err(e) => from_error(path, e),
+        };
+    }
     let src = match SourceFile::read(path) {
         Ok(s) => s,
         Err(e) => return from_error(path, e),

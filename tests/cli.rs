@@ -4,7 +4,7 @@ use std::process::Command;
 
 use crate::common::{Scratch, root};
 
-fn armcomp(args: &[&str]) -> (i32, String, String) {
+pub fn armcomp(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_armcomp"))
         .args(args)
         .current_dir(root())

@@ -2,6 +2,7 @@
 
 mod calibrate;
 mod cli;
+mod collision;
 mod common;
 mod conventions;
 mod fk;
@@ -11,3 +12,4 @@ mod measurement;
 mod plan;
 mod robot_files;
 mod simulate;
+mod urdf;

@@ -5,6 +5,7 @@
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
 
 pub mod calibrate;
+pub mod collision;
 pub mod error;
 pub mod evaluate;
 pub mod geom;
@@ -19,19 +20,21 @@ pub mod plugin;
 pub mod robot;
 pub mod robot_file;
 pub mod sampling;
+pub mod shape;
 pub mod simulate;
 pub mod split;
 pub mod tree;
 pub mod units;
 pub mod workspace;
 
+pub use collision::{CollisionModel, CollisionWorkspace, Contact};
 pub use error::{Error, Issue, Issues, Result};
 pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solve_ik};
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, ModelContext, PluginInfo,
-    PredictorSpec, Role, StaticState, TrainingSet,
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
+    PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};

@@ -7,13 +7,14 @@
 use std::fmt::Debug;
 use std::path::Path;
 
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 use schemars::{Schema, SchemaGenerator};
 
 use crate::error::{Issues, Result};
 use crate::mass::MassModel;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
+use crate::shape::Shape;
 use crate::tree::KinematicTree;
 use crate::units::Units;
 use crate::workspace::TreeWorkspace;
@@ -96,6 +97,28 @@ pub trait Chain: Debug + Send + Sync {
     fn tree(&self, values: &[f64]) -> Result<KinematicTree>;
     /// The spec with `values` written back in the file's units, for model files.
     fn spec_with(&self, values: &[f64]) -> Box<dyn KinematicsSpec>;
+    /// Mass properties and shapes of links that the convention's own description carries (a
+    /// URDF's inertials and collision elements); the robot file's `links` override them.
+    fn links(&self) -> &[LinkData] {
+        &[]
+    }
+    /// Things skipped while reading the description (e.g. meshes that cannot be found), for
+    /// the user to see; none of them stops the build.
+    fn warnings(&self) -> &[String] {
+        &[]
+    }
+}
+
+/// What a convention's description says about one link besides kinematics, in the tree body
+/// frame (SI).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LinkData {
+    /// The link (body) name.
+    pub name: String,
+    /// Mass (kg) and centre of mass (m), when given.
+    pub mass: Option<(f64, Vector3<f64>)>,
+    /// Collision shapes with their frames in the body frame.
+    pub shapes: Vec<(Isometry3<f64>, Shape)>,
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -4,14 +4,17 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Isometry3, Vector3};
 
+use crate::collision::{BodyShape, CollisionGeometry, Fixture};
 use crate::error::{Error, Issue, Issues, Result};
 use crate::geom::xyz_rpy;
-use crate::mass::{BeamRigidity, BodyMass, MassModel, Payload};
+use crate::mass::{BeamRigidity, MassModel, Payload};
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
 use crate::robot_file::{BeamSpec, RobotFile, SourceFile};
+use crate::shape::{Geometry, Shape};
 use crate::tree::KinematicTree;
+use crate::units::Units;
 use crate::workspace::TreeWorkspace;
 
 /// A point resolved against the tree: body index and pose in the convention's link frame.
@@ -42,6 +45,8 @@ pub struct Robot {
     markers: Vec<usize>,
     /// Where a payload given per measurement hangs: body and centre of mass in it (m).
     payload_site: (usize, Vector3<f64>),
+    collision: CollisionGeometry,
+    warnings: Vec<String>,
 }
 
 /// Conditions of one evaluation that error models may depend on besides the joint values.
@@ -153,8 +158,24 @@ impl Robot {
             );
         }
 
-        // Mass model.
+        // Mass model and shapes: the convention's own (URDF inertials and collision
+        // elements) first, then the file's links override them.
         let mut mass = MassModel::massless(base_tree.bodies().len());
+        let mut shapes = Vec::new();
+        for l in chain.links() {
+            let Some(body) = base_tree.body_index(&l.name) else {
+                continue;
+            };
+            if let Some((m, com)) = l.mass {
+                mass.bodies[body].mass = m;
+                mass.bodies[body].com = com;
+            }
+            shapes.extend(l.shapes.iter().map(|(local, shape)| BodyShape {
+                body,
+                local: *local,
+                shape: *shape,
+            }));
+        }
         for (i, l) in file.links.iter().enumerate() {
             let path = format!("links[{i}]");
             let Some(body) = base_tree.body_index(&l.name) else {
@@ -182,19 +203,75 @@ impl Robot {
             {
                 issues.push(format!("{path}.com"), "expected three finite numbers");
             }
-            let com = frame
-                .transform_point(&units.len3(l.com.unwrap_or([0.0; 3])).into())
-                .coords;
-            let beam = l
+            if !l.shapes.is_empty() {
+                shapes.retain(|s| s.body != body);
+                for (k, s) in l.shapes.iter().enumerate() {
+                    let spath = format!("{path}.shapes[{k}]");
+                    if let Some(shape) = placed_shape(&s.geometry, s.xyz, s.rpy, &units, &spath, &mut issues) {
+                        if shape.1 == Shape::Plane {
+                            issues.push(
+                                format!("{spath}.geometry"),
+                                "a plane is unbounded: declare it as a fixture",
+                            );
+                            continue;
+                        }
+                        shapes.push(BodyShape {
+                            body,
+                            local: frame * shape.0,
+                            shape: shape.1,
+                        });
+                    }
+                }
+            }
+            let from_density = match (l.density, l.mass) {
+                (Some(_), Some(_)) => {
+                    issues.push(
+                        format!("{path}.density"),
+                        "give either `mass` or `density` (with shapes), not both",
+                    );
+                    None
+                }
+                (Some(rho), None) if !(rho.is_finite() && rho > 0.0) => {
+                    issues.push(
+                        format!("{path}.density"),
+                        format!("expected a positive density in kg/m³, got {rho}"),
+                    );
+                    None
+                }
+                (Some(rho), None) => {
+                    let solids = shapes
+                        .iter()
+                        .filter(|s| s.body == body)
+                        .filter_map(|s| Some(s.shape.mass_properties(rho)?.transformed(&s.local)))
+                        .reduce(|a, b| a.combined(&b));
+                    if solids.is_none() {
+                        issues.push(
+                            format!("{path}.density"),
+                            "a density needs the link's `shapes` (or URDF collision elements) to give a volume",
+                        );
+                    }
+                    solids
+                }
+                (None, _) => None,
+            };
+            let body_mass = &mut mass.bodies[body];
+            if let Some(m) = l.mass {
+                body_mass.mass = m;
+            }
+            if let Some(solid) = from_density {
+                body_mass.mass = solid.mass;
+                body_mass.com = solid.com;
+            }
+            if let Some(c) = l.com {
+                body_mass.com = frame.transform_point(&units.len3(c).into()).coords;
+            }
+            body_mass.beam = l
                 .beam
                 .as_ref()
                 .and_then(|b| beam_rigidity(b, units.length.to_si(), &format!("{path}.beam"), &mut issues));
-            mass.bodies[body] = BodyMass {
-                mass: l.mass.unwrap_or(0.0),
-                com,
-                beam,
-            };
         }
+        let collision = collision_geometry(&file, &base_tree, shapes, &mut issues);
+        let warnings = chain.warnings().to_vec();
 
         // Payload; without one, a payload given per measurement hangs at the tool.
         let mut payload_site = (0, Vector3::zeros());
@@ -271,6 +348,8 @@ impl Robot {
             t_meas_base,
             markers,
             payload_site,
+            collision,
+            warnings,
         };
         robot.tree = robot
             .tree_for(&robot.chain_values)
@@ -375,6 +454,14 @@ impl Robot {
     /// Current parameter values of each error model (SI).
     pub fn error_values(&self) -> &[Vec<f64>] {
         &self.error_values
+    }
+    /// Link shapes, fixtures and collision settings (see [`CollisionModel`](crate::CollisionModel)).
+    pub fn collision(&self) -> &CollisionGeometry {
+        &self.collision
+    }
+    /// What was skipped while reading the description (e.g. meshes that cannot be found).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
     }
 
     /// Sets the chain parameters and rebuilds the tree.
@@ -528,6 +615,8 @@ impl Robot {
                 .collect(),
             predictor: None,
             measurement: self.file.measurement.clone(),
+            fixtures: self.file.fixtures.clone(),
+            collision: self.file.collision.clone(),
         };
         // Predictor specs are not clonable trait objects; round-trip through JSON keeps them.
         if let Some(p) = &self.file.predictor {
@@ -545,6 +634,80 @@ fn body_names(tree: &KinematicTree) -> String {
         .map(|b| format!("`{}`", b.name))
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// A shape and its frame in metres, or issues naming what is not finite or not positive.
+fn placed_shape(
+    geometry: &Geometry,
+    xyz: [f64; 3],
+    rpy: [f64; 3],
+    units: &Units,
+    path: &str,
+    issues: &mut Issues,
+) -> Option<(Isometry3<f64>, Shape)> {
+    if xyz.iter().chain(&rpy).any(|v| !v.is_finite()) {
+        issues.push(format!("{path}.xyz"), "expected finite numbers for `xyz` and `rpy`");
+        return None;
+    }
+    match geometry.to_shape(units) {
+        Ok(shape) => Some((xyz_rpy(units.len3(xyz), units.ang3(rpy)), shape)),
+        Err(message) => {
+            issues.push(format!("{path}.geometry"), message);
+            None
+        }
+    }
+}
+
+/// Fixtures, margin and ignored pairs resolved against the tree.
+fn collision_geometry(
+    file: &RobotFile,
+    tree: &KinematicTree,
+    shapes: Vec<BodyShape>,
+    issues: &mut Issues,
+) -> CollisionGeometry {
+    let units = file.units;
+    let mut fixtures: Vec<Fixture> = Vec::new();
+    for (i, f) in file.fixtures.iter().enumerate() {
+        let path = format!("fixtures[{i}]");
+        if fixtures.iter().any(|g| g.name == f.name) {
+            issues.push(format!("{path}.name"), format!("fixture `{}` is defined twice", f.name));
+        }
+        if let Some((pose, shape)) = placed_shape(&f.geometry, f.xyz, f.rpy, &units, &path, issues) {
+            fixtures.push(Fixture {
+                name: f.name.clone(),
+                pose,
+                shape,
+            });
+        }
+    }
+    let spec = file.collision.clone().unwrap_or_default();
+    if !(spec.margin.is_finite() && spec.margin >= 0.0) {
+        issues.push(
+            "collision.margin",
+            format!("expected a distance of zero or more (length unit), got {}", spec.margin),
+        );
+    }
+    let mut ignore = Vec::new();
+    for (i, pair) in spec.ignore.iter().enumerate() {
+        let found: Vec<Option<usize>> = pair.iter().map(|n| tree.body_index(n)).collect();
+        for (k, name) in pair.iter().enumerate() {
+            if found[k].is_none() {
+                issues.push(
+                    format!("collision.ignore[{i}][{k}]"),
+                    format!("link `{name}` does not exist; links are: {}", body_names(tree)),
+                );
+            }
+        }
+        if let [Some(a), Some(b)] = found[..] {
+            ignore.push((a, b));
+        }
+    }
+    CollisionGeometry {
+        shapes,
+        fixtures,
+        margin: units.len(spec.margin),
+        ignore,
+    }
 }
 
 /// Rigidities of a beam description, or issues naming what is missing or not positive.

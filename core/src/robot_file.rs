@@ -10,6 +10,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Issue, Result};
 use crate::mass::Section;
 use crate::plugin::{ErrorModelSpec, KinematicsSpec, PredictorSpec};
+use crate::shape::Geometry;
 use crate::units::Units;
 
 fn default_gravity() -> [f64; 3] {
@@ -62,6 +63,12 @@ pub struct RobotFile {
     /// The measurement setup: where the tracker is, which points it sees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measurement: Option<MeasurementSpec>,
+    /// Shapes fixed in the cell (floor, tables, walls), for collision checking.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fixtures: Vec<FixtureSpec>,
+    /// Collision-checking settings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub collision: Option<CollisionSpec>,
 }
 
 /// Mass properties and beam section of one link.
@@ -79,6 +86,58 @@ pub struct LinkSpec {
     /// The link seen as a beam, for the deflection model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub beam: Option<BeamSpec>,
+    /// Density (kg/m³): without `mass`, the link's mass and centre of mass are those of its
+    /// `shapes` made of this material.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub density: Option<f64>,
+    /// Solid shapes of the link, for collision checking (and mass with `density`); they replace
+    /// the collision elements a URDF gives for this link.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shapes: Vec<ShapeSpec>,
+}
+
+/// A shape placed in a link's frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeSpec {
+    /// The shape (dimensions in the length unit); `plane` is for fixtures only.
+    pub geometry: Geometry,
+    /// Position of the shape's frame in the link frame (length unit).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation of the shape's frame in the link frame, roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// A shape fixed in the robot's base frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FixtureSpec {
+    /// Name used in collision reports.
+    pub name: String,
+    /// The shape (dimensions in the length unit); `plane` is the half-space below the frame's
+    /// xy plane, a floor.
+    pub geometry: Geometry,
+    /// Position of the shape's frame in the base frame (length unit).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Orientation of the shape's frame in the base frame, roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// Collision-checking settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+#[serde(deny_unknown_fields)]
+pub struct CollisionSpec {
+    /// Shapes closer than this count as colliding (length unit; default 0: touching).
+    #[serde(default)]
+    pub margin: f64,
+    /// Link pairs never checked against each other, e.g. `[["upper_arm", "cable_guide"]]`.
+    /// Links on the same rigid body and links one joint apart are never checked anyway.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ignore: Vec<[String; 2]>,
 }
 
 /// A link's beam: a section and a material, or the rigidities directly.

@@ -212,6 +212,38 @@ impl KinematicTree {
         Ok(self.bodies.len() - 1)
     }
 
+    /// Renumbers the independent coordinates so that new coordinate `k` is old coordinate
+    /// `order[k]`: conventions whose file order differs from the tree's topological order use
+    /// it so that `q` follows the file.
+    pub fn reorder_coordinates(&mut self, order: &[usize]) -> Result<()> {
+        let n = self.nq();
+        let mut new_of_old = vec![usize::MAX; n];
+        for (k, &old) in order.iter().enumerate() {
+            if old >= n || new_of_old[old] != usize::MAX {
+                return Err(Error::Input(format!("{order:?} is not a permutation of 0..{n}")));
+            }
+            new_of_old[old] = k;
+        }
+        if order.len() != n {
+            return Err(Error::Dimension {
+                what: "coordinate order".into(),
+                expected: n,
+                got: order.len(),
+            });
+        }
+        self.coord_names = order.iter().map(|&o| self.coord_names[o].clone()).collect();
+        self.coord_limits = order.iter().map(|&o| self.coord_limits[o]).collect();
+        self.coord_is_prismatic = order.iter().map(|&o| self.coord_is_prismatic[o]).collect();
+        for joint in &mut self.joints {
+            match &mut joint.coordinate {
+                Coordinate::Independent(i) => *i = new_of_old[*i],
+                Coordinate::Mimic(c) => c.terms.iter_mut().for_each(|t| t.0 = new_of_old[t.0]),
+                Coordinate::None => {}
+            }
+        }
+        Ok(())
+    }
+
     /// Sets the convention frame of a body (see [`Body::convention_frame`]).
     pub fn set_convention_frame(&mut self, body: usize, frame: Isometry3<f64>) {
         self.bodies[body].convention_frame = frame;

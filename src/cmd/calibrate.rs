@@ -1,7 +1,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::Robot;
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::param::Quantity;
@@ -38,7 +37,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     check_not_input(&args.out, &[&args.robot, &args.data])?;
-    let robot = Robot::from_path(&args.robot)?;
+    let robot = armcomp::load_robot(&args.robot)?;
     let data = read_measurements(&robot, &args.data)?;
     let params = CalibrationParams {
         identify: args.identify.clone(),

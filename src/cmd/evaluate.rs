@@ -1,7 +1,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::Robot;
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 
 use super::read_measurements;
@@ -20,7 +19,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = Robot::from_path(&args.model)?;
+    let robot = armcomp::load_robot(&args.model)?;
     let data = read_measurements(&robot, &args.data)?;
     let stats = ErrorStats::from_errors(&position_errors(&robot, &data.samples));
     if args.json {

@@ -7,11 +7,12 @@ use nalgebra::UnitQuaternion;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Robot file (TOML, or JSON by extension).
+    /// Robot file (TOML, or JSON by extension), or a bare URDF.
     #[arg(long)]
     robot: PathBuf,
-    /// Joint values, comma-separated, one per independent joint in file order: revolute in rad
-    /// (deg with --deg), prismatic in m.
+    /// Joint values, comma-separated: one per independent joint in file order, or
+    /// `name=value` pairs (joints not named stay at zero); revolute in rad (deg with --deg),
+    /// prismatic in m.
     #[arg(long, allow_hyphen_values = true)]
     q: String,
     /// Revolute values are in degrees.
@@ -22,30 +23,68 @@ pub struct Args {
     json: bool,
 }
 
-/// Parses `--q` into SI joint values for `robot`.
+/// Parses `--q` into SI joint values for `robot`: one value per independent joint in order
+/// (`0.1,0.2,...`), or `name=value` pairs (`shoulder=0.3,elbow=-1.2`) with the joints not
+/// named at zero.
 pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>> {
     let tree = robot.tree();
     let names = tree.coordinate_names();
-    let mut q = Vec::new();
-    for (i, part) in text.split(',').enumerate() {
+    let value = |i: usize, what: &str, part: &str| -> anyhow::Result<f64> {
         let v: f64 = part
             .trim()
             .parse()
-            .with_context(|| format!("--q value {} (`{}`) is not a number", i + 1, part.trim()))?;
+            .with_context(|| format!("--q {what} (`{}`) is not a number", part.trim()))?;
         if !v.is_finite() {
-            bail!("--q value {} is not finite", i + 1);
+            bail!("--q {what} is not finite");
         }
         let prismatic = tree.coordinate_is_prismatic().get(i).copied().unwrap_or(false);
-        q.push(if deg && !prismatic { v.to_radians() } else { v });
-    }
-    if q.len() != tree.nq() {
-        bail!(
-            "--q has {} values but the robot has {} joints: {}",
-            q.len(),
-            tree.nq(),
-            names.join(", ")
-        );
-    }
+        Ok(if deg && !prismatic { v.to_radians() } else { v })
+    };
+    let parts: Vec<&str> = text.split(',').collect();
+    let q = if parts.iter().any(|p| p.contains('=')) {
+        let mut q = vec![0.0; tree.nq()];
+        let mut seen = vec![false; tree.nq()];
+        for part in parts {
+            let Some((name, v)) = part.split_once('=') else {
+                bail!(
+                    "--q mixes `name=value` pairs with a plain value (`{part}`); give all joints by name or all by position"
+                );
+            };
+            let name = name.trim();
+            let Some(i) = names.iter().position(|n| n == name) else {
+                if tree.joint_index(name).is_some() {
+                    bail!(
+                        "--q: joint `{name}` is fixed or follows another joint (mimic); set one of: {}",
+                        names.join(", ")
+                    );
+                }
+                bail!(
+                    "--q: the robot has no joint `{name}`; its joints are: {}",
+                    names.join(", ")
+                );
+            };
+            if std::mem::replace(&mut seen[i], true) {
+                bail!("--q gives `{name}` twice");
+            }
+            q[i] = value(i, &format!("value of `{name}`"), v)?;
+        }
+        q
+    } else {
+        let q = parts
+            .iter()
+            .enumerate()
+            .map(|(i, part)| value(i, &format!("value {}", i + 1), part))
+            .collect::<anyhow::Result<Vec<f64>>>()?;
+        if q.len() != tree.nq() {
+            bail!(
+                "--q has {} values but the robot has {} joints: {}",
+                q.len(),
+                tree.nq(),
+                names.join(", ")
+            );
+        }
+        q
+    };
     for (i, lim) in tree.coordinate_limits().iter().enumerate() {
         if let Some(l) = lim
             && (q[i] < l.lower - 1e-12 || q[i] > l.upper + 1e-12)
@@ -60,7 +99,7 @@ pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>>
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = Robot::from_path(&args.robot)?;
+    let robot = armcomp::load_robot(&args.robot)?;
     let q = parse_q(&robot, &args.q, args.deg)?;
     let frames = robot.forward(&q)?;
     let tree = robot.tree();

@@ -1,8 +1,10 @@
 //! One module per subcommand.
 
 pub mod calibrate;
+pub mod check_pose;
 pub mod demo;
 pub mod evaluate;
+pub mod export_urdf;
 pub mod fk;
 pub mod plan;
 pub mod plugins;

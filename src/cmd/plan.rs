@@ -1,8 +1,9 @@
+use std::cell::RefCell;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, bail};
-use armcomp_core::Robot;
+use armcomp_core::collision::CollisionModel;
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::measurement::{parse_poses, write_poses};
 use armcomp_core::plan::{Space, d_optimal, spread, trajectory_similar};
@@ -57,13 +58,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         inputs.push(t.as_path());
     }
     check_not_input(&args.out, &inputs)?;
-    let robot = Robot::from_path(&args.robot)?;
+    let robot = armcomp::load_robot(&args.robot)?;
     let space = match args.space.as_str() {
         "joint" => Space::Joint,
         "cartesian" => Space::Cartesian,
         other => bail!("unknown --space `{other}`; expected joint or cartesian"),
     };
-    let accept = |_: &[f64]| true;
+    // Poses in collision (self-collision or fixtures) are never planned.
+    let collision = CollisionModel::new(&robot);
+    let collision_ws = RefCell::new(collision.workspace());
+    let accept = |q: &[f64]| !collision.collides(q, &mut collision_ws.borrow_mut());
     let (poses, note) = match args.method.as_str() {
         "d-optimal" => {
             let pool_n = args.pool.unwrap_or(10 * args.n);
@@ -119,7 +123,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         sampler => {
             let plan = spread(&robot, space, Sampler::parse(sampler)?, args.n, args.seed, &accept)?;
-            let note = format!("{} unreachable candidates skipped", plan.unreachable);
+            let note = format!(
+                "{} unreachable and {} colliding candidates skipped",
+                plan.unreachable, plan.rejected
+            );
             (plan.poses, note)
         }
     };

@@ -2,7 +2,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use armcomp_core::Robot;
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::measurement::{parse_poses, write_csv};
 use armcomp_core::sampling::{Sampler, configurations};
@@ -10,7 +9,7 @@ use armcomp_core::simulate::{SimulateParams, simulate};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The truth robot file (its error models carry the true values).
+    /// The truth robot file (its error models carry the true values), or a bare URDF.
     #[arg(long)]
     robot: PathBuf,
     /// Number of poses to draw inside the joint limits (ignored with --poses).
@@ -39,7 +38,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         inputs.push(p.as_path());
     }
     check_not_input(&args.out, &inputs)?;
-    let truth = Robot::from_path(&args.robot)?;
+    let truth = armcomp::load_robot(&args.robot)?;
     let poses = match &args.poses {
         Some(p) => {
             let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;

@@ -59,7 +59,23 @@ pub struct PriorSpec {
 }
 
 impl PriorSpec {
-    fn sigma(&self, q: Quantity, units: &Units) -> f64 {
+    /// Records an issue for each standard deviation that is not positive; `path` is the
+    /// spec's `prior` field.
+    pub fn check(&self, path: &str, issues: &mut Issues) {
+        for (k, v) in [("length", self.length), ("angle", self.angle)] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                issues.push(
+                    format!("{path}.{k}"),
+                    format!("expected a positive standard deviation, got {v}"),
+                );
+            }
+        }
+    }
+
+    /// The prior standard deviation (SI) of a parameter of quantity `q`.
+    pub fn sigma(&self, q: Quantity, units: &Units) -> f64 {
         match q {
             Quantity::Length => self.length.map_or(0.005, |v| units.len(v)),
             Quantity::Angle => self.angle.map_or(1f64.to_radians(), |v| units.ang(v)),
@@ -319,16 +335,7 @@ impl ChainCore {
             });
             bodies.push(child);
         }
-        for (k, v) in [("length", prior.length), ("angle", prior.angle)] {
-            if let Some(v) = v
-                && !(v.is_finite() && v > 0.0)
-            {
-                issues.push(
-                    format!("{}.prior.{k}", ctx.path),
-                    format!("expected a positive standard deviation, got {v}"),
-                );
-            }
-        }
+        prior.check(&format!("{}.prior", ctx.path), &mut issues);
         if !issues.is_empty() {
             return Err(issues);
         }

@@ -1,0 +1,69 @@
+//! A bare URDF as a robot: what `--robot arm.urdf` stands for.
+
+use std::path::Path;
+
+use armcomp_core::robot_file::PointSpec;
+use armcomp_core::{Robot, RobotFile, Units};
+
+use crate::chain::UrdfSpec;
+use crate::document::UrdfDocument;
+
+/// The robot file a bare URDF stands for: SI units, the URDF's kinematics and inertials, one
+/// point at the origin of every link (named as the link), and the tool at the last link the
+/// file lists that carries no joint (an end link).
+pub fn robot_file_for_urdf(path: &Path) -> Result<RobotFile, Vec<String>> {
+    let doc = UrdfDocument::read(path)?;
+    let points = doc
+        .links
+        .iter()
+        .map(|l| PointSpec {
+            name: l.name.clone(),
+            link: l.name.clone(),
+            xyz: [0.0; 3],
+            rpy: [0.0; 3],
+        })
+        .collect();
+    let tool = doc
+        .links
+        .iter()
+        .rev()
+        .find(|l| !doc.joints.iter().any(|j| j.parent == l.name))
+        .map_or_else(|| doc.root.clone(), |l| l.name.clone());
+    let absolute = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+    Ok(RobotFile {
+        name: doc.name.clone(),
+        description: Some(format!("URDF {}", path.display())),
+        units: Units::default(),
+        gravity: [0.0, 0.0, -9.81],
+        kinematics: Box::new(UrdfSpec {
+            path: absolute.display().to_string(),
+            joints: Vec::new(),
+            prior: Default::default(),
+        }),
+        links: Vec::new(),
+        points,
+        tool,
+        payload: None,
+        error_models: Vec::new(),
+        predictor: None,
+        measurement: None,
+        fixtures: Vec::new(),
+        collision: None,
+    })
+}
+
+/// Builds the robot of a bare URDF; problems name the URDF file, line and element.
+pub fn robot_from_urdf(path: &Path) -> armcomp_core::Result<Robot> {
+    let invalid = |messages: Vec<String>| armcomp_core::Error::InvalidFile {
+        file: path.to_path_buf(),
+        issues: messages.into_iter().map(|m| armcomp_core::Issue::new("", m)).collect(),
+    };
+    let file = robot_file_for_urdf(path).map_err(invalid)?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut robot = Robot::build(file, dir).map_err(|issues| armcomp_core::Error::InvalidFile {
+        file: path.to_path_buf(),
+        issues,
+    })?;
+    robot.source = Some(path.to_path_buf());
+    Ok(robot)
+}
