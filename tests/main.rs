@@ -8,4 +8,5 @@ mod jacobian;
 mod malformed;
 mod measurement;
 mod robot_files;
+mod runtime_plugins;
 mod simulate;

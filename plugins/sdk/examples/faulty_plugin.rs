@@ -36,7 +36,10 @@ impl ErrorModelSpec for FaultySpec {
     fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
         if self.mode == Mode::Reject {
             let mut issues = Issues::default();
-            issues.push(format!("{}.mode", ctx.build.path), "this model rejects its config on purpose");
+            issues.push(
+                format!("{}.mode", ctx.build.path),
+                "this model rejects its config on purpose",
+            );
             return Err(issues);
         }
         Ok(Box::new(FaultyModel {

@@ -126,7 +126,11 @@ fn parse_config<S: DeserializeOwned>(config: &str, path: &str) -> Result<S, Issu
     let mut de = serde_json::Deserializer::from_str(config);
     serde_path_to_error::deserialize(&mut de).map_err(|e| {
         let field = e.path().to_string();
-        let field = if field == "." { String::new() } else { format!(".{field}") };
+        let field = if field == "." {
+            String::new()
+        } else {
+            format!(".{field}")
+        };
         let mut issues = Issues::default();
         let message = e.into_inner().to_string();
         let message = message.split(" at line ").next().unwrap_or_default().to_string();
@@ -172,7 +176,12 @@ fn entry(types: &[TypeEntry], index: u32) -> Result<&TypeEntry, Failure> {
 ///
 /// # Safety
 /// `out` must be valid for one write.
-pub unsafe fn type_info(types: &[TypeEntry], schemas: &OnceLock<Vec<String>>, index: u32, out: *mut AbiTypeInfo) -> i32 {
+pub unsafe fn type_info(
+    types: &[TypeEntry],
+    schemas: &OnceLock<Vec<String>>,
+    index: u32,
+    out: *mut AbiTypeInfo,
+) -> i32 {
     guard(|| {
         let t = entry(types, index)?;
         let schemas = schemas.get_or_init(|| types.iter().map(|t| (t.schema)()).collect());
@@ -370,10 +379,18 @@ pub unsafe fn model_perturb(
         };
         h.perturbation.clear();
         h.model.perturb(&state, values, &mut h.perturbation);
-        for (dst, t) in h.joint_twists.chunks_exact_mut(TWIST_LEN).zip(&h.perturbation.joint_twist) {
+        for (dst, t) in h
+            .joint_twists
+            .chunks_exact_mut(TWIST_LEN)
+            .zip(&h.perturbation.joint_twist)
+        {
             dst.copy_from_slice(t.as_slice());
         }
-        for (dst, t) in h.point_twists.chunks_exact_mut(TWIST_LEN).zip(&h.perturbation.point_twist) {
+        for (dst, t) in h
+            .point_twists
+            .chunks_exact_mut(TWIST_LEN)
+            .zip(&h.perturbation.point_twist)
+        {
             dst.copy_from_slice(t.as_slice());
         }
         let view = AbiPerturbation {
@@ -401,7 +418,12 @@ pub unsafe fn model_spec_with(model: *mut c_void, values: *const f64, n_values: 
         // SAFETY: `values` is valid for `n_values` reads.
         let values = unsafe { slice(values, n_values) }?;
         if values.len() != h.model.params().len() {
-            return Err(format!("expected {} parameter values, got {}", h.model.params().len(), values.len()).into());
+            return Err(format!(
+                "expected {} parameter values, got {}",
+                h.model.params().len(),
+                values.len()
+            )
+            .into());
         }
         let spec = h.model.spec_with(values);
         let mut json = serde_json::to_value(&spec).map_err(|e| format!("the spec does not serialise: {e}"))?;

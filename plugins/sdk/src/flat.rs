@@ -295,8 +295,12 @@ pub(crate) unsafe fn tree_from_abi(t: &AbiTree) -> Result<KinematicTree, String>
     };
     let n_terms = starts.last().copied().unwrap_or(0);
     // SAFETY: the coupling arrays hold `coupling_starts[n_joints]` terms.
-    let (term_coords, term_mults) =
-        unsafe { (slice(t.coupling_coordinates, n_terms)?, slice(t.coupling_multipliers, n_terms)?) };
+    let (term_coords, term_mults) = unsafe {
+        (
+            slice(t.coupling_coordinates, n_terms)?,
+            slice(t.coupling_multipliers, n_terms)?,
+        )
+    };
     // SAFETY: the point arrays hold `n_points` entries.
     let (point_names, point_bodies, point_locals) = unsafe {
         (
@@ -351,8 +355,12 @@ pub(crate) unsafe fn tree_from_abi(t: &AbiTree) -> Result<KinematicTree, String>
         tree.set_convention_frame(b, read_pose(&frames[POSE_LEN * b..]));
     }
     for p in 0..np {
-        tree.add_point(name(point_names[p])?, point_bodies[p], read_pose(&point_locals[POSE_LEN * p..]))
-            .map_err(|e| e.to_string())?;
+        tree.add_point(
+            name(point_names[p])?,
+            point_bodies[p],
+            read_pose(&point_locals[POSE_LEN * p..]),
+        )
+        .map_err(|e| e.to_string())?;
     }
     Ok(tree)
 }
@@ -364,7 +372,13 @@ pub(crate) unsafe fn tree_from_abi(t: &AbiTree) -> Result<KinematicTree, String>
 pub(crate) unsafe fn mass_into(m: &AbiMass, out: &mut MassModel) -> Result<(), String> {
     let n = m.n_bodies;
     // SAFETY: the caller guarantees the documented lengths.
-    let (mass, com, beam) = unsafe { (slice(m.body_mass, n)?, slice(m.body_com, 3 * n)?, slice(m.body_beam, 3 * n)?) };
+    let (mass, com, beam) = unsafe {
+        (
+            slice(m.body_mass, n)?,
+            slice(m.body_com, 3 * n)?,
+            slice(m.body_beam, 3 * n)?,
+        )
+    };
     out.bodies.resize(
         n,
         BodyMass {

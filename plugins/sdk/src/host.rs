@@ -131,8 +131,8 @@ impl PluginLibrary {
             .unwrap_or_default();
         // SAFETY: loading runs the library's initialisers; a plugin library is trusted code the
         // user named, and it is never unloaded, so no symbol outlives it.
-        let library = unsafe { Library::new(path) }
-            .map_err(|e| format!("{file_name} is not a loadable shared library: {e}"))?;
+        let library =
+            unsafe { Library::new(path) }.map_err(|e| format!("{file_name} is not a loadable shared library: {e}"))?;
         let library: &'static Library = Box::leak(Box::new(library));
         macro_rules! symbol {
             ($name:literal, $ty:ty) => {
@@ -141,8 +141,7 @@ impl PluginLibrary {
                 *unsafe { library.get::<$ty>(concat!($name, "\0").as_bytes()) }.map_err(|_| {
                     format!(
                         "{file_name} does not export `{}`, which plugin ABI version {} requires",
-                        $name,
-                        ABI_VERSION
+                        $name, ABI_VERSION
                     )
                 })?
             };
@@ -205,10 +204,17 @@ impl PluginLibrary {
             let validator = if schema.is_empty() {
                 None
             } else {
-                let value: Value = serde_json::from_str(&schema)
-                    .map_err(|e| format!("{}: type `{name}` has a config schema that is not JSON: {e}", lib.file_name))?;
+                let value: Value = serde_json::from_str(&schema).map_err(|e| {
+                    format!(
+                        "{}: type `{name}` has a config schema that is not JSON: {e}",
+                        lib.file_name
+                    )
+                })?;
                 Some(jsonschema::validator_for(&value).map_err(|e| {
-                    format!("{}: type `{name}` has a config schema that does not compile: {e}", lib.file_name)
+                    format!(
+                        "{}: type `{name}` has a config schema that does not compile: {e}",
+                        lib.file_name
+                    )
                 })?)
             };
             lib.types.push(LoadedType {
@@ -253,7 +259,11 @@ impl PluginLibrary {
                     "{} has no {} named `{name}`; it has: {}",
                     self.file_name,
                     role.field().trim_end_matches('s').replace('_', " "),
-                    if names.is_empty() { "none".into() } else { names.join(", ") }
+                    if names.is_empty() {
+                        "none".into()
+                    } else {
+                        names.join(", ")
+                    }
                 )
             })
     }
@@ -594,8 +604,7 @@ impl PluginErrorModel {
         };
         // SAFETY: a live handle; the state's arrays live in `call.state` and `state` for the
         // call; `values` and `view` are valid.
-        let status =
-            unsafe { (lib.api.model_perturb)(handle, &abi_state, values.as_ptr(), values.len(), &mut view) };
+        let status = unsafe { (lib.api.model_perturb)(handle, &abi_state, values.as_ptr(), values.len(), &mut view) };
         if status != STATUS_OK {
             return Err(lib.describe_failure(status, "perturb"));
         }
@@ -661,8 +670,8 @@ impl PluginErrorModel {
         }
         // SAFETY: the string is valid until the next call with this handle.
         let json = unsafe { owned(json) };
-        let config: Value =
-            serde_json::from_str(&json).map_err(|e| format!("{}: spec_with returned invalid JSON: {e}", lib.file_name))?;
+        let config: Value = serde_json::from_str(&json)
+            .map_err(|e| format!("{}: spec_with returned invalid JSON: {e}", lib.file_name))?;
         Ok(PluginErrorModelSpec {
             config,
             ..self.spec.clone()
@@ -760,7 +769,10 @@ impl PredictorSpec for PluginPredictorSpec {
         // SAFETY: the arrays of `set` and `config` live for the call; `handle` is valid.
         let status = unsafe { (lib.api.predictor_fit)(ty.index, abi_str(&config), &set, &mut handle) };
         if status != STATUS_OK || handle.is_null() {
-            return Err(Error::Input(lib.describe_failure(status, &format!("predictor `{}` cannot be fitted", self.model))));
+            return Err(Error::Input(lib.describe_failure(
+                status,
+                &format!("predictor `{}` cannot be fitted", self.model),
+            )));
         }
         Ok(Box::new(PluginPredictor::new(lib, ty, self.model.clone(), handle)?))
     }
@@ -817,7 +829,9 @@ impl PluginPredictor {
         let status = unsafe { (library.api.predictor_shape)(handle, n_inputs, n_outputs) };
         if status != STATUS_OK {
             // Dropping `predictor` destroys the handle.
-            return Err(Error::Input(library.describe_failure(status, &format!("predictor `{}` shape", ty.info.type_name))));
+            return Err(Error::Input(
+                library.describe_failure(status, &format!("predictor `{}` shape", ty.info.type_name)),
+            ));
         }
         Ok(predictor)
     }
@@ -840,7 +854,12 @@ impl PluginPredictor {
         lock(&self.failure).clone()
     }
 
-    fn try_predict(&self, input: &[f64], out: &mut [f64], std: Option<&mut [f64]>) -> std::result::Result<bool, String> {
+    fn try_predict(
+        &self,
+        input: &[f64],
+        out: &mut [f64],
+        std: Option<&mut [f64]>,
+    ) -> std::result::Result<bool, String> {
         let lib = self.library;
         if input.len() != self.n_inputs || out.len() != self.n_outputs {
             return Err(format!(
@@ -856,12 +875,25 @@ impl PluginPredictor {
         let call = lock(&self.call);
         let (with_std, std_ptr) = match std {
             Some(s) if s.len() == self.n_outputs => (1, s.as_mut_ptr()),
-            Some(_) => return Err(format!("{}: standard deviation buffer of the wrong size", lib.file_name)),
+            Some(_) => {
+                return Err(format!(
+                    "{}: standard deviation buffer of the wrong size",
+                    lib.file_name
+                ));
+            }
             None => (0, std::ptr::null_mut()),
         };
         // SAFETY: a live handle; `input`, `out` and `std_ptr` hold the sizes passed.
         let status = unsafe {
-            (lib.api.predictor_predict)(call.0, input.as_ptr(), input.len(), out.as_mut_ptr(), out.len(), with_std, std_ptr)
+            (lib.api.predictor_predict)(
+                call.0,
+                input.as_ptr(),
+                input.len(),
+                out.as_mut_ptr(),
+                out.len(),
+                with_std,
+                std_ptr,
+            )
         };
         match status {
             STATUS_OK => {}

@@ -66,12 +66,18 @@ impl ErrorModelSpec for CableSagSpec {
             Some(_) => {}
         }
         if !(self.length.is_finite() && self.length > 0.0) {
-            issues.push(format!("{path}.length"), format!("expected a positive length, got {}", self.length));
+            issues.push(
+                format!("{path}.length"),
+                format!("expected a positive length, got {}", self.length),
+            );
         }
         if !(self.mass_per_length.is_finite() && self.mass_per_length >= 0.0) {
             issues.push(
                 format!("{path}.mass_per_length"),
-                format!("expected a mass per length of zero or more kg/m, got {}", self.mass_per_length),
+                format!(
+                    "expected a mass per length of zero or more kg/m, got {}",
+                    self.mass_per_length
+                ),
             );
         }
         let Some(body) = body.filter(|_| issues.is_empty()) else {
@@ -129,7 +135,9 @@ impl ErrorModel for CableSagModel {
     }
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
-        let Some(beam) = state.mass.bodies[self.body].beam else { return };
+        let Some(beam) = state.mass.bodies[self.body].beam else {
+            return;
+        };
         let frame = &state.frames.body[self.body];
         let w = frame.rotation.inverse_transform_vector(&state.gravity) * values[0];
         let lift = |a: &Attached| {
