@@ -22,6 +22,12 @@ enum Command {
     Fk(cmd::fk::Args),
     /// Simulated measurements of a truth robot file, with tracker noise.
     Simulate(cmd::simulate::Args),
+    /// Identify a model from measurements (Levenberg–Marquardt with priors).
+    Calibrate(cmd::calibrate::Args),
+    /// Position errors of a model on measurements, in mm.
+    Evaluate(cmd::evaluate::Args),
+    /// Measurement poses: even sets, D-optimal subsets, trajectory-similar subsets.
+    Plan(cmd::plan::Args),
     /// Check robot files against the schema and semantically.
     Validate(cmd::validate::Args),
     /// Print the JSON Schema of robot files.
@@ -36,6 +42,9 @@ fn main() -> ExitCode {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Fk(a) => cmd::fk::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Evaluate(a) => cmd::evaluate::run(a),
+        Command::Plan(a) => cmd::plan::run(a),
         Command::Validate(a) => cmd::validate::run(a),
         Command::Schema(a) => cmd::schema::run(a),
         Command::Plugins(a) => cmd::plugins::run(a),

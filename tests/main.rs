@@ -1,5 +1,6 @@
 //! Integration tests of whole workflows through the library and the CLI (one test binary).
 
+mod calibrate;
 mod cli;
 mod common;
 mod conventions;
@@ -7,6 +8,7 @@ mod fk;
 mod jacobian;
 mod malformed;
 mod measurement;
+mod plan;
 mod robot_files;
 mod runtime_plugins;
 mod simulate;

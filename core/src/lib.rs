@@ -4,7 +4,9 @@
 //! The model/workspace split follows Pinocchio: [`KinematicTree`] is immutable, all buffers
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
 
+pub mod calibrate;
 pub mod error;
+pub mod evaluate;
 pub mod geom;
 pub mod ik;
 pub mod io;
@@ -12,11 +14,13 @@ pub mod mass;
 pub mod measurement;
 pub mod param;
 pub mod perturbation;
+pub mod plan;
 pub mod plugin;
 pub mod robot;
 pub mod robot_file;
 pub mod sampling;
 pub mod simulate;
+pub mod split;
 pub mod tree;
 pub mod units;
 pub mod workspace;
@@ -29,7 +33,7 @@ pub use plugin::{
     BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, ModelContext, PluginInfo,
     PredictorSpec, Role, StaticState, TrainingSet,
 };
-pub use robot::{Robot, RobotWorkspace};
+pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};
 pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
 pub use units::{AngleUnit, LengthUnit, Units};

@@ -369,14 +369,8 @@ fn check_magnitudes(
 /// Writes measurements as CSV in the given units (joint columns as `name[unit]`, positions as
 /// `x[unit]`); deterministic text for equal inputs.
 pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> String {
-    let names = tree.coordinate_names();
-    let prismatic = tree.coordinate_is_prismatic();
-    let (lu, au) = (units.length.symbol(), units.angle.symbol());
-    let mut header: Vec<String> = names
-        .iter()
-        .zip(prismatic)
-        .map(|(n, p)| format!("{n}[{}]", if *p { lu } else { au }))
-        .collect();
+    let lu = units.length.symbol();
+    let mut header = joint_header(tree, units);
     let several_points = set.samples.iter().any(|s| s.point != set.samples[0].point);
     if several_points {
         header.push("point".into());
@@ -398,11 +392,7 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
     let mut out = header.join(",");
     out.push('\n');
     for s in &set.samples {
-        let mut row: Vec<String> =
-            s.q.iter()
-                .zip(prismatic)
-                .map(|(v, p)| format!("{}", if *p { units.len_out(*v) } else { units.ang_out(*v) }))
-                .collect();
+        let mut row = joint_row(&s.q, tree, units);
         if several_points {
             row.push(tree.points()[s.point].name.clone());
         }
@@ -417,6 +407,36 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
             row.push(format!("{}", s.temperature.unwrap_or(20.0)));
         }
         out.push_str(&row.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// Joint column headers with units (`j2[deg]`, `j3[mm]`).
+fn joint_header(tree: &KinematicTree, units: Units) -> Vec<String> {
+    let (lu, au) = (units.length.symbol(), units.angle.symbol());
+    tree.coordinate_names()
+        .iter()
+        .zip(tree.coordinate_is_prismatic())
+        .map(|(n, p)| format!("{n}[{}]", if *p { lu } else { au }))
+        .collect()
+}
+
+/// Joint values of one row in the header's units.
+fn joint_row(q: &[f64], tree: &KinematicTree, units: Units) -> Vec<String> {
+    q.iter()
+        .zip(tree.coordinate_is_prismatic())
+        .map(|(v, p)| format!("{}", if *p { units.len_out(*v) } else { units.ang_out(*v) }))
+        .collect()
+}
+
+/// Writes joint configurations as a poses CSV (the joint columns of the measurement format),
+/// which [`parse_poses`] and `armcomp simulate --poses` read back.
+pub fn write_poses(poses: &[Vec<f64>], tree: &KinematicTree, units: Units) -> String {
+    let mut out = joint_header(tree, units).join(",");
+    out.push('\n');
+    for q in poses {
+        out.push_str(&joint_row(q, tree, units).join(","));
         out.push('\n');
     }
     out

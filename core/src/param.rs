@@ -51,16 +51,29 @@ pub struct ParamInfo {
     pub nominal: f64,
     /// Prior standard deviation (SI) used to regularise identification; `f64::INFINITY` for none.
     pub sigma: f64,
+    /// Smallest physically meaningful value (SI); `-f64::INFINITY` for none.
+    pub lower: f64,
+    /// Largest physically meaningful value (SI); `f64::INFINITY` for none.
+    pub upper: f64,
 }
 
 impl ParamInfo {
-    /// A parameter with a prior.
+    /// A parameter with a prior and no bounds.
     pub fn new(name: impl Into<String>, quantity: Quantity, nominal: f64, sigma: f64) -> Self {
         ParamInfo {
             name: name.into(),
             quantity,
             nominal,
             sigma,
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
         }
+    }
+
+    /// The same parameter restricted to `[lower, upper]` (SI), which calibration respects.
+    pub fn with_bounds(mut self, lower: f64, upper: f64) -> Self {
+        self.lower = lower;
+        self.upper = upper;
+        self
     }
 }

@@ -40,6 +40,27 @@ pub struct Robot {
     error_values: Vec<Vec<f64>>,
     t_meas_base: Isometry3<f64>,
     markers: Vec<usize>,
+    /// Where a payload given per measurement hangs: body and centre of mass in it (m).
+    payload_site: (usize, Vector3<f64>),
+}
+
+/// Conditions of one evaluation that error models may depend on besides the joint values.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Conditions {
+    /// Ambient temperature (°C).
+    pub temperature: Option<f64>,
+    /// Payload mass (kg) replacing the robot file's payload.
+    pub payload: Option<f64>,
+}
+
+impl Conditions {
+    /// The conditions a measured sample records.
+    pub fn of(sample: &crate::measurement::Sample) -> Self {
+        Conditions {
+            temperature: sample.temperature,
+            payload: sample.payload,
+        }
+    }
 }
 
 /// Buffers for evaluating a [`Robot`]: rigid frames, the deformation, the deformed frames.
@@ -51,6 +72,8 @@ pub struct RobotWorkspace {
     pub perturbation: Perturbation,
     /// Forward kinematics of the deformed arm (equal to `rigid` without error models).
     pub frames: TreeWorkspace,
+    /// The mass model with a per-evaluation payload applied.
+    pub mass: MassModel,
 }
 
 impl Robot {
@@ -173,7 +196,16 @@ impl Robot {
             };
         }
 
-        // Payload.
+        // Payload; without one, a payload given per measurement hangs at the tool.
+        let mut payload_site = (0, Vector3::zeros());
+        if let Some(t) = tool {
+            payload_site = (
+                points[t].body,
+                (base_tree.bodies()[points[t].body].convention_frame * points[t].local)
+                    .translation
+                    .vector,
+            );
+        }
         if let Some(p) = &file.payload {
             if !(p.mass.is_finite() && p.mass >= 0.0) {
                 issues.push(
@@ -190,6 +222,7 @@ impl Robot {
                         body: q.body,
                         com: local.translation.vector,
                     });
+                    payload_site = (q.body, local.translation.vector);
                 }
                 None => issues.push("payload.point", format!("point `{name}` does not exist")),
             }
@@ -237,6 +270,7 @@ impl Robot {
             error_values: Vec::new(),
             t_meas_base,
             markers,
+            payload_site,
         };
         robot.tree = robot
             .tree_for(&robot.chain_values)
@@ -279,6 +313,23 @@ impl Robot {
             tree.add_point(p.name.clone(), p.body, local)?;
         }
         Ok(tree)
+    }
+
+    /// Folder that relative paths in the description resolve against.
+    pub fn base_dir(&self) -> PathBuf {
+        self.source
+            .as_deref()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf)
+            .unwrap_or_default()
+    }
+
+    /// Builds another robot from `file` as if it lived next to this one (same folder, same
+    /// source for messages); used to apply identified values.
+    pub fn rebuild(&self, file: RobotFile) -> Result<Robot> {
+        let mut robot = Robot::build(file, &self.base_dir()).map_err(Error::InvalidModel)?;
+        robot.source = self.source.clone();
+        Ok(robot)
     }
 
     /// The compiled kinematic convention.
@@ -346,30 +397,74 @@ impl Robot {
             rigid: TreeWorkspace::new(&self.tree),
             perturbation: Perturbation::zeros(&self.tree),
             frames: TreeWorkspace::new(&self.tree),
+            mass: self.mass.clone(),
         }
     }
 
     /// Forward kinematics of the full model (chain + error models) into `ws.frames`.
     /// `temperature` (°C) is passed to models that use it.
     pub fn forward_into(&self, q: &[f64], temperature: Option<f64>, ws: &mut RobotWorkspace) {
-        self.tree.forward_into(q, &mut ws.rigid);
+        let conditions = Conditions {
+            temperature,
+            payload: None,
+        };
+        self.forward_with_into(&self.tree, &self.error_values, q, conditions, ws);
+    }
+
+    /// Forward kinematics of the full model with other parameter values than the robot's own:
+    /// `tree` from [`tree_for`](Robot::tree_for) and one value list per error model (what
+    /// calibration varies). A payload in `conditions` replaces the file's payload mass.
+    pub fn forward_with_into(
+        &self,
+        tree: &KinematicTree,
+        error_values: &[Vec<f64>],
+        q: &[f64],
+        conditions: Conditions,
+        ws: &mut RobotWorkspace,
+    ) {
+        tree.forward_into(q, &mut ws.rigid);
         if self.error_models.is_empty() {
             ws.frames.clone_from(&ws.rigid);
             return;
         }
         ws.perturbation.clear();
+        let mass = match conditions.payload {
+            Some(m) => {
+                ws.mass.clone_from(&self.mass);
+                let (body, com) = self.payload_site;
+                let site = ws.mass.payload.get_or_insert(Payload { mass: 0.0, body, com });
+                site.mass = m;
+                &ws.mass
+            }
+            None => &self.mass,
+        };
         let state = StaticState {
             q,
-            tree: &self.tree,
+            tree,
             frames: &ws.rigid,
-            mass: &self.mass,
+            mass,
             gravity: self.gravity,
-            temperature,
+            temperature: conditions.temperature,
         };
-        for (m, v) in self.error_models.iter().zip(&self.error_values) {
+        for (m, v) in self.error_models.iter().zip(error_values) {
             m.perturb(&state, v, &mut ws.perturbation);
         }
-        self.tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+        tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+    }
+
+    /// Position of point `point` in the measurement frame for sample-like inputs, through the
+    /// full model at the robot's own parameters (m).
+    pub fn measured_position(
+        &self,
+        q: &[f64],
+        point: usize,
+        conditions: Conditions,
+        ws: &mut RobotWorkspace,
+    ) -> Vector3<f64> {
+        self.forward_with_into(&self.tree, &self.error_values, q, conditions, ws);
+        self.t_meas_base
+            .transform_point(&ws.frames.point[point].translation.vector.into())
+            .coords
     }
 
     /// Allocating convenience: checks `q`, evaluates the full model, returns the frames.
@@ -382,12 +477,17 @@ impl Robot {
 
     /// The description with the current parameter values written back, in the file's units.
     pub fn to_file(&self) -> RobotFile {
+        self.file_with(&self.chain_values, &self.error_values)
+    }
+
+    /// The description with other chain and error-model values written back (file units).
+    pub fn file_with(&self, chain_values: &[f64], error_values: &[Vec<f64>]) -> RobotFile {
         let mut out = RobotFile {
             name: self.file.name.clone(),
             description: self.file.description.clone(),
             units: self.file.units,
             gravity: self.file.gravity,
-            kinematics: self.chain.spec_with(&self.chain_values),
+            kinematics: self.chain.spec_with(chain_values),
             links: self.file.links.clone(),
             points: self.file.points.clone(),
             tool: self.file.tool.clone(),
@@ -395,7 +495,7 @@ impl Robot {
             error_models: self
                 .error_models
                 .iter()
-                .zip(&self.error_values)
+                .zip(error_values)
                 .map(|(m, v)| m.spec_with(v))
                 .collect(),
             predictor: None,

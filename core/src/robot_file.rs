@@ -133,7 +133,7 @@ pub struct PayloadSpec {
 }
 
 /// The measurement setup.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeasurementSpec {
     /// Guess of the robot base position in the tracker frame (length unit).
@@ -410,6 +410,25 @@ impl RobotFile {
         let src = SourceFile::read(path)?;
         let file = src.parse()?;
         Ok((file, src))
+    }
+
+    /// The file as text for `path`: JSON for a `.json` extension, TOML otherwise.
+    pub fn to_text_for(&self, path: &Path) -> Result<String> {
+        let json = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("json"));
+        let text = if json {
+            serde_json::to_string_pretty(self)
+                .map(|mut t| {
+                    t.push('\n');
+                    t
+                })
+                .map_err(|e| e.to_string())
+        } else {
+            toml::to_string(self).map_err(|e| e.to_string())
+        };
+        text.map_err(|message| Error::Io {
+            path: path.to_path_buf(),
+            message: format!("cannot serialise the robot description: {message}"),
+        })
     }
 }
 

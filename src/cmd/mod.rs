@@ -1,8 +1,30 @@
 //! One module per subcommand.
 
+pub mod calibrate;
 pub mod demo;
+pub mod evaluate;
 pub mod fk;
+pub mod plan;
 pub mod plugins;
 pub mod schema;
 pub mod simulate;
 pub mod validate;
+
+use std::path::Path;
+
+use armcomp_core::Robot;
+use armcomp_core::measurement::{MeasurementSet, read_csv};
+
+/// Reads a measurement CSV for `robot` (default point: its first marker) and prints the
+/// reader's warnings.
+pub fn read_measurements(robot: &Robot, path: &Path) -> anyhow::Result<MeasurementSet> {
+    let default_point = robot.markers().first().copied().unwrap_or(robot.tool());
+    let set = read_csv(path, robot.tree(), robot.file.units, default_point)?;
+    for w in &set.warnings {
+        eprintln!("warning: {w}");
+    }
+    if set.samples.is_empty() {
+        anyhow::bail!("{}: no measurements", path.display());
+    }
+    Ok(set)
+}

@@ -289,12 +289,16 @@ impl ErrorModelSpec for CantileverSpec {
         }
         for l in &links {
             for (field, table) in [("ei_scale", &self.ei_scale), ("gj_scale", &self.gj_scale)] {
-                params.push(ParamInfo::new(
-                    format!("cantilever.{}.{field}", l.name),
-                    Quantity::Dimensionless,
-                    table.get(&l.name).copied().unwrap_or(1.0),
-                    0.5,
-                ));
+                params.push(
+                    ParamInfo::new(
+                        format!("cantilever.{}.{field}", l.name),
+                        Quantity::Dimensionless,
+                        table.get(&l.name).copied().unwrap_or(1.0),
+                        0.5,
+                    )
+                    // Rigidity scales must stay positive (the spec rejects others).
+                    .with_bounds(1e-3, f64::INFINITY),
+                );
             }
         }
         if !issues.is_empty() {

@@ -74,6 +74,8 @@ impl ErrorModelSpec for JointComplianceSpec {
                     v,
                     f64::INFINITY,
                 )
+                // A negative compliance is not physical, and the spec rejects it.
+                .with_bounds(0.0, f64::INFINITY)
             })
             .collect();
         Ok(Box::new(JointComplianceModel {

@@ -1,0 +1,1003 @@
+//! Calibration: Levenberg–Marquardt identification of the chain, error-model, measurement-frame
+//! and marker parameters from measured positions.
+//!
+//! The problem is weighted least squares with priors:
+//! `min ½ Σ ‖(p̂(θ, qᵢ) − pᵢ) / σ‖² + ½ Σ ((θₖ − θₖ⁰) / σₖ)²`, where `p̂` is the full model
+//! (chain + error models) seen through `T_meas_base`, `σ` the tracker noise and `σₖ` each
+//! parameter's prior. Jacobian columns are exact for markers (a rotation), cheap forward
+//! differences for the base frame (no kinematics re-run), and forward differences of the full
+//! model for everything else, computed in parallel.
+//!
+//! Before iterating, the scaled Jacobian is decomposed to find directions the data cannot
+//! determine. Each is named; it is left to the priors when one of its parameters has a prior,
+//! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
+//!
+//! The Levenberg–Marquardt loop is written here rather than taken from a crate because it needs
+//! bounds, priors, parameter fixing and a best-so-far result on non-convergence together, and
+//! the available crates pull in another nalgebra version.
+
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, SymmetricEigen, Vector3};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::evaluate::ErrorStats;
+use crate::geom::xyz_rpy;
+use crate::measurement::Sample;
+use crate::param::{ParamInfo, Quantity};
+use crate::robot::{Conditions, Robot, RobotWorkspace};
+use crate::tree::{KinematicTree, Motion};
+
+/// Which part of the model a parameter belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", content = "index", rename_all = "snake_case")]
+pub enum ParamGroup {
+    /// The kinematic convention's geometry (index into the chain's parameters).
+    Geometry,
+    /// Error model `i` (index into the robot's error models).
+    ErrorModel(usize),
+    /// The robot base pose in the measurement frame.
+    Base,
+    /// Marker `i` (index into [`Robot::markers`]).
+    Marker(usize),
+}
+
+/// One parameter calibration may change.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationParam {
+    /// Name, quantity, starting value, prior and bounds.
+    pub info: ParamInfo,
+    /// What it belongs to.
+    pub group: ParamGroup,
+    /// Type name of the error model it belongs to (empty otherwise).
+    pub model_type: String,
+}
+
+/// Every parameter of a robot calibration can touch, in a fixed order: chain, error models,
+/// base frame (`base.x … base.yaw`), markers (`marker.<point>.x|y|z`).
+#[derive(Debug, Clone)]
+pub struct ParameterSpace {
+    /// The parameters.
+    pub params: Vec<CalibrationParam>,
+    n_chain: usize,
+    error_offsets: Vec<usize>,
+    base_offset: usize,
+    marker_offset: usize,
+}
+
+/// Base-frame parameters, in the order of [`xyz_rpy`].
+const BASE_NAMES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+
+impl ParameterSpace {
+    /// The parameters of `robot`, starting at its current values.
+    pub fn new(robot: &Robot) -> Self {
+        let mut params = Vec::new();
+        for (info, v) in robot.chain_params().iter().zip(robot.chain_values()) {
+            let mut info = info.clone();
+            info.nominal = *v;
+            params.push(CalibrationParam {
+                info,
+                group: ParamGroup::Geometry,
+                model_type: String::new(),
+            });
+        }
+        let n_chain = params.len();
+        let mut error_offsets = Vec::new();
+        for (i, (m, values)) in robot.error_models().iter().zip(robot.error_values()).enumerate() {
+            error_offsets.push(params.len());
+            let model_type = model_type_name(robot, i);
+            for (info, v) in m.params().iter().zip(values) {
+                let mut info = info.clone();
+                info.nominal = *v;
+                params.push(CalibrationParam {
+                    info,
+                    group: ParamGroup::ErrorModel(i),
+                    model_type: model_type.clone(),
+                });
+            }
+        }
+        let base_offset = params.len();
+        let (xyz, rpy) = base_xyz_rpy(&robot.t_meas_base());
+        for (k, name) in BASE_NAMES.iter().enumerate() {
+            let (quantity, value) = if k < 3 {
+                (Quantity::Length, xyz[k])
+            } else {
+                (Quantity::Angle, rpy[k - 3])
+            };
+            params.push(CalibrationParam {
+                info: ParamInfo::new(format!("base.{name}"), quantity, value, f64::INFINITY),
+                group: ParamGroup::Base,
+                model_type: String::new(),
+            });
+        }
+        let marker_offset = params.len();
+        for (i, &m) in robot.markers().iter().enumerate() {
+            let name = &robot.tree().points()[m].name;
+            for axis in ["x", "y", "z"] {
+                params.push(CalibrationParam {
+                    info: ParamInfo::new(format!("marker.{name}.{axis}"), Quantity::Length, 0.0, f64::INFINITY),
+                    group: ParamGroup::Marker(i),
+                    model_type: String::new(),
+                });
+            }
+        }
+        ParameterSpace {
+            params,
+            n_chain,
+            error_offsets,
+            base_offset,
+            marker_offset,
+        }
+    }
+
+    /// Starting values of every parameter (SI; marker entries are offsets from the file's).
+    pub fn initial(&self) -> Vec<f64> {
+        self.params.iter().map(|p| p.info.nominal).collect()
+    }
+
+    /// Indices of the parameters named by `identify`: group words `base`, `markers`,
+    /// `geometry`, `offsets` (the joint-value offsets of the chain: `θ` of revolute and `d` of
+    /// prismatic joints), `errors` (every error model), `all`, an error model's type name
+    /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
+    /// Empty means `base, markers, geometry, errors`.
+    pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
+        let default = ["base", "markers", "geometry", "errors"].map(String::from);
+        let words: &[String] = if identify.is_empty() { &default } else { identify };
+        let mut chosen = vec![false; self.params.len()];
+        for word in words {
+            let word = word.trim();
+            let mut any = false;
+            for (k, p) in self.params.iter().enumerate() {
+                let hit = match word {
+                    "all" => true,
+                    "base" => p.group == ParamGroup::Base,
+                    "markers" => matches!(p.group, ParamGroup::Marker(_)),
+                    "geometry" => p.group == ParamGroup::Geometry,
+                    "errors" => matches!(p.group, ParamGroup::ErrorModel(_)),
+                    "offsets" => p.group == ParamGroup::Geometry && is_joint_offset(robot.tree(), &p.info.name),
+                    w if w.contains('*') => glob_match(w, &p.info.name),
+                    w => p.model_type == w || p.info.name == w,
+                };
+                if hit {
+                    chosen[k] = true;
+                    any = true;
+                }
+            }
+            if !any && !identify.is_empty() {
+                let types: Vec<String> = (0..robot.error_models().len())
+                    .map(|i| model_type_name(robot, i))
+                    .collect();
+                let types = if types.is_empty() {
+                    "it has none".to_string()
+                } else {
+                    types.join(", ")
+                };
+                return Err(Error::Input(format!(
+                    "--identify `{word}` matches no parameter; use base, markers, geometry, offsets, errors, all, \
+                     an error model of this robot ({types}), or a name pattern such as `j2.*`"
+                )));
+            }
+        }
+        Ok((0..self.params.len()).filter(|&k| chosen[k]).collect())
+    }
+
+    /// Decodes a full parameter vector into what forward kinematics needs.
+    fn decode(&self, robot: &Robot, theta: &[f64]) -> Result<Decoded> {
+        let tree = robot.tree_for(&theta[..self.n_chain])?;
+        let errors = self
+            .error_offsets
+            .iter()
+            .zip(robot.error_values())
+            .map(|(&o, v)| theta[o..o + v.len()].to_vec())
+            .collect();
+        Ok(Decoded {
+            tree,
+            errors,
+            t_meas_base: self.base_pose(theta),
+            marker_delta: self.marker_deltas(robot, theta),
+        })
+    }
+
+    fn base_pose(&self, theta: &[f64]) -> Isometry3<f64> {
+        let b = &theta[self.base_offset..self.base_offset + 6];
+        xyz_rpy([b[0], b[1], b[2]], [b[3], b[4], b[5]])
+    }
+
+    /// Offset of each tree point (m, in its body's convention frame); zero for non-markers.
+    fn marker_deltas(&self, robot: &Robot, theta: &[f64]) -> Vec<Vector3<f64>> {
+        let mut out = vec![Vector3::zeros(); robot.tree().points().len()];
+        for (i, &m) in robot.markers().iter().enumerate() {
+            let o = self.marker_offset + 3 * i;
+            out[m] = Vector3::new(theta[o], theta[o + 1], theta[o + 2]);
+        }
+        out
+    }
+}
+
+/// The `type` of error model `i` as written in the robot file.
+fn model_type_name(robot: &Robot, i: usize) -> String {
+    serde_json::to_value(&robot.file.error_models[i])
+        .ok()
+        .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
+        .unwrap_or_default()
+}
+
+/// Whether chain parameter `name` (`<joint>.<suffix>`) adds to its joint's value.
+fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
+    let Some((joint, suffix)) = name.rsplit_once('.') else {
+        return false;
+    };
+    match tree.joint_index(joint).map(|j| &tree.joints()[j].motion) {
+        Some(Motion::Revolute(_)) => suffix == "theta",
+        Some(Motion::Prismatic(_)) => suffix == "d",
+        _ => false,
+    }
+}
+
+/// `*` matches any run of characters; everything else matches itself.
+fn glob_match(pattern: &str, name: &str) -> bool {
+    let parts: Vec<&str> = pattern.split('*').collect();
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if !name.starts_with(first) || name.len() < first.len() + last.len() || !name.ends_with(last) {
+        return false;
+    }
+    let mut rest = &name[first.len()..name.len() - last.len()];
+    for part in &parts[1..parts.len() - 1] {
+        match rest.find(part) {
+            Some(i) => rest = &rest[i + part.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+fn base_xyz_rpy(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
+    let (r, p, y) = t.rotation.euler_angles();
+    let v = t.translation.vector;
+    ([v.x, v.y, v.z], [r, p, y])
+}
+
+/// A parameter vector made ready for evaluation.
+#[derive(Debug, Clone)]
+struct Decoded {
+    tree: KinematicTree,
+    errors: Vec<Vec<f64>>,
+    t_meas_base: Isometry3<f64>,
+    marker_delta: Vec<Vector3<f64>>,
+}
+
+/// Per-sample intermediate results: the point in the robot base frame and the rotation that
+/// maps a marker offset into it.
+struct Evaluation {
+    world: Vec<Vector3<f64>>,
+    marker_rot: Vec<Matrix3<f64>>,
+}
+
+fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample], ws: &mut RobotWorkspace) -> Evaluation {
+    let mut world = Vec::with_capacity(samples.len());
+    let mut marker_rot = Vec::with_capacity(samples.len());
+    for s in samples {
+        robot.forward_with_into(&d.tree, &d.errors, &s.q, Conditions::of(s), ws);
+        let point = &d.tree.points()[s.point];
+        let rot = ws.frames.body[point.body].rotation.to_rotation_matrix().into_inner()
+            * d.tree.bodies()[point.body]
+                .convention_frame
+                .rotation
+                .to_rotation_matrix()
+                .into_inner();
+        world.push(ws.frames.point[s.point].translation.vector + rot * d.marker_delta[s.point]);
+        marker_rot.push(rot);
+    }
+    Evaluation { world, marker_rot }
+}
+
+fn to_meas(t: &Isometry3<f64>, world: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    world.iter().map(|p| t.transform_point(&(*p).into()).coords).collect()
+}
+
+/// Settings of [`calibrate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationParams {
+    /// What to identify (see [`ParameterSpace::select`]); empty for the default.
+    pub identify: Vec<String>,
+    /// Standard deviation of the tracker noise per axis (m); weighs data against priors.
+    pub measurement_std: f64,
+    /// Most Levenberg–Marquardt iterations.
+    pub max_iterations: usize,
+    /// Converged when an accepted step lowers the cost by less than this fraction.
+    pub tolerance: f64,
+    /// Directions whose singular value is below this fraction of the largest (scaled
+    /// Jacobian) count as not identifiable.
+    pub rank_tolerance: f64,
+    /// Whether the parameters' priors regularise the fit; without them every direction the
+    /// data cannot determine is fixed.
+    pub use_priors: bool,
+}
+
+impl Default for CalibrationParams {
+    fn default() -> Self {
+        CalibrationParams {
+            identify: Vec::new(),
+            measurement_std: 1e-4,
+            max_iterations: 100,
+            tolerance: 1e-10,
+            rank_tolerance: 1e-5,
+            use_priors: true,
+        }
+    }
+}
+
+/// One Levenberg–Marquardt iteration, for progress display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IterationInfo {
+    /// Iteration number (1-based).
+    pub iteration: usize,
+    /// Most iterations allowed.
+    pub max_iterations: usize,
+    /// RMS of the 3-D position residual after the iteration (m).
+    pub rms: f64,
+    /// Damping after the iteration.
+    pub lambda: f64,
+}
+
+/// A combination of parameters the data cannot determine, and what was done about it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Deficiency {
+    /// The parameters involved with their weights in the null direction (columns scaled to
+    /// unit norm; the largest weight is ±1).
+    pub combination: Vec<(String, f64)>,
+    /// `regularised` (a prior holds it) or `fixed` (the named parameter keeps its start value).
+    pub action: String,
+    /// The parameter fixed, for `fixed`.
+    pub fixed: Option<String>,
+}
+
+/// How well the selected parameters are determined by the data.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifiabilityReport {
+    /// Number of scalar equations (3 per measured position).
+    pub n_equations: usize,
+    /// Number of selected parameters.
+    pub n_params: usize,
+    /// Numerical rank of the column-scaled measurement Jacobian.
+    pub rank: usize,
+    /// Its condition number (largest over smallest singular value; infinite when deficient).
+    pub condition_number: f64,
+    /// Condition number over the parameters left free after fixing.
+    pub condition_number_free: f64,
+    /// The combinations it cannot determine.
+    pub deficiencies: Vec<Deficiency>,
+    /// Plain-language summary of any problem (empty when fully identifiable).
+    pub message: String,
+}
+
+/// One parameter before and after.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamResult {
+    /// Dotted name.
+    pub name: String,
+    /// What it measures.
+    #[serde(skip)]
+    pub quantity: Quantity,
+    /// SI unit of the values.
+    pub unit: &'static str,
+    /// Value before calibration (SI; marker entries are offsets from the file's position).
+    pub initial: f64,
+    /// Identified value (SI).
+    pub value: f64,
+    /// Standard deviation from the linearised covariance (SI); 0 for fixed parameters.
+    pub std: f64,
+    /// Whether it was held at its start value because the data cannot determine it.
+    pub fixed: bool,
+}
+
+/// What calibration did and how well it fits.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationReport {
+    /// Measured positions used.
+    pub n_samples: usize,
+    /// Identifiability of the selected parameters at the start.
+    pub identifiability: IdentifiabilityReport,
+    /// Selected parameters.
+    pub params: Vec<ParamResult>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Whether the cost stopped decreasing within the tolerance.
+    pub converged: bool,
+    /// Why the iteration stopped.
+    pub stop_reason: String,
+    /// Residuals on the calibration data before.
+    pub before: ErrorStats,
+    /// Residuals on the calibration data after.
+    pub after: ErrorStats,
+}
+
+/// An identified robot and the report of how it was identified.
+#[derive(Debug)]
+pub struct Calibration {
+    /// The robot with the identified values (its [`Robot::to_file`] is the model file).
+    pub robot: Robot,
+    /// The report.
+    pub report: CalibrationReport,
+}
+
+/// State shared by the pieces of one calibration run.
+struct Problem<'a> {
+    robot: &'a Robot,
+    space: &'a ParameterSpace,
+    samples: &'a [Sample],
+    sigma: f64,
+}
+
+impl Problem<'_> {
+    fn predict(&self, theta: &[f64]) -> Result<(Decoded, Evaluation, Vec<Vector3<f64>>)> {
+        let d = self.space.decode(self.robot, theta)?;
+        let mut ws = self.robot.workspace();
+        let e = evaluate(self.robot, &d, self.samples, &mut ws);
+        let meas = to_meas(&d.t_meas_base, &e.world);
+        Ok((d, e, meas))
+    }
+
+    /// Measurement residuals `(p̂ − p) / σ`, three per sample.
+    fn residuals(&self, predicted: &[Vector3<f64>]) -> DVector<f64> {
+        DVector::from_iterator(
+            3 * self.samples.len(),
+            predicted
+                .iter()
+                .zip(self.samples)
+                .flat_map(|(p, s)| ((p - s.position) / self.sigma).into_iter().copied().collect::<Vec<_>>()),
+        )
+    }
+
+    /// Jacobian of the measurement residuals with respect to the parameters `free`.
+    fn jacobian(&self, theta: &[f64], d: &Decoded, e: &Evaluation, free: &[usize]) -> Result<DMatrix<f64>> {
+        let m = 3 * self.samples.len();
+        let space = self.space;
+        let columns: Vec<Result<Vec<f64>>> = free
+            .par_iter()
+            .map(|&k| {
+                let p = &space.params[k];
+                let mut col = vec![0.0; m];
+                match p.group {
+                    ParamGroup::Marker(i) => {
+                        let point = self.robot.markers()[i];
+                        let axis = (k - space.marker_offset) % 3;
+                        let r_meas = d.t_meas_base.rotation.to_rotation_matrix().into_inner();
+                        for (s_idx, s) in self.samples.iter().enumerate() {
+                            if s.point == point {
+                                let c = r_meas * e.marker_rot[s_idx].column(axis) / self.sigma;
+                                col[3 * s_idx..3 * s_idx + 3].copy_from_slice(c.as_slice());
+                            }
+                        }
+                    }
+                    ParamGroup::Base => {
+                        let (mut t, h) = step(theta, k, p);
+                        let t0 = space.base_pose(theta);
+                        t[k] += h;
+                        let t1 = space.base_pose(&t);
+                        for (s_idx, w) in e.world.iter().enumerate() {
+                            let dp = (t1.transform_point(&(*w).into()) - t0.transform_point(&(*w).into())) / h;
+                            for a in 0..3 {
+                                col[3 * s_idx + a] = dp[a] / self.sigma;
+                            }
+                        }
+                    }
+                    ParamGroup::Geometry | ParamGroup::ErrorModel(_) => {
+                        let (mut t, h) = step(theta, k, p);
+                        t[k] += h;
+                        let mut d1 = d.clone();
+                        match p.group {
+                            ParamGroup::Geometry => d1.tree = self.robot.tree_for(&t[..space.n_chain])?,
+                            ParamGroup::ErrorModel(i) => {
+                                let o = space.error_offsets[i];
+                                d1.errors[i][k - o] = t[k];
+                            }
+                            _ => unreachable!("matched above"),
+                        }
+                        let mut ws = self.robot.workspace();
+                        let e1 = evaluate(self.robot, &d1, self.samples, &mut ws);
+                        let r = d.t_meas_base.rotation;
+                        for (s_idx, (w1, w0)) in e1.world.iter().zip(&e.world).enumerate() {
+                            let dp = r * (w1 - w0) / h;
+                            for a in 0..3 {
+                                col[3 * s_idx + a] = dp[a] / self.sigma;
+                            }
+                        }
+                    }
+                }
+                Ok(col)
+            })
+            .collect();
+        let mut jac = DMatrix::zeros(m, free.len());
+        for (c, col) in columns.into_iter().enumerate() {
+            jac.column_mut(c).copy_from_slice(&col?);
+        }
+        Ok(jac)
+    }
+}
+
+/// A copy of `theta` and a forward-difference step for parameter `k`, signed to stay within
+/// the upper bound. Steps are 1e-6 of the value or of a typical scale, whichever is larger.
+fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
+    let typical = if p.info.sigma.is_finite() {
+        p.info.sigma
+    } else {
+        match p.info.quantity {
+            Quantity::Length | Quantity::Angle | Quantity::Dimensionless => 1e-2,
+            Quantity::Compliance => 1e-7,
+            Quantity::Mass => 0.1,
+            Quantity::Rigidity => 1e3,
+            Quantity::PerKelvin => 1e-6,
+            Quantity::Other(_) => 1e-3,
+        }
+    };
+    let mut h = 1e-6 * theta[k].abs().max(typical);
+    if theta[k] + h > p.info.upper {
+        h = -h;
+    }
+    (theta.to_vec(), h)
+}
+
+/// Finds the directions the data cannot determine and decides what to fix (see the module
+/// documentation). `jac` holds the columns of `free`.
+fn analyse(
+    space: &ParameterSpace,
+    jac: &DMatrix<f64>,
+    free: &[usize],
+    tol: f64,
+) -> (IdentifiabilityReport, Vec<usize>) {
+    let norms: Vec<f64> = (0..jac.ncols()).map(|c| jac.column(c).norm()).collect();
+    let has_prior = |c: usize| space.params[free[c]].info.sigma.is_finite();
+    let name = |c: usize| space.params[free[c]].info.name.clone();
+    let mut fixed: Vec<usize> = Vec::new(); // column positions
+    let mut deficiencies = Vec::new();
+    // Scaled normal matrix over a set of columns, its eigen-decomposition, and the null basis.
+    let null_space = |cols: &[usize]| -> (SymmetricEigen<f64, nalgebra::Dyn>, Vec<usize>, f64) {
+        let scaled = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| {
+            let n = norms[cols[c]];
+            if n > 0.0 { jac[(r, cols[c])] / n } else { 0.0 }
+        });
+        let eig = SymmetricEigen::new(scaled.transpose() * &scaled);
+        let max = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+        let null = (0..cols.len())
+            .filter(|&i| eig.eigenvalues[i] <= tol * tol * max)
+            .collect();
+        (eig, null, max)
+    };
+    let all: Vec<usize> = (0..free.len()).collect();
+    let (eig_all, null_all, max_all) = null_space(&all);
+    let min_all = eig_all.eigenvalues.iter().copied().fold(f64::INFINITY, f64::min);
+    let rank = free.len() - null_all.len();
+    let condition_number = if null_all.is_empty() && min_all > 0.0 {
+        (max_all / min_all).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    // Fix, one at a time, the dominant parameter of a null direction no prior holds.
+    loop {
+        let active: Vec<usize> = all.iter().copied().filter(|c| !fixed.contains(c)).collect();
+        if active.is_empty() {
+            break;
+        }
+        let (eig, null, _) = null_space(&active);
+        if null.is_empty() {
+            break;
+        }
+        // Null basis rows of the parameters with priors; a combination of basis vectors that
+        // vanishes there is a direction nothing holds.
+        let basis = DMatrix::from_fn(active.len(), null.len(), |r, c| eig.eigenvectors[(r, null[c])]);
+        let prior_rows: Vec<usize> = (0..active.len()).filter(|&r| has_prior(active[r])).collect();
+        let free_direction = if prior_rows.is_empty() {
+            Some(basis.column(0).into_owned())
+        } else {
+            let sub = DMatrix::from_fn(prior_rows.len(), null.len(), |r, c| basis[(prior_rows[r], c)]);
+            // Eigenvectors of subᵀ·sub with (numerically) zero eigenvalue span them.
+            let gram = (sub.transpose() * &sub).symmetric_eigen();
+            (0..null.len())
+                .find(|&i| gram.eigenvalues[i] <= 1e-12)
+                .map(|i| &basis * gram.eigenvectors.column(i))
+        };
+        let Some(direction) = free_direction else {
+            // Every remaining null direction involves a prior: report them as regularised.
+            for v in sparse_basis(&basis) {
+                deficiencies.push(Deficiency {
+                    combination: combination(&v, &active, &name),
+                    action: "regularised".into(),
+                    fixed: None,
+                });
+            }
+            break;
+        };
+        let (pos, _) = direction
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .expect("a direction has entries");
+        let col = active[pos];
+        deficiencies.push(Deficiency {
+            combination: combination(&direction, &active, &name),
+            action: "fixed".into(),
+            fixed: Some(name(col)),
+        });
+        fixed.push(col);
+    }
+    let mut message = String::new();
+    let n_equations = jac.nrows();
+    if n_equations < free.len() {
+        message.push_str(&format!(
+            "{} measured positions give {n_equations} equations for {} parameters, too few to determine them all. ",
+            n_equations / 3,
+            free.len()
+        ));
+    }
+    if !deficiencies.is_empty() {
+        let list: Vec<String> = deficiencies
+            .iter()
+            .map(|d| {
+                let names: Vec<&str> = d.combination.iter().map(|(n, _)| n.as_str()).collect();
+                match &d.fixed {
+                    Some(f) => format!("{{{}}} (fixed {f})", names.join(", ")),
+                    None => format!("{{{}}} (held by priors)", names.join(", ")),
+                }
+            })
+            .collect();
+        message.push_str(&format!(
+            "The data cannot determine {} combination(s) of parameters: {}.",
+            deficiencies.len(),
+            list.join("; ")
+        ));
+    }
+    let report = IdentifiabilityReport {
+        n_equations,
+        n_params: free.len(),
+        rank,
+        condition_number,
+        condition_number_free: f64::NAN,
+        deficiencies,
+        message,
+    };
+    (report, fixed.iter().map(|&c| free[c]).collect())
+}
+
+/// A basis of the column space of `basis` (one null direction per column) that is as sparse as
+/// Gauss–Jordan elimination with full pivoting makes it: each vector has one pivot parameter
+/// that no other vector contains, so the combinations read like "these few move together"
+/// rather than eigenvectors mixing everything.
+fn sparse_basis(basis: &DMatrix<f64>) -> Vec<DVector<f64>> {
+    let mut m = basis.transpose(); // one direction per row
+    let (rows, cols) = m.shape();
+    let mut used_cols = vec![false; cols];
+    for r in 0..rows {
+        let mut best = (r, 0, 0.0);
+        for i in r..rows {
+            for c in (0..cols).filter(|&c| !used_cols[c]) {
+                if m[(i, c)].abs() > best.2 {
+                    best = (i, c, m[(i, c)].abs());
+                }
+            }
+        }
+        let (i, c, v) = best;
+        if v == 0.0 {
+            break;
+        }
+        m.swap_rows(r, i);
+        used_cols[c] = true;
+        let pivot = m[(r, c)];
+        let row = m.row(r) / pivot;
+        m.set_row(r, &row);
+        for k in (0..rows).filter(|&k| k != r) {
+            let f = m[(k, c)];
+            if f != 0.0 {
+                let updated = m.row(k) - row.clone() * f;
+                m.set_row(k, &updated);
+            }
+        }
+    }
+    (0..rows).map(|r| m.row(r).transpose()).collect()
+}
+
+/// The entries of a null direction worth naming (at least a tenth of the largest), largest
+/// first, normalised so that the largest is ±1.
+fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize) -> String) -> Vec<(String, f64)> {
+    let max = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let sign = v.iter().find(|x| x.abs() == max).map_or(1.0, |x| x.signum());
+    let mut out: Vec<(String, f64)> = v
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| x.abs() >= 0.1 * max)
+        .map(|(i, x)| (name(cols[i]), x * sign / max))
+        .collect();
+    out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    out
+}
+
+/// Identifies the parameters chosen by `params.identify` from `samples` (measured positions
+/// in the measurement frame). `observer` sees every iteration (for a progress display).
+///
+/// Parameters the data cannot determine are reported and held (see the module documentation);
+/// when the iteration limit is reached the best parameters found are kept and the report says
+/// it did not converge.
+pub fn calibrate(
+    robot: &Robot,
+    samples: &[Sample],
+    params: &CalibrationParams,
+    observer: &mut dyn FnMut(&IterationInfo),
+) -> Result<Calibration> {
+    if samples.is_empty() {
+        return Err(Error::Input("calibration needs at least one measurement".into()));
+    }
+    if !(params.measurement_std.is_finite() && params.measurement_std > 0.0) {
+        return Err(Error::Input(format!(
+            "the measurement noise must be positive, got {} m",
+            params.measurement_std
+        )));
+    }
+    for (i, s) in samples.iter().enumerate() {
+        robot
+            .tree()
+            .check_q(&s.q)
+            .map_err(|e| Error::Input(format!("sample {}: {e}", i + 1)))?;
+        if s.point >= robot.tree().points().len() {
+            return Err(Error::Input(format!(
+                "sample {}: point index {} does not exist",
+                i + 1,
+                s.point
+            )));
+        }
+    }
+    let mut space = ParameterSpace::new(robot);
+    if !params.use_priors {
+        space.params.iter_mut().for_each(|p| p.info.sigma = f64::INFINITY);
+    }
+    let selected = space.select(robot, &params.identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples,
+        sigma: params.measurement_std,
+    };
+    let theta0 = space.initial();
+    let mut theta = theta0.clone();
+    let (mut d, mut e, pred) = problem.predict(&theta)?;
+    let before = stats(samples, &pred);
+
+    // Identifiability at the start decides what is held.
+    let jac0 = problem.jacobian(&theta, &d, &e, &selected)?;
+    let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
+    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let prior_w: Vec<f64> = free.iter().map(|&k| 1.0 / space.params[k].info.sigma).collect();
+
+    let cost_of = |theta: &[f64], r: &DVector<f64>| -> f64 {
+        let prior: f64 = free
+            .iter()
+            .zip(&prior_w)
+            .map(|(&k, w)| ((theta[k] - theta0[k]) * w).powi(2))
+            .sum();
+        0.5 * (r.norm_squared() + prior)
+    };
+    let mut r = problem.residuals(&pred);
+    let mut cost = cost_of(&theta, &r);
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    let mut converged = free.is_empty();
+    let mut stop_reason = if converged {
+        "nothing to identify".to_string()
+    } else {
+        format!("iteration limit ({}) reached", params.max_iterations)
+    };
+    let mut jac = if fixed.is_empty() && free == selected {
+        Some(jac0)
+    } else {
+        None
+    };
+    while !converged && iterations < params.max_iterations {
+        iterations += 1;
+        let j = match jac.take() {
+            Some(j) => j,
+            None => problem.jacobian(&theta, &d, &e, &free)?,
+        };
+        let mut a = j.transpose() * &j;
+        let mut g = j.transpose() * &r;
+        for (c, (&k, w)) in free.iter().zip(&prior_w).enumerate() {
+            a[(c, c)] += w * w;
+            g[c] += w * w * (theta[k] - theta0[k]);
+        }
+        let floor = 1e-12 * a.diagonal().max().max(1e-300);
+        let mut accepted = false;
+        while lambda <= 1e12 {
+            let mut m = a.clone();
+            for c in 0..free.len() {
+                m[(c, c)] += lambda * a[(c, c)].max(floor);
+            }
+            let Some(chol) = m.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let delta = chol.solve(&(-&g));
+            let mut trial = theta.clone();
+            for (c, &k) in free.iter().enumerate() {
+                let b = &space.params[k].info;
+                trial[k] = (theta[k] + delta[c]).clamp(b.lower, b.upper);
+            }
+            let Ok((d1, e1, pred1)) = problem.predict(&trial) else {
+                lambda *= 4.0;
+                continue;
+            };
+            let r1 = problem.residuals(&pred1);
+            let cost1 = cost_of(&trial, &r1);
+            if cost1.is_finite() && cost1 < cost {
+                let gain = (cost - cost1) / cost.max(1e-300);
+                (theta, d, e, r, cost) = (trial, d1, e1, r1, cost1);
+                lambda = (lambda / 3.0).max(1e-12);
+                accepted = true;
+                if gain < params.tolerance {
+                    converged = true;
+                    stop_reason = format!("cost decrease below {:e}", params.tolerance);
+                }
+                break;
+            }
+            lambda *= 4.0;
+        }
+        if !accepted {
+            converged = true;
+            stop_reason = "no step lowers the cost further (local minimum)".into();
+        }
+        observer(&IterationInfo {
+            iteration: iterations,
+            max_iterations: params.max_iterations,
+            rms: (r.norm_squared() / samples.len() as f64).sqrt() * params.measurement_std,
+            lambda,
+        });
+    }
+
+    // Linearised covariance at the solution, scaled by the fit's own residual variance.
+    let pred = to_meas(&d.t_meas_base, &e.world);
+    let j = problem.jacobian(&theta, &d, &e, &free)?;
+    let mut a = j.transpose() * &j;
+    for (c, w) in prior_w.iter().enumerate() {
+        a[(c, c)] += w * w;
+    }
+    let dof = (r.len() as f64 - free.len() as f64).max(1.0);
+    let s2 = r.norm_squared() / dof;
+    let scale = DVector::from_iterator(free.len(), (0..free.len()).map(|c| a[(c, c)].sqrt().max(1e-300)));
+    let scaled = DMatrix::from_fn(free.len(), free.len(), |i, k| a[(i, k)] / (scale[i] * scale[k]));
+    let eig = scaled.clone().symmetric_eigen();
+    let (emin, emax) = eig
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    identifiability.condition_number_free = if emin > 0.0 {
+        (emax / emin).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    let cov_diag: Vec<f64> = match scaled.try_inverse() {
+        Some(inv) => (0..free.len())
+            .map(|c| s2 * inv[(c, c)] / (scale[c] * scale[c]))
+            .collect(),
+        None => vec![f64::INFINITY; free.len()],
+    };
+    let params_out = selected
+        .iter()
+        .map(|&k| {
+            let info = &space.params[k].info;
+            let c = free.iter().position(|&f| f == k);
+            ParamResult {
+                name: info.name.clone(),
+                quantity: info.quantity,
+                unit: info.quantity.si_unit(),
+                initial: theta0[k],
+                value: theta[k],
+                std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
+                fixed: c.is_none(),
+            }
+        })
+        .collect();
+
+    let calibrated = apply(robot, &space, &theta)?;
+    Ok(Calibration {
+        robot: calibrated,
+        report: CalibrationReport {
+            n_samples: samples.len(),
+            identifiability,
+            params: params_out,
+            iterations,
+            converged,
+            stop_reason,
+            before,
+            after: stats(samples, &pred),
+        },
+    })
+}
+
+/// Sensitivity of every marker's measured position at each pose to the parameters `identify`
+/// selects (as for [`calibrate`]): `3 × markers` rows per pose in pose order, one column per
+/// parameter (m per SI unit). Returns the matrix and the parameter names.
+pub fn identification_jacobian(
+    robot: &Robot,
+    poses: &[Vec<f64>],
+    identify: &[String],
+) -> Result<(DMatrix<f64>, Vec<String>)> {
+    let samples: Vec<Sample> = poses
+        .iter()
+        .flat_map(|q| {
+            robot.markers().iter().map(|&m| Sample {
+                q: q.clone(),
+                point: m,
+                position: Vector3::zeros(),
+                orientation: None,
+                payload: None,
+                temperature: None,
+                torque: None,
+            })
+        })
+        .collect();
+    for q in poses {
+        robot.tree().check_q(q)?;
+    }
+    let space = ParameterSpace::new(robot);
+    let selected = space.select(robot, identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples: &samples,
+        sigma: 1.0,
+    };
+    let theta = space.initial();
+    let (d, e, _) = problem.predict(&theta)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected)?;
+    Ok((
+        jac,
+        selected.iter().map(|&k| space.params[k].info.name.clone()).collect(),
+    ))
+}
+
+fn stats(samples: &[Sample], predicted: &[Vector3<f64>]) -> ErrorStats {
+    let errors: Vec<Vector3<f64>> = samples.iter().zip(predicted).map(|(s, p)| s.position - p).collect();
+    ErrorStats::from_errors(&errors)
+}
+
+impl ParameterSpace {
+    /// The robot with every parameter of `theta` (a full vector, as [`initial`](Self::initial))
+    /// written into its description.
+    pub fn apply(&self, robot: &Robot, theta: &[f64]) -> Result<Robot> {
+        apply(robot, self, theta)
+    }
+
+    /// Index of the parameter called `name`.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.params.iter().position(|p| p.info.name == name)
+    }
+}
+
+fn apply(robot: &Robot, space: &ParameterSpace, theta: &[f64]) -> Result<Robot> {
+    if theta.len() != space.params.len() {
+        return Err(Error::Dimension {
+            what: "calibration parameters".into(),
+            expected: space.params.len(),
+            got: theta.len(),
+        });
+    }
+    let errors: Vec<Vec<f64>> = space
+        .error_offsets
+        .iter()
+        .zip(robot.error_values())
+        .map(|(&o, v)| theta[o..o + v.len()].to_vec())
+        .collect();
+    let mut file = robot.file_with(&theta[..space.n_chain], &errors);
+    let units = file.units;
+    let b = &theta[space.base_offset..space.base_offset + 6];
+    let measurement = file.measurement.get_or_insert_with(Default::default);
+    measurement.base_xyz = [b[0], b[1], b[2]].map(|v| units.len_out(v));
+    measurement.base_rpy = [b[3], b[4], b[5]].map(|v| units.ang_out(v));
+    for (i, &m) in robot.markers().iter().enumerate() {
+        let name = &robot.tree().points()[m].name;
+        let o = space.marker_offset + 3 * i;
+        if let Some(p) = file.points.iter_mut().find(|p| &p.name == name) {
+            for a in 0..3 {
+                p.xyz[a] += units.len_out(theta[o + a]);
+            }
+        }
+    }
+    robot.rebuild(file)
+}

@@ -1,0 +1,78 @@
+//! Accuracy of a model on measurements: per-sample position errors and their statistics.
+
+use nalgebra::Vector3;
+use serde::Serialize;
+
+use crate::measurement::Sample;
+use crate::robot::{Conditions, Robot};
+
+/// Statistics of 3-D position errors, in millimetres (the unit people compare arms in).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ErrorStats {
+    /// Number of measured positions.
+    pub n: usize,
+    /// Mean of the 3-D error norms (mm).
+    pub mean_mm: f64,
+    /// Sample standard deviation (n − 1) of the 3-D error norms (mm).
+    pub std_mm: f64,
+    /// Root mean square of the 3-D error norms (mm).
+    pub rms_mm: f64,
+    /// Largest 3-D error norm (mm).
+    pub max_mm: f64,
+    /// Mean absolute error per axis of the measurement frame (mm).
+    pub mean_abs_mm: AxisErrors,
+}
+
+/// One value per axis (mm).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AxisErrors {
+    /// Along x.
+    pub x: f64,
+    /// Along y.
+    pub y: f64,
+    /// Along z.
+    pub z: f64,
+}
+
+impl ErrorStats {
+    /// Statistics of error vectors given in metres; all zeros for an empty list.
+    pub fn from_errors(errors: &[Vector3<f64>]) -> Self {
+        let n = errors.len();
+        let mut out = ErrorStats {
+            n,
+            mean_mm: 0.0,
+            std_mm: 0.0,
+            rms_mm: 0.0,
+            max_mm: 0.0,
+            mean_abs_mm: AxisErrors { x: 0.0, y: 0.0, z: 0.0 },
+        };
+        if n == 0 {
+            return out;
+        }
+        let norms: Vec<f64> = errors.iter().map(|e| e.norm() * 1e3).collect();
+        let nf = n as f64;
+        out.mean_mm = norms.iter().sum::<f64>() / nf;
+        out.rms_mm = (norms.iter().map(|v| v * v).sum::<f64>() / nf).sqrt();
+        out.max_mm = norms.iter().copied().fold(0.0, f64::max);
+        if n > 1 {
+            out.std_mm = (norms.iter().map(|v| (v - out.mean_mm).powi(2)).sum::<f64>() / (nf - 1.0)).sqrt();
+        }
+        let abs = |k: usize| errors.iter().map(|e| e[k].abs()).sum::<f64>() / nf * 1e3;
+        out.mean_abs_mm = AxisErrors {
+            x: abs(0),
+            y: abs(1),
+            z: abs(2),
+        };
+        out
+    }
+}
+
+/// Measured minus modelled position of each sample (m, measurement frame), through the
+/// robot's full model and its measurement-frame guess.
+pub fn position_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
+    let mut ws = robot.workspace();
+    samples
+        .iter()
+        .map(|s| s.position - robot.measured_position(&s.q, s.point, Conditions::of(s), &mut ws))
+        .collect()
+}

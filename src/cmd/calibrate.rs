@@ -1,0 +1,126 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use armcomp_core::Robot;
+use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
+use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::param::Quantity;
+
+use super::read_measurements;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The nominal robot file (its values are the starting point and the priors' centre).
+    #[arg(long)]
+    robot: PathBuf,
+    /// Measurement CSV to identify from.
+    #[arg(long)]
+    data: PathBuf,
+    /// Where to write the identified model: the robot file with identified values (TOML, or
+    /// JSON for a .json extension), written atomically.
+    #[arg(long)]
+    out: PathBuf,
+    /// What to identify, comma-separated: base, markers, geometry, offsets, errors, all, an
+    /// error model's type (joint_compliance, ...) or a parameter pattern (j2.*).
+    /// Default: base,markers,geometry,errors.
+    #[arg(long, value_delimiter = ',')]
+    identify: Vec<String>,
+    /// Standard deviation of the tracker noise per axis, in mm (weighs data against priors).
+    #[arg(long, default_value_t = 0.1)]
+    noise_mm: f64,
+    /// Most Levenberg–Marquardt iterations.
+    #[arg(long, default_value_t = 100)]
+    max_iterations: usize,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    check_not_input(&args.out, &[&args.robot, &args.data])?;
+    let robot = Robot::from_path(&args.robot)?;
+    let data = read_measurements(&robot, &args.data)?;
+    let params = CalibrationParams {
+        identify: args.identify.clone(),
+        measurement_std: args.noise_mm * 1e-3,
+        max_iterations: args.max_iterations,
+        ..CalibrationParams::default()
+    };
+    let bar = indicatif::ProgressBar::new(params.max_iterations as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} iterations  {msg}")
+            .expect("the template is valid"),
+    );
+    let result = calibrate(&robot, &data.samples, &params, &mut |it| {
+        bar.set_position(it.iteration as u64);
+        bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
+    });
+    bar.finish_and_clear();
+    let calibration = result?;
+    let text = calibration.robot.to_file().to_text_for(&args.out)?;
+    write_atomic(&args.out, text.as_bytes())?;
+    let report = &calibration.report;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(report)?);
+    } else {
+        print_report(report);
+        println!("wrote {}", args.out.display());
+    }
+    Ok(if report.converged {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!(
+            "warning: calibration did not converge ({}); the best parameters found were written",
+            report.stop_reason
+        );
+        ExitCode::from(2)
+    })
+}
+
+/// A value in the unit people read it in: mm for lengths, degrees for angles, SI otherwise.
+fn display(q: Quantity, v: f64) -> (f64, &'static str) {
+    match q {
+        Quantity::Length => (v * 1e3, "mm"),
+        Quantity::Angle => (v.to_degrees(), "deg"),
+        other => (v, other.si_unit()),
+    }
+}
+
+fn print_report(r: &CalibrationReport) {
+    let id = &r.identifiability;
+    println!(
+        "{} measured positions, {} parameters selected, rank {} of {}, condition number {:.3e} ({:.3e} with priors and fixes)",
+        r.n_samples, id.n_params, id.rank, id.n_params, id.condition_number, id.condition_number_free
+    );
+    if !id.message.is_empty() {
+        println!("identifiability: {}", id.message);
+    }
+    println!(
+        "{} after {} iterations ({})",
+        if r.converged { "converged" } else { "NOT converged" },
+        r.iterations,
+        r.stop_reason
+    );
+    println!(
+        "{:<34} {:>14} {:>14} {:>12}  unit",
+        "parameter", "initial", "identified", "std"
+    );
+    for p in &r.params {
+        let q = p.quantity;
+        let (a, unit) = display(q, p.initial);
+        let (b, _) = display(q, p.value);
+        let (s, _) = display(q, p.std);
+        let std = if p.fixed {
+            "fixed".to_string()
+        } else {
+            format!("{s:.4e}")
+        };
+        println!("{:<34} {:>14.6} {:>14.6} {:>12}  {unit}", p.name, a, b, std);
+    }
+    for (label, s) in [("before", &r.before), ("after", &r.after)] {
+        println!(
+            "{label:>6}: mean {:.4} mm, std {:.4} mm, RMS {:.4} mm, max {:.4} mm",
+            s.mean_mm, s.std_mm, s.rms_mm, s.max_mm
+        );
+    }
+}

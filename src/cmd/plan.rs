@@ -1,0 +1,135 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, bail};
+use armcomp_core::Robot;
+use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::measurement::{parse_poses, write_poses};
+use armcomp_core::plan::{Space, d_optimal, spread, trajectory_similar};
+use armcomp_core::sampling::Sampler;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The robot file.
+    #[arg(long)]
+    robot: PathBuf,
+    /// Number of poses (for `trajectory`: trajectory points × neighbours instead).
+    #[arg(long, default_value_t = 100)]
+    n: usize,
+    /// sobol, halton, random, grid (even sets), d-optimal (best subset of a pool for
+    /// calibration) or trajectory (pool poses nearest to a task trajectory).
+    #[arg(long, default_value = "sobol")]
+    method: String,
+    /// Spread poses evenly over the joint ranges (`joint`) or over the Cartesian box the tool
+    /// reaches, through IK (`cartesian`). For d-optimal and trajectory this is the pool's space.
+    #[arg(long, default_value = "joint")]
+    space: String,
+    /// Pool size for d-optimal (default 10 × n) and trajectory (default 2000).
+    #[arg(long)]
+    pool: Option<usize>,
+    /// How the pool is drawn: sobol, halton, random or grid.
+    #[arg(long, default_value = "sobol")]
+    pool_sampler: String,
+    /// Parameters the d-optimal plan should determine (as `armcomp calibrate --identify`).
+    #[arg(long, value_delimiter = ',')]
+    identify: Vec<String>,
+    /// Task trajectory for `trajectory`: joint configurations in task order (a poses CSV with
+    /// units in the header, e.g. recorded while teaching).
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
+    /// Points spread along the trajectory by arc length.
+    #[arg(long, default_value_t = 50)]
+    trajectory_points: usize,
+    /// Nearest pool poses taken per trajectory point.
+    #[arg(long, default_value_t = 10)]
+    per_point: usize,
+    /// Seed of every random choice; the same seed gives the same bytes.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Output poses CSV (joint columns in the robot file's units), written atomically.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let mut inputs = vec![args.robot.as_path()];
+    if let Some(t) = &args.trajectory {
+        inputs.push(t.as_path());
+    }
+    check_not_input(&args.out, &inputs)?;
+    let robot = Robot::from_path(&args.robot)?;
+    let space = match args.space.as_str() {
+        "joint" => Space::Joint,
+        "cartesian" => Space::Cartesian,
+        other => bail!("unknown --space `{other}`; expected joint or cartesian"),
+    };
+    let accept = |_: &[f64]| true;
+    let (poses, note) = match args.method.as_str() {
+        "d-optimal" => {
+            let pool_n = args.pool.unwrap_or(10 * args.n);
+            let pool = spread(
+                &robot,
+                space,
+                Sampler::parse(&args.pool_sampler)?,
+                pool_n,
+                args.seed,
+                &accept,
+            )?;
+            let (chosen, log_det) = d_optimal(&robot, &pool.poses, args.n.min(pool.poses.len()), &args.identify)?;
+            (
+                chosen.iter().map(|&i| pool.poses[i].clone()).collect::<Vec<_>>(),
+                format!(
+                    "picked from a pool of {} ({} unreachable); log det of the scaled information {log_det:.2}",
+                    pool.poses.len(),
+                    pool.unreachable
+                ),
+            )
+        }
+        "trajectory" => {
+            let Some(path) = &args.trajectory else {
+                bail!("--method trajectory needs --trajectory FILE (joint configurations in task order)");
+            };
+            let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+            let trajectory = parse_poses(&text, path, robot.tree(), robot.file.units)?;
+            let pool_n = args.pool.unwrap_or(2000);
+            let pool = spread(
+                &robot,
+                space,
+                Sampler::parse(&args.pool_sampler)?,
+                pool_n,
+                args.seed,
+                &accept,
+            )?;
+            let chosen = trajectory_similar(
+                &robot,
+                &trajectory,
+                &pool.tool_positions,
+                args.trajectory_points,
+                args.per_point,
+            )?;
+            (
+                chosen.iter().map(|&i| pool.poses[i].clone()).collect(),
+                format!(
+                    "{} trajectory points × {} nearest of a pool of {}",
+                    args.trajectory_points,
+                    args.per_point,
+                    pool.poses.len()
+                ),
+            )
+        }
+        sampler => {
+            let plan = spread(&robot, space, Sampler::parse(sampler)?, args.n, args.seed, &accept)?;
+            let note = format!("{} unreachable candidates skipped", plan.unreachable);
+            (plan.poses, note)
+        }
+    };
+    if poses.len() < args.n && args.method != "trajectory" {
+        eprintln!("warning: only {} of {} poses could be planned", poses.len(), args.n);
+    }
+    write_atomic(
+        &args.out,
+        write_poses(&poses, robot.tree(), robot.file.units).as_bytes(),
+    )?;
+    eprintln!("wrote {} poses to {} ({note})", poses.len(), args.out.display());
+    Ok(ExitCode::SUCCESS)
+}

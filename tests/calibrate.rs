@@ -1,0 +1,402 @@
+//! Calibration on simulated data of a truth with known parameters: recovery, the noise floor on
+//! held-out poses, identifiability reports, limits and splits.
+
+use armcomp_core::Robot;
+use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
+use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::measurement::Sample;
+use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::split::{holdout, kfold, pose_groups};
+
+use crate::common::robot;
+
+const NOISE: f64 = 0.05e-3; // m per axis
+
+/// A truth: the nominal robot with the named parameters moved by the given amounts (SI).
+fn truth_of(nominal: &Robot, changes: &[(&str, f64)]) -> (Robot, Vec<f64>) {
+    let space = ParameterSpace::new(nominal);
+    let mut theta = space.initial();
+    for (name, delta) in changes {
+        let k = space.index(name).unwrap_or_else(|| panic!("no parameter {name}"));
+        theta[k] += delta;
+    }
+    (space.apply(nominal, &theta).unwrap(), theta)
+}
+
+fn measure(truth: &Robot, n: usize, seed: u64) -> Vec<Sample> {
+    let poses = configurations(truth.tree(), Sampler::Sobol, n, seed).unwrap();
+    let params = SimulateParams {
+        noise_std: NOISE,
+        seed: seed + 1000,
+    };
+    simulate(truth, &poses, params).unwrap().samples
+}
+
+/// Mean 3-D norm of isotropic Gaussian noise with `sigma` per axis: σ·√(8/π).
+fn noise_floor_mm(sigma: f64) -> f64 {
+    sigma * (8.0 / std::f64::consts::PI).sqrt() * 1e3
+}
+
+fn value(report: &armcomp_core::calibrate::CalibrationReport, name: &str) -> (f64, f64) {
+    let p = report.params.iter().find(|p| p.name == name).unwrap();
+    (p.value, p.std)
+}
+
+#[test]
+fn rock_drill_geometry_base_and_marker_are_recovered_to_the_noise_floor() {
+    let nominal = robot("rock-drill.toml");
+    let deg = 1f64.to_radians();
+    let (truth, theta) = truth_of(
+        &nominal,
+        &[
+            ("j2.a", 1.5e-3),
+            ("j2.alpha", 0.3 * deg),
+            ("j5.theta", -0.4 * deg),
+            ("j6.alpha", 0.2 * deg),
+            ("j3.d", 3e-3),
+            ("base.x", 1.0),
+            ("base.y", 0.2),
+            ("base.z", -0.3),
+            ("base.pitch", -2.0 * deg),
+            ("base.yaw", 30.0 * deg),
+            ("marker.tool.x", 1e-3),
+            ("marker.tool.z", 2e-3),
+        ],
+    );
+    // The nominal start knows the base only roughly.
+    let (start, _) = truth_of(
+        &nominal,
+        &[
+            ("base.x", 0.99),
+            ("base.y", 0.21),
+            ("base.z", -0.31),
+            ("base.yaw", 28.0 * deg),
+        ],
+    );
+    let train = measure(&truth, 250, 1);
+    let test = measure(&truth, 60, 2);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let cal = calibrate(&start, &train, &params, &mut |_| {}).unwrap();
+    let r = &cal.report;
+    assert!(r.converged, "{}", r.stop_reason);
+    let space = ParameterSpace::new(&nominal);
+    // Identifiable parameters land within 4 standard deviations of the truth.
+    for name in ["j2.a", "j2.alpha", "j5.theta", "j6.alpha", "base.pitch"] {
+        let (v, std) = value(r, name);
+        let t = theta[space.index(name).unwrap()];
+        assert!(
+            (v - t).abs() < 4.0 * std + 1e-9,
+            "{name}: identified {v}, truth {t}, std {std}"
+        );
+        assert!(
+            std < 1e-3,
+            "{name}: std {std} is not small, the data should determine it"
+        );
+    }
+    // Prismatic j3.d and j4.d shift along the same axis: only their sum is determined.
+    let sum = value(r, "j3.d").0 + value(r, "j4.d").0;
+    let truth_sum = theta[space.index("j3.d").unwrap()] + theta[space.index("j4.d").unwrap()];
+    assert!(
+        (sum - truth_sum).abs() < 0.1e-3,
+        "j3.d + j4.d = {sum}, truth {truth_sum}"
+    );
+    // Held out: at the noise floor (the model error is far below the noise).
+    let held_out = ErrorStats::from_errors(&position_errors(&cal.robot, &test));
+    let before = ErrorStats::from_errors(&position_errors(&start, &test));
+    assert!(before.mean_mm > 20.0, "the start is off by {} mm", before.mean_mm);
+    assert!(
+        held_out.mean_mm < 1.15 * noise_floor_mm(NOISE),
+        "held-out mean {} mm, noise floor {} mm",
+        held_out.mean_mm,
+        noise_floor_mm(NOISE)
+    );
+}
+
+#[test]
+fn industrial_geometry_and_base_are_recovered_to_the_noise_floor() {
+    let nominal = robot("industrial-6dof.toml");
+    let deg = 1f64.to_radians();
+    let (truth, theta) = truth_of(
+        &nominal,
+        &[
+            ("j2.alpha", 0.2 * deg),
+            ("j3.a", 1e-3),
+            ("j3.beta", 0.1 * deg),
+            ("j4.d", -1.5e-3),
+            ("j5.theta", 0.3 * deg),
+            ("base.x", 0.8),
+            ("base.z", 0.1),
+            ("base.roll", 1.0 * deg),
+        ],
+    );
+    let train = measure(&truth, 200, 3);
+    let test = measure(&truth, 60, 4);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let cal = calibrate(&nominal, &train, &params, &mut |_| {}).unwrap();
+    let r = &cal.report;
+    assert!(r.converged, "{}", r.stop_reason);
+    let space = ParameterSpace::new(&nominal);
+    for name in ["j2.alpha", "j3.a", "j3.beta", "j4.d", "j5.theta"] {
+        let (v, std) = value(r, name);
+        let t = theta[space.index(name).unwrap()];
+        assert!(
+            (v - t).abs() < 4.0 * std + 1e-9,
+            "{name}: identified {v}, truth {t}, std {std}"
+        );
+    }
+    let held_out = ErrorStats::from_errors(&position_errors(&cal.robot, &test));
+    assert!(
+        held_out.mean_mm < 1.15 * noise_floor_mm(NOISE),
+        "held-out mean {} mm",
+        held_out.mean_mm
+    );
+}
+
+#[test]
+fn identifiability_names_the_base_yaw_and_first_joint_offset_pair() {
+    // Joint 1 of the rock drill turns about the base z axis (α0 = a0 = 0), exactly as a yaw
+    // of the base frame does: the data cannot tell them apart.
+    let nominal = robot("rock-drill.toml");
+    let data = measure(&nominal, 40, 5);
+    let identify = vec!["base".to_string(), "j1.theta".to_string()];
+    let with_priors = CalibrationParams {
+        identify: identify.clone(),
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let r = calibrate(&nominal, &data, &with_priors, &mut |_| {}).unwrap().report;
+    let id = &r.identifiability;
+    assert_eq!(id.rank, id.n_params - 1, "{id:?}");
+    assert!(id.condition_number.is_infinite());
+    assert_eq!(id.deficiencies.len(), 1, "{id:?}");
+    let mut names: Vec<&str> = id.deficiencies[0].combination.iter().map(|(n, _)| n.as_str()).collect();
+    names.sort();
+    assert_eq!(names, ["base.yaw", "j1.theta"]);
+    // Opposite signs: turning the base one way and joint 1 the other leaves every point put.
+    let c = &id.deficiencies[0].combination;
+    assert!((c[0].1 + c[1].1).abs() < 1e-3, "{c:?}");
+    assert_eq!(id.deficiencies[0].action, "regularised");
+    assert!(id.message.contains("base.yaw") && id.message.contains("j1.theta"));
+
+    // Without priors one of the two is held at its start value instead.
+    let no_priors = CalibrationParams {
+        use_priors: false,
+        ..with_priors
+    };
+    let r = calibrate(&nominal, &data, &no_priors, &mut |_| {}).unwrap().report;
+    let d = &r.identifiability.deficiencies;
+    assert_eq!(d.len(), 1);
+    assert_eq!(d[0].action, "fixed");
+    let fixed = d[0].fixed.as_deref().unwrap();
+    assert!(fixed == "base.yaw" || fixed == "j1.theta");
+    assert!(
+        r.params
+            .iter()
+            .any(|p| p.name == fixed && p.fixed && p.value == p.initial)
+    );
+    assert!(r.converged);
+}
+
+#[test]
+fn too_few_measurements_are_named_and_nothing_blows_up() {
+    let nominal = robot("industrial-6dof.toml");
+    let (truth, _) = truth_of(&nominal, &[("j2.a", 1e-3), ("base.x", 0.01)]);
+    let data = measure(&truth, 4, 6);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let cal = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap();
+    let id = &cal.report.identifiability;
+    assert!(
+        id.message.contains("4 measured positions give 12 equations"),
+        "{}",
+        id.message
+    );
+    assert!(id.rank <= 12);
+    // Priors keep every parameter within a few prior sigmas instead of drifting off.
+    for p in &cal.report.params {
+        if p.name.starts_with('j') {
+            assert!(
+                (p.value - p.initial).abs() < 0.05,
+                "{} moved {}",
+                p.name,
+                p.value - p.initial
+            );
+        }
+    }
+}
+
+#[test]
+fn an_iteration_cap_reports_non_convergence_and_keeps_the_best_result() {
+    let nominal = robot("rock-drill.toml");
+    let (truth, _) = truth_of(&nominal, &[("base.x", 0.5), ("base.yaw", 0.3), ("j2.a", 2e-3)]);
+    let data = measure(&truth, 60, 7);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        max_iterations: 1,
+        ..Default::default()
+    };
+    let r = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap().report;
+    assert!(!r.converged);
+    assert!(r.stop_reason.contains("iteration limit"), "{}", r.stop_reason);
+    assert_eq!(r.iterations, 1);
+    assert!(r.after.rms_mm < r.before.rms_mm);
+}
+
+#[test]
+fn bounded_parameters_stay_within_their_bounds() {
+    // A truth without joint compliance, a model that identifies it: noise may pull the
+    // estimate below zero, which is not physical, so it must stop at the bound.
+    let text = std::fs::read_to_string(crate::common::root().join("robots/industrial-6dof.toml")).unwrap();
+    let text =
+        format!("{text}\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j2 = 0.0, j3 = 0.0 }}\n");
+    let nominal = crate::common::robot_from_toml(&text);
+    let data = measure(&nominal, 40, 8);
+    let params = CalibrationParams {
+        identify: vec!["joint_compliance".into()],
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let r = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap().report;
+    for p in &r.params {
+        assert!(p.value >= 0.0, "{} = {}", p.name, p.value);
+    }
+}
+
+#[test]
+fn unknown_identify_words_are_rejected_with_the_choices() {
+    let nominal = robot("rock-drill.toml");
+    let data = measure(&nominal, 5, 9);
+    let params = CalibrationParams {
+        identify: vec!["geometri".into()],
+        ..Default::default()
+    };
+    let e = calibrate(&nominal, &data, &params, &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("`geometri` matches no parameter") && e.contains("geometry"),
+        "{e}"
+    );
+}
+
+#[test]
+fn splits_keep_poses_together_and_cover_everything_once() {
+    let nominal = robot("rock-drill.toml");
+    let mut samples = measure(&nominal, 30, 10);
+    // Two markers at every pose: duplicate each sample as a second point.
+    samples = samples.into_iter().flat_map(|s| [s.clone(), s]).collect();
+    let groups = pose_groups(&samples);
+    assert_eq!(groups.len(), 30);
+    let split = holdout(&samples, 0.2, 1).unwrap();
+    assert_eq!(split.test.len(), 12);
+    assert_eq!(split.train.len() + split.test.len(), 60);
+    for g in &groups {
+        let in_test = split.test.contains(&g[0]);
+        assert!(g.iter().all(|i| split.test.contains(i) == in_test), "a pose was split");
+    }
+    assert_eq!(holdout(&samples, 0.2, 1).unwrap(), split, "same seed, same split");
+    assert_ne!(holdout(&samples, 0.2, 2).unwrap(), split);
+
+    let folds = kfold(&samples, 5, 3).unwrap();
+    let mut seen = vec![0; samples.len()];
+    for f in &folds {
+        assert_eq!(f.train.len() + f.test.len(), samples.len());
+        f.test.iter().for_each(|&i| seen[i] += 1);
+        assert!(f.test.iter().all(|i| !f.train.contains(i)));
+    }
+    assert!(seen.iter().all(|&c| c == 1), "each sample is held out exactly once");
+    assert!(kfold(&samples, 31, 0).is_err());
+    assert!(holdout(&samples, 1.0, 0).is_err());
+}
+
+#[test]
+fn calibrate_and_evaluate_on_the_command_line() {
+    use std::process::Command;
+    let dir = crate::common::Scratch::new("calibrate-cli");
+    let bin = env!("CARGO_BIN_EXE_armcomp");
+    let nominal_path = crate::common::root().join("robots/industrial-6dof.toml");
+    let nominal = robot("industrial-6dof.toml");
+    let (truth, _) = truth_of(&nominal, &[("j2.a", 2e-3), ("j3.alpha", 0.005), ("base.x", 0.5)]);
+    let write = |name: &str, samples: &[Sample]| {
+        let set = armcomp_core::measurement::MeasurementSet {
+            samples: samples.to_vec(),
+            warnings: vec![],
+        };
+        let text = armcomp_core::measurement::write_csv(&set, truth.tree(), truth.file.units);
+        dir.file(name, &text)
+    };
+    let train = write("train.csv", &measure(&truth, 120, 11));
+    let test = write("test.csv", &measure(&truth, 40, 12));
+    let model = dir.0.join("model.json");
+    let out = Command::new(bin)
+        .args(["calibrate", "--robot"])
+        .arg(&nominal_path)
+        .arg("--data")
+        .arg(&train)
+        .arg("--out")
+        .arg(&model)
+        .args(["--noise-mm", "0.05", "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["converged"], true);
+    assert!(report["after"]["rms_mm"].as_f64().unwrap() < report["before"]["rms_mm"].as_f64().unwrap());
+
+    let evaluate = |model: &std::path::Path| {
+        let out = Command::new(bin)
+            .args(["evaluate", "--model"])
+            .arg(model)
+            .arg("--data")
+            .arg(&test)
+            .arg("--json")
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let after = evaluate(&model);
+    let before = evaluate(&nominal_path);
+    for key in ["n", "mean_mm", "std_mm", "rms_mm", "max_mm"] {
+        assert!(after[key].is_number(), "missing {key}");
+    }
+    for axis in ["x", "y", "z"] {
+        assert!(after["mean_abs_mm"][axis].is_number());
+    }
+    assert_eq!(after["n"], 40);
+    assert!(after["mean_mm"].as_f64().unwrap() < 1.15 * noise_floor_mm(NOISE));
+    assert!(before["mean_mm"].as_f64().unwrap() > 100.0);
+    // Independent check of the statistics: recompute from the errors of the written model.
+    let reloaded = Robot::from_path(&model).unwrap();
+    let samples = armcomp_core::measurement::read_csv(&test, reloaded.tree(), reloaded.file.units, reloaded.tool())
+        .unwrap()
+        .samples;
+    let errors = position_errors(&reloaded, &samples);
+    let mean = errors.iter().map(|e| e.norm()).sum::<f64>() / errors.len() as f64 * 1e3;
+    assert!((mean - after["mean_mm"].as_f64().unwrap()).abs() < 1e-9);
+
+    // The output may not be an input.
+    let out = Command::new(bin)
+        .args(["calibrate", "--robot"])
+        .arg(&nominal_path)
+        .arg("--data")
+        .arg(&train)
+        .arg("--out")
+        .arg(&train)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(
+        std::fs::read_to_string(&train).unwrap().starts_with("j1"),
+        "the input was overwritten"
+    );
+}
