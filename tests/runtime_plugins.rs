@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::robot_file::SourceFile;
+use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_core::{Error, Robot, RobotFile};
 use nalgebra::Vector3;
 
@@ -55,8 +58,9 @@ fn example_folder(tag: &str) -> (Scratch, PathBuf) {
     (scratch, path)
 }
 
-/// The example robot with the same model linked in (the rlib's spec type, no library).
-fn linked_robot() -> Robot {
+/// The example robot with the same model linked in (the rlib's spec type, no library), with the
+/// hose's mass per length `mass_per_length` (kg/m; the file says 2.5).
+fn linked_robot(mass_per_length: f64) -> Robot {
     let text = std::fs::read_to_string(root().join("plugins/examples/cable_sag/robot.toml")).unwrap();
     let (head, _) = text.split_once("[[error_models]]").unwrap();
     let src = SourceFile {
@@ -68,7 +72,7 @@ fn linked_robot() -> Robot {
     file.error_models.push(Box::new(cable_sag::CableSagSpec {
         link: "boom".into(),
         length: 1500.0,
-        mass_per_length: 2.5,
+        mass_per_length,
     }));
     Robot::from_source(file, &src).unwrap()
 }
@@ -87,7 +91,7 @@ fn robot_from_text(text: &str, path: &Path) -> armcomp_core::Result<Robot> {
 fn runtime_plugin_matches_the_linked_model_bit_for_bit() {
     let (_scratch, path) = example_folder("rt-exact");
     let runtime = Robot::from_path(&path).unwrap();
-    let linked = linked_robot();
+    let linked = linked_robot(2.5);
     assert_eq!(runtime.error_models()[0].params(), linked.error_models()[0].params());
     let (mut ws_rt, mut ws_ln) = (runtime.workspace(), linked.workspace());
     for q in random_configurations(&linked, 50, 7) {
@@ -354,5 +358,47 @@ fn a_plugin_returning_the_wrong_number_of_values_is_rejected() {
         60,
         "error_models[1]",
         "perturb returned 4 joint offsets, expected 3",
+    );
+}
+
+#[test]
+fn calibration_identifies_the_runtime_parameter_as_it_does_the_linked_one() {
+    let (scratch, path) = example_folder("rt-calibrate");
+    let truth = Robot::from_path(&path).unwrap();
+    let poses = configurations(truth.tree(), Sampler::Sobol, 120, 3).unwrap();
+    let noise = SimulateParams {
+        noise_std: 0.01e-3,
+        seed: 11,
+    };
+    let samples = simulate(&truth, &poses, noise).unwrap().samples;
+    // Both starts believe the hose weighs 1 kg/m; the truth's is 2.5 kg/m.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start_path = scratch.file(
+        "start.toml",
+        &text.replace("mass_per_length = 2.5", "mass_per_length = 1.0"),
+    );
+    let runtime_start = Robot::from_path(&start_path).unwrap();
+    let linked_start = linked_robot(1.0);
+    let name = "cable_sag.boom.mass_per_length";
+    let params = CalibrationParams {
+        identify: vec![name.to_string()],
+        measurement_std: noise.noise_std,
+        ..Default::default()
+    };
+    let identified = |start: &Robot| {
+        let cal = calibrate(start, &samples, &params, &mut |_| {}).unwrap();
+        assert!(cal.report.converged, "{}", cal.report.stop_reason);
+        let p = cal.report.params.iter().find(|p| p.name == name).unwrap();
+        (p.value, p.std)
+    };
+    let (runtime, std) = identified(&runtime_start);
+    let (linked, _) = identified(&linked_start);
+    assert_eq!(
+        runtime, linked,
+        "the loaded and the linked model identify the same value"
+    );
+    assert!(
+        std > 0.0 && (runtime - 2.5).abs() < 4.0 * std,
+        "identified {runtime} ± {std}, truth 2.5"
     );
 }
