@@ -90,12 +90,17 @@ fn guard(f: impl FnOnce() -> Result<i32, Failure>) -> i32 {
     }
 }
 
+/// Builds an error model from its config JSON and the context.
+pub type CreateModel = fn(&str, &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues>;
+/// Fits a predictor from its config JSON and the data.
+pub type FitPredictor = fn(&str, &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>, String>;
+
 /// How one exported type is built; the macro fills this in with the author's types.
 pub enum Constructor {
-    /// An error model: config JSON + context → model.
-    ErrorModel(fn(&str, &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues>),
-    /// A residual predictor: config JSON + data → fitted predictor.
-    Predictor(fn(&str, &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>, String>),
+    /// An error model.
+    ErrorModel(CreateModel),
+    /// A residual predictor.
+    Predictor(FitPredictor),
 }
 
 /// One type a plugin library exports.

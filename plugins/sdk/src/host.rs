@@ -528,7 +528,7 @@ impl PluginErrorModel {
             // SAFETY: the strings are valid until the next call with this handle.
             let (name, unit) = unsafe { (owned(p.name), owned(p.unit)) };
             let q = quantity(p.quantity, unit).map_err(|m| format!("{}: parameter `{name}`: {m}", lib.file_name))?;
-            if !p.nominal.is_finite() || !(p.sigma > 0.0) {
+            if !p.nominal.is_finite() || p.sigma.is_nan() || p.sigma <= 0.0 {
                 return Err(format!(
                     "{}: parameter `{name}` has nominal value {} and prior sigma {}; expected a finite value and a positive sigma",
                     lib.file_name, p.nominal, p.sigma
