@@ -5,16 +5,25 @@ use schemars::generate::SchemaSettings;
 use serde_json::{Value, json};
 
 /// Every plugin linked into this build, in a stable order (role, then registration order).
-pub fn plugins() -> Vec<PluginInfo> {
+pub fn builtin_plugins() -> Vec<PluginInfo> {
     let mut all = armcomp_chains::plugins();
     all.extend(armcomp_elastic::plugins());
     all.extend(armcomp_urdf::plugins());
+    all.extend(armcomp_sdk::plugins());
     // Stable order by role so listings and the schema do not depend on registration order.
     all.sort_by_key(|p| match p.role {
         Role::Kinematics => 0,
         Role::ErrorModel => 1,
         Role::Predictor => 2,
     });
+    all
+}
+
+/// The built-in plugins, then the types of every run-time plugin library loaded so far (robot
+/// files name them with `type = "plugin"`, `model = "<type>"`).
+pub fn plugins() -> Vec<PluginInfo> {
+    let mut all = builtin_plugins();
+    all.extend(armcomp_sdk::loaded_plugins());
     all
 }
 
@@ -28,10 +37,12 @@ fn placeholder(role: Role) -> &'static str {
 }
 
 /// The JSON Schema (draft 2020-12) of robot files: the file structure from core, with a `oneOf`
-/// per plugin role listing each registered plugin's own spec schema, tagged by its `type`.
+/// per plugin role listing each built-in plugin's own spec schema, tagged by its `type`. Run-time
+/// plugins appear as the built-in `plugin` type; their configs are checked against their own
+/// schemas when they are loaded.
 pub fn robot_schema() -> Value {
     let mut generator = SchemaSettings::draft2020_12().into_generator();
-    let plugins = plugins();
+    let plugins = builtin_plugins();
     let mut per_role: Vec<(Role, Vec<Value>)> = [Role::Kinematics, Role::ErrorModel, Role::Predictor]
         .into_iter()
         .map(|r| (r, Vec::new()))

@@ -11,5 +11,6 @@ mod malformed;
 mod measurement;
 mod plan;
 mod robot_files;
+mod runtime_plugins;
 mod simulate;
 mod urdf;

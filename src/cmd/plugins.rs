@@ -1,13 +1,23 @@
+use std::path::PathBuf;
 use std::process::ExitCode;
+
+use anyhow::anyhow;
 
 #[derive(clap::Args)]
 pub struct Args {
+    /// Also load this run-time plugin library (repeatable) and list its types; without an
+    /// extension the platform's naming applies (`libNAME.so`, `libNAME.dylib`, `NAME.dll`).
+    #[arg(long)]
+    library: Vec<PathBuf>,
     /// Print JSON: [{"type": .., "role": .., "doc": .., "diagnosis_candidate": ..}, ...].
     #[arg(long)]
     json: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    for lib in &args.library {
+        armcomp_sdk::load_library(lib).map_err(|m| anyhow!("--library {}: {m}", lib.display()))?;
+    }
     let plugins = armcomp::plugins();
     if args.json {
         let list: Vec<_> = plugins

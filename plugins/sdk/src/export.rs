@@ -1,0 +1,632 @@
+//! The plugin side of the ABI: what [`export_plugins!`](crate::export_plugins) expands to calls.
+//!
+//! Each entry point reads the host's flat arguments back into core types, runs the plugin's own
+//! Rust implementation of the core traits inside `catch_unwind`, and turns every failure (an
+//! error, rejected config, a panic) into a status code with a message for
+//! `armcomp_last_error`. Buffers live in the handles and are reused between calls.
+
+use std::cell::RefCell;
+use std::os::raw::c_void;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+use std::sync::OnceLock;
+
+use armcomp_core::mass::MassModel;
+use armcomp_core::{
+    AngleUnit, BuildContext, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree, LengthUnit,
+    ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace, Units,
+};
+use nalgebra::Vector3;
+use schemars::JsonSchema;
+use schemars::generate::SchemaSettings;
+use serde::de::DeserializeOwned;
+
+use crate::abi::*;
+use crate::flat::{abi_str, frames_into, mass_into, slice, text, tree_from_abi};
+
+/// Why a call failed, before it becomes a status code.
+enum Failure {
+    /// A message for `armcomp_last_error`.
+    Message(String),
+    /// Config problems with their field paths.
+    Issues(Issues),
+}
+
+impl From<String> for Failure {
+    fn from(m: String) -> Self {
+        Failure::Message(m)
+    }
+}
+
+thread_local! {
+    static LAST_ERROR: RefCell<String> = const { RefCell::new(String::new()) };
+}
+
+fn set_last_error(message: String) {
+    LAST_ERROR.with(|e| *e.borrow_mut() = message);
+}
+
+/// `armcomp_last_error`: the message of the last failed call on this thread.
+pub fn last_error() -> AbiStr {
+    LAST_ERROR.with(|e| {
+        let e = e.borrow();
+        // The String stays in the thread-local until the next failure on this thread.
+        AbiStr {
+            ptr: e.as_ptr(),
+            len: e.len(),
+        }
+    })
+}
+
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    match (payload.downcast_ref::<&str>(), payload.downcast_ref::<String>()) {
+        (Some(s), _) => s.to_string(),
+        (_, Some(s)) => s.clone(),
+        _ => "a panic without message".to_string(),
+    }
+}
+
+/// Runs `f`, turning its failures and panics into a status code and the last error.
+fn guard(f: impl FnOnce() -> Result<i32, Failure>) -> i32 {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(Ok(status)) => status,
+        Ok(Err(Failure::Message(m))) => {
+            set_last_error(m);
+            STATUS_ERROR
+        }
+        Ok(Err(Failure::Issues(issues))) => {
+            let list: Vec<_> = issues
+                .0
+                .iter()
+                .map(|i| serde_json::json!({ "path": i.path, "message": i.message }))
+                .collect();
+            set_last_error(serde_json::Value::Array(list).to_string());
+            STATUS_ISSUES
+        }
+        Err(payload) => {
+            set_last_error(format!("the plugin panicked: {}", panic_message(payload.as_ref())));
+            STATUS_ERROR
+        }
+    }
+}
+
+/// Builds an error model from its config JSON and the context.
+pub type CreateModel = fn(&str, &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues>;
+/// Fits a predictor from its config JSON and the data.
+pub type FitPredictor = fn(&str, &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>, String>;
+
+/// How one exported type is built; the macro fills this in with the author's types.
+pub enum Constructor {
+    /// An error model.
+    ErrorModel(CreateModel),
+    /// A residual predictor.
+    Predictor(FitPredictor),
+}
+
+/// One type a plugin library exports.
+pub struct TypeEntry {
+    /// Its type name.
+    pub name: &'static str,
+    /// One line saying what it is.
+    pub doc: &'static str,
+    /// Whether diagnosis may try it.
+    pub diagnosis_candidate: bool,
+    /// How it is built.
+    pub constructor: Constructor,
+    /// JSON Schema of its config.
+    pub schema: fn() -> String,
+}
+
+/// The JSON Schema (draft 2020-12) of a spec type, as text.
+pub fn schema_of<S: JsonSchema>() -> String {
+    SchemaSettings::draft2020_12()
+        .into_generator()
+        .into_root_schema_for::<S>()
+        .to_value()
+        .to_string()
+}
+
+/// Config issue for a JSON text that does not deserialise into `S`, at the failing field.
+fn parse_config<S: DeserializeOwned>(config: &str, path: &str) -> Result<S, Issues> {
+    let mut de = serde_json::Deserializer::from_str(config);
+    serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let field = e.path().to_string();
+        let field = if field == "." {
+            String::new()
+        } else {
+            format!(".{field}")
+        };
+        let mut issues = Issues::default();
+        let message = e.into_inner().to_string();
+        let message = message.split(" at line ").next().unwrap_or_default().to_string();
+        issues.push(format!("{path}{field}"), message);
+        issues
+    })
+}
+
+/// Builds an error model of spec type `S` from its JSON config.
+pub fn create_model<S: ErrorModelSpec + DeserializeOwned>(
+    config: &str,
+    ctx: &ModelContext<'_>,
+) -> Result<Box<dyn ErrorModel>, Issues> {
+    parse_config::<S>(config, ctx.build.path)?.build(ctx)
+}
+
+/// Fits a predictor of spec type `S` from its JSON config.
+pub fn fit_predictor<S: PredictorSpec + DeserializeOwned>(
+    config: &str,
+    data: &TrainingSet<'_>,
+) -> Result<Box<dyn FittedPredictor>, String> {
+    let spec = parse_config::<S>(config, "config").map_err(|i| {
+        i.0.iter()
+            .map(|i| format!("{}: {}", i.path, i.message))
+            .collect::<Vec<_>>()
+            .join("; ")
+    })?;
+    spec.fit(data).map_err(|e| e.to_string())
+}
+
+/// `armcomp_type_count`.
+pub fn type_count(types: &[TypeEntry]) -> u32 {
+    u32::try_from(types.len()).unwrap_or(u32::MAX)
+}
+
+fn entry(types: &[TypeEntry], index: u32) -> Result<&TypeEntry, Failure> {
+    types
+        .get(index as usize)
+        .ok_or_else(|| Failure::Message(format!("no type {index}; this library has {}", types.len())))
+}
+
+/// `armcomp_type_info`.
+///
+/// # Safety
+/// `out` must be valid for one write.
+pub unsafe fn type_info(
+    types: &[TypeEntry],
+    schemas: &OnceLock<Vec<String>>,
+    index: u32,
+    out: *mut AbiTypeInfo,
+) -> i32 {
+    guard(|| {
+        let t = entry(types, index)?;
+        let schemas = schemas.get_or_init(|| types.iter().map(|t| (t.schema)()).collect());
+        let info = AbiTypeInfo {
+            name: abi_str(t.name),
+            doc: abi_str(t.doc),
+            role: match t.constructor {
+                Constructor::ErrorModel(_) => ROLE_ERROR_MODEL,
+                Constructor::Predictor(_) => ROLE_PREDICTOR,
+            },
+            diagnosis_candidate: u32::from(t.diagnosis_candidate),
+            config_schema: abi_str(&schemas[index as usize]),
+        };
+        // SAFETY: the caller guarantees `out` is valid for one write.
+        unsafe { out.write(info) };
+        Ok(STATUS_OK)
+    })
+}
+
+/// An error model behind the ABI, with the buffers its calls reuse.
+struct ModelHandle {
+    model: Box<dyn ErrorModel>,
+    tree: KinematicTree,
+    mass: MassModel,
+    frames: TreeWorkspace,
+    perturbation: Perturbation,
+    joint_twists: Vec<f64>,
+    point_twists: Vec<f64>,
+    spec_json: String,
+}
+
+/// `armcomp_model_create`.
+///
+/// # Safety
+/// `config` and every pointer of `*ctx` must be valid as documented on [`AbiModelContext`];
+/// `out` must be valid for one write.
+pub unsafe fn model_create(
+    types: &[TypeEntry],
+    index: u32,
+    config: AbiStr,
+    ctx: *const AbiModelContext,
+    out: *mut *mut c_void,
+) -> i32 {
+    guard(|| {
+        let Constructor::ErrorModel(create) = entry(types, index)?.constructor else {
+            return Err(format!("type {index} is not an error model").into());
+        };
+        // SAFETY: the caller guarantees `ctx` points to a valid context for this call.
+        let ctx = unsafe { ctx.as_ref() }.ok_or_else(|| "null model context".to_string())?;
+        // SAFETY: strings and arrays of the context are valid for this call.
+        let (config, length, angle, path, base_dir, tree) = unsafe {
+            (
+                text(config)?,
+                text(ctx.length_unit)?,
+                text(ctx.angle_unit)?,
+                text(ctx.field_path)?,
+                text(ctx.base_dir)?,
+                tree_from_abi(&ctx.tree)?,
+            )
+        };
+        let mut mass = MassModel::massless(0);
+        // SAFETY: the mass arrays are valid for this call.
+        unsafe { mass_into(&ctx.mass, &mut mass) }?;
+        let units = Units {
+            length: LengthUnit::parse(length).ok_or_else(|| format!("unknown length unit `{length}`"))?,
+            angle: AngleUnit::parse(angle).ok_or_else(|| format!("unknown angle unit `{angle}`"))?,
+        };
+        let mctx = ModelContext {
+            build: BuildContext {
+                units,
+                base_dir: Path::new(base_dir),
+                path,
+            },
+            tree: &tree,
+            mass: &mass,
+        };
+        let model = create(config, &mctx).map_err(Failure::Issues)?;
+        let handle = Box::new(ModelHandle {
+            model,
+            frames: TreeWorkspace::new(&tree),
+            perturbation: Perturbation::zeros(&tree),
+            joint_twists: vec![0.0; TWIST_LEN * tree.joints().len()],
+            point_twists: vec![0.0; TWIST_LEN * tree.points().len()],
+            tree,
+            mass,
+            spec_json: String::new(),
+        });
+        // SAFETY: the caller guarantees `out` is valid for one write.
+        unsafe { out.write(Box::into_raw(handle).cast()) };
+        Ok(STATUS_OK)
+    })
+}
+
+/// The handle behind a model pointer.
+///
+/// # Safety
+/// `model` must come from [`model_create`], not yet destroyed, used by one thread at a time.
+unsafe fn model_handle<'a>(model: *mut c_void) -> Result<&'a mut ModelHandle, Failure> {
+    // SAFETY: forwarded from the caller.
+    unsafe { model.cast::<ModelHandle>().as_mut() }.ok_or_else(|| Failure::Message("null model handle".into()))
+}
+
+/// `armcomp_model_param_count`.
+///
+/// # Safety
+/// As [`model_handle`].
+pub unsafe fn model_param_count(model: *mut c_void) -> u32 {
+    // SAFETY: forwarded from the caller.
+    match unsafe { model_handle(model) } {
+        Ok(h) => u32::try_from(h.model.params().len()).unwrap_or(u32::MAX),
+        Err(_) => 0,
+    }
+}
+
+fn quantity_code(q: &Quantity) -> (u32, &'static str) {
+    match q {
+        Quantity::Length => (QUANTITY_LENGTH, ""),
+        Quantity::Angle => (QUANTITY_ANGLE, ""),
+        Quantity::Dimensionless => (QUANTITY_DIMENSIONLESS, ""),
+        Quantity::Compliance => (QUANTITY_COMPLIANCE, ""),
+        Quantity::Mass => (QUANTITY_MASS, ""),
+        Quantity::Rigidity => (QUANTITY_RIGIDITY, ""),
+        Quantity::PerKelvin => (QUANTITY_PER_KELVIN, ""),
+        Quantity::Other(unit) => (QUANTITY_OTHER, unit),
+    }
+}
+
+/// `armcomp_model_param`.
+///
+/// # Safety
+/// As [`model_handle`]; `out` must be valid for one write.
+pub unsafe fn model_param(model: *mut c_void, index: u32, out: *mut AbiParam) -> i32 {
+    guard(|| {
+        // SAFETY: forwarded from the caller.
+        let h = unsafe { model_handle(model) }?;
+        let params = h.model.params();
+        let p = params
+            .get(index as usize)
+            .ok_or_else(|| format!("no parameter {index}; the model has {}", params.len()))?;
+        let (quantity, unit) = quantity_code(&p.quantity);
+        let param = AbiParam {
+            name: abi_str(&p.name),
+            quantity,
+            unit: abi_str(unit),
+            nominal: p.nominal,
+            sigma: p.sigma,
+        };
+        // SAFETY: the caller guarantees `out` is valid for one write.
+        unsafe { out.write(param) };
+        Ok(STATUS_OK)
+    })
+}
+
+/// `armcomp_model_perturb`: the model's deformation alone, in the handle's buffers.
+///
+/// # Safety
+/// As [`model_handle`]; `*state` valid as documented on [`AbiState`], `values` valid for
+/// `n_values` reads, `out` for one write.
+pub unsafe fn model_perturb(
+    model: *mut c_void,
+    state: *const AbiState,
+    values: *const f64,
+    n_values: usize,
+    out: *mut AbiPerturbation,
+) -> i32 {
+    guard(|| {
+        // SAFETY: forwarded from the caller.
+        let h = unsafe { model_handle(model) }?;
+        // SAFETY: the caller guarantees a valid state for this call.
+        let s = unsafe { state.as_ref() }.ok_or_else(|| "null state".to_string())?;
+        // SAFETY: arrays of the state and `values` are valid for their declared lengths.
+        let (q, values) = unsafe { (slice(s.q, s.n_q)?, slice(values, n_values)?) };
+        if q.len() != h.tree.nq() || values.len() != h.model.params().len() {
+            return Err(format!(
+                "expected {} joint values and {} parameter values, got {} and {}",
+                h.tree.nq(),
+                h.model.params().len(),
+                q.len(),
+                values.len()
+            )
+            .into());
+        }
+        // SAFETY: as above.
+        unsafe {
+            frames_into(s, &mut h.frames)?;
+            mass_into(&s.mass, &mut h.mass)?;
+        }
+        let state = StaticState {
+            q,
+            tree: &h.tree,
+            frames: &h.frames,
+            mass: &h.mass,
+            gravity: Vector3::from(s.gravity),
+            temperature: (!s.temperature.is_nan()).then_some(s.temperature),
+        };
+        h.perturbation.clear();
+        h.model.perturb(&state, values, &mut h.perturbation);
+        for (dst, t) in h
+            .joint_twists
+            .chunks_exact_mut(TWIST_LEN)
+            .zip(&h.perturbation.joint_twist)
+        {
+            dst.copy_from_slice(t.as_slice());
+        }
+        for (dst, t) in h
+            .point_twists
+            .chunks_exact_mut(TWIST_LEN)
+            .zip(&h.perturbation.point_twist)
+        {
+            dst.copy_from_slice(t.as_slice());
+        }
+        let view = AbiPerturbation {
+            joint_twists: h.joint_twists.as_ptr(),
+            n_joint_twists: h.perturbation.joint_twist.len(),
+            joint_offsets: h.perturbation.joint_offset.as_ptr(),
+            n_joint_offsets: h.perturbation.joint_offset.len(),
+            point_twists: h.point_twists.as_ptr(),
+            n_point_twists: h.perturbation.point_twist.len(),
+        };
+        // SAFETY: the caller guarantees `out` is valid for one write.
+        unsafe { out.write(view) };
+        Ok(STATUS_OK)
+    })
+}
+
+/// `armcomp_model_spec_with`: the config with `values` written back, as JSON without `type`.
+///
+/// # Safety
+/// As [`model_handle`]; `values` valid for `n_values` reads, `out_json` for one write.
+pub unsafe fn model_spec_with(model: *mut c_void, values: *const f64, n_values: usize, out_json: *mut AbiStr) -> i32 {
+    guard(|| {
+        // SAFETY: forwarded from the caller.
+        let h = unsafe { model_handle(model) }?;
+        // SAFETY: `values` is valid for `n_values` reads.
+        let values = unsafe { slice(values, n_values) }?;
+        if values.len() != h.model.params().len() {
+            return Err(format!(
+                "expected {} parameter values, got {}",
+                h.model.params().len(),
+                values.len()
+            )
+            .into());
+        }
+        let spec = h.model.spec_with(values);
+        let mut json = serde_json::to_value(&spec).map_err(|e| format!("the spec does not serialise: {e}"))?;
+        if let Some(map) = json.as_object_mut() {
+            map.remove("type");
+        }
+        h.spec_json = json.to_string();
+        // SAFETY: the caller guarantees `out_json` is valid for one write.
+        unsafe { out_json.write(abi_str(&h.spec_json)) };
+        Ok(STATUS_OK)
+    })
+}
+
+/// `armcomp_model_destroy`.
+///
+/// # Safety
+/// `model` must come from [`model_create`] and not be used afterwards.
+pub unsafe fn model_destroy(model: *mut c_void) {
+    if !model.is_null() {
+        // Dropping the author's model may panic; nothing may unwind into the host.
+        let _ = catch_unwind(|| {
+            // SAFETY: the pointer came from `Box::into_raw` in `model_create`.
+            drop(unsafe { Box::from_raw(model.cast::<ModelHandle>()) })
+        });
+    }
+}
+
+/// A fitted predictor behind the ABI.
+struct PredictorHandle {
+    predictor: Box<dyn FittedPredictor>,
+    scratch: Vec<f64>,
+    json: String,
+}
+
+/// # Safety
+/// `out` must be valid for one write.
+unsafe fn give_predictor(predictor: Box<dyn FittedPredictor>, out: *mut *mut c_void) -> Result<i32, Failure> {
+    let handle = Box::new(PredictorHandle {
+        predictor,
+        scratch: Vec::new(),
+        json: String::new(),
+    });
+    // SAFETY: forwarded from the caller.
+    unsafe { out.write(Box::into_raw(handle).cast()) };
+    Ok(STATUS_OK)
+}
+
+/// `armcomp_predictor_fit`.
+///
+/// # Safety
+/// `config` and the arrays of `*data` valid as documented on [`AbiTrainingSet`]; `out` valid for
+/// one write.
+pub unsafe fn predictor_fit(
+    types: &[TypeEntry],
+    index: u32,
+    config: AbiStr,
+    data: *const AbiTrainingSet,
+    out: *mut *mut c_void,
+) -> i32 {
+    guard(|| {
+        let Constructor::Predictor(fit) = entry(types, index)?.constructor else {
+            return Err(format!("type {index} is not a predictor").into());
+        };
+        // SAFETY: the caller guarantees valid data for this call.
+        let d = unsafe { data.as_ref() }.ok_or_else(|| "null training set".to_string())?;
+        // SAFETY: as above, with the declared lengths.
+        let (config, inputs, targets) = unsafe {
+            (
+                text(config)?,
+                slice(d.inputs, d.n_samples * d.n_inputs)?,
+                slice(d.targets, d.n_samples * d.n_outputs)?,
+            )
+        };
+        let set = TrainingSet {
+            inputs,
+            targets,
+            n_inputs: d.n_inputs,
+            n_outputs: d.n_outputs,
+        };
+        let predictor = fit(config, &set)?;
+        // SAFETY: forwarded from the caller.
+        unsafe { give_predictor(predictor, out) }
+    })
+}
+
+/// `armcomp_predictor_load`: a fitted predictor from the JSON `armcomp_predictor_save` wrote.
+///
+/// # Safety
+/// `fitted_json` valid for this call, `out` for one write.
+pub unsafe fn predictor_load(types: &[TypeEntry], index: u32, fitted_json: AbiStr, out: *mut *mut c_void) -> i32 {
+    guard(|| {
+        if !matches!(entry(types, index)?.constructor, Constructor::Predictor(_)) {
+            return Err(format!("type {index} is not a predictor").into());
+        }
+        // SAFETY: the caller guarantees a valid string for this call.
+        let json = unsafe { text(fitted_json) }?;
+        let predictor: Box<dyn FittedPredictor> =
+            serde_json::from_str(json).map_err(|e| format!("the fitted predictor does not load: {e}"))?;
+        // SAFETY: forwarded from the caller.
+        unsafe { give_predictor(predictor, out) }
+    })
+}
+
+/// # Safety
+/// `predictor` must come from [`predictor_fit`] or [`predictor_load`], not yet destroyed, used
+/// by one thread at a time.
+unsafe fn predictor_handle<'a>(predictor: *mut c_void) -> Result<&'a mut PredictorHandle, Failure> {
+    // SAFETY: forwarded from the caller.
+    unsafe { predictor.cast::<PredictorHandle>().as_mut() }
+        .ok_or_else(|| Failure::Message("null predictor handle".into()))
+}
+
+/// `armcomp_predictor_shape`.
+///
+/// # Safety
+/// As [`predictor_handle`]; both outputs valid for one write.
+pub unsafe fn predictor_shape(predictor: *mut c_void, n_inputs: *mut usize, n_outputs: *mut usize) -> i32 {
+    guard(|| {
+        // SAFETY: forwarded from the caller.
+        let h = unsafe { predictor_handle(predictor) }?;
+        // SAFETY: the caller guarantees both outputs are valid for one write.
+        unsafe {
+            n_inputs.write(h.predictor.n_inputs());
+            n_outputs.write(h.predictor.n_outputs());
+        }
+        Ok(STATUS_OK)
+    })
+}
+
+/// `armcomp_predictor_predict`: the prediction, and with `with_std = 1` its standard deviation
+/// ([`STATUS_UNSUPPORTED`] when the predictor has none).
+///
+/// # Safety
+/// As [`predictor_handle`]; `input` valid for `n_inputs` reads, `out` (and `out_std` when
+/// `with_std = 1`) for `n_outputs` writes.
+pub unsafe fn predictor_predict(
+    predictor: *mut c_void,
+    input: *const f64,
+    n_inputs: usize,
+    out: *mut f64,
+    n_outputs: usize,
+    with_std: u32,
+    out_std: *mut f64,
+) -> i32 {
+    guard(|| {
+        // SAFETY: forwarded from the caller.
+        let h = unsafe { predictor_handle(predictor) }?;
+        if n_inputs != h.predictor.n_inputs() || n_outputs != h.predictor.n_outputs() {
+            return Err(format!(
+                "expected {} inputs and {} outputs, got {n_inputs} and {n_outputs}",
+                h.predictor.n_inputs(),
+                h.predictor.n_outputs()
+            )
+            .into());
+        }
+        // SAFETY: `input` is valid for `n_inputs` reads.
+        let input = unsafe { slice(input, n_inputs) }?;
+        if out.is_null() || (with_std == 1 && out_std.is_null()) {
+            return Err("null output buffer".to_string().into());
+        }
+        // SAFETY: non-null and valid for `n_outputs` writes, by the caller's guarantee.
+        let out = unsafe { std::slice::from_raw_parts_mut(out, n_outputs) };
+        h.predictor.predict_into(input, out, &mut h.scratch);
+        if with_std == 1 {
+            // SAFETY: as for `out`.
+            let out_std = unsafe { std::slice::from_raw_parts_mut(out_std, n_outputs) };
+            if !h.predictor.predict_std_into(input, out_std, &mut h.scratch) {
+                return Ok(STATUS_UNSUPPORTED);
+            }
+        }
+        Ok(STATUS_OK)
+    })
+}
+
+/// `armcomp_predictor_save`: the fitted predictor as JSON (with its own `type`).
+///
+/// # Safety
+/// As [`predictor_handle`]; `out_json` valid for one write.
+pub unsafe fn predictor_save(predictor: *mut c_void, out_json: *mut AbiStr) -> i32 {
+    guard(|| {
+        // SAFETY: forwarded from the caller.
+        let h = unsafe { predictor_handle(predictor) }?;
+        h.json = serde_json::to_string(&h.predictor).map_err(|e| format!("the predictor does not serialise: {e}"))?;
+        // SAFETY: the caller guarantees `out_json` is valid for one write.
+        unsafe { out_json.write(abi_str(&h.json)) };
+        Ok(STATUS_OK)
+    })
+}
+
+/// `armcomp_predictor_destroy`.
+///
+/// # Safety
+/// `predictor` must come from [`predictor_fit`] or [`predictor_load`] and not be used afterwards.
+pub unsafe fn predictor_destroy(predictor: *mut c_void) {
+    if !predictor.is_null() {
+        let _ = catch_unwind(|| {
+            // SAFETY: the pointer came from `Box::into_raw` in `give_predictor`.
+            drop(unsafe { Box::from_raw(predictor.cast::<PredictorHandle>()) })
+        });
+    }
+}

@@ -1,0 +1,404 @@
+//! Run-time plugins: the example cable-sag library loaded through the C ABI against the same
+//! model linked in, and every way a plugin library or its config can be wrong.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use armcomp_core::calibrate::{CalibrationParams, calibrate};
+use armcomp_core::robot_file::SourceFile;
+use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::{Error, Robot, RobotFile};
+use nalgebra::Vector3;
+
+use crate::common::{Scratch, random_configurations, root};
+
+/// `target/debug`, where this test binary's profile puts libraries built with `cargo build`.
+fn target_profile_dir() -> PathBuf {
+    // The test binary is `target/debug/deps/integration-<hash>`.
+    let exe = std::env::current_exe().unwrap();
+    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+}
+
+/// Builds the example plugin and the loader's faulty test plugins once per test run, so no test
+/// relies on a library left over from an earlier build.
+fn built_plugins() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = target_profile_dir();
+        let target = dir.parent().unwrap();
+        for args in [
+            &["build", "-p", "cable-sag", "--lib"][..],
+            &["build", "-p", "armcomp-sdk", "--examples"][..],
+        ] {
+            let status = Command::new(env!("CARGO"))
+                .args(args)
+                .env("CARGO_TARGET_DIR", target)
+                .current_dir(root())
+                .status()
+                .expect("cargo runs");
+            assert!(status.success(), "cargo {args:?} failed");
+        }
+        dir
+    })
+}
+
+fn library_file(name: &str) -> String {
+    format!("{}{name}{}", std::env::consts::DLL_PREFIX, std::env::consts::DLL_SUFFIX)
+}
+
+/// A scratch folder holding the example robot file and the freshly built cable-sag library.
+fn example_folder(tag: &str) -> (Scratch, PathBuf) {
+    let scratch = Scratch::new(tag);
+    let lib = library_file("cable_sag");
+    std::fs::copy(built_plugins().join(&lib), scratch.0.join(&lib)).unwrap();
+    let robot = std::fs::read_to_string(root().join("plugins/examples/cable_sag/robot.toml")).unwrap();
+    let path = scratch.file("robot.toml", &robot);
+    (scratch, path)
+}
+
+/// The example robot with the same model linked in (the rlib's spec type, no library), with the
+/// hose's mass per length `mass_per_length` (kg/m; the file says 2.5).
+fn linked_robot(mass_per_length: f64) -> Robot {
+    let text = std::fs::read_to_string(root().join("plugins/examples/cable_sag/robot.toml")).unwrap();
+    let (head, _) = text.split_once("[[error_models]]").unwrap();
+    let src = SourceFile {
+        path: "linked.toml".into(),
+        text: head.into(),
+        format: armcomp_core::robot_file::Format::Toml,
+    };
+    let mut file: RobotFile = src.parse().unwrap();
+    file.error_models.push(Box::new(cable_sag::CableSagSpec {
+        link: "boom".into(),
+        length: 1500.0,
+        mass_per_length,
+    }));
+    Robot::from_source(file, &src).unwrap()
+}
+
+fn robot_from_text(text: &str, path: &Path) -> armcomp_core::Result<Robot> {
+    let src = SourceFile {
+        path: path.to_path_buf(),
+        text: text.into(),
+        format: armcomp_core::robot_file::Format::Toml,
+    };
+    let file: RobotFile = src.parse()?;
+    Robot::from_source(file, &src)
+}
+
+#[test]
+fn runtime_plugin_matches_the_linked_model_bit_for_bit() {
+    let (_scratch, path) = example_folder("rt-exact");
+    let runtime = Robot::from_path(&path).unwrap();
+    let linked = linked_robot(2.5);
+    assert_eq!(runtime.error_models()[0].params(), linked.error_models()[0].params());
+    let (mut ws_rt, mut ws_ln) = (runtime.workspace(), linked.workspace());
+    for q in random_configurations(&linked, 50, 7) {
+        for temperature in [None, Some(35.0)] {
+            runtime.forward_into(&q, temperature, &mut ws_rt);
+            linked.forward_into(&q, temperature, &mut ws_ln);
+            assert!(!ws_ln.perturbation.is_zero(), "the hose bends the boom");
+            assert_eq!(ws_rt.perturbation, ws_ln.perturbation, "q = {q:?}");
+            assert_eq!(ws_rt.frames.point, ws_ln.frames.point, "q = {q:?}");
+            assert_eq!(ws_rt.frames.body, ws_ln.frames.body, "q = {q:?}");
+        }
+    }
+}
+
+#[test]
+fn runtime_plugin_bends_the_boom_as_the_cantilever_formula_says() {
+    let (_scratch, path) = example_folder("rt-formula");
+    let robot = Robot::from_path(&path).unwrap();
+    // Boom horizontal, head straight: the hose load w = μ g is perpendicular to the boom.
+    let q = [0.0, 0.0, 0.0];
+    let rigid = robot.tree().point_positions(&q)[robot.tool()];
+    let bent = robot.forward(&q).unwrap().point_position(robot.tool());
+    let (w, l, e): (f64, f64, f64) = (2.5 * 9.81, 1.5, 70e9);
+    let i = (0.06f64.powi(4) - 0.054f64.powi(4)) / 12.0;
+    let tip = w * l.powi(4) / (8.0 * e * i);
+    let slope = w * l.powi(3) / (6.0 * e * i);
+    // The seat moves by the SE(3) exponential of its twist (translation `-tip` along the boom
+    // frame's y, which is world z here; rotation `-slope` about its z), and the rigid head
+    // carries the tool 0.3 m along the turned axis.
+    let (a, phi) = (-tip, -slope);
+    let seat = Vector3::new(-(1.0 - phi.cos()) / phi * a, phi.sin() / phi * a, 0.0);
+    let expected = Vector3::new(seat.x + 0.3 * (phi.cos() - 1.0), 0.0, seat.y + 0.3 * phi.sin());
+    let moved = bent - rigid;
+    assert!(
+        (moved - expected).norm() < 1e-12,
+        "moved {moved:?}, expected {expected:?}"
+    );
+}
+
+#[test]
+fn identified_values_are_written_back_and_the_model_file_reloads() {
+    let (scratch, path) = example_folder("rt-specwith");
+    let robot = Robot::from_path(&path).unwrap();
+    let model = &robot.error_models()[0];
+    assert_eq!(model.params()[0].name, "cable_sag.boom.mass_per_length");
+    let spec = model.spec_with(&[3.75]);
+    let mut file = robot.to_file();
+    file.error_models = vec![spec];
+    // Model files may be written anywhere: the library path is kept absolute.
+    let out = scratch.0.join("elsewhere");
+    std::fs::create_dir_all(&out).unwrap();
+    let text = toml::to_string(&file).unwrap();
+    let reloaded = robot_from_text(&text, &out.join("model.toml")).unwrap();
+    let p = &reloaded.error_models()[0].params()[0];
+    assert_eq!((p.name.as_str(), p.nominal), ("cable_sag.boom.mass_per_length", 3.75));
+}
+
+#[test]
+fn loaded_plugin_types_are_listed_with_their_role() {
+    let (_scratch, path) = example_folder("rt-list");
+    Robot::from_path(&path).unwrap();
+    let entry = armcomp::plugins()
+        .into_iter()
+        .find(|p| p.type_name == "cable_sag")
+        .expect("the loaded type is in the registry");
+    assert_eq!(entry.role, armcomp_core::Role::ErrorModel);
+    assert!(entry.diagnosis_candidate);
+    let (code, out, err) = run(&[
+        "plugins",
+        "--library",
+        built_plugins().join("cable_sag").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.lines()
+            .any(|l| l.contains("cable_sag") && l.contains("[diagnosis candidate]")),
+        "{out}"
+    );
+}
+
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_armcomp")).args(args).output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+#[test]
+fn simulate_runs_a_truth_robot_with_a_runtime_plugin() {
+    let (scratch, path) = example_folder("rt-simulate");
+    let csv = scratch.0.join("data.csv");
+    let (code, _, err) = run(&[
+        "simulate",
+        "--robot",
+        path.to_str().unwrap(),
+        "--n",
+        "5",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(std::fs::read_to_string(csv).unwrap().lines().count(), 6);
+}
+
+/// The error of building the example robot with its last error model replaced by `entry`,
+/// in a folder that holds the faulty test plugins; the robot file is `robot.toml` there.
+fn build_error(tag: &str, entry: &str, extra_files: &[(&str, &[u8])]) -> String {
+    let (scratch, path) = example_folder(tag);
+    for lib in ["faulty_plugin", "wrong_abi_plugin", "incomplete_plugin"] {
+        let file = library_file(lib);
+        std::fs::copy(built_plugins().join("examples").join(&file), scratch.0.join(&file)).unwrap();
+    }
+    for (name, bytes) in extra_files {
+        std::fs::write(scratch.0.join(name), bytes).unwrap();
+    }
+    let text = std::fs::read_to_string(&path).unwrap();
+    let text = format!("{text}\n[[error_models]]\n{entry}\n");
+    std::fs::write(&path, text).unwrap();
+    match Robot::from_path(&path) {
+        Ok(_) => panic!("{entry} should not build"),
+        Err(e @ Error::InvalidFile { .. }) => e.to_string(),
+        Err(e) => panic!("unexpected error kind: {e}"),
+    }
+}
+
+/// Asserts that `message` names the file, the line, the field and says `what`.
+fn assert_names(message: &str, line: usize, field: &str, what: &str) {
+    let prefix = format!("robot.toml:{line}: {field}: ");
+    assert!(message.contains(&prefix), "expected `{prefix}` in: {message}");
+    assert!(message.contains(what), "expected `{what}` in: {message}");
+}
+
+#[test]
+fn a_missing_library_names_the_field_and_the_file() {
+    let e = build_error(
+        "rt-missing",
+        "type = \"plugin\"\nlibrary = \"no_such\"\nmodel = \"x\"",
+        &[],
+    );
+    assert_names(&e, 62, "error_models[1].library", &library_file("no_such"));
+}
+
+#[test]
+fn a_file_that_is_not_a_library_is_rejected() {
+    let e = build_error(
+        "rt-notlib",
+        "type = \"plugin\"\nlibrary = \"garbage.so\"\nmodel = \"x\"",
+        &[("garbage.so", b"not an ELF file at all")],
+    );
+    assert_names(
+        &e,
+        62,
+        "error_models[1].library",
+        "garbage.so is not a loadable shared library",
+    );
+}
+
+#[test]
+fn a_library_of_another_abi_version_is_rejected() {
+    let e = build_error(
+        "rt-abi",
+        "type = \"plugin\"\nlibrary = \"wrong_abi_plugin\"\nmodel = \"x\"",
+        &[],
+    );
+    assert_names(
+        &e,
+        62,
+        "error_models[1].library",
+        "speaks plugin ABI version 1001, this armcomp speaks version 1",
+    );
+}
+
+#[test]
+fn a_library_without_the_entry_points_is_rejected() {
+    let e = build_error(
+        "rt-symbol",
+        "type = \"plugin\"\nlibrary = \"incomplete_plugin\"\nmodel = \"x\"",
+        &[],
+    );
+    assert_names(&e, 62, "error_models[1].library", "does not export `armcomp_type_info`");
+}
+
+#[test]
+fn an_unknown_model_lists_the_library_types() {
+    let e = build_error(
+        "rt-model",
+        "type = \"plugin\"\nlibrary = \"cable_sag\"\nmodel = \"sag\"",
+        &[],
+    );
+    assert_names(
+        &e,
+        63,
+        "error_models[1].model",
+        "has no error model named `sag`; it has: `cable_sag`",
+    );
+}
+
+#[test]
+fn a_config_violating_the_plugin_schema_names_the_field() {
+    let e = build_error(
+        "rt-schema",
+        "type = \"plugin\"\nlibrary = \"cable_sag\"\nmodel = \"cable_sag\"\nconfig = { link = \"boom\", length = -1.0, mass_per_length = 1.0 }",
+        &[],
+    );
+    assert_names(
+        &e,
+        64,
+        "error_models[1].config.length",
+        "-1.0 is less than the minimum of 0",
+    );
+}
+
+#[test]
+fn a_config_the_plugin_rejects_names_the_field() {
+    let e = build_error(
+        "rt-reject",
+        "type = \"plugin\"\nlibrary = \"faulty_plugin\"\nmodel = \"faulty\"\nconfig = { mode = \"reject\" }",
+        &[],
+    );
+    assert_names(&e, 64, "error_models[1].config.mode", "rejects its config on purpose");
+}
+
+#[test]
+fn a_plugin_that_panics_is_reported_and_the_host_keeps_running() {
+    let e = build_error(
+        "rt-panic",
+        "type = \"plugin\"\nlibrary = \"faulty_plugin\"\nmodel = \"faulty\"\nconfig = { mode = \"panic\" }",
+        &[],
+    );
+    assert_names(
+        &e,
+        60,
+        "error_models[1]",
+        "the plugin panicked: faulty model panics on purpose",
+    );
+}
+
+#[test]
+fn a_plugin_returning_nan_is_rejected() {
+    let e = build_error(
+        "rt-nan",
+        "type = \"plugin\"\nlibrary = \"faulty_plugin\"\nmodel = \"faulty\"\nconfig = { mode = \"nan\" }",
+        &[],
+    );
+    assert_names(
+        &e,
+        60,
+        "error_models[1]",
+        "perturb returned NaN among the joint offsets (value 0)",
+    );
+}
+
+#[test]
+fn a_plugin_returning_the_wrong_number_of_values_is_rejected() {
+    let e = build_error(
+        "rt-short",
+        "type = \"plugin\"\nlibrary = \"faulty_plugin\"\nmodel = \"faulty\"\nconfig = { mode = \"short\" }",
+        &[],
+    );
+    assert_names(
+        &e,
+        60,
+        "error_models[1]",
+        "perturb returned 4 joint offsets, expected 3",
+    );
+}
+
+#[test]
+fn calibration_identifies_the_runtime_parameter_as_it_does_the_linked_one() {
+    let (scratch, path) = example_folder("rt-calibrate");
+    let truth = Robot::from_path(&path).unwrap();
+    let poses = configurations(truth.tree(), Sampler::Sobol, 120, 3).unwrap();
+    let noise = SimulateParams {
+        noise_std: 0.01e-3,
+        seed: 11,
+    };
+    let samples = simulate(&truth, &poses, noise).unwrap().samples;
+    // Both starts believe the hose weighs 1 kg/m; the truth's is 2.5 kg/m.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start_path = scratch.file(
+        "start.toml",
+        &text.replace("mass_per_length = 2.5", "mass_per_length = 1.0"),
+    );
+    let runtime_start = Robot::from_path(&start_path).unwrap();
+    let linked_start = linked_robot(1.0);
+    let name = "cable_sag.boom.mass_per_length";
+    let params = CalibrationParams {
+        identify: vec![name.to_string()],
+        measurement_std: noise.noise_std,
+        ..Default::default()
+    };
+    let identified = |start: &Robot| {
+        let cal = calibrate(start, &samples, &params, &mut |_| {}).unwrap();
+        assert!(cal.report.converged, "{}", cal.report.stop_reason);
+        let p = cal.report.params.iter().find(|p| p.name == name).unwrap();
+        (p.value, p.std)
+    };
+    let (runtime, std) = identified(&runtime_start);
+    let (linked, _) = identified(&linked_start);
+    assert_eq!(
+        runtime, linked,
+        "the loaded and the linked model identify the same value"
+    );
+    assert!(
+        std > 0.0 && (runtime - 2.5).abs() < 4.0 * std,
+        "identified {runtime} ± {std}, truth 2.5"
+    );
+}
