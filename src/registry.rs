@@ -8,6 +8,7 @@ use serde_json::{Value, json};
 pub fn plugins() -> Vec<PluginInfo> {
     let mut all = armcomp_chains::plugins();
     all.extend(armcomp_elastic::plugins());
+    all.extend(armcomp_learn::plugins());
     // Stable order by role so listings and the schema do not depend on registration order.
     all.sort_by_key(|p| match p.role {
         Role::Kinematics => 0,

@@ -1,0 +1,93 @@
+//! A synthetic residual like what a deflection model leaves on a 7-joint boom: smooth sums of
+//! sines and cosines of the joints, millimetre scale (values in m), on the rock-drill's ranges.
+
+use armcomp_core::{FittedPredictor, TrainingSet};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+/// Joint ranges (rad, m): J1 ±15°, J2 0..30°, J3 0..105 mm, J4 0..60°, J5 -45..0°, J6 ±30°,
+/// J7 0..63 mm.
+pub const RANGES: [(f64, f64); 7] = [
+    (-0.2618, 0.2618),
+    (0.0, 0.5236),
+    (0.0, 0.105),
+    (0.0, 1.0472),
+    (-0.7854, 0.0),
+    (-0.5236, 0.5236),
+    (0.0, 0.063),
+];
+
+/// The residual position error (m) at joint values `q`.
+pub fn residual(q: &[f64]) -> [f64; 3] {
+    [
+        0.004 * (3.0 * q[0] + q[3]).sin() + 0.002 * (2.0 * q[4]).cos() + 0.02 * q[2],
+        0.003 * (q[1] + 2.0 * q[5]).cos() * (1.0 + 5.0 * q[6]) + 0.002 * (2.0 * q[3]).sin(),
+        -0.005 * (q[1] + q[3]).sin() - 0.003 * (q[4] - q[5]).cos() + 0.03 * q[2] * q[1],
+    ]
+}
+
+/// `n` seeded uniform joint configurations and their residuals, row-major.
+pub struct Data {
+    pub inputs: Vec<f64>,
+    pub targets: Vec<f64>,
+}
+
+impl Data {
+    pub fn residuals(n: usize, seed: u64) -> Self {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let mut inputs = Vec::with_capacity(n * 7);
+        let mut targets = Vec::with_capacity(n * 3);
+        for _ in 0..n {
+            let q: Vec<f64> = RANGES.iter().map(|&(lo, hi)| rng.random_range(lo..=hi)).collect();
+            targets.extend(residual(&q));
+            inputs.extend(q);
+        }
+        Data { inputs, targets }
+    }
+
+    pub fn set(&self, n_inputs: usize, n_outputs: usize) -> TrainingSet<'_> {
+        TrainingSet {
+            inputs: &self.inputs,
+            targets: &self.targets,
+            n_inputs,
+            n_outputs,
+        }
+    }
+}
+
+/// Per-output (held-out RMS error of `model`, standard deviation of the target) on `test`.
+pub fn rms_vs_std(model: &dyn FittedPredictor, test: &Data) -> Vec<(f64, f64)> {
+    let (d, k) = (model.n_inputs(), model.n_outputs());
+    let n = test.inputs.len() / d;
+    let mut out = vec![0.0; k];
+    let mut scratch = Vec::new();
+    let mut err = vec![0.0; k];
+    let mut mean = vec![0.0; k];
+    for i in 0..n {
+        model.predict_into(&test.inputs[i * d..(i + 1) * d], &mut out, &mut scratch);
+        for c in 0..k {
+            let t = test.targets[i * k + c];
+            err[c] += (out[c] - t).powi(2);
+            mean[c] += t / n as f64;
+        }
+    }
+    let mut var = vec![0.0; k];
+    for i in 0..n {
+        for c in 0..k {
+            var[c] += (test.targets[i * k + c] - mean[c]).powi(2) / n as f64;
+        }
+    }
+    (0..k).map(|c| ((err[c] / n as f64).sqrt(), var[c].sqrt())).collect()
+}
+
+/// Asserts the held-out RMS of every output is below `share` of the target's std.
+pub fn assert_fits(name: &str, model: &dyn FittedPredictor, test: &Data, share: f64) {
+    for (c, (rms, std)) in rms_vs_std(model, test).into_iter().enumerate() {
+        assert!(
+            rms < share * std,
+            "{name}: output {c} held-out RMS {:.3} mm, target std {:.3} mm (limit {share} × std)",
+            rms * 1e3,
+            std * 1e3
+        );
+    }
+}
