@@ -104,9 +104,9 @@ impl Default for GpSpec {
     fn default() -> Self {
         GpSpec {
             kernels: KernelSharing::Shared,
-            restarts: 2,
-            max_iterations: 60,
-            max_optimization_samples: 300,
+            restarts: 1,
+            max_iterations: 50,
+            max_optimization_samples: 250,
             noise_floor: 1e-6,
             fixed: None,
             seed: 0,

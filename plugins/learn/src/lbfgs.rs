@@ -12,6 +12,10 @@ use std::collections::VecDeque;
 /// Pairs of steps and gradient changes remembered.
 const MEMORY: usize = 8;
 
+/// Relative decrease below which the iteration stops: the likelihood is a sum over hundreds of
+/// rows, and hyper-parameters that agree to this level predict the same to far below the noise.
+const REL_TOLERANCE: f64 = 1e-7;
+
 /// Minimises `f` from `x0`. `f(x, grad)` returns the value (+∞ where undefined, e.g. a failed
 /// factorisation) and writes the gradient. Returns the best point and its value; `on_iteration`
 /// is called once per iteration (progress).
@@ -83,7 +87,7 @@ pub(crate) fn minimize(
         x.copy_from_slice(&x_new);
         g.copy_from_slice(&g_new);
         fx = f_new;
-        if change <= 1e-9 * (1.0 + fx.abs()) || norm(&g) < 1e-6 {
+        if change <= REL_TOLERANCE * (1.0 + fx.abs()) || norm(&g) < 1e-6 {
             break;
         }
     }

@@ -8,3 +8,4 @@ mod contract;
 mod gp;
 mod nets;
 mod baselines;
+mod sweep;
