@@ -2,8 +2,8 @@
 
 use armcomp_core::{Error, Result, TrainingSet};
 use indicatif::{ProgressBar, ProgressStyle};
-use rand::seq::SliceRandom;
 use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
 use serde::{Deserialize, Serialize};
 
 /// A checked training set: row-major inputs and targets with their sizes.
@@ -97,7 +97,11 @@ impl Standardizer {
         for s in &mut scale {
             let sd = (*s / n).sqrt();
             // A constant column carries no information; scaling it by 1 keeps it harmless.
-            *s = if sd > 1e-12 * (1.0 + sd) && sd.is_normal() { sd } else { 1.0 };
+            *s = if sd > 1e-12 * (1.0 + sd) && sd.is_normal() {
+                sd
+            } else {
+                1.0
+            };
         }
         Standardizer { mean, scale }
     }
@@ -112,7 +116,10 @@ impl Standardizer {
     /// Standardises every row of the row-major `values`.
     pub fn apply_rows(&self, values: &[f64]) -> Vec<f64> {
         let mut out = vec![0.0; values.len()];
-        for (o, r) in out.chunks_exact_mut(self.mean.len()).zip(values.chunks_exact(self.mean.len())) {
+        for (o, r) in out
+            .chunks_exact_mut(self.mean.len())
+            .zip(values.chunks_exact(self.mean.len()))
+        {
             self.apply(r, o);
         }
         out
@@ -148,7 +155,9 @@ pub(crate) fn check_fraction(field: &str, value: f64, max: f64) -> Result<()> {
     if (0.0..=max).contains(&value) {
         Ok(())
     } else {
-        Err(Error::Input(format!("{field}: expected a fraction in [0, {max}], got {value}")))
+        Err(Error::Input(format!(
+            "{field}: expected a fraction in [0, {max}], got {value}"
+        )))
     }
 }
 
@@ -166,7 +175,9 @@ pub(crate) fn check_positive(field: &str, value: f64) -> Result<()> {
     if value.is_finite() && value > 0.0 {
         Ok(())
     } else {
-        Err(Error::Input(format!("{field}: expected a finite positive number, got {value}")))
+        Err(Error::Input(format!(
+            "{field}: expected a finite positive number, got {value}"
+        )))
     }
 }
 

@@ -191,7 +191,10 @@ impl<'a> GpLikelihood<'a> {
             for i in 0..n {
                 let wk = w[(i, j)] * kf[(i, j)];
                 grad[d] += wk;
-                for (g, (zi, zj)) in grad[..d].iter_mut().zip(scaled[i * d..].iter().zip(&scaled[j * d..j * d + d])) {
+                for (g, (zi, zj)) in grad[..d]
+                    .iter_mut()
+                    .zip(scaled[i * d..].iter().zip(&scaled[j * d..j * d + d]))
+                {
                     *g += 0.5 * wk * (zi - zj) * (zi - zj);
                 }
             }
@@ -234,7 +237,9 @@ fn sq_dist(a: &[f64], b: &[f64]) -> f64 {
 
 /// The columns `outputs` of the rows `rows` of the row-major `y` (`k` columns), row-major.
 fn columns(y: &[f64], k: usize, rows: &[usize], outputs: &[usize]) -> Vec<f64> {
-    rows.iter().flat_map(|&i| outputs.iter().map(move |&o| y[i * k + o])).collect()
+    rows.iter()
+        .flat_map(|&i| outputs.iter().map(move |&o| y[i * k + o]))
+        .collect()
 }
 
 /// One kernel of a fitted GP and the outputs it predicts, as stored in model files.
@@ -298,9 +303,14 @@ impl TryFrom<GpModel> for FittedGp {
     fn try_from(model: GpModel) -> Result<Self> {
         let d = model.inputs.mean.len();
         let k = model.outputs.mean.len();
-        if d == 0 || model.inputs.scale.len() != d || model.outputs.scale.len() != k || model.train_inputs.len() % d != 0
+        if d == 0
+            || model.inputs.scale.len() != d
+            || model.outputs.scale.len() != k
+            || model.train_inputs.len() % d != 0
         {
-            return Err(Error::Input("gp_fitted: standardisation and training inputs disagree in size".into()));
+            return Err(Error::Input(
+                "gp_fitted: standardisation and training inputs disagree in size".into(),
+            ));
         }
         let n = model.train_inputs.len() / d;
         let mut covered = vec![false; k];
@@ -310,7 +320,11 @@ impl TryFrom<GpModel> for FittedGp {
             for &o in &kernel.outputs {
                 match covered.get_mut(o) {
                     Some(c) if !*c => *c = true,
-                    _ => return Err(Error::Input(format!("gp_fitted: output {o} is missing or predicted twice"))),
+                    _ => {
+                        return Err(Error::Input(format!(
+                            "gp_fitted: output {o} is missing or predicted twice"
+                        )));
+                    }
                 }
             }
             if kernel.alpha.len() != n * kernel.outputs.len() {
@@ -493,7 +507,10 @@ impl PredictorSpec for GpSpec {
             KernelSharing::Shared => vec![(0..k).collect()],
             KernelSharing::PerOutput => (0..k).map(|o| vec![o]).collect(),
         };
-        let sub_x: Vec<f64> = rows.iter().flat_map(|&i| x[i * d..(i + 1) * d].iter().copied()).collect();
+        let sub_x: Vec<f64> = rows
+            .iter()
+            .flat_map(|&i| x[i * d..(i + 1) * d].iter().copied())
+            .collect();
         let mut kernels = Vec::with_capacity(groups.len());
         let mut caches = Vec::with_capacity(groups.len());
         for group in groups {
@@ -516,7 +533,10 @@ impl PredictorSpec for GpSpec {
             let mut a = targets;
             chol.solve_lower_triangular_mut(&mut a);
             chol.tr_solve_lower_triangular_mut(&mut a);
-            let alpha: Vec<f64> = (0..s.n).flat_map(|i| (0..group.len()).map(move |c| (i, c))).map(|(i, c)| a[(i, c)]).collect();
+            let alpha: Vec<f64> = (0..s.n)
+                .flat_map(|i| (0..group.len()).map(move |c| (i, c)))
+                .map(|(i, c)| a[(i, c)])
+                .collect();
             kernels.push(GpKernelModel {
                 outputs: group,
                 hyper,

@@ -90,18 +90,7 @@ impl TryFrom<KnnModel> for FittedKnn {
     }
 }
 
-impl From<FittedKnn> for KnnModel {
-    fn from(f: FittedKnn) -> Self {
-        f.0
-    }
-}
-
-impl FittedKnn {
-    /// The stored model.
-    pub fn model(&self) -> &KnnModel {
-        &self.0
-    }
-}
+stored_model!(FittedKnn, KnnModel);
 
 #[typetag::serde(name = "knn_fitted")]
 impl FittedPredictor for FittedKnn {
@@ -152,7 +141,9 @@ impl FittedPredictor for FittedKnn {
             let w = weight(*r2);
             let i = *idx as usize;
             total += w;
-            out.iter_mut().zip(&m.targets[i * c..(i + 1) * c]).for_each(|(o, t)| *o += w * t);
+            out.iter_mut()
+                .zip(&m.targets[i * c..(i + 1) * c])
+                .for_each(|(o, t)| *o += w * t);
         }
         out.iter_mut().for_each(|o| *o /= total);
     }

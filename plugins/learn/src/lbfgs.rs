@@ -65,7 +65,11 @@ pub(crate) fn minimize(
         let mut t = 1.0;
         let mut accepted = None;
         for _ in 0..30 {
-            x_new.iter_mut().zip(&x).zip(&d).for_each(|((xn, x), d)| *xn = x + t * d);
+            x_new
+                .iter_mut()
+                .zip(&x)
+                .zip(&d)
+                .for_each(|((xn, x), d)| *xn = x + t * d);
             let f_new = f(&x_new, &mut g_new);
             if f_new.is_finite() && f_new <= fx + 1e-4 * t * slope {
                 accepted = Some(f_new);

@@ -11,6 +11,25 @@
 //! - [`gp`]: Gaussian process regression with an ARD RBF kernel, with predictive uncertainty;
 //! - [`ridge`] and [`knn`]: baselines.
 
+/// `From<$fitted> for $model` and `$fitted::model()`, for fitted predictors that wrap the checked
+/// form they are stored in.
+macro_rules! stored_model {
+    ($fitted:ident, $model:ident) => {
+        impl From<$fitted> for $model {
+            fn from(f: $fitted) -> Self {
+                f.0
+            }
+        }
+
+        impl $fitted {
+            /// The stored model.
+            pub fn model(&self) -> &$model {
+                &self.0
+            }
+        }
+    };
+}
+
 mod data;
 mod lbfgs;
 

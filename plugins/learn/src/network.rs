@@ -75,7 +75,15 @@ impl Network {
     /// Adds to `grad` the gradient, with respect to the parameters, of `Σ dout · output` at `x`
     /// (back-propagation); `acts` must hold [`forward`](Self::forward)'s result for `x`, and
     /// `deltas` is scratch of the same length.
-    pub fn backward(&self, params: &[f64], x: &[f64], acts: &[f64], dout: &[f64], grad: &mut [f64], deltas: &mut [f64]) {
+    pub fn backward(
+        &self,
+        params: &[f64],
+        x: &[f64],
+        acts: &[f64],
+        dout: &[f64],
+        grad: &mut [f64],
+        deltas: &mut [f64],
+    ) {
         let layers = self.sizes.len() - 1;
         let mut p = self.n_params();
         let mut a = self.n_activations();
@@ -158,18 +166,7 @@ impl TryFrom<MlpModel> for FittedMlp {
     }
 }
 
-impl From<FittedMlp> for MlpModel {
-    fn from(f: FittedMlp) -> Self {
-        f.0
-    }
-}
-
-impl FittedMlp {
-    /// The network, its parameters and standardisations.
-    pub fn model(&self) -> &MlpModel {
-        &self.0
-    }
-}
+stored_model!(FittedMlp, MlpModel);
 
 #[typetag::serde(name = "mlp_fitted")]
 impl FittedPredictor for FittedMlp {

@@ -114,18 +114,7 @@ impl TryFrom<RidgeModel> for FittedRidge {
     }
 }
 
-impl From<FittedRidge> for RidgeModel {
-    fn from(f: FittedRidge) -> Self {
-        f.0
-    }
-}
-
-impl FittedRidge {
-    /// The stored model.
-    pub fn model(&self) -> &RidgeModel {
-        &self.0
-    }
-}
+stored_model!(FittedRidge, RidgeModel);
 
 #[typetag::serde(name = "ridge_fitted")]
 impl FittedPredictor for FittedRidge {
@@ -200,7 +189,10 @@ impl PredictorSpec for RidgeSpec {
                 "ridge: the {nf} features are linearly dependent on these {n} samples; set lambda > 0 or lower the degree"
             ))
         })?;
-        let weights = (0..nf).flat_map(|i| (0..k).map(move |c| (i, c))).map(|(i, c)| w[(i, c)]).collect();
+        let weights = (0..nf)
+            .flat_map(|i| (0..k).map(move |c| (i, c)))
+            .map(|(i, c)| w[(i, c)])
+            .collect();
         Ok(Box::new(FittedRidge::try_from(RidgeModel {
             inputs,
             features,

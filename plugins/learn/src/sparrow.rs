@@ -2,8 +2,8 @@
 //! by `ssa_bp` to find starting weights for back-propagation.
 
 use armcomp_core::{Error, Result};
-use rand::rngs::StdRng;
 use rand::Rng;
+use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand_distr::StandardNormal;
 use schemars::JsonSchema;
@@ -188,7 +188,13 @@ pub fn sparrow_search(
                 let step = own
                     .iter()
                     .zip(&producer_best)
-                    .map(|(o, p)| if rng.random::<bool>() { (o - p).abs() } else { -(o - p).abs() })
+                    .map(|(o, p)| {
+                        if rng.random::<bool>() {
+                            (o - p).abs()
+                        } else {
+                            -(o - p).abs()
+                        }
+                    })
                     .sum::<f64>()
                     / dim as f64;
                 x.iter_mut().zip(&producer_best).for_each(|(v, p)| *v = p + step);

@@ -64,7 +64,11 @@ impl PredictorSpec for SsaBpSpec {
         }
         let mut rng = StdRng::seed_from_u64(self.seed);
         let data = NetData::new(&samples, self.refine.validation_fraction, &mut rng);
-        let rows = if self.fitness_on_validation { &data.held_out } else { &data.train };
+        let rows = if self.fitness_on_validation {
+            &data.held_out
+        } else {
+            &data.train
+        };
         let mut acts = vec![0.0; net.n_activations()];
         let report = sparrow_search(net.n_params(), &self.search, &mut rng, |w| {
             data.mse(&net, w, rows, &mut acts)

@@ -3,8 +3,8 @@
 
 use armcomp_core::{Error, Result};
 use nalgebra::{DMatrix, DVector};
-use rand::seq::SliceRandom;
 use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -109,7 +109,10 @@ impl NetData {
     }
 
     fn row(&self, i: usize) -> (&[f64], &[f64]) {
-        (&self.x[i * self.d..(i + 1) * self.d], &self.y[i * self.k..(i + 1) * self.k])
+        (
+            &self.x[i * self.d..(i + 1) * self.d],
+            &self.y[i * self.k..(i + 1) * self.k],
+        )
     }
 
     /// Mean squared (standardised) error of `params` over the rows `rows`; `acts` is scratch.
@@ -176,7 +179,11 @@ pub(crate) fn train(net: &Network, params: &mut [f64], data: &NetData, tp: &Trai
 }
 
 fn monitored(data: &NetData) -> &[usize] {
-    if data.held_out.is_empty() { &data.train } else { &data.held_out }
+    if data.held_out.is_empty() {
+        &data.train
+    } else {
+        &data.held_out
+    }
 }
 
 fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, rng: &mut StdRng) {

@@ -16,7 +16,9 @@ fn ridge_recovers_linear_function() {
     let b = [0.3, -1.0, 2.5];
     let x: Vec<f64> = (0..n * d).map(|_| rng.random_range(-1.0..1.0)).collect();
     let linear = |r: &[f64]| -> Vec<f64> {
-        (0..k).map(|c| b[c] + (0..d).map(|j| a[c * d + j] * r[j]).sum::<f64>()).collect()
+        (0..k)
+            .map(|c| b[c] + (0..d).map(|j| a[c * d + j] * r[j]).sum::<f64>())
+            .collect()
     };
     let y: Vec<f64> = x.chunks(d).flat_map(linear).collect();
     let set = TrainingSet {
@@ -26,7 +28,13 @@ fn ridge_recovers_linear_function() {
         n_outputs: k,
     };
     for (degree, trig) in [(1, false), (2, true)] {
-        let model = RidgeSpec { lambda: 0.0, degree, trig }.fit(&set).unwrap();
+        let model = RidgeSpec {
+            lambda: 0.0,
+            degree,
+            trig,
+        }
+        .fit(&set)
+        .unwrap();
         let mut out = [0.0; 3];
         let mut scratch = Vec::new();
         for _ in 0..20 {

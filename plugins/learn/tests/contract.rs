@@ -202,7 +202,10 @@ fn bad_training_sets_are_errors() {
             inputs: &data.inputs[..data.inputs.len() - 3],
             ..data.set(7, 3)
         };
-        assert!(matches!(spec.fit(&ragged), Err(Error::Input(m)) if m.contains("whole number of rows")), "{name}");
+        assert!(
+            matches!(spec.fit(&ragged), Err(Error::Input(m)) if m.contains("whole number of rows")),
+            "{name}"
+        );
         let nan = TrainingSet {
             inputs: &nan_inputs,
             ..data.set(7, 3)
@@ -227,24 +230,76 @@ fn bad_settings_are_errors() {
         Err(e) => e.to_string(),
         Ok(_) => panic!("{spec:?} fitted"),
     };
-    assert!(message(&MlpSpec { hidden: vec![], ..MlpSpec::default() }).contains("hidden"));
-    assert!(message(&MlpSpec { hidden: vec![4, 4, 4], ..MlpSpec::default() }).contains("one or two"));
+    assert!(
+        message(&MlpSpec {
+            hidden: vec![],
+            ..MlpSpec::default()
+        })
+        .contains("hidden")
+    );
+    assert!(
+        message(&MlpSpec {
+            hidden: vec![4, 4, 4],
+            ..MlpSpec::default()
+        })
+        .contains("one or two")
+    );
     let lm = TrainingParams {
         method: GradientMethod::LevenbergMarquardt,
         ..TrainingParams::default()
     };
-    assert!(message(&MlpSpec { hidden: vec![200, 50], training: lm, seed: 0 }).contains("at most 2000 weights"));
-    let ssa = |search: SparrowParams| SsaBpSpec { search, ..SsaBpSpec::default() };
-    assert!(message(&ssa(SparrowParams { safety_threshold: 0.3, ..SparrowParams::default() })).contains("[0.5, 1]"));
-    assert!(message(&ssa(SparrowParams { producer_share: 1.0, ..SparrowParams::default() })).contains("no scroungers"));
+    assert!(
+        message(&MlpSpec {
+            hidden: vec![200, 50],
+            training: lm,
+            seed: 0
+        })
+        .contains("at most 2000 weights")
+    );
+    let ssa = |search: SparrowParams| SsaBpSpec {
+        search,
+        ..SsaBpSpec::default()
+    };
+    assert!(
+        message(&ssa(SparrowParams {
+            safety_threshold: 0.3,
+            ..SparrowParams::default()
+        }))
+        .contains("[0.5, 1]")
+    );
+    assert!(
+        message(&ssa(SparrowParams {
+            producer_share: 1.0,
+            ..SparrowParams::default()
+        }))
+        .contains("no scroungers")
+    );
     let fixed = GpHyperParams {
         length_scales: vec![1.0; 3],
         signal_std: 1.0,
         noise_std: 0.1,
     };
-    assert!(message(&GpSpec { fixed: Some(fixed), ..GpSpec::default() }).contains("expected 7 values, got 3"));
-    assert!(message(&RidgeSpec { degree: 3, ..RidgeSpec::default() }).contains("1 or 2"));
-    assert!(message(&KnnSpec { k: 31, ..KnnSpec::default() }).contains("at least 31 samples"));
+    assert!(
+        message(&GpSpec {
+            fixed: Some(fixed),
+            ..GpSpec::default()
+        })
+        .contains("expected 7 values, got 3")
+    );
+    assert!(
+        message(&RidgeSpec {
+            degree: 3,
+            ..RidgeSpec::default()
+        })
+        .contains("1 or 2")
+    );
+    assert!(
+        message(&KnnSpec {
+            k: 31,
+            ..KnnSpec::default()
+        })
+        .contains("at least 31 samples")
+    );
 }
 
 #[test]
@@ -253,7 +308,10 @@ fn corrupt_model_files_are_errors() {
     for (name, spec) in specs(6) {
         let mut json = serde_json::to_value(spec.fit(&data.set(7, 3)).unwrap().as_ref()).unwrap();
         // Drop one value of the first long array: parameters, weights, alpha or inputs.
-        let field = ["params", "weights", "train_inputs"].into_iter().find(|f| json.get(*f).is_some()).unwrap();
+        let field = ["params", "weights", "train_inputs"]
+            .into_iter()
+            .find(|f| json.get(*f).is_some())
+            .unwrap();
         json[field].as_array_mut().unwrap().pop();
         let back: Result<Box<dyn FittedPredictor>, _> = serde_json::from_value(json);
         assert!(back.is_err(), "{name}: a truncated {field} was accepted");

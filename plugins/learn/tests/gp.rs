@@ -82,17 +82,33 @@ fn posterior_matches_closed_form() {
         let (mut m, mut s) = ([0.0], [0.0]);
         model.predict_into(&[x], &mut m, &mut scratch);
         assert!(model.predict_std_into(&[x], &mut s, &mut scratch));
-        assert!((m[0] - expected_mean).abs() < 1e-12, "mean at {x}: {} vs {expected_mean}", m[0]);
-        assert!((s[0] - expected_std).abs() < 1e-12, "std at {x}: {} vs {expected_std}", s[0]);
+        assert!(
+            (m[0] - expected_mean).abs() < 1e-12,
+            "mean at {x}: {} vs {expected_mean}",
+            m[0]
+        );
+        assert!(
+            (s[0] - expected_std).abs() < 1e-12,
+            "std at {x}: {} vs {expected_std}",
+            s[0]
+        );
     }
 
     // Log marginal likelihood at θ = [ln ℓ, ln σ_f, ln σ_n] (noise floor 0).
     let lik = GpLikelihood::new(&z, 1, &t, 1, 0.0).unwrap();
     let mut grad = [0.0; 3];
-    let value = lik.value_and_gradient(&[ell.ln(), sf.ln(), sn.ln()], &mut grad).unwrap();
-    let quad: f64 = (0..3).flat_map(|i| (0..3).map(move |j| (i, j))).map(|(i, j)| t[i] * kinv[i][j] * t[j]).sum();
+    let value = lik
+        .value_and_gradient(&[ell.ln(), sf.ln(), sn.ln()], &mut grad)
+        .unwrap();
+    let quad: f64 = (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| t[i] * kinv[i][j] * t[j])
+        .sum();
     let expected = -0.5 * quad - 0.5 * det.ln() - 1.5 * (2.0 * std::f64::consts::PI).ln();
-    assert!((value - expected).abs() < 1e-12, "log marginal likelihood {value} vs {expected}");
+    assert!(
+        (value - expected).abs() < 1e-12,
+        "log marginal likelihood {value} vs {expected}"
+    );
 }
 
 /// The analytic gradient of the log marginal likelihood (2 outputs sharing a kernel, 3 inputs,
@@ -138,7 +154,10 @@ fn recovers_length_scale() {
     let mut rng = StdRng::seed_from_u64(3);
     let n = 120;
     let x: Vec<f64> = (0..2 * n).map(|_| rng.random_range(-2.0..2.0)).collect();
-    let y: Vec<f64> = x.chunks(2).map(|r| (3.0 * r[0]).sin() + 0.01 * rng.random_range(-1.0..1.0)).collect();
+    let y: Vec<f64> = x
+        .chunks(2)
+        .map(|r| (3.0 * r[0]).sin() + 0.01 * rng.random_range(-1.0..1.0))
+        .collect();
     let model = GpSpec::default()
         .fit(&TrainingSet {
             inputs: &x,
@@ -151,7 +170,12 @@ fn recovers_length_scale() {
     let ell: Vec<f64> = serde_json::from_value(json["kernels"][0]["hyper"]["length_scales"].clone()).unwrap();
     // Standardised x₁ has std ≈ 4/√12 ≈ 1.15, so sin(3x₁) varies on ≈ 1/(3·1.15) ≈ 0.29.
     assert!((0.1..1.0).contains(&ell[0]), "length-scale of x₁: {}", ell[0]);
-    assert!(ell[1] > 10.0 * ell[0], "irrelevant input's length-scale {} vs {}", ell[1], ell[0]);
+    assert!(
+        ell[1] > 10.0 * ell[0],
+        "irrelevant input's length-scale {} vs {}",
+        ell[1],
+        ell[0]
+    );
 }
 
 /// Shared and per-output kernels both fit the synthetic boom residual.
@@ -174,7 +198,10 @@ fn fits_boom_residual() {
         assert!(model.predict_std_into(&train.inputs[..7], &mut near, &mut scratch));
         assert!(model.predict_std_into(&[3.0, -2.0, 1.0, 4.0, 2.0, -3.0, 1.0], &mut far, &mut scratch));
         for c in 0..3 {
-            assert!(near[c] > 0.0 && far[c] > 5.0 * near[c], "std near {near:?}, far {far:?}");
+            assert!(
+                near[c] > 0.0 && far[c] > 5.0 * near[c],
+                "std near {near:?}, far {far:?}"
+            );
         }
     }
 }

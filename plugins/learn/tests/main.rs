@@ -3,9 +3,9 @@
 //! the baselines against exact answers, and the contract every predictor keeps (determinism,
 //! serde round trips, clear errors).
 
+mod baselines;
 mod common;
 mod contract;
 mod gp;
 mod nets;
-mod baselines;
 mod sweep;

@@ -23,7 +23,11 @@ fn backpropagation_matches_finite_differences() {
     net.backward(&params, &x, &acts, &dout, &mut grad, &mut deltas);
     let mut objective = |p: &[f64]| {
         net.forward(p, &x, &mut acts);
-        acts[acts.len() - 2..].iter().zip(&dout).map(|(a, d)| a * d).sum::<f64>()
+        acts[acts.len() - 2..]
+            .iter()
+            .zip(&dout)
+            .map(|(a, d)| a * d)
+            .sum::<f64>()
     };
     let h = 1e-6;
     for i in 0..params.len() {
@@ -31,7 +35,11 @@ fn backpropagation_matches_finite_differences() {
         plus[i] += h;
         minus[i] -= h;
         let fd = (objective(&plus) - objective(&minus)) / (2.0 * h);
-        assert!((grad[i] - fd).abs() < 1e-8, "parameter {i}: back-propagation {} vs {fd}", grad[i]);
+        assert!(
+            (grad[i] - fd).abs() < 1e-8,
+            "parameter {i}: back-propagation {} vs {fd}",
+            grad[i]
+        );
     }
 }
 
@@ -101,7 +109,8 @@ fn sparrow_search_beats_random_search() {
         bound: 5.12,
         ..SparrowParams::default()
     };
-    let functions: [(&str, &dyn Fn(&[f64]) -> f64); 2] = [("shifted sphere", &shifted_sphere), ("rastrigin", &rastrigin)];
+    let functions: [(&str, &dyn Fn(&[f64]) -> f64); 2] =
+        [("shifted sphere", &shifted_sphere), ("rastrigin", &rastrigin)];
     for (name, f) in functions {
         for seed in 0..5 {
             let mut rng = StdRng::seed_from_u64(seed);

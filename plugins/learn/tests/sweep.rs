@@ -28,6 +28,9 @@ fn defaults_at_900_samples() {
         .enumerate()
     {
         assert!(r < std && k < std, "output {c}: ridge {r}, knn {k}, std {std}");
-        assert!(r > 0.05 * std && k > 0.05 * std, "output {c}: the baselines should not match the learners");
+        assert!(
+            r > 0.05 * std && k > 0.05 * std,
+            "output {c}: the baselines should not match the learners"
+        );
     }
 }
