@@ -25,7 +25,7 @@ impl<'a> Samples<'a> {
                 "training set: expected at least one input and one output per row, got {d} inputs and {k} outputs"
             )));
         }
-        if data.inputs.len() % d != 0 {
+        if !data.inputs.len().is_multiple_of(d) {
             return Err(Error::Input(format!(
                 "training set: {} input values are not a whole number of rows of {d} inputs",
                 data.inputs.len()

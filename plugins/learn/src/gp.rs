@@ -306,7 +306,7 @@ impl TryFrom<GpModel> for FittedGp {
         if d == 0
             || model.inputs.scale.len() != d
             || model.outputs.scale.len() != k
-            || model.train_inputs.len() % d != 0
+            || !model.train_inputs.len().is_multiple_of(d)
         {
             return Err(Error::Input(
                 "gp_fitted: standardisation and training inputs disagree in size".into(),

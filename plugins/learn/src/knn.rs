@@ -69,7 +69,7 @@ impl TryFrom<KnnModel> for FittedKnn {
 
     fn try_from(m: KnnModel) -> Result<Self> {
         let d = m.inputs.mean.len();
-        let n = if d == 0 { 0 } else { m.train_inputs.len() / d };
+        let n = m.train_inputs.len().checked_div(d).unwrap_or(0);
         if d == 0
             || m.inputs.scale.len() != d
             || m.n_outputs == 0

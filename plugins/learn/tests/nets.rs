@@ -81,6 +81,9 @@ fn ssa_bp_fits_boom_residual() {
     assert_fits("ssa_bp", model.as_ref(), &test, 0.1);
 }
 
+/// A function of a point, to minimise.
+type TestFunction = dyn Fn(&[f64]) -> f64;
+
 /// Best value random search finds with `evaluations` uniform draws in `[-bound, bound]^dim`.
 fn random_search(dim: usize, bound: f64, evaluations: usize, seed: u64, f: impl Fn(&[f64]) -> f64) -> f64 {
     let mut rng = StdRng::seed_from_u64(seed);
@@ -109,8 +112,7 @@ fn sparrow_search_beats_random_search() {
         bound: 5.12,
         ..SparrowParams::default()
     };
-    let functions: [(&str, &dyn Fn(&[f64]) -> f64); 2] =
-        [("shifted sphere", &shifted_sphere), ("rastrigin", &rastrigin)];
+    let functions: [(&str, &TestFunction); 2] = [("shifted sphere", &shifted_sphere), ("rastrigin", &rastrigin)];
     for (name, f) in functions {
         for seed in 0..5 {
             let mut rng = StdRng::seed_from_u64(seed);

@@ -1,6 +1,8 @@
 //! A synthetic residual like what a deflection model leaves on a 7-joint boom: smooth sums of
 //! sines and cosines of the joints, millimetre scale (values in m), on the rock-drill's ranges.
 
+use std::f64::consts::{FRAC_PI_3, FRAC_PI_4, FRAC_PI_6, PI};
+
 use armcomp_core::TrainingSet;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -8,12 +10,12 @@ use rand::{Rng, SeedableRng};
 /// Joint ranges (rad, m): J1 ±15°, J2 0..30°, J3 0..105 mm, J4 0..60°, J5 -45..0°, J6 ±30°,
 /// J7 0..63 mm.
 pub const RANGES: [(f64, f64); 7] = [
-    (-0.2618, 0.2618),
-    (0.0, 0.5236),
+    (-PI / 12.0, PI / 12.0),
+    (0.0, FRAC_PI_6),
     (0.0, 0.105),
-    (0.0, 1.0472),
-    (-0.7854, 0.0),
-    (-0.5236, 0.5236),
+    (0.0, FRAC_PI_3),
+    (-FRAC_PI_4, 0.0),
+    (-FRAC_PI_6, FRAC_PI_6),
     (0.0, 0.063),
 ];
 
