@@ -10,6 +10,7 @@ pub fn builtin_plugins() -> Vec<PluginInfo> {
     all.extend(armcomp_elastic::plugins());
     all.extend(armcomp_urdf::plugins());
     all.extend(armcomp_sdk::plugins());
+    all.extend(armcomp_learn::plugins());
     // Stable order by role so listings and the schema do not depend on registration order.
     all.sort_by_key(|p| match p.role {
         Role::Kinematics => 0,

@@ -1,0 +1,193 @@
+//! What every predictor does with its training set: check it, standardise it, split it.
+
+use armcomp_core::{Error, Result, TrainingSet};
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
+use serde::{Deserialize, Serialize};
+
+/// A checked training set: row-major inputs and targets with their sizes.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Samples<'a> {
+    pub inputs: &'a [f64],
+    pub targets: &'a [f64],
+    pub n: usize,
+    pub n_inputs: usize,
+    pub n_outputs: usize,
+}
+
+impl<'a> Samples<'a> {
+    /// Checks sizes and values of `data`; `min_samples` is what the predictor needs to fit.
+    pub fn check(data: &TrainingSet<'a>, min_samples: usize) -> Result<Self> {
+        let (d, k) = (data.n_inputs, data.n_outputs);
+        if d == 0 || k == 0 {
+            return Err(Error::Input(format!(
+                "training set: expected at least one input and one output per row, got {d} inputs and {k} outputs"
+            )));
+        }
+        if !data.inputs.len().is_multiple_of(d) {
+            return Err(Error::Input(format!(
+                "training set: {} input values are not a whole number of rows of {d} inputs",
+                data.inputs.len()
+            )));
+        }
+        let n = data.inputs.len() / d;
+        if data.targets.len() != n * k {
+            return Err(Error::Dimension {
+                what: format!("training targets ({n} rows of {k} outputs)"),
+                expected: n * k,
+                got: data.targets.len(),
+            });
+        }
+        if n < min_samples {
+            return Err(Error::Input(format!(
+                "training set: expected at least {min_samples} samples, got {n}"
+            )));
+        }
+        for (name, values, width) in [("input", data.inputs, d), ("target", data.targets, k)] {
+            if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+                return Err(Error::Input(format!(
+                    "training set: {name} {} of row {} is {}; expected a finite number",
+                    i % width,
+                    i / width,
+                    values[i]
+                )));
+            }
+        }
+        Ok(Samples {
+            inputs: data.inputs,
+            targets: data.targets,
+            n,
+            n_inputs: d,
+            n_outputs: k,
+        })
+    }
+
+    pub fn input(&self, i: usize) -> &'a [f64] {
+        &self.inputs[i * self.n_inputs..(i + 1) * self.n_inputs]
+    }
+}
+
+/// Per-column affine map to zero mean and unit standard deviation, learnt on the training set.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Standardizer {
+    /// Column means.
+    pub mean: Vec<f64>,
+    /// Column standard deviations (1 for constant columns, which then only get centred).
+    pub scale: Vec<f64>,
+}
+
+impl Standardizer {
+    /// Fits the map to the columns of the row-major `values` (`width` columns).
+    pub fn fit(values: &[f64], width: usize) -> Self {
+        let n = (values.len() / width).max(1) as f64;
+        let mut mean = vec![0.0; width];
+        for row in values.chunks_exact(width) {
+            for (m, v) in mean.iter_mut().zip(row) {
+                *m += v;
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= n);
+        let mut scale = vec![0.0; width];
+        for row in values.chunks_exact(width) {
+            for ((s, v), m) in scale.iter_mut().zip(row).zip(&mean) {
+                *s += (v - m) * (v - m);
+            }
+        }
+        for s in &mut scale {
+            let sd = (*s / n).sqrt();
+            // A constant column carries no information; scaling it by 1 keeps it harmless.
+            *s = if sd > 1e-12 * (1.0 + sd) && sd.is_normal() {
+                sd
+            } else {
+                1.0
+            };
+        }
+        Standardizer { mean, scale }
+    }
+
+    /// Standardises `raw` into `out`.
+    pub fn apply(&self, raw: &[f64], out: &mut [f64]) {
+        for (((o, r), m), s) in out.iter_mut().zip(raw).zip(&self.mean).zip(&self.scale) {
+            *o = (r - m) / s;
+        }
+    }
+
+    /// Standardises every row of the row-major `values`.
+    pub fn apply_rows(&self, values: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; values.len()];
+        for (o, r) in out
+            .chunks_exact_mut(self.mean.len())
+            .zip(values.chunks_exact(self.mean.len()))
+        {
+            self.apply(r, o);
+        }
+        out
+    }
+
+    /// Maps standardised values in place back to the original units.
+    pub fn restore(&self, values: &mut [f64]) {
+        for ((v, m), s) in values.iter_mut().zip(&self.mean).zip(&self.scale) {
+            *v = *v * s + m;
+        }
+    }
+
+    /// Maps standard deviations in place back to the original units.
+    pub fn restore_std(&self, values: &mut [f64]) {
+        for (v, s) in values.iter_mut().zip(&self.scale) {
+            *v *= s;
+        }
+    }
+}
+
+/// Seeded split of `0..n` into (training, held-out) indices; `fraction` of the rows, rounded,
+/// is held out, always leaving at least one row to train on.
+pub(crate) fn split_indices(n: usize, fraction: f64, rng: &mut StdRng) -> (Vec<usize>, Vec<usize>) {
+    let mut order: Vec<usize> = (0..n).collect();
+    order.shuffle(rng);
+    let held = ((fraction * n as f64).round() as usize).min(n.saturating_sub(1));
+    let train = order.split_off(held);
+    (train, order)
+}
+
+/// Checks that a fraction lies in `[0, max]`, naming the field.
+pub(crate) fn check_fraction(field: &str, value: f64, max: f64) -> Result<()> {
+    if (0.0..=max).contains(&value) {
+        Ok(())
+    } else {
+        Err(Error::Input(format!(
+            "{field}: expected a fraction in [0, {max}], got {value}"
+        )))
+    }
+}
+
+/// Checks that a count is at least `min`, naming the field.
+pub(crate) fn check_count(field: &str, value: usize, min: usize) -> Result<()> {
+    if value >= min {
+        Ok(())
+    } else {
+        Err(Error::Input(format!("{field}: expected at least {min}, got {value}")))
+    }
+}
+
+/// Checks that a real hyper-parameter is finite and positive, naming the field.
+pub(crate) fn check_positive(field: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::Input(format!(
+            "{field}: expected a finite positive number, got {value}"
+        )))
+    }
+}
+
+/// A progress bar on stderr for a training loop of `len` steps; indicatif hides it when stderr
+/// is not a terminal, so logs and tests stay clean.
+pub(crate) fn progress(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    if let Ok(style) = ProgressStyle::with_template("{msg:>12} [{bar:30}] {pos}/{len} {elapsed_precise}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(what.to_string());
+    bar
+}

@@ -1,0 +1,303 @@
+//! Gradient training of a [`Network`]: Adam on seeded mini-batches, or Levenberg–Marquardt for
+//! small networks, both with early stopping on a held-out share of the rows.
+
+use armcomp_core::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+use rand::rngs::StdRng;
+use rand::seq::SliceRandom;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::data::{Samples, Standardizer, check_count, check_fraction, check_positive, progress, split_indices};
+use crate::network::{FittedMlp, MlpModel, Network};
+
+/// How the weights are refined by gradient.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum GradientMethod {
+    /// Adam on shuffled mini-batches.
+    #[default]
+    Adam,
+    /// Levenberg–Marquardt on all training rows (Jacobian by back-propagation); for networks of
+    /// at most 2000 weights.
+    LevenbergMarquardt,
+}
+
+/// Gradient training settings. Inputs and targets are standardised before training, so the
+/// learning rate and damping are unit-free.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainingParams {
+    /// `adam` or `levenberg_marquardt`.
+    pub method: GradientMethod,
+    /// Adam: passes over the training rows; Levenberg–Marquardt: iterations.
+    pub max_epochs: usize,
+    /// Adam step size.
+    pub learning_rate: f64,
+    /// Adam mini-batch size (rows).
+    pub batch_size: usize,
+    /// Share of the rows held out for early stopping (0 monitors the training error instead).
+    pub validation_fraction: f64,
+    /// Epochs (iterations) without improvement of the monitored error before stopping; the best
+    /// weights seen are kept.
+    pub patience: usize,
+    /// Levenberg–Marquardt starting damping λ in `(JᵀJ + λI) δ = -Jᵀr`.
+    pub initial_damping: f64,
+}
+
+impl Default for TrainingParams {
+    fn default() -> Self {
+        TrainingParams {
+            method: GradientMethod::Adam,
+            max_epochs: 1000,
+            learning_rate: 0.005,
+            batch_size: 32,
+            validation_fraction: 0.15,
+            patience: 100,
+            initial_damping: 1e-2,
+        }
+    }
+}
+
+/// Networks larger than this are too costly for Levenberg–Marquardt's `JᵀJ` (P × P).
+const LM_MAX_PARAMS: usize = 2000;
+
+impl TrainingParams {
+    pub(crate) fn check(&self, n_params: usize) -> Result<()> {
+        check_count("training.max_epochs", self.max_epochs, 1)?;
+        check_count("training.batch_size", self.batch_size, 1)?;
+        check_count("training.patience", self.patience, 1)?;
+        check_positive("training.learning_rate", self.learning_rate)?;
+        check_positive("training.initial_damping", self.initial_damping)?;
+        check_fraction("training.validation_fraction", self.validation_fraction, 0.5)?;
+        if self.method == GradientMethod::LevenbergMarquardt && n_params > LM_MAX_PARAMS {
+            return Err(Error::Input(format!(
+                "training.method: levenberg_marquardt is for networks of at most {LM_MAX_PARAMS} weights, this one has {n_params}; use adam or smaller hidden layers"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// A training set standardised for a network, with its held-out split.
+pub(crate) struct NetData {
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub d: usize,
+    pub k: usize,
+    pub train: Vec<usize>,
+    pub held_out: Vec<usize>,
+    pub inputs: Standardizer,
+    pub outputs: Standardizer,
+}
+
+impl NetData {
+    pub fn new(samples: &Samples<'_>, validation_fraction: f64, rng: &mut StdRng) -> Self {
+        let inputs = Standardizer::fit(samples.inputs, samples.n_inputs);
+        let outputs = Standardizer::fit(samples.targets, samples.n_outputs);
+        let (train, held_out) = split_indices(samples.n, validation_fraction, rng);
+        NetData {
+            x: inputs.apply_rows(samples.inputs),
+            y: outputs.apply_rows(samples.targets),
+            d: samples.n_inputs,
+            k: samples.n_outputs,
+            train,
+            held_out,
+            inputs,
+            outputs,
+        }
+    }
+
+    fn row(&self, i: usize) -> (&[f64], &[f64]) {
+        (
+            &self.x[i * self.d..(i + 1) * self.d],
+            &self.y[i * self.k..(i + 1) * self.k],
+        )
+    }
+
+    /// Mean squared (standardised) error of `params` over the rows `rows`; `acts` is scratch.
+    pub fn mse(&self, net: &Network, params: &[f64], rows: &[usize], acts: &mut [f64]) -> f64 {
+        let mut sum = 0.0;
+        for &i in rows {
+            let (x, y) = self.row(i);
+            net.forward(params, x, acts);
+            let out = &acts[acts.len() - self.k..];
+            sum += out.iter().zip(y).map(|(o, t)| (o - t) * (o - t)).sum::<f64>();
+        }
+        sum / (rows.len() * self.k) as f64
+    }
+
+    /// The fitted predictor for trained `params`.
+    pub fn fitted(self, net: Network, params: Vec<f64>) -> Result<FittedMlp> {
+        FittedMlp::try_from(MlpModel {
+            network: net,
+            params,
+            inputs: self.inputs,
+            outputs: self.outputs,
+        })
+    }
+}
+
+/// Keeps the best weights by the monitored error and says when patience has run out.
+struct EarlyStopping {
+    best: Vec<f64>,
+    best_error: f64,
+    since: usize,
+    patience: usize,
+}
+
+impl EarlyStopping {
+    fn new(params: &[f64], error: f64, patience: usize) -> Self {
+        EarlyStopping {
+            best: params.to_vec(),
+            best_error: error,
+            since: 0,
+            patience,
+        }
+    }
+
+    /// Records the error of `params`; true when training should stop.
+    fn update(&mut self, params: &[f64], error: f64) -> bool {
+        if error < self.best_error {
+            self.best_error = error;
+            self.best.copy_from_slice(params);
+            self.since = 0;
+        } else {
+            self.since += 1;
+        }
+        self.since >= self.patience
+    }
+}
+
+/// Refines `params` in place by the configured gradient method; the best weights by the
+/// monitored error (held-out rows, or training rows when none are held out) are kept.
+pub(crate) fn train(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, rng: &mut StdRng) {
+    match tp.method {
+        GradientMethod::Adam => adam(net, params, data, tp, rng),
+        GradientMethod::LevenbergMarquardt => levenberg_marquardt(net, params, data, tp),
+    }
+}
+
+fn monitored(data: &NetData) -> &[usize] {
+    if data.held_out.is_empty() {
+        &data.train
+    } else {
+        &data.held_out
+    }
+}
+
+fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, rng: &mut StdRng) {
+    const BETA1: f64 = 0.9;
+    const BETA2: f64 = 0.999;
+    const EPS: f64 = 1e-8;
+    let np = params.len();
+    let (mut m, mut v, mut grad) = (vec![0.0; np], vec![0.0; np], vec![0.0; np]);
+    let mut acts = vec![0.0; net.n_activations()];
+    let mut deltas = acts.clone();
+    let mut dout = vec![0.0; data.k];
+    let mut order = data.train.clone();
+    let mut stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
+    let bar = progress(tp.max_epochs as u64, "adam");
+    let mut step = 0;
+    for _ in 0..tp.max_epochs {
+        order.shuffle(rng);
+        for batch in order.chunks(tp.batch_size) {
+            grad.fill(0.0);
+            let scale = 2.0 / (batch.len() * data.k) as f64;
+            for &i in batch {
+                let (x, y) = data.row(i);
+                net.forward(params, x, &mut acts);
+                let out = &acts[acts.len() - data.k..];
+                for ((g, o), t) in dout.iter_mut().zip(out).zip(y) {
+                    *g = scale * (o - t);
+                }
+                net.backward(params, x, &acts, &dout, &mut grad, &mut deltas);
+            }
+            step += 1;
+            let c1 = 1.0 - BETA1.powi(step);
+            let c2 = 1.0 - BETA2.powi(step);
+            for (((p, g), m), v) in params.iter_mut().zip(&grad).zip(&mut m).zip(&mut v) {
+                *m = BETA1 * *m + (1.0 - BETA1) * g;
+                *v = BETA2 * *v + (1.0 - BETA2) * g * g;
+                *p -= tp.learning_rate * (*m / c1) / ((*v / c2).sqrt() + EPS);
+            }
+        }
+        bar.inc(1);
+        if stop.update(params, data.mse(net, params, monitored(data), &mut acts)) {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+    params.copy_from_slice(&stop.best);
+}
+
+fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams) {
+    let np = params.len();
+    let rows = data.train.len() * data.k;
+    let mut jac = DMatrix::<f64>::zeros(rows, np);
+    let mut res = DVector::<f64>::zeros(rows);
+    let mut acts = vec![0.0; net.n_activations()];
+    let mut deltas = acts.clone();
+    let mut grad_row = vec![0.0; np];
+    let mut unit = vec![0.0; data.k];
+    let mut candidate = params.to_vec();
+    let mut lambda = tp.initial_damping;
+    let mut loss = data.mse(net, params, &data.train, &mut acts);
+    let mut stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
+    let bar = progress(tp.max_epochs as u64, "lm");
+    'iterations: for _ in 0..tp.max_epochs {
+        // Jacobian of the residuals `output − target` by one back-propagation per output.
+        for (r, &i) in data.train.iter().enumerate() {
+            let (x, y) = data.row(i);
+            net.forward(params, x, &mut acts);
+            for c in 0..data.k {
+                let row = r * data.k + c;
+                res[row] = acts[acts.len() - data.k + c] - y[c];
+                unit.fill(0.0);
+                unit[c] = 1.0;
+                grad_row.fill(0.0);
+                net.backward(params, x, &acts, &unit, &mut grad_row, &mut deltas);
+                for (p, g) in grad_row.iter().enumerate() {
+                    jac[(row, p)] = *g;
+                }
+            }
+        }
+        let jtj = jac.tr_mul(&jac);
+        let jtr = jac.tr_mul(&res);
+        loop {
+            let mut a = jtj.clone();
+            for p in 0..np {
+                a[(p, p)] += lambda;
+            }
+            let accepted = a.cholesky().is_some_and(|chol| {
+                let delta = chol.solve(&jtr);
+                for ((c, p), d) in candidate.iter_mut().zip(params.iter()).zip(delta.iter()) {
+                    *c = p - d;
+                }
+                let trial = data.mse(net, &candidate, &data.train, &mut acts);
+                if trial < loss {
+                    loss = trial;
+                    true
+                } else {
+                    false
+                }
+            });
+            if accepted {
+                params.copy_from_slice(&candidate);
+                lambda = (lambda / 10.0).max(1e-12);
+                break;
+            }
+            lambda *= 10.0;
+            if lambda > 1e10 {
+                // No damping makes progress: a minimum of the training error.
+                break 'iterations;
+            }
+        }
+        bar.inc(1);
+        if stop.update(params, data.mse(net, params, monitored(data), &mut acts)) {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+    params.copy_from_slice(&stop.best);
+}

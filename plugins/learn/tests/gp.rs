@@ -1,0 +1,207 @@
+//! The Gaussian process against the closed form, finite differences and a known length-scale.
+
+use armcomp_core::{PredictorSpec, TrainingSet};
+use armcomp_learn::{GpHyperParams, GpLikelihood, GpSpec, KernelSharing};
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+
+use crate::common::{Data, assert_fits};
+
+/// Inverse of a 3 × 3 matrix by cofactors, independent of the crate's linear algebra.
+fn inverse3(m: [[f64; 3]; 3]) -> ([[f64; 3]; 3], f64) {
+    let c = |r: usize, c: usize| {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+        m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]
+    };
+    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
+    let mut inv = [[0.0; 3]; 3];
+    for (r, row) in inv.iter_mut().enumerate() {
+        for (col, v) in row.iter_mut().enumerate() {
+            *v = c(col, r) / det;
+        }
+    }
+    (inv, det)
+}
+
+/// Posterior mean and standard deviation on three 1-D points, fixed hyper-parameters, against
+/// `m = k*ᵀ K⁻¹ y`, `s² = σ_f² − k*ᵀ K⁻¹ k*` worked out here in standardised units; and the log
+/// marginal likelihood against `-½ yᵀK⁻¹y − ½ ln|K| − (n/2) ln 2π`.
+#[test]
+fn posterior_matches_closed_form() {
+    let xs = [0.0, 1.0, 3.0];
+    let ys = [0.5, -0.2, 1.1];
+    let (ell, sf, sn) = (0.8, 1.3, 0.2);
+    let spec = GpSpec {
+        fixed: Some(GpHyperParams {
+            length_scales: vec![ell],
+            signal_std: sf,
+            noise_std: sn,
+        }),
+        ..GpSpec::default()
+    };
+    let model = spec
+        .fit(&TrainingSet {
+            inputs: &xs,
+            targets: &ys,
+            n_inputs: 1,
+            n_outputs: 1,
+        })
+        .unwrap();
+
+    // Standardisation by hand (population standard deviation).
+    let stats = |v: &[f64; 3]| {
+        let m = v.iter().sum::<f64>() / 3.0;
+        let s = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / 3.0).sqrt();
+        (m, s)
+    };
+    let ((mx, sx), (my, sy)) = (stats(&xs), stats(&ys));
+    let z: Vec<f64> = xs.iter().map(|x| (x - mx) / sx).collect();
+    let t: Vec<f64> = ys.iter().map(|y| (y - my) / sy).collect();
+    let kern = |a: f64, b: f64| sf * sf * (-0.5 * (a - b).powi(2) / (ell * ell)).exp();
+    let mut k = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            k[i][j] = kern(z[i], z[j]) + if i == j { sn * sn } else { 0.0 };
+        }
+    }
+    let (kinv, det) = inverse3(k);
+    let mut scratch = Vec::new();
+    for x in [-1.0, 0.5, 2.0, 6.0] {
+        let zs = (x - mx) / sx;
+        let ks: Vec<f64> = z.iter().map(|zi| kern(zs, *zi)).collect();
+        let (mut mean, mut quad) = (0.0, 0.0);
+        for i in 0..3 {
+            for j in 0..3 {
+                mean += ks[i] * kinv[i][j] * t[j];
+                quad += ks[i] * kinv[i][j] * ks[j];
+            }
+        }
+        let expected_mean = mean * sy + my;
+        let expected_std = (sf * sf - quad).sqrt() * sy;
+        let (mut m, mut s) = ([0.0], [0.0]);
+        model.predict_into(&[x], &mut m, &mut scratch);
+        assert!(model.predict_std_into(&[x], &mut s, &mut scratch));
+        assert!(
+            (m[0] - expected_mean).abs() < 1e-12,
+            "mean at {x}: {} vs {expected_mean}",
+            m[0]
+        );
+        assert!(
+            (s[0] - expected_std).abs() < 1e-12,
+            "std at {x}: {} vs {expected_std}",
+            s[0]
+        );
+    }
+
+    // Log marginal likelihood at θ = [ln ℓ, ln σ_f, ln σ_n] (noise floor 0).
+    let lik = GpLikelihood::new(&z, 1, &t, 1, 0.0).unwrap();
+    let mut grad = [0.0; 3];
+    let value = lik
+        .value_and_gradient(&[ell.ln(), sf.ln(), sn.ln()], &mut grad)
+        .unwrap();
+    let quad: f64 = (0..3)
+        .flat_map(|i| (0..3).map(move |j| (i, j)))
+        .map(|(i, j)| t[i] * kinv[i][j] * t[j])
+        .sum();
+    let expected = -0.5 * quad - 0.5 * det.ln() - 1.5 * (2.0 * std::f64::consts::PI).ln();
+    assert!(
+        (value - expected).abs() < 1e-12,
+        "log marginal likelihood {value} vs {expected}"
+    );
+}
+
+/// The analytic gradient of the log marginal likelihood (2 outputs sharing a kernel, 3 inputs,
+/// with a noise floor) against central finite differences.
+#[test]
+fn likelihood_gradient_matches_finite_differences() {
+    let mut rng = StdRng::seed_from_u64(7);
+    let (n, d, k) = (25, 3, 2);
+    let x: Vec<f64> = (0..n * d).map(|_| rng.random_range(-1.5..1.5)).collect();
+    let y: Vec<f64> = (0..n)
+        .flat_map(|i| {
+            let r = &x[i * d..(i + 1) * d];
+            [r[0].sin() + 0.3 * r[1], (r[2] * r[0]).cos()]
+        })
+        .map(|v| v + 0.05 * rng.random_range(-1.0..1.0))
+        .collect();
+    let lik = GpLikelihood::new(&x, d, &y, k, 1e-4).unwrap();
+    let theta = [0.2, -0.3, 0.5, 0.1, -1.5];
+    let mut grad = [0.0; 5];
+    lik.value_and_gradient(&theta, &mut grad).unwrap();
+    let h = 1e-5;
+    let mut scratch = [0.0; 5];
+    for p in 0..theta.len() {
+        let (mut plus, mut minus) = (theta, theta);
+        plus[p] += h;
+        minus[p] -= h;
+        let fd = (lik.value_and_gradient(&plus, &mut scratch).unwrap()
+            - lik.value_and_gradient(&minus, &mut scratch).unwrap())
+            / (2.0 * h);
+        assert!(
+            (grad[p] - fd).abs() < 1e-6 * (1.0 + fd.abs()),
+            "∂/∂θ[{p}]: analytic {} vs finite difference {fd}",
+            grad[p]
+        );
+    }
+}
+
+/// On `y = sin(3 x₁)` with an irrelevant second input, the fitted length-scale of x₁ is of the
+/// function's own scale (1/3 in x units, about 0.33 in standardised units) and the irrelevant
+/// input's is much longer.
+#[test]
+fn recovers_length_scale() {
+    let mut rng = StdRng::seed_from_u64(3);
+    let n = 120;
+    let x: Vec<f64> = (0..2 * n).map(|_| rng.random_range(-2.0..2.0)).collect();
+    let y: Vec<f64> = x
+        .chunks(2)
+        .map(|r| (3.0 * r[0]).sin() + 0.01 * rng.random_range(-1.0..1.0))
+        .collect();
+    let model = GpSpec::default()
+        .fit(&TrainingSet {
+            inputs: &x,
+            targets: &y,
+            n_inputs: 2,
+            n_outputs: 1,
+        })
+        .unwrap();
+    let json = serde_json::to_value(&model).unwrap();
+    let ell: Vec<f64> = serde_json::from_value(json["kernels"][0]["hyper"]["length_scales"].clone()).unwrap();
+    // Standardised x₁ has std ≈ 4/√12 ≈ 1.15, so sin(3x₁) varies on ≈ 1/(3·1.15) ≈ 0.29.
+    assert!((0.1..1.0).contains(&ell[0]), "length-scale of x₁: {}", ell[0]);
+    assert!(
+        ell[1] > 10.0 * ell[0],
+        "irrelevant input's length-scale {} vs {}",
+        ell[1],
+        ell[0]
+    );
+}
+
+/// Shared and per-output kernels both fit the synthetic boom residual.
+#[test]
+fn fits_boom_residual() {
+    let train = Data::residuals(300, 1);
+    let test = Data::residuals(200, 2);
+    for kernels in [KernelSharing::Shared, KernelSharing::PerOutput] {
+        let spec = GpSpec {
+            kernels,
+            restarts: 1,
+            max_optimization_samples: 150,
+            ..GpSpec::default()
+        };
+        let model = spec.fit(&train.set(7, 3)).unwrap();
+        assert_fits(&format!("gp {kernels:?}"), model.as_ref(), &test, 0.02);
+        // The predictive std is positive and grows away from the data.
+        let mut scratch = Vec::new();
+        let (mut near, mut far) = ([0.0; 3], [0.0; 3]);
+        assert!(model.predict_std_into(&train.inputs[..7], &mut near, &mut scratch));
+        assert!(model.predict_std_into(&[3.0, -2.0, 1.0, 4.0, 2.0, -3.0, 1.0], &mut far, &mut scratch));
+        for c in 0..3 {
+            assert!(
+                near[c] > 0.0 && far[c] > 5.0 * near[c],
+                "std near {near:?}, far {far:?}"
+            );
+        }
+    }
+}
