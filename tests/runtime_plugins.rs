@@ -29,8 +29,8 @@ fn built_plugins() -> &'static Path {
         let dir = target_profile_dir();
         let target = dir.parent().unwrap();
         for args in [
-            &["build", "-p", "cable-sag", "--lib"][..],
-            &["build", "-p", "armcomp-sdk", "--examples"][..],
+            &["build", "--profile", "test", "-p", "cable-sag", "--lib"][..],
+            &["build", "--profile", "test", "-p", "armcomp-sdk", "--examples"][..],
         ] {
             let status = Command::new(env!("CARGO"))
                 .args(args)

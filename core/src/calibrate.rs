@@ -529,8 +529,7 @@ impl Problem<'_> {
                     self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
                     for (i, bp) in base_perts.iter_mut().enumerate() {
                         bp.clear();
-                        self.robot
-                            .model_perturbation_into(i, &d.tree, &d.errors[i], &s.q, cond, ws, bp);
+                        self.robot.model_perturbation_into(i, &d.tree, &d.errors[i], s, ws, bp);
                     }
                     let body = d.tree.points()[s.point].body;
                     let support = d.tree.support(body);
@@ -588,7 +587,7 @@ impl Problem<'_> {
                                 scratch.clone_from(&ws.perturbation);
                                 subtract(scratch, &base_perts[*model]);
                                 self.robot
-                                    .model_perturbation_into(*model, &d.tree, &values, &s.q, cond, ws, scratch);
+                                    .model_perturbation_into(*model, &d.tree, &values, s, ws, scratch);
                                 d.tree.forward_perturbed_into(&s.q, scratch, &mut ws_fd.frames);
                                 let dp = (ws_fd.frames.point[s.point].translation.vector
                                     - ws.frames.point[s.point].translation.vector)

@@ -541,19 +541,20 @@ impl Robot {
 
     /// Adds the deformation of error model `model` alone, with parameter `values`, to `out`,
     /// at the rigid frames of the last [`forward_with_into`](Robot::forward_with_into) in `ws`
-    /// (same `tree`, `q` and `conditions`). Calibration differentiates models through this.
+    /// (same `tree`, and the joint values and conditions of `sample`). Calibration
+    /// differentiates models through this.
     pub fn model_perturbation_into(
         &self,
         model: usize,
         tree: &KinematicTree,
         values: &[f64],
-        q: &[f64],
-        conditions: Conditions,
+        sample: &crate::measurement::Sample,
         ws: &RobotWorkspace,
         out: &mut Perturbation,
     ) {
+        let conditions = Conditions::of(sample);
         let state = StaticState {
-            q,
+            q: &sample.q,
             tree,
             frames: &ws.rigid,
             mass: if conditions.payload.is_some() {
