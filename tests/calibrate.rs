@@ -430,6 +430,9 @@ fn fd_column(nominal: &Robot, poses: &[Vec<f64>], name: &str, h: f64) -> Vec<f64
     plus.iter().zip(&minus).map(|(a, b)| (a - b) / (2.0 * h)).collect()
 }
 
+/// A robot, a relative tolerance, and parameters with their finite-difference steps.
+type JacobianCase<'a> = (&'a Robot, f64, &'a [(&'a str, f64)]);
+
 #[test]
 fn identification_jacobian_matches_finite_differences_of_the_full_model() {
     use armcomp_core::calibrate::identification_jacobian;
@@ -439,7 +442,7 @@ fn identification_jacobian_matches_finite_differences_of_the_full_model() {
     let poe = robot("industrial-6dof-poe.toml");
     let rigid = robot("rock-drill.toml");
     // Tolerances relative to the column's largest entry (finite-difference error).
-    let cases: [(&Robot, f64, &[(&str, f64)]); 3] = [
+    let cases: [JacobianCase; 3] = [
         (
             &rigid,
             1e-6,
