@@ -6,6 +6,7 @@
 
 pub mod calibrate;
 pub mod collision;
+pub mod diagnose;
 pub mod error;
 pub mod evaluate;
 pub mod geom;
@@ -15,6 +16,7 @@ pub mod mass;
 pub mod measurement;
 pub mod param;
 pub mod perturbation;
+pub mod residuals;
 pub mod plan;
 pub mod plugin;
 pub mod robot;
@@ -33,7 +35,7 @@ pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solv
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
+    BuildContext, Candidate, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
     PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Conditions, Robot, RobotWorkspace};

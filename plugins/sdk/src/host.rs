@@ -187,6 +187,7 @@ impl PluginLibrary {
                 doc: abi_str(""),
                 role: 0,
                 diagnosis_candidate: 0,
+                candidates: None,
                 config_schema: abi_str(""),
             };
             // SAFETY: `info` is valid for one write.
@@ -226,6 +227,7 @@ impl PluginLibrary {
                     role,
                     doc: Box::leak(doc.into_boxed_str()),
                     diagnosis_candidate: info.diagnosis_candidate == 1,
+                    candidates: None,
                     schema: |g| <PluginErrorModelSpec as JsonSchema>::json_schema(g),
                 },
                 validator,
@@ -295,6 +297,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::ErrorModel,
             doc: "An error model from a shared library loaded at run time (library, model, config)",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <PluginErrorModelSpec as JsonSchema>::json_schema(g),
         },
         PluginInfo {
@@ -302,6 +305,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::Predictor,
             doc: "A residual predictor from a shared library loaded at run time (library, model, config)",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <PluginPredictorSpec as JsonSchema>::json_schema(g),
         },
     ]
