@@ -187,7 +187,6 @@ impl PluginLibrary {
                 doc: abi_str(""),
                 role: 0,
                 diagnosis_candidate: 0,
-                candidates: None,
                 config_schema: abi_str(""),
             };
             // SAFETY: `info` is valid for one write.
