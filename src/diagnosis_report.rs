@@ -85,11 +85,7 @@ fn histogram(r: &DiagnosisReport) -> anyhow::Result<String> {
             .x_label_area_size(40)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..max, 0.0..top)?;
-        chart
-            .configure_mesh()
-            .x_desc("3-D error (mm)")
-            .y_desc("poses")
-            .draw()?;
+        chart.configure_mesh().x_desc("3-D error (mm)").y_desc("poses").draw()?;
         for (counts, color, label) in [(&c0, RED, "model as given"), (&c1, BLUE, "after diagnosis")] {
             chart
                 .draw_series(counts.iter().enumerate().map(|(i, &n)| {
@@ -99,13 +95,20 @@ fn histogram(r: &DiagnosisReport) -> anyhow::Result<String> {
                 .label(label)
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], color.mix(0.4).filled()));
         }
-        chart.configure_series_labels().background_style(WHITE).border_style(BLACK).draw()?;
+        chart
+            .configure_series_labels()
+            .background_style(WHITE)
+            .border_style(BLACK)
+            .draw()?;
     }
     Ok(svg)
 }
 
 fn cells(s: &ErrorStats) -> String {
-    format!("<td>{:.4}</td><td>{:.4}</td><td>{:.4}</td>", s.mean_mm, s.rms_mm, s.max_mm)
+    format!(
+        "<td>{:.4}</td><td>{:.4}</td><td>{:.4}</td>",
+        s.mean_mm, s.rms_mm, s.max_mm
+    )
 }
 
 /// Escapes text for HTML.
@@ -125,10 +128,12 @@ fn html(r: &DiagnosisReport) -> String {
         "<p>{} measured positions, {}-fold held-out scores in mm.</p>",
         r.n_samples, r.folds
     );
-    h.push_str(
-        "<table><tr><th>step</th><th>effect</th><th>mean</th><th>RMS</th><th>max</th><th>removed</th></tr>\n",
+    h.push_str("<table><tr><th>step</th><th>effect</th><th>mean</th><th>RMS</th><th>max</th><th>removed</th></tr>\n");
+    let _ = writeln!(
+        h,
+        "<tr><td>0</td><td>model as given</td>{}<td></td></tr>",
+        cells(&r.initial)
     );
-    let _ = writeln!(h, "<tr><td>0</td><td>model as given</td>{}<td></td></tr>", cells(&r.initial));
     for (i, s) in r.steps.iter().enumerate() {
         let _ = writeln!(
             h,
@@ -141,10 +146,18 @@ fn html(r: &DiagnosisReport) -> String {
     }
     h.push_str("</table>\n<p><img src=\"heldout_rms.svg\"> <img src=\"residuals.svg\"></p>\n");
     for (i, s) in r.steps.iter().enumerate() {
-        let _ = writeln!(h, "<h2>Step {}: {}</h2>\n<p>{}</p>", i + 1, esc(&s.label), esc(&s.summary));
+        let _ = writeln!(
+            h,
+            "<h2>Step {}: {}</h2>\n<p>{}</p>",
+            i + 1,
+            esc(&s.label),
+            esc(&s.summary)
+        );
         h.push_str("<table><tr><th>candidate</th><th>params</th><th>held-out RMS (mm)</th><th>removed</th><th>earns its parameters</th></tr>\n");
         for c in &s.ranking {
-            let rms = c.heldout.map_or_else(|| "failed".to_string(), |x| format!("{:.4}", x.rms_mm));
+            let rms = c
+                .heldout
+                .map_or_else(|| "failed".to_string(), |x| format!("{:.4}", x.rms_mm));
             let _ = writeln!(
                 h,
                 "<tr><td>{}</td><td>{}</td><td>{rms}</td><td>{:.1}%</td><td>{}</td></tr>",

@@ -105,30 +105,102 @@ fn cases() -> Vec<Case> {
     };
     let (camera, tracker) = (0.05e-3, 0.02e-3);
     vec![
-        case("rock-drill.toml", "joint_compliance", "j2",
-            json!({"type": "joint_compliance", "compliance": {"j2": 1e-3}}), camera, false),
-        case("rock-drill.toml", "lateral_compliance", "j2",
-            json!({"type": "lateral_compliance", "compliance": {"j2": [4e-4, 4e-4]}}), camera, false),
-        case("rock-drill.toml", "cantilever_deflection", "boom",
-            json!({"type": "cantilever_deflection", "links": ["boom"], "ei_scale": {"boom": 0.5}}), camera, false),
-        case("rock-drill.toml", "backlash", "j6",
-            json!({"type": "backlash", "backlash": {"j6": 0.3}}), camera, false),
-        case("rock-drill.toml", "transmission_scale", "j2",
-            json!({"type": "transmission_scale", "scale": {"j2": 0.01}}), camera, false),
-        case("rock-drill.toml", "thermal_growth", "global",
-            json!({"type": "thermal_growth", "coefficient": 7e-5}), camera, true),
-        case("industrial-6dof.toml", "joint_compliance", "j2",
-            json!({"type": "joint_compliance", "compliance": {"j2": 5e-6}}), tracker, false),
-        case("industrial-6dof.toml", "lateral_compliance", "j2",
-            json!({"type": "lateral_compliance", "compliance": {"j2": [5e-6, 5e-6]}}), tracker, false),
-        case("industrial-6dof.toml", "backlash", "j2",
-            json!({"type": "backlash", "backlash": {"j2": 0.03}}), tracker, false),
-        case("industrial-6dof.toml", "encoder_eccentricity", "j3",
-            json!({"type": "encoder_eccentricity", "eccentricity": {"j3": [0.03, 0.02]}}), tracker, false),
-        case("industrial-6dof.toml", "transmission_scale", "j3",
-            json!({"type": "transmission_scale", "scale": {"j3": 0.001}}), tracker, false),
-        case("industrial-6dof.toml", "thermal_growth", "global",
-            json!({"type": "thermal_growth", "coefficient": 1.2e-5}), tracker, true),
+        case(
+            "rock-drill.toml",
+            "joint_compliance",
+            "j2",
+            json!({"type": "joint_compliance", "compliance": {"j2": 1e-3}}),
+            camera,
+            false,
+        ),
+        case(
+            "rock-drill.toml",
+            "lateral_compliance",
+            "j2",
+            json!({"type": "lateral_compliance", "compliance": {"j2": [4e-4, 4e-4]}}),
+            camera,
+            false,
+        ),
+        case(
+            "rock-drill.toml",
+            "cantilever_deflection",
+            "boom",
+            json!({"type": "cantilever_deflection", "links": ["boom"], "ei_scale": {"boom": 0.5}}),
+            camera,
+            false,
+        ),
+        case(
+            "rock-drill.toml",
+            "backlash",
+            "j6",
+            json!({"type": "backlash", "backlash": {"j6": 0.3}}),
+            camera,
+            false,
+        ),
+        case(
+            "rock-drill.toml",
+            "transmission_scale",
+            "j2",
+            json!({"type": "transmission_scale", "scale": {"j2": 0.01}}),
+            camera,
+            false,
+        ),
+        case(
+            "rock-drill.toml",
+            "thermal_growth",
+            "global",
+            json!({"type": "thermal_growth", "coefficient": 7e-5}),
+            camera,
+            true,
+        ),
+        case(
+            "industrial-6dof.toml",
+            "joint_compliance",
+            "j2",
+            json!({"type": "joint_compliance", "compliance": {"j2": 5e-6}}),
+            tracker,
+            false,
+        ),
+        case(
+            "industrial-6dof.toml",
+            "lateral_compliance",
+            "j2",
+            json!({"type": "lateral_compliance", "compliance": {"j2": [5e-6, 5e-6]}}),
+            tracker,
+            false,
+        ),
+        case(
+            "industrial-6dof.toml",
+            "backlash",
+            "j2",
+            json!({"type": "backlash", "backlash": {"j2": 0.03}}),
+            tracker,
+            false,
+        ),
+        case(
+            "industrial-6dof.toml",
+            "encoder_eccentricity",
+            "j3",
+            json!({"type": "encoder_eccentricity", "eccentricity": {"j3": [0.03, 0.02]}}),
+            tracker,
+            false,
+        ),
+        case(
+            "industrial-6dof.toml",
+            "transmission_scale",
+            "j3",
+            json!({"type": "transmission_scale", "scale": {"j3": 0.001}}),
+            tracker,
+            false,
+        ),
+        case(
+            "industrial-6dof.toml",
+            "thermal_growth",
+            "global",
+            json!({"type": "thermal_growth", "coefficient": 1.2e-5}),
+            tracker,
+            true,
+        ),
     ]
 }
 
@@ -137,10 +209,12 @@ fn check_case(c: &Case, n: usize) {
     let truth = with_effects(&nominal, std::slice::from_ref(&c.truth));
     let samples = measure(&truth, n, c.noise, 11, c.drift);
     let r = run(&nominal, &samples, c.noise, 1);
-    let step = r
-        .steps
-        .first()
-        .unwrap_or_else(|| panic!("{} {}: nothing found; ranking {:#?}", c.robot, c.effect, r.final_model.ranking));
+    let step = r.steps.first().unwrap_or_else(|| {
+        panic!(
+            "{} {}: nothing found; ranking {:#?}",
+            c.robot, c.effect, r.final_model.ranking
+        )
+    });
     assert_eq!(
         (step.effect.as_str(), step.location.as_str()),
         (c.effect, c.location),
@@ -183,7 +257,11 @@ fn two_hidden_effects_are_found_in_turn() {
     let noise = 0.02e-3;
     let samples = measure(&truth, 100, noise, 5, false);
     let r = run(&nominal, &samples, noise, 3);
-    let mut found: Vec<(&str, &str)> = r.steps.iter().map(|s| (s.effect.as_str(), s.location.as_str())).collect();
+    let mut found: Vec<(&str, &str)> = r
+        .steps
+        .iter()
+        .map(|s| (s.effect.as_str(), s.location.as_str()))
+        .collect();
     assert!(found.len() >= 2, "found only {found:?}");
     found.truncate(2);
     found.sort();
@@ -200,7 +278,11 @@ fn nothing_is_added_when_nothing_is_missing() {
     let noise = 0.05e-3;
     let samples = measure(&nominal, 60, noise, 3, false);
     let r = run(&nominal, &samples, noise, 2);
-    assert!(r.steps.is_empty(), "added {:?}", r.steps.iter().map(|s| &s.label).collect::<Vec<_>>());
+    assert!(
+        r.steps.is_empty(),
+        "added {:?}",
+        r.steps.iter().map(|s| &s.label).collect::<Vec<_>>()
+    );
     assert!(!r.final_model.ranking.is_empty());
     assert!(r.final_model.ranking.iter().all(|c| !c.earns_parameters));
 }
@@ -208,7 +290,10 @@ fn nothing_is_added_when_nothing_is_missing() {
 #[test]
 fn a_seed_gives_the_same_diagnosis_and_the_rest_is_scored_by_a_predictor() {
     let nominal = robot("industrial-6dof.toml");
-    let truth = with_effects(&nominal, &[json!({"type": "joint_compliance", "compliance": {"j3": 1e-5}})]);
+    let truth = with_effects(
+        &nominal,
+        &[json!({"type": "joint_compliance", "compliance": {"j3": 1e-5}})],
+    );
     let noise = 0.02e-3;
     let samples = measure(&truth, 60, noise, 9, false);
     let predictor = armcomp_learn::RidgeSpec::default();

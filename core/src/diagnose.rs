@@ -213,7 +213,11 @@ pub fn diagnose(
     while steps.len() < params.max_steps {
         let offers: Vec<Offer> = offers(&fitted, plugins)
             .into_iter()
-            .filter(|o| !steps.iter().any(|s| s.effect == o.effect && s.location == o.candidate.location))
+            .filter(|o| {
+                !steps
+                    .iter()
+                    .any(|s| s.effect == o.effect && s.location == o.candidate.location)
+            })
             .collect();
         let mut ranking: Vec<RankedCandidate> = offers
             .par_iter()
@@ -240,7 +244,11 @@ pub fn diagnose(
             summary: format!(
                 "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm)",
                 best.label,
-                values.iter().map(|(_, q, v)| readable(*q, *v)).collect::<Vec<_>>().join(", "),
+                values
+                    .iter()
+                    .map(|(_, q, v)| readable(*q, *v))
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 100.0 * best.share_removed,
                 before.rms_mm,
                 after.rms_mm
@@ -377,8 +385,8 @@ fn score(
             let n = 3.0 * samples.len() as f64;
             out.n_params = n_params;
             out.share_removed = 1.0 - (sse1 / sse0).sqrt();
-            out.earns_parameters = out.share_removed >= params.min_rms_reduction
-                && n * (sse0 / sse1).ln() > n_params as f64 * n.ln();
+            out.earns_parameters =
+                out.share_removed >= params.min_rms_reduction && n * (sse0 / sse1).ln() > n_params as f64 * n.ln();
             out.heldout = Some(ErrorStats::from_errors(&errors));
             out.heldout_errors = errors;
         }

@@ -16,9 +16,9 @@ pub mod mass;
 pub mod measurement;
 pub mod param;
 pub mod perturbation;
-pub mod residuals;
 pub mod plan;
 pub mod plugin;
+pub mod residuals;
 pub mod robot;
 pub mod robot_file;
 pub mod sampling;
@@ -35,8 +35,8 @@ pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solv
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Candidate, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
-    PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
+    BuildContext, Candidate, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData,
+    ModelContext, PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};

@@ -46,12 +46,10 @@ pub struct ResidualDescription {
 /// `samples`; gravity loads are those of `robot`'s rigid model at each sample.
 pub fn describe_residuals(robot: &Robot, samples: &[Sample], residuals: &[Vector3<f64>]) -> ResidualDescription {
     let n = residuals.len().max(1) as f64;
-    let axes = [0, 1, 2].map(|k| {
-        AxisResidual {
-            axis: ["x", "y", "z"][k],
-            mean_mm: residuals.iter().map(|r| r[k]).sum::<f64>() / n * 1e3,
-            rms_mm: (residuals.iter().map(|r| r[k] * r[k]).sum::<f64>() / n).sqrt() * 1e3,
-        }
+    let axes = [0, 1, 2].map(|k| AxisResidual {
+        axis: ["x", "y", "z"][k],
+        mean_mm: residuals.iter().map(|r| r[k]).sum::<f64>() / n * 1e3,
+        rms_mm: (residuals.iter().map(|r| r[k] * r[k]).sum::<f64>() / n).sqrt() * 1e3,
     });
     let components: [Vec<f64>; 4] = [
         residuals.iter().map(|r| r.x).collect(),
@@ -79,7 +77,11 @@ pub fn describe_residuals(robot: &Robot, samples: &[Sample], residuals: &[Vector
         ));
     }
     if samples.iter().all(|s| s.payload.is_some()) {
-        variables.push(("payload".into(), "kg", samples.iter().filter_map(|s| s.payload).collect()));
+        variables.push((
+            "payload".into(),
+            "kg",
+            samples.iter().filter_map(|s| s.payload).collect(),
+        ));
     }
     if samples.iter().all(|s| s.temperature.is_some()) {
         variables.push((
@@ -88,13 +90,19 @@ pub fn describe_residuals(robot: &Robot, samples: &[Sample], residuals: &[Vector
             samples.iter().filter_map(|s| s.temperature).collect(),
         ));
     }
-    variables.push(("time order".into(), "sample", (0..samples.len()).map(|i| i as f64).collect()));
+    variables.push((
+        "time order".into(),
+        "sample",
+        (0..samples.len()).map(|i| i as f64).collect(),
+    ));
     let correlations = variables
         .into_iter()
         .filter_map(|(variable, unit, values)| {
             let r = components.clone().map(|c| pearson(&values, &c));
             // A variable that does not vary (a fixed joint, no payload change) says nothing.
-            r.iter().all(|v| v.is_finite()).then_some(ResidualCorrelation { variable, unit, r })
+            r.iter()
+                .all(|v| v.is_finite())
+                .then_some(ResidualCorrelation { variable, unit, r })
         })
         .collect();
     ResidualDescription { axes, correlations }
@@ -110,7 +118,11 @@ pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
         .map(|s| {
             let conditions = Conditions::of(s);
             robot.forward_with_into(tree, robot.error_values(), &s.q, conditions, &mut ws);
-            let mass = if conditions.payload.is_some() { &ws.mass } else { robot.mass() };
+            let mass = if conditions.payload.is_some() {
+                &ws.mass
+            } else {
+                robot.mass()
+            };
             let g = robot.gravity();
             // Weight and its point of application, world frame.
             let mut loads: Vec<(usize, Vector3<f64>, Vector3<f64>)> = mass
@@ -121,7 +133,11 @@ pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
                 .map(|(b, m)| (b, ws.rigid.body[b].transform_point(&m.com.into()).coords, m.mass * g))
                 .collect();
             if let Some(p) = mass.payload {
-                loads.push((p.body, ws.rigid.body[p.body].transform_point(&p.com.into()).coords, p.mass * g));
+                loads.push((
+                    p.body,
+                    ws.rigid.body[p.body].transform_point(&p.com.into()).coords,
+                    p.mass * g,
+                ));
             }
             tree.joints()
                 .iter()

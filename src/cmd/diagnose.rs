@@ -126,7 +126,10 @@ fn print_residuals(title: &str, d: &ResidualDescription) {
     for a in &d.axes {
         println!("  {}: mean {:+.4} mm, RMS {:.4} mm", a.axis, a.mean_mm, a.rms_mm);
     }
-    println!("  {:<28} {:>7} {:>7} {:>7} {:>7}", "correlation with", "x", "y", "z", "|e|");
+    println!(
+        "  {:<28} {:>7} {:>7} {:>7} {:>7}",
+        "correlation with", "x", "y", "z", "|e|"
+    );
     for c in &d.correlations {
         println!(
             "  {:<28} {:>+7.2} {:>+7.2} {:>+7.2} {:>+7.2}",
@@ -148,7 +151,11 @@ fn print_ranking(ranking: &[RankedCandidate]) {
                 c.n_params,
                 h.rms_mm,
                 -100.0 * c.share_removed,
-                if c.earns_parameters { "" } else { "  (does not earn its parameters)" }
+                if c.earns_parameters {
+                    ""
+                } else {
+                    "  (does not earn its parameters)"
+                }
             ),
             None => println!("    {:<48} failed: {}", c.label, c.error.as_deref().unwrap_or("")),
         }
@@ -161,7 +168,10 @@ fn print_report(r: &DiagnosisReport) {
         r.n_samples, r.folds
     );
     print_residuals("held-out residuals of the model as given:", &r.initial_residuals);
-    println!("\n{:<4} {:<40} {:>26}   {:>26} {:>8}", "step", "effect", "before", "after", "removed");
+    println!(
+        "\n{:<4} {:<40} {:>26}   {:>26} {:>8}",
+        "step", "effect", "before", "after", "removed"
+    );
     println!("{:<4} {:<40} {:>26}", "0", "model as given", stats(&r.initial));
     for (i, s) in r.steps.iter().enumerate() {
         println!(

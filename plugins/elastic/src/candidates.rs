@@ -8,12 +8,7 @@ use serde_json::{Value, json};
 
 /// One candidate per moving joint (revolute only when `revolute_only`), its spec built by
 /// `spec` from the joint name.
-fn per_joint(
-    robot: &Robot,
-    revolute_only: bool,
-    what: &str,
-    spec: impl Fn(&str) -> Value,
-) -> Vec<Candidate> {
+fn per_joint(robot: &Robot, revolute_only: bool, what: &str, spec: impl Fn(&str) -> Value) -> Vec<Candidate> {
     robot
         .tree()
         .joints()
@@ -54,31 +49,48 @@ fn global(label: &str, spec: Value) -> Vec<Candidate> {
 }
 
 pub(crate) fn joint_compliance(robot: &Robot) -> Vec<Candidate> {
-    per_joint(robot, false, "compliance", |j| {
-        json!({ "type": "joint_compliance", "compliance": { j: 0.0 } })
-    })
+    per_joint(
+        robot,
+        false,
+        "compliance",
+        |j| json!({ "type": "joint_compliance", "compliance": { j: 0.0 } }),
+    )
 }
 
 pub(crate) fn lateral_compliance(robot: &Robot) -> Vec<Candidate> {
-    per_joint(robot, false, "lateral compliance (tilt under bending)", |j| {
-        json!({ "type": "lateral_compliance", "compliance": { j: [0.0, 0.0] } })
-    })
+    per_joint(
+        robot,
+        false,
+        "lateral compliance (tilt under bending)",
+        |j| json!({ "type": "lateral_compliance", "compliance": { j: [0.0, 0.0] } }),
+    )
 }
 
 pub(crate) fn backlash(robot: &Robot) -> Vec<Candidate> {
-    per_joint(robot, false, "backlash", |j| json!({ "type": "backlash", "backlash": { j: 0.0 } }))
+    per_joint(
+        robot,
+        false,
+        "backlash",
+        |j| json!({ "type": "backlash", "backlash": { j: 0.0 } }),
+    )
 }
 
 pub(crate) fn encoder_eccentricity(robot: &Robot) -> Vec<Candidate> {
-    per_joint(robot, true, "encoder eccentricity", |j| {
-        json!({ "type": "encoder_eccentricity", "eccentricity": { j: [0.0, 0.0] } })
-    })
+    per_joint(
+        robot,
+        true,
+        "encoder eccentricity",
+        |j| json!({ "type": "encoder_eccentricity", "eccentricity": { j: [0.0, 0.0] } }),
+    )
 }
 
 pub(crate) fn transmission_scale(robot: &Robot) -> Vec<Candidate> {
-    per_joint(robot, false, "transmission scale", |j| {
-        json!({ "type": "transmission_scale", "scale": { j: 0.0 } })
-    })
+    per_joint(
+        robot,
+        false,
+        "transmission scale",
+        |j| json!({ "type": "transmission_scale", "scale": { j: 0.0 } }),
+    )
 }
 
 /// Each link with a beam section, bending at its nominal rigidity scaled by what calibration
