@@ -24,6 +24,8 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Identify a model from measurements (Levenberg–Marquardt with priors).
     Calibrate(cmd::calibrate::Args),
+    /// Find the physical effects a model misses, one by one, scored on held-out poses.
+    Diagnose(cmd::diagnose::Args),
     /// Position errors of a model on measurements, in mm.
     Evaluate(cmd::evaluate::Args),
     /// Measurement poses: even sets, D-optimal subsets, trajectory-similar subsets.
@@ -47,6 +49,7 @@ fn main() -> ExitCode {
         Command::Fk(a) => cmd::fk::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Diagnose(a) => cmd::diagnose::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
         Command::Plan(a) => cmd::plan::run(a),
         Command::Validate(a) => cmd::validate::run(a),

@@ -5,6 +5,7 @@ mod cli;
 mod collision;
 mod common;
 mod conventions;
+mod diagnose;
 mod fk;
 mod jacobian;
 mod malformed;

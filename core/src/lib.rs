@@ -6,6 +6,7 @@
 
 pub mod calibrate;
 pub mod collision;
+pub mod diagnose;
 pub mod error;
 pub mod evaluate;
 pub mod geom;
@@ -17,6 +18,7 @@ pub mod param;
 pub mod perturbation;
 pub mod plan;
 pub mod plugin;
+pub mod residuals;
 pub mod robot;
 pub mod robot_file;
 pub mod sampling;
@@ -33,8 +35,8 @@ pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solv
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
-    PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
+    BuildContext, Candidate, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData,
+    ModelContext, PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};

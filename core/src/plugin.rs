@@ -14,6 +14,7 @@ use crate::error::{Issues, Result};
 use crate::mass::MassModel;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
+use crate::robot::Robot;
 use crate::shape::Shape;
 use crate::tree::KinematicTree;
 use crate::units::Units;
@@ -53,6 +54,9 @@ pub struct PluginInfo {
     pub doc: &'static str,
     /// Whether the diagnosis workflow may try it as a missing effect.
     pub diagnosis_candidate: bool,
+    /// The instances of the effect worth trying on a robot (per joint, per link or global),
+    /// for the diagnosis workflow; `None` for plugins it cannot instantiate.
+    pub candidates: Option<fn(&Robot) -> Vec<Candidate>>,
     /// Generates the JSON Schema of its spec (without the `type` field).
     pub schema: fn(&mut SchemaGenerator) -> Schema,
 }
@@ -64,6 +68,18 @@ impl Debug for PluginInfo {
             .field("role", &self.role)
             .finish()
     }
+}
+
+/// One instance of an error model the diagnosis workflow may add to a robot.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// Where it acts: a joint or link name, or `global`.
+    pub location: String,
+    /// What a field engineer calls it, e.g. `joint j2 compliance`.
+    pub label: String,
+    /// The spec as the robot file's JSON form (with its `type`), at values that add nothing
+    /// yet (zero compliances, unit rigidity scales): calibration identifies them.
+    pub spec: serde_json::Value,
 }
 
 /// What a spec needs to know about the file it came from.

@@ -22,6 +22,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::Kinematics,
             doc: "Modified Denavit-Hartenberg (Craig) table, with Hayati's beta for nearly parallel axes",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <MdhSpec as schemars::JsonSchema>::json_schema(g),
         },
         PluginInfo {
@@ -29,6 +30,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::Kinematics,
             doc: "Classic Denavit-Hartenberg table",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <DhSpec as schemars::JsonSchema>::json_schema(g),
         },
         PluginInfo {
@@ -36,6 +38,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::Kinematics,
             doc: "Product of exponentials: screw axes at home in base coordinates",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <PoeSpec as schemars::JsonSchema>::json_schema(g),
         },
     ]

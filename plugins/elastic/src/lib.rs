@@ -9,6 +9,7 @@
 //! deformed arm for very elastic arms. Every model reads its loads from the mass model and
 //! gravity of the static state and writes small twists into the chain (paper Eq. 1–3).
 
+mod candidates;
 mod common;
 
 pub mod backlash;
@@ -38,18 +39,20 @@ pub use payload_mass_error::{PayloadMassErrorModel, PayloadMassErrorSpec};
 pub use thermal_growth::{ThermalGrowthModel, ThermalGrowthSpec};
 pub use transmission_scale::{TransmissionScaleModel, TransmissionScaleSpec};
 
-use armcomp_core::{PluginInfo, Role};
+use armcomp_core::{Candidate, PluginInfo, Robot, Role};
 
 macro_rules! entry {
-    ($name:literal, $spec:ty, $candidate:expr, $doc:literal) => {
+    ($name:literal, $spec:ty, $candidates:expr, $doc:literal) => {{
+        let candidates: Option<fn(&Robot) -> Vec<Candidate>> = $candidates;
         PluginInfo {
             type_name: $name,
             role: Role::ErrorModel,
             doc: $doc,
-            diagnosis_candidate: $candidate,
+            diagnosis_candidate: candidates.is_some(),
+            candidates,
             schema: |g| <$spec as schemars::JsonSchema>::json_schema(g),
         }
-    };
+    }};
 }
 
 /// The plugins of this crate, for the registry.
@@ -58,61 +61,63 @@ pub fn plugins() -> Vec<PluginInfo> {
         entry!(
             "cantilever_deflection",
             CantileverSpec,
-            true,
+            Some(candidates::cantilever_deflection),
             "Links bend under gravity as Euler-Bernoulli cantilevers (own weight, tip force and moment), per-link EI/GJ scale"
         ),
         entry!(
             "joint_compliance",
             JointComplianceSpec,
-            true,
+            Some(candidates::joint_compliance),
             "Joints give way in proportion to their gravity torque: dq = c * tau(q)"
         ),
         entry!(
             "lateral_compliance",
             LateralComplianceSpec,
-            true,
+            Some(candidates::lateral_compliance),
             "Joints tilt about the two axes perpendicular to their axis in proportion to the bending moment they carry"
         ),
         entry!(
             "geometric_offsets",
             GeometricOffsetsSpec,
-            true,
+            // Base and tool frame errors are what the measurement frame and the marker offsets
+            // already identify: as a candidate it could never earn its parameters.
+            None,
             "Small rigid errors of the base frame and the tool frame (6 parameters each)"
         ),
         entry!(
             "backlash",
             BacklashSpec,
-            true,
+            Some(candidates::backlash),
             "Gear dead band per joint; the joint rests on the side its gravity torque pushes it to"
         ),
         entry!(
             "encoder_eccentricity",
             EncoderEccentricitySpec,
-            true,
+            Some(candidates::encoder_eccentricity),
             "Off-centre encoder: joint angle error a*sin(q) + b*cos(q) per joint"
         ),
         entry!(
             "thermal_growth",
             ThermalGrowthSpec,
-            true,
+            Some(candidates::thermal_growth),
             "Link lengths grow with temperature: expansion coefficient per kelvin"
         ),
         entry!(
             "base_tilt",
             BaseTiltSpec,
-            true,
+            Some(candidates::base_tilt),
             "The base stands tilted by two small angles; the arm turns with it and gravity tilts through given joint compliances"
         ),
         entry!(
             "payload_mass_error",
             PayloadMassErrorSpec,
-            true,
+            Some(candidates::payload_mass_error),
             "The payload is heavier or lighter than declared; the difference bends the joints through their compliances"
         ),
         entry!(
             "transmission_scale",
             TransmissionScaleSpec,
-            true,
+            Some(candidates::transmission_scale),
             "Gear ratio or encoder scale error per joint: the joint turns (1 + s) times the command"
         ),
     ]

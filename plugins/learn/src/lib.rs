@@ -61,6 +61,7 @@ macro_rules! entry {
             role: Role::Predictor,
             doc: $doc,
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <$spec as schemars::JsonSchema>::json_schema(g),
         }
     };

@@ -226,6 +226,7 @@ impl PluginLibrary {
                     role,
                     doc: Box::leak(doc.into_boxed_str()),
                     diagnosis_candidate: info.diagnosis_candidate == 1,
+                    candidates: None,
                     schema: |g| <PluginErrorModelSpec as JsonSchema>::json_schema(g),
                 },
                 validator,
@@ -295,6 +296,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::ErrorModel,
             doc: "An error model from a shared library loaded at run time (library, model, config)",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <PluginErrorModelSpec as JsonSchema>::json_schema(g),
         },
         PluginInfo {
@@ -302,6 +304,7 @@ pub fn plugins() -> Vec<PluginInfo> {
             role: Role::Predictor,
             doc: "A residual predictor from a shared library loaded at run time (library, model, config)",
             diagnosis_candidate: false,
+            candidates: None,
             schema: |g| <PluginPredictorSpec as JsonSchema>::json_schema(g),
         },
     ]

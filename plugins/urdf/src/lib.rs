@@ -22,6 +22,7 @@ pub fn plugins() -> Vec<PluginInfo> {
         role: Role::Kinematics,
         doc: "A URDF file: joint origins (xyz, small rotation on rpy) and axes identifiable, inertials and collision elements used",
         diagnosis_candidate: false,
+        candidates: None,
         schema: |g| <UrdfSpec as schemars::JsonSchema>::json_schema(g),
     }]
 }

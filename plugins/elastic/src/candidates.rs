@@ -1,0 +1,143 @@
+//! The instances of each effect the diagnosis workflow tries on a robot: per moving joint, per
+//! beam link, or once for the whole arm, each at values that add nothing until calibrated.
+
+use std::collections::BTreeMap;
+
+use armcomp_core::{Candidate, Motion, Robot};
+use serde_json::{Value, json};
+
+/// One candidate per moving joint (revolute only when `revolute_only`), its spec built by
+/// `spec` from the joint name.
+fn per_joint(robot: &Robot, revolute_only: bool, what: &str, spec: impl Fn(&str) -> Value) -> Vec<Candidate> {
+    robot
+        .tree()
+        .joints()
+        .iter()
+        .filter(|j| match j.motion {
+            Motion::Revolute(_) => true,
+            Motion::Prismatic(_) => !revolute_only,
+            Motion::Fixed => false,
+        })
+        .map(|j| Candidate {
+            location: j.name.clone(),
+            label: format!("joint {} {what}", j.name),
+            spec: spec(&j.name),
+        })
+        .collect()
+}
+
+/// The joint compliances (rad/(N m)) of the robot's `joint_compliance` models, through which
+/// effects that change the gravity load act.
+fn known_compliances(robot: &Robot) -> BTreeMap<String, f64> {
+    let mut out = BTreeMap::new();
+    for (m, values) in robot.error_models().iter().zip(robot.error_values()) {
+        for (p, v) in m.params().iter().zip(values) {
+            if let Some(joint) = p.name.strip_prefix("joint_compliance.") {
+                out.insert(joint.to_string(), *v);
+            }
+        }
+    }
+    out
+}
+
+fn global(label: &str, spec: Value) -> Vec<Candidate> {
+    vec![Candidate {
+        location: "global".into(),
+        label: label.into(),
+        spec,
+    }]
+}
+
+pub(crate) fn joint_compliance(robot: &Robot) -> Vec<Candidate> {
+    per_joint(
+        robot,
+        false,
+        "compliance",
+        |j| json!({ "type": "joint_compliance", "compliance": { j: 0.0 } }),
+    )
+}
+
+pub(crate) fn lateral_compliance(robot: &Robot) -> Vec<Candidate> {
+    per_joint(
+        robot,
+        false,
+        "lateral compliance (tilt under bending)",
+        |j| json!({ "type": "lateral_compliance", "compliance": { j: [0.0, 0.0] } }),
+    )
+}
+
+pub(crate) fn backlash(robot: &Robot) -> Vec<Candidate> {
+    per_joint(
+        robot,
+        false,
+        "backlash",
+        |j| json!({ "type": "backlash", "backlash": { j: 0.0 } }),
+    )
+}
+
+pub(crate) fn encoder_eccentricity(robot: &Robot) -> Vec<Candidate> {
+    per_joint(
+        robot,
+        true,
+        "encoder eccentricity",
+        |j| json!({ "type": "encoder_eccentricity", "eccentricity": { j: [0.0, 0.0] } }),
+    )
+}
+
+pub(crate) fn transmission_scale(robot: &Robot) -> Vec<Candidate> {
+    per_joint(
+        robot,
+        false,
+        "transmission scale",
+        |j| json!({ "type": "transmission_scale", "scale": { j: 0.0 } }),
+    )
+}
+
+/// Each link with a beam section, bending at its nominal rigidity scaled by what calibration
+/// identifies (a scale of 1 is the beam as declared).
+pub(crate) fn cantilever_deflection(robot: &Robot) -> Vec<Candidate> {
+    robot
+        .file
+        .links
+        .iter()
+        .filter(|l| l.beam.is_some())
+        .map(|l| Candidate {
+            location: l.name.clone(),
+            label: format!("{} link bending", l.name),
+            spec: json!({ "type": "cantilever_deflection", "links": [l.name], "ei_scale": { &l.name: 1.0 } }),
+        })
+        .collect()
+}
+
+pub(crate) fn thermal_growth(_robot: &Robot) -> Vec<Candidate> {
+    global(
+        "thermal growth of the links",
+        json!({ "type": "thermal_growth", "coefficient": 0.0 }),
+    )
+}
+
+/// A tilted base differs from a turned measurement frame only through the joints' compliance
+/// to the tilted gravity, so it is tried once the robot knows some compliance.
+pub(crate) fn base_tilt(robot: &Robot) -> Vec<Candidate> {
+    let compliance = known_compliances(robot);
+    if compliance.is_empty() {
+        return Vec::new();
+    }
+    global(
+        "base tilt",
+        json!({ "type": "base_tilt", "tilt": [0.0, 0.0], "compliance": compliance }),
+    )
+}
+
+/// A wrong payload mass shows through the joints' compliance to it, so it is tried once the
+/// robot knows some compliance.
+pub(crate) fn payload_mass_error(robot: &Robot) -> Vec<Candidate> {
+    let compliance = known_compliances(robot);
+    if compliance.is_empty() {
+        return Vec::new();
+    }
+    global(
+        "payload mass error",
+        json!({ "type": "payload_mass_error", "mass": 0.0, "compliance": compliance }),
+    )
+}

@@ -1,0 +1,205 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use armcomp_core::PredictorSpec;
+use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, RankedCandidate, diagnose};
+use armcomp_core::evaluate::ErrorStats;
+use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::residuals::ResidualDescription;
+
+use super::read_measurements;
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Predictor {
+    /// Gaussian process.
+    Gp,
+    /// Ridge regression (fast baseline).
+    Ridge,
+    /// Do not score the learnable residual.
+    None,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The robot file to diagnose (its values are the starting point and the priors' centre).
+    #[arg(long)]
+    robot: PathBuf,
+    /// Measurement CSV.
+    #[arg(long)]
+    data: PathBuf,
+    /// Where to write the improved robot file (found effects added, calibrated on all the
+    /// data), written atomically; never over an input.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Folder for the report: index.html, report.json and SVG plots.
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Print the report as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+    /// Seed of the k-fold split and of the residual predictor.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Number of folds of the held-out score.
+    #[arg(long, default_value_t = 3)]
+    folds: usize,
+    /// Most effects to add.
+    #[arg(long, default_value_t = 5)]
+    max_steps: usize,
+    /// Smallest held-out RMS reduction, in percent, that an effect must bring to be added.
+    #[arg(long, default_value_t = 5.0)]
+    min_reduction_percent: f64,
+    /// Standard deviation of the tracker noise per axis, in mm (weighs data against priors).
+    #[arg(long, default_value_t = 0.1)]
+    noise_mm: f64,
+    /// What to identify besides each candidate, as for `calibrate --identify`.
+    #[arg(long, value_delimiter = ',')]
+    identify: Vec<String>,
+    /// Residual predictor that scores what remains learnable.
+    #[arg(long, value_enum, default_value_t = Predictor::Gp)]
+    predictor: Predictor,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let inputs = [args.robot.as_path(), args.data.as_path()];
+    if let Some(out) = &args.out {
+        check_not_input(out, &inputs)?;
+    }
+    let robot = armcomp::load_robot(&args.robot)?;
+    let data = read_measurements(&robot, &args.data)?;
+    let params = DiagnoseParams {
+        folds: args.folds,
+        seed: args.seed,
+        calibration: CalibrationParams {
+            identify: args.identify.clone(),
+            measurement_std: args.noise_mm * 1e-3,
+            ..CalibrationParams::default()
+        },
+        min_rms_reduction: args.min_reduction_percent / 100.0,
+        max_steps: args.max_steps,
+    };
+    let gp = armcomp_learn::GpSpec {
+        seed: args.seed,
+        ..Default::default()
+    };
+    let ridge = armcomp_learn::RidgeSpec::default();
+    let predictor: Option<(&str, &dyn PredictorSpec)> = match args.predictor {
+        Predictor::Gp => Some(("gp", &gp)),
+        Predictor::Ridge => Some(("ridge", &ridge)),
+        Predictor::None => None,
+    };
+    let spinner = indicatif::ProgressBar::new_spinner();
+    spinner.set_message("diagnosing (k-fold calibration of every candidate effect)");
+    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
+    let result = diagnose(&robot, &data.samples, &armcomp::plugins(), predictor, &params);
+    spinner.finish_and_clear();
+    let diagnosis = result?;
+    let report = &diagnosis.report;
+    if let Some(out) = &args.out {
+        let text = diagnosis.robot.to_file().to_text_for(out)?;
+        write_atomic(out, text.as_bytes())?;
+    }
+    if let Some(dir) = &args.report {
+        armcomp::diagnosis_report::write(dir, report, &inputs)?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(report)?);
+    } else {
+        print_report(report);
+        if let Some(out) = &args.out {
+            println!("wrote {}", out.display());
+        }
+        if let Some(dir) = &args.report {
+            println!("wrote {}", dir.join("index.html").display());
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn stats(s: &ErrorStats) -> String {
+    format!("{:>8.4} {:>8.4} {:>8.4}", s.mean_mm, s.rms_mm, s.max_mm)
+}
+
+fn print_residuals(title: &str, d: &ResidualDescription) {
+    println!("{title}");
+    for a in &d.axes {
+        println!("  {}: mean {:+.4} mm, RMS {:.4} mm", a.axis, a.mean_mm, a.rms_mm);
+    }
+    println!(
+        "  {:<28} {:>7} {:>7} {:>7} {:>7}",
+        "correlation with", "x", "y", "z", "|e|"
+    );
+    for c in &d.correlations {
+        println!(
+            "  {:<28} {:>+7.2} {:>+7.2} {:>+7.2} {:>+7.2}",
+            format!("{} ({})", c.variable, c.unit),
+            c.r[0],
+            c.r[1],
+            c.r[2],
+            c.r[3]
+        );
+    }
+}
+
+fn print_ranking(ranking: &[RankedCandidate]) {
+    for c in ranking.iter().take(5) {
+        match &c.heldout {
+            Some(h) => println!(
+                "    {:<48} {:>2} params  RMS {:.4} mm  {:+6.1}%{}",
+                c.label,
+                c.n_params,
+                h.rms_mm,
+                -100.0 * c.share_removed,
+                if c.earns_parameters {
+                    ""
+                } else {
+                    "  (does not earn its parameters)"
+                }
+            ),
+            None => println!("    {:<48} failed: {}", c.label, c.error.as_deref().unwrap_or("")),
+        }
+    }
+}
+
+fn print_report(r: &DiagnosisReport) {
+    println!(
+        "{} measured positions, {}-fold held-out scores (mean / RMS / max in mm)",
+        r.n_samples, r.folds
+    );
+    print_residuals("held-out residuals of the model as given:", &r.initial_residuals);
+    println!(
+        "\n{:<4} {:<40} {:>26}   {:>26} {:>8}",
+        "step", "effect", "before", "after", "removed"
+    );
+    println!("{:<4} {:<40} {:>26}", "0", "model as given", stats(&r.initial));
+    for (i, s) in r.steps.iter().enumerate() {
+        println!(
+            "{:<4} {:<40} {}   {} {:>7.1}%",
+            i + 1,
+            s.label,
+            stats(&s.heldout_before),
+            stats(&s.heldout_after),
+            100.0 * s.share_removed
+        );
+    }
+    for (i, s) in r.steps.iter().enumerate() {
+        println!("\nstep {}: {}", i + 1, s.summary);
+        print_ranking(&s.ranking);
+    }
+    if !r.final_model.ranking.is_empty() {
+        println!("\nno further candidate earns its parameters; best of the last round:");
+        print_ranking(&r.final_model.ranking);
+    }
+    println!();
+    print_residuals("held-out residuals at the end:", &r.final_model.residuals);
+    if let Some(l) = &r.learnable_residual {
+        println!(
+            "\nlearnable residual ({}): held-out RMS {:.4} → {:.4} mm; {:.0}% of what remains is unexplained but learnable",
+            l.predictor,
+            l.heldout_before.rms_mm,
+            l.heldout_after.rms_mm,
+            100.0 * l.share_learnable
+        );
+    }
+}

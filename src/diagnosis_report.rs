@@ -1,0 +1,184 @@
+//! The diagnosis report folder: an HTML page with the steps table and rankings, the JSON
+//! report, and SVG plots of the held-out RMS per step and of the held-out error histograms.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use armcomp_core::diagnose::DiagnosisReport;
+use armcomp_core::evaluate::ErrorStats;
+use armcomp_core::io::{check_not_input, write_atomic};
+use plotters::prelude::*;
+
+/// Writes `index.html`, `report.json`, `heldout_rms.svg` and `residuals.svg` into `dir`
+/// (created if needed), each atomically and never over one of `inputs`.
+pub fn write(dir: &Path, report: &DiagnosisReport, inputs: &[&Path]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+    let files = [
+        ("heldout_rms.svg", rms_plot(report)?),
+        ("residuals.svg", histogram(report)?),
+        ("report.json", serde_json::to_string_pretty(report)?),
+        ("index.html", html(report)),
+    ];
+    for (name, text) in files {
+        let path = dir.join(name);
+        check_not_input(&path, inputs)?;
+        write_atomic(&path, text.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Held-out RMS after each step (step 0 is the model as given).
+fn rms_plot(r: &DiagnosisReport) -> anyhow::Result<String> {
+    let rms: Vec<f64> = std::iter::once(r.initial.rms_mm)
+        .chain(r.steps.iter().map(|s| s.heldout_after.rms_mm))
+        .collect();
+    let top = rms.iter().copied().fold(0.0, f64::max) * 1.1 + 1e-9;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 400)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption("held-out RMS per step", ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(-0.5..(rms.len() as f64 - 0.5), 0.0..top)?;
+        chart
+            .configure_mesh()
+            .x_desc("step")
+            .y_desc("held-out RMS (mm)")
+            .x_labels(rms.len().max(2))
+            .x_label_formatter(&|x| format!("{x:.0}"))
+            .draw()?;
+        chart.draw_series(
+            rms.iter()
+                .enumerate()
+                .map(|(i, v)| Rectangle::new([(i as f64 - 0.3, 0.0), (i as f64 + 0.3, *v)], BLUE.mix(0.6).filled())),
+        )?;
+    }
+    Ok(svg)
+}
+
+/// Histograms of the held-out error norms of the model as given and of the final model.
+fn histogram(r: &DiagnosisReport) -> anyhow::Result<String> {
+    let first = r.heldout_norms_mm.first().cloned().unwrap_or_default();
+    let last = r.heldout_norms_mm.last().cloned().unwrap_or_default();
+    let max = first.iter().chain(&last).copied().fold(0.0, f64::max) + 1e-9;
+    let bins = 20;
+    let width = max / bins as f64;
+    let count = |v: &[f64]| {
+        let mut c = vec![0usize; bins];
+        for x in v {
+            c[((x / width) as usize).min(bins - 1)] += 1;
+        }
+        c
+    };
+    let (c0, c1) = (count(&first), count(&last));
+    let top = c0.iter().chain(&c1).copied().max().unwrap_or(1) as f64 * 1.1;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 400)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption("held-out error norms", ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..max, 0.0..top)?;
+        chart.configure_mesh().x_desc("3-D error (mm)").y_desc("poses").draw()?;
+        for (counts, color, label) in [(&c0, RED, "model as given"), (&c1, BLUE, "after diagnosis")] {
+            chart
+                .draw_series(counts.iter().enumerate().map(|(i, &n)| {
+                    let x = i as f64 * width;
+                    Rectangle::new([(x, 0.0), (x + width, n as f64)], color.mix(0.4).filled())
+                }))?
+                .label(label)
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], color.mix(0.4).filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE)
+            .border_style(BLACK)
+            .draw()?;
+    }
+    Ok(svg)
+}
+
+fn cells(s: &ErrorStats) -> String {
+    format!(
+        "<td>{:.4}</td><td>{:.4}</td><td>{:.4}</td>",
+        s.mean_mm, s.rms_mm, s.max_mm
+    )
+}
+
+/// Escapes text for HTML.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+fn html(r: &DiagnosisReport) -> String {
+    let mut h = String::from(
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>armcomp diagnosis</title>\
+         <style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}\
+         td,th{border:1px solid #aaa;padding:2px 8px;text-align:right}td:first-child,th:first-child{text-align:left}</style>\
+         </head><body>\n<h1>Diagnosis</h1>\n",
+    );
+    let _ = writeln!(
+        h,
+        "<p>{} measured positions, {}-fold held-out scores in mm.</p>",
+        r.n_samples, r.folds
+    );
+    h.push_str("<table><tr><th>step</th><th>effect</th><th>mean</th><th>RMS</th><th>max</th><th>removed</th></tr>\n");
+    let _ = writeln!(
+        h,
+        "<tr><td>0</td><td>model as given</td>{}<td></td></tr>",
+        cells(&r.initial)
+    );
+    for (i, s) in r.steps.iter().enumerate() {
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td>{}<td>{:.1}%</td></tr>",
+            i + 1,
+            esc(&s.label),
+            cells(&s.heldout_after),
+            100.0 * s.share_removed
+        );
+    }
+    h.push_str("</table>\n<p><img src=\"heldout_rms.svg\"> <img src=\"residuals.svg\"></p>\n");
+    for (i, s) in r.steps.iter().enumerate() {
+        let _ = writeln!(
+            h,
+            "<h2>Step {}: {}</h2>\n<p>{}</p>",
+            i + 1,
+            esc(&s.label),
+            esc(&s.summary)
+        );
+        h.push_str("<table><tr><th>candidate</th><th>params</th><th>held-out RMS (mm)</th><th>removed</th><th>earns its parameters</th></tr>\n");
+        for c in &s.ranking {
+            let rms = c
+                .heldout
+                .map_or_else(|| "failed".to_string(), |x| format!("{:.4}", x.rms_mm));
+            let _ = writeln!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td>{rms}</td><td>{:.1}%</td><td>{}</td></tr>",
+                esc(&c.label),
+                c.n_params,
+                100.0 * c.share_removed,
+                if c.earns_parameters { "yes" } else { "no" }
+            );
+        }
+        h.push_str("</table>\n");
+    }
+    if let Some(l) = &r.learnable_residual {
+        let _ = writeln!(
+            h,
+            "<h2>Learnable residual</h2><p>{}: held-out RMS {:.4} → {:.4} mm ({:.0}% unexplained but learnable).</p>",
+            esc(&l.predictor),
+            l.heldout_before.rms_mm,
+            l.heldout_after.rms_mm,
+            100.0 * l.share_learnable
+        );
+    }
+    h.push_str("</body></html>\n");
+    h
+}
