@@ -12,8 +12,8 @@ use std::path::Path;
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::Sample;
-use armcomp_core::split::{Split, holdout, kfold, subset};
-use armcomp_core::{Error, Result, Robot};
+use armcomp_core::split::{Split, holdout, kfold, pose_groups, subset};
+use armcomp_core::{Error, PredictorSpec, Result, Robot, TrainingSet};
 use nalgebra::Vector3;
 use serde::Serialize;
 
@@ -251,35 +251,77 @@ pub struct StepResult {
     pub train: ErrorStats,
     /// On the held-out poses.
     pub test: ErrorStats,
-    /// The paper's row.
-    pub published: PublishedRow,
+    /// The paper's row (none for steps beyond the paper).
+    pub published: Option<PublishedRow>,
 }
 
-/// Runs `steps` on one split of `samples`.
-pub fn step_table(robot: &Robot, samples: &[Sample], split: &Split, steps: &[Step]) -> Result<Vec<StepResult>> {
+/// Label of the row that adds a residual predictor over the last step.
+pub const PREDICTOR_STEP: &str = "+ residual predictor";
+
+/// Fitted and held-out errors of every step on one split, and of `predictor` (when given)
+/// learning the last step's residual on the fitted poses.
+fn split_errors(
+    robot: &Robot,
+    train: &[Sample],
+    test: &[Sample],
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<(Vec<Vector3<f64>>, Vec<Vector3<f64>>)>> {
+    let robots = calibrate_steps(robot, train, steps)?;
+    let mut out: Vec<_> = robots
+        .iter()
+        .map(|r| (position_errors(r, train), position_errors(r, test)))
+        .collect();
+    if let (Some(p), Some(last)) = (predictor, robots.last()) {
+        out.push((
+            residual_corrected_errors(last, train, train, p)?,
+            residual_corrected_errors(last, train, test, p)?,
+        ));
+    }
+    Ok(out)
+}
+
+/// Runs `steps` (and `predictor` over the last) on one split of `samples`.
+pub fn step_table(
+    robot: &Robot,
+    samples: &[Sample],
+    split: &Split,
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<StepResult>> {
     let train = subset(samples, &split.train);
     let test = subset(samples, &split.test);
-    let robots = calibrate_steps(robot, &train, steps)?;
-    Ok(steps
+    let errors = split_errors(robot, &train, &test, steps, predictor)?;
+    Ok(errors
         .iter()
-        .zip(&robots)
-        .map(|(step, r)| StepResult {
-            step: step.label.to_string(),
-            train: ErrorStats::from_errors(&position_errors(r, &train)),
-            test: ErrorStats::from_errors(&position_errors(r, &test)),
-            published: step.published,
+        .enumerate()
+        .map(|(k, (tr, te))| StepResult {
+            step: steps.get(k).map_or(PREDICTOR_STEP, |s| s.label).to_string(),
+            train: ErrorStats::from_errors(tr),
+            test: ErrorStats::from_errors(te),
+            published: steps.get(k).map(|s| s.published),
         })
         .collect())
 }
 
-/// Held-out errors of every step over `k` folds (each pose held out once), pooled.
-pub fn kfold_table(robot: &Robot, samples: &[Sample], k: usize, seed: u64, steps: &[Step]) -> Result<Vec<ErrorStats>> {
-    let mut pooled: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); steps.len()];
+/// Held-out errors of every step (and of `predictor`) over `k` folds, each pose held out
+/// once, pooled.
+pub fn kfold_table(
+    robot: &Robot,
+    samples: &[Sample],
+    k: usize,
+    seed: u64,
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<ErrorStats>> {
+    let mut pooled: Vec<Vec<Vector3<f64>>> = Vec::new();
     for split in kfold(samples, k, seed)? {
         let train = subset(samples, &split.train);
         let test = subset(samples, &split.test);
-        for (errors, r) in pooled.iter_mut().zip(calibrate_steps(robot, &train, steps)?) {
-            errors.extend(position_errors(&r, &test));
+        let errors = split_errors(robot, &train, &test, steps, predictor)?;
+        pooled.resize(errors.len(), Vec::new());
+        for (all, (_, te)) in pooled.iter_mut().zip(errors) {
+            all.extend(te);
         }
     }
     Ok(pooled.iter().map(|e| ErrorStats::from_errors(e)).collect())
@@ -288,4 +330,56 @@ pub fn kfold_table(robot: &Robot, samples: &[Sample], k: usize, seed: u64, steps
 /// The fixed 250 / 250 split of the poses used for the held-out table.
 pub fn half_split(samples: &[Sample], seed: u64) -> Result<Split> {
     holdout(samples, 0.5, seed)
+}
+
+/// Learns what a calibrated model leaves, on the fitted poses: one row per pose, its joint
+/// values in, the measured-minus-modelled positions of both markers (m, measurement frame)
+/// out. Returns the corrected errors on `test` (same order as `test`).
+pub fn residual_corrected_errors(
+    robot: &Robot,
+    train: &[Sample],
+    test: &[Sample],
+    predictor: &dyn PredictorSpec,
+) -> Result<Vec<Vector3<f64>>> {
+    let rows = |samples: &[Sample]| -> Result<(Vec<Vec<usize>>, Vec<f64>, Vec<f64>)> {
+        let groups = pose_groups(samples);
+        let errors = position_errors(robot, samples);
+        let mut inputs = Vec::new();
+        let mut targets = Vec::new();
+        for g in &groups {
+            if g.len() != DATA_MARKERS.len() {
+                return Err(Error::Input(format!(
+                    "a pose has {} measured markers, expected {}",
+                    g.len(),
+                    DATA_MARKERS.len()
+                )));
+            }
+            inputs.extend_from_slice(&samples[g[0]].q);
+            for &i in g {
+                targets.extend_from_slice(errors[i].as_slice());
+            }
+        }
+        Ok((groups, inputs, targets))
+    };
+    let (_, inputs, targets) = rows(train)?;
+    let nq = robot.tree().nq();
+    let fitted = predictor.fit(&TrainingSet {
+        inputs: &inputs,
+        targets: &targets,
+        n_inputs: nq,
+        n_outputs: 3 * DATA_MARKERS.len(),
+    })?;
+    let (groups, inputs, targets) = rows(test)?;
+    let mut out = vec![Vector3::zeros(); test.len()];
+    let mut predicted = vec![0.0; 3 * DATA_MARKERS.len()];
+    let mut scratch = Vec::new();
+    for (k, g) in groups.iter().enumerate() {
+        fitted.predict_into(&inputs[k * nq..(k + 1) * nq], &mut predicted, &mut scratch);
+        for (m, &i) in g.iter().enumerate() {
+            let t = &targets[(k * DATA_MARKERS.len() + m) * 3..][..3];
+            let p = &predicted[3 * m..3 * m + 3];
+            out[i] = Vector3::new(t[0] - p[0], t[1] - p[1], t[2] - p[2]);
+        }
+    }
+    Ok(out)
 }
