@@ -258,6 +258,12 @@ pub struct StepResult {
 /// Label of the row that adds a residual predictor over the last step.
 pub const PREDICTOR_STEP: &str = "+ residual predictor";
 
+/// Measured-minus-modelled positions (m), one per sample.
+type Errors = Vec<Vector3<f64>>;
+
+/// Per-pose rows of a predictor: the samples of each pose, joint values, residuals.
+type PoseRows = (Vec<Vec<usize>>, Vec<f64>, Vec<f64>);
+
 /// Fitted and held-out errors of every step on one split, and of `predictor` (when given)
 /// learning the last step's residual on the fitted poses.
 fn split_errors(
@@ -266,7 +272,7 @@ fn split_errors(
     test: &[Sample],
     steps: &[Step],
     predictor: Option<&dyn PredictorSpec>,
-) -> Result<Vec<(Vec<Vector3<f64>>, Vec<Vector3<f64>>)>> {
+) -> Result<Vec<(Errors, Errors)>> {
     let robots = calibrate_steps(robot, train, steps)?;
     let mut out: Vec<_> = robots
         .iter()
@@ -341,7 +347,7 @@ pub fn residual_corrected_errors(
     test: &[Sample],
     predictor: &dyn PredictorSpec,
 ) -> Result<Vec<Vector3<f64>>> {
-    let rows = |samples: &[Sample]| -> Result<(Vec<Vec<usize>>, Vec<f64>, Vec<f64>)> {
+    let rows = |samples: &[Sample]| -> Result<PoseRows> {
         let groups = pose_groups(samples);
         let errors = position_errors(robot, samples);
         let mut inputs = Vec::new();
