@@ -37,6 +37,11 @@ pub const TWINS: &[Twin] = &[
         path: "robots/industrial-6dof-poe.toml",
         text: include_str!("../robots/industrial-6dof-poe.toml"),
     },
+    Twin {
+        name: "agile-justin",
+        path: "robots/agile-justin.toml",
+        text: include_str!("../robots/agile-justin.toml"),
+    },
 ];
 
 impl Twin {

@@ -1,5 +1,6 @@
 //! Integration tests of whole workflows through the library and the CLI (one test binary).
 
+mod agile_justin;
 mod calibrate;
 mod cli;
 mod collision;

@@ -9,6 +9,9 @@ pub struct Args {
     /// Which twin: `rock-drill` (default) or `industrial`.
     #[arg(default_value = "rock-drill")]
     twin: String,
+    /// Options of the chosen demo (`agile-justin --help` lists them).
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+    options: Vec<String>,
 }
 
 /// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
@@ -80,6 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 println!("   {other}: tool differs from the MDH form by at most {:.3e} m", worst);
             }
         }
+        "agile-justin" => return super::demo_justin::run(&args.options),
         other => bail!(
             "unknown twin `{other}`; built-in robots: rock-drill, industrial (files: {})",
             TWINS.iter().map(|t| t.path).collect::<Vec<_>>().join(", ")

@@ -3,6 +3,7 @@
 pub mod calibrate;
 pub mod check_pose;
 pub mod demo;
+pub mod demo_justin;
 pub mod diagnose;
 pub mod evaluate;
 pub mod export_urdf;

@@ -1,0 +1,391 @@
+//! DLR's Agile Justin: the 500 published calibration measurements (Tenhumberg & Bäuml,
+//! Humanoids 2021) read as published, and the paper's step-by-step calibration table reproduced
+//! on them.
+//!
+//! The published file has one row per pose: an index, `joints` (a numpy-printed vector of 19
+//! joint values in rad: torso 3, right arm 7, left arm 7, head 2) and `markers` (a
+//! numpy-printed 2×3 array in m: right-hand marker, then left-hand marker, in the Vicon frame).
+//! Each row becomes two samples, one per marker.
+
+use std::path::Path;
+
+use armcomp_core::calibrate::{CalibrationParams, calibrate};
+use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::measurement::Sample;
+use armcomp_core::split::{Split, holdout, kfold, pose_groups, subset};
+use armcomp_core::{Error, PredictorSpec, Result, Robot, TrainingSet};
+use nalgebra::Vector3;
+use serde::Serialize;
+
+/// The published measurements, unchanged.
+pub const MEASUREMENTS: &str = include_str!("../data/agile-justin/measurements.csv");
+
+/// Where [`MEASUREMENTS`] lives in the repository (used in messages).
+pub const MEASUREMENTS_PATH: &str = "data/agile-justin/measurements.csv";
+
+/// The robot's joint names in the order of the published `joints` vector.
+pub const DATA_JOINTS: [&str; 19] = [
+    "t1", "t2", "t3", "r1", "r2", "r3", "r4", "r5", "r6", "r7", "l1", "l2", "l3", "l4", "l5", "l6", "l7", "h1", "h2",
+];
+
+/// The measured points in the order of the published `markers` rows.
+pub const DATA_MARKERS: [&str; 2] = ["marker_r", "marker_l"];
+
+/// The numbers of a numpy-printed array (`[ 1.0 -2e-3 ...]`, rows in nested brackets).
+fn numpy_numbers(text: &str) -> std::result::Result<Vec<f64>, String> {
+    let t = text.trim();
+    if !(t.starts_with('[') && t.ends_with(']')) {
+        return Err(format!(
+            "expected a bracketed numpy array, got `{}`",
+            t.chars().take(40).collect::<String>()
+        ));
+    }
+    t.replace(['[', ']'], " ")
+        .split_whitespace()
+        .map(|w| {
+            w.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("`{w}` is not a finite number"))
+        })
+        .collect()
+}
+
+/// Reads the published measurement file for `robot`: joint values by [`DATA_JOINTS`] (joints
+/// the robot lacks must be zero in every row), the two markers by [`DATA_MARKERS`]. `path`
+/// is used in messages.
+pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<Sample>> {
+    let err = |line: u64, msg: String| Error::Input(format!("{}:{line}: {msg}", path.display()));
+    let tree = robot.tree();
+    let names = tree.coordinate_names();
+    let mut coord_of_column = Vec::with_capacity(DATA_JOINTS.len());
+    for name in DATA_JOINTS {
+        coord_of_column.push(names.iter().position(|n| n == name));
+    }
+    for name in names {
+        if !DATA_JOINTS.contains(&name.as_str()) {
+            return Err(err(
+                1,
+                format!(
+                    "the robot's joint `{name}` is not in the data (joints: {})",
+                    DATA_JOINTS.join(", ")
+                ),
+            ));
+        }
+    }
+    let mut points = Vec::new();
+    for name in DATA_MARKERS {
+        match tree.points().iter().position(|p| p.name == name) {
+            Some(p) => points.push(p),
+            None => {
+                return Err(err(
+                    1,
+                    format!("the robot has no point `{name}` for the data's markers"),
+                ));
+            }
+        }
+    }
+    let mut reader = csv::ReaderBuilder::new().from_reader(text.as_bytes());
+    let headers = reader
+        .headers()
+        .map_err(|e| err(1, format!("cannot read the header: {e}")))?;
+    let column = |name: &str| {
+        headers.iter().position(|h| h.trim() == name).ok_or_else(|| {
+            err(
+                1,
+                format!(
+                    "no `{name}` column (header: {})",
+                    headers.iter().collect::<Vec<_>>().join(",")
+                ),
+            )
+        })
+    };
+    let (joints_col, markers_col) = (column("joints")?, column("markers")?);
+    let mut samples = Vec::new();
+    for record in reader.records() {
+        let record = record.map_err(|e| err(e.position().map_or(0, |p| p.line()), e.to_string()))?;
+        let line = record.position().map_or(0, |p| p.line());
+        let field = |col: usize, name: &str| {
+            record
+                .get(col)
+                .ok_or_else(|| err(line, format!("missing the `{name}` field")))
+                .and_then(|f| numpy_numbers(f).map_err(|m| err(line, format!("`{name}`: {m}"))))
+        };
+        let joints = field(joints_col, "joints")?;
+        if joints.len() != DATA_JOINTS.len() {
+            return Err(err(
+                line,
+                format!("`joints`: expected {} values, got {}", DATA_JOINTS.len(), joints.len()),
+            ));
+        }
+        let markers = field(markers_col, "markers")?;
+        if markers.len() != 3 * DATA_MARKERS.len() {
+            return Err(err(
+                line,
+                format!(
+                    "`markers`: expected a {}x3 array, got {} values",
+                    DATA_MARKERS.len(),
+                    markers.len()
+                ),
+            ));
+        }
+        let mut q = vec![0.0; names.len()];
+        for (k, (&v, coord)) in joints.iter().zip(&coord_of_column).enumerate() {
+            match coord {
+                Some(c) => q[*c] = v,
+                None if v != 0.0 => {
+                    return Err(err(
+                        line,
+                        format!(
+                            "`joints`: joint `{}` is {v} rad but the robot does not model it",
+                            DATA_JOINTS[k]
+                        ),
+                    ));
+                }
+                None => {}
+            }
+        }
+        for (m, &point) in points.iter().enumerate() {
+            samples.push(Sample {
+                q: q.clone(),
+                point,
+                position: Vector3::new(markers[3 * m], markers[3 * m + 1], markers[3 * m + 2]),
+                orientation: None,
+                payload: None,
+                temperature: None,
+                torque: None,
+            });
+        }
+    }
+    if samples.is_empty() {
+        return Err(err(1, "no measurements".into()));
+    }
+    Ok(samples)
+}
+
+/// A row of the paper's table: residual TCP error (mm).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PublishedRow {
+    /// Mean (mm).
+    pub mean_mm: f64,
+    /// Standard deviation (mm).
+    pub std_mm: f64,
+    /// Largest (mm).
+    pub max_mm: f64,
+}
+
+/// One step of the paper's calibration: what is identified (cumulative) and what it reports.
+#[derive(Debug, Clone, Copy)]
+pub struct Step {
+    /// Short label.
+    pub label: &'static str,
+    /// The parameters identified in this step (see `ParameterSpace::select`).
+    pub identify: &'static [&'static str],
+    /// The paper's row.
+    pub published: PublishedRow,
+}
+
+const fn row(mean_mm: f64, std_mm: f64, max_mm: f64) -> PublishedRow {
+    PublishedRow {
+        mean_mm,
+        std_mm,
+        max_mm,
+    }
+}
+
+/// The paper's table, each step adding to the previous one.
+pub const STEPS: [Step; 5] = [
+    Step {
+        label: "frames only (base + markers)",
+        identify: &["base", "markers"],
+        published: row(21.33, 9.71, 63.41),
+    },
+    Step {
+        label: "+ joint offsets",
+        identify: &["base", "markers", "offsets"],
+        published: row(18.18, 7.8, 45.9),
+    },
+    Step {
+        label: "+ all DH parameters",
+        identify: &["base", "markers", "geometry"],
+        published: row(10.5, 5.74, 36.37),
+    },
+    Step {
+        label: "+ joint compliance",
+        identify: &["base", "markers", "geometry", "joint_compliance"],
+        published: row(5.64, 2.57, 12.83),
+    },
+    Step {
+        label: "+ lateral compliance",
+        identify: &["base", "markers", "geometry", "joint_compliance", "lateral_compliance"],
+        published: row(3.12, 1.71, 8.23),
+    },
+];
+
+/// Tracker noise assumed by the fits (m per axis): Vicon markers on a moving humanoid.
+pub const MEASUREMENT_STD: f64 = 1e-3;
+
+/// Calibrates `steps` in turn on `train`, each starting from the previous step's result, and
+/// returns the robot after each.
+pub fn calibrate_steps(robot: &Robot, train: &[Sample], steps: &[Step]) -> Result<Vec<Robot>> {
+    let mut out: Vec<Robot> = Vec::with_capacity(steps.len());
+    for step in steps {
+        let params = CalibrationParams {
+            identify: step.identify.iter().map(|s| s.to_string()).collect(),
+            measurement_std: MEASUREMENT_STD,
+            ..CalibrationParams::default()
+        };
+        let start = out.last().unwrap_or(robot);
+        let calibrated = calibrate(start, train, &params, &mut |_| {})?.robot;
+        out.push(calibrated);
+    }
+    Ok(out)
+}
+
+/// Residual statistics of one step on the fitted and the held-out poses.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepResult {
+    /// The step's label.
+    pub step: String,
+    /// On the poses it was fitted to.
+    pub train: ErrorStats,
+    /// On the held-out poses.
+    pub test: ErrorStats,
+    /// The paper's row (none for steps beyond the paper).
+    pub published: Option<PublishedRow>,
+}
+
+/// Label of the row that adds a residual predictor over the last step.
+pub const PREDICTOR_STEP: &str = "+ residual predictor";
+
+/// Measured-minus-modelled positions (m), one per sample.
+type Errors = Vec<Vector3<f64>>;
+
+/// Per-pose rows of a predictor: the samples of each pose, joint values, residuals.
+type PoseRows = (Vec<Vec<usize>>, Vec<f64>, Vec<f64>);
+
+/// Fitted and held-out errors of every step on one split, and of `predictor` (when given)
+/// learning the last step's residual on the fitted poses.
+fn split_errors(
+    robot: &Robot,
+    train: &[Sample],
+    test: &[Sample],
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<(Errors, Errors)>> {
+    let robots = calibrate_steps(robot, train, steps)?;
+    let mut out: Vec<_> = robots
+        .iter()
+        .map(|r| (position_errors(r, train), position_errors(r, test)))
+        .collect();
+    if let (Some(p), Some(last)) = (predictor, robots.last()) {
+        out.push((
+            residual_corrected_errors(last, train, train, p)?,
+            residual_corrected_errors(last, train, test, p)?,
+        ));
+    }
+    Ok(out)
+}
+
+/// Runs `steps` (and `predictor` over the last) on one split of `samples`.
+pub fn step_table(
+    robot: &Robot,
+    samples: &[Sample],
+    split: &Split,
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<StepResult>> {
+    let train = subset(samples, &split.train);
+    let test = subset(samples, &split.test);
+    let errors = split_errors(robot, &train, &test, steps, predictor)?;
+    Ok(errors
+        .iter()
+        .enumerate()
+        .map(|(k, (tr, te))| StepResult {
+            step: steps.get(k).map_or(PREDICTOR_STEP, |s| s.label).to_string(),
+            train: ErrorStats::from_errors(tr),
+            test: ErrorStats::from_errors(te),
+            published: steps.get(k).map(|s| s.published),
+        })
+        .collect())
+}
+
+/// Held-out errors of every step (and of `predictor`) over `k` folds, each pose held out
+/// once, pooled.
+pub fn kfold_table(
+    robot: &Robot,
+    samples: &[Sample],
+    k: usize,
+    seed: u64,
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<ErrorStats>> {
+    let mut pooled: Vec<Vec<Vector3<f64>>> = Vec::new();
+    for split in kfold(samples, k, seed)? {
+        let train = subset(samples, &split.train);
+        let test = subset(samples, &split.test);
+        let errors = split_errors(robot, &train, &test, steps, predictor)?;
+        pooled.resize(errors.len(), Vec::new());
+        for (all, (_, te)) in pooled.iter_mut().zip(errors) {
+            all.extend(te);
+        }
+    }
+    Ok(pooled.iter().map(|e| ErrorStats::from_errors(e)).collect())
+}
+
+/// The fixed 250 / 250 split of the poses used for the held-out table.
+pub fn half_split(samples: &[Sample], seed: u64) -> Result<Split> {
+    holdout(samples, 0.5, seed)
+}
+
+/// Learns what a calibrated model leaves, on the fitted poses: one row per pose, its joint
+/// values in, the measured-minus-modelled positions of both markers (m, measurement frame)
+/// out. Returns the corrected errors on `test` (same order as `test`).
+pub fn residual_corrected_errors(
+    robot: &Robot,
+    train: &[Sample],
+    test: &[Sample],
+    predictor: &dyn PredictorSpec,
+) -> Result<Vec<Vector3<f64>>> {
+    let rows = |samples: &[Sample]| -> Result<PoseRows> {
+        let groups = pose_groups(samples);
+        let errors = position_errors(robot, samples);
+        let mut inputs = Vec::new();
+        let mut targets = Vec::new();
+        for g in &groups {
+            if g.len() != DATA_MARKERS.len() {
+                return Err(Error::Input(format!(
+                    "a pose has {} measured markers, expected {}",
+                    g.len(),
+                    DATA_MARKERS.len()
+                )));
+            }
+            inputs.extend_from_slice(&samples[g[0]].q);
+            for &i in g {
+                targets.extend_from_slice(errors[i].as_slice());
+            }
+        }
+        Ok((groups, inputs, targets))
+    };
+    let (_, inputs, targets) = rows(train)?;
+    let nq = robot.tree().nq();
+    let fitted = predictor.fit(&TrainingSet {
+        inputs: &inputs,
+        targets: &targets,
+        n_inputs: nq,
+        n_outputs: 3 * DATA_MARKERS.len(),
+    })?;
+    let (groups, inputs, targets) = rows(test)?;
+    let mut out = vec![Vector3::zeros(); test.len()];
+    let mut predicted = vec![0.0; 3 * DATA_MARKERS.len()];
+    let mut scratch = Vec::new();
+    for (k, g) in groups.iter().enumerate() {
+        fitted.predict_into(&inputs[k * nq..(k + 1) * nq], &mut predicted, &mut scratch);
+        for (m, &i) in g.iter().enumerate() {
+            let t = &targets[(k * DATA_MARKERS.len() + m) * 3..][..3];
+            let p = &predicted[3 * m..3 * m + 3];
+            out[i] = Vector3::new(t[0] - p[0], t[1] - p[1], t[2] - p[2]);
+        }
+    }
+    Ok(out)
+}
