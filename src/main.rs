@@ -24,7 +24,11 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Identify a model from measurements (Levenberg–Marquardt with priors).
     Calibrate(cmd::calibrate::Args),
-    /// Position errors of a model on measurements, in mm.
+    /// Fit the model's residual predictor on measurements and store it in the model.
+    Learn(cmd::learn::Args),
+    /// Joint commands that put the tool on targets, through the model and its predictor.
+    Compensate(cmd::compensate::Args),
+    /// Position errors of a model (and its fitted predictor) on measurements, in mm.
     Evaluate(cmd::evaluate::Args),
     /// Measurement poses: even sets, D-optimal subsets, trajectory-similar subsets.
     Plan(cmd::plan::Args),
@@ -47,6 +51,8 @@ fn main() -> ExitCode {
         Command::Fk(a) => cmd::fk::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Learn(a) => cmd::learn::run(a),
+        Command::Compensate(a) => cmd::compensate::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
         Command::Plan(a) => cmd::plan::run(a),
         Command::Validate(a) => cmd::validate::run(a),

@@ -4,6 +4,7 @@ mod calibrate;
 mod cli;
 mod collision;
 mod common;
+mod compensate;
 mod conventions;
 mod fk;
 mod jacobian;

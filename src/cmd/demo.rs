@@ -9,6 +9,15 @@ pub struct Args {
     /// Which twin: `rock-drill` (default) or `industrial`.
     #[arg(default_value = "rock-drill")]
     twin: String,
+    /// Seed of every random draw of the protocol; the same seed gives the same tables.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print the tables as JSON instead of text.
+    #[arg(long)]
+    json: bool,
+    /// Also write an HTML page with SVG plots into this folder.
+    #[arg(long)]
+    report: Option<std::path::PathBuf>,
 }
 
 /// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
@@ -64,7 +73,11 @@ fn describe(twin: &Twin) -> anyhow::Result<Robot> {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.twin.as_str() {
         "rock-drill" => {
-            describe(Twin::get("rock-drill").expect("built in"))?;
+            if !args.json {
+                describe(Twin::get("rock-drill").expect("built in"))?;
+            }
+            let table = armcomp::demos::rock_drill::run(&armcomp::demos::rock_drill::Config::paper(args.seed))?;
+            super::demo_output::emit(&[table], args.json, args.report.as_deref())?;
         }
         "industrial" => {
             let mdh = describe(Twin::get("industrial").expect("built in"))?;
