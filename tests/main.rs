@@ -6,6 +6,7 @@ mod collision;
 mod common;
 mod compensate;
 mod conventions;
+mod demo;
 mod fk;
 mod jacobian;
 mod malformed;
