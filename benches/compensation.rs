@@ -17,12 +17,24 @@ fn bench(c: &mut Criterion) {
     let truth = robot("rock-drill-truth");
     let model = robot("rock-drill-deflection");
     let poses = configurations(truth.tree(), Sampler::Sobol, 900, 1).expect("poses");
-    let data = simulate(&truth, &poses, SimulateParams { noise_std: 5e-4, seed: 2 }).expect("data");
+    let data = simulate(
+        &truth,
+        &poses,
+        SimulateParams {
+            noise_std: 5e-4,
+            seed: 2,
+        },
+    )
+    .expect("data");
     let gp = fit_residual_predictor(&model, &GpSpec::default(), &data.samples).expect("GP fits");
     let targets: Vec<_> = configurations(truth.tree(), Sampler::Halton, 64, 3)
         .expect("targets")
         .iter()
-        .map(|q| truth.forward(q).expect("q in limits").point[truth.tool()].translation.vector)
+        .map(|q| {
+            truth.forward(q).expect("q in limits").point[truth.tool()]
+                .translation
+                .vector
+        })
         .collect();
     let q0 = mid_range(&model);
     let mut comp = Compensator::new(&model, Some(gp.as_ref()), CompensationOptions::default()).expect("sizes match");

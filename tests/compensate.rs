@@ -41,7 +41,15 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         &format!("{nominal_text}\n[predictor]\ntype = \"gp\"\nseed = 1\nmax_optimization_samples = 150\n"),
     );
     let poses = random_configurations(&truth, 250, 11);
-    let data = simulate(&truth, &poses, SimulateParams { noise_std: 0.0, seed: 1 }).unwrap();
+    let data = simulate(
+        &truth,
+        &poses,
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 1,
+        },
+    )
+    .unwrap();
     let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.file.units));
     let fitted = dir.0.join("fitted.toml");
     let (code, _, err) = armcomp(&[
@@ -58,10 +66,23 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
     // Evaluate includes the predictor: on fresh data it beats the model alone by far.
     let fitted_robot = armcomp_core::Robot::from_path(&fitted).unwrap();
     let nominal = robot("rock-drill-deflection.toml");
-    let fresh = simulate(&truth, &random_configurations(&truth, 50, 12), SimulateParams { noise_std: 0.0, seed: 2 }).unwrap();
+    let fresh = simulate(
+        &truth,
+        &random_configurations(&truth, 50, 12),
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 2,
+        },
+    )
+    .unwrap();
     let alone = ErrorStats::from_errors(&position_errors(&nominal, &fresh.samples));
     let with = ErrorStats::from_errors(&position_errors(&fitted_robot, &fresh.samples));
-    assert!(with.mean_mm < 0.1 * alone.mean_mm, "{} vs {}", with.mean_mm, alone.mean_mm);
+    assert!(
+        with.mean_mm < 0.1 * alone.mean_mm,
+        "{} vs {}",
+        with.mean_mm,
+        alone.mean_mm
+    );
 
     let goals = targets(&truth, 20, 13);
     let mut csv = String::from("# tool targets\nx[m],y[m],z[m]\n");
@@ -86,7 +107,10 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         assert_eq!(code, 0, "{err}");
         let text = std::fs::read_to_string(&out).unwrap();
         let header = text.lines().next().unwrap();
-        assert!(header.ends_with("x_cmd[mm],y_cmd[mm],z_cmd[mm],std_x[mm],std_y[mm],std_z[mm]"), "{header}");
+        assert!(
+            header.ends_with("x_cmd[mm],y_cmd[mm],z_cmd[mm],std_x[mm],std_y[mm],std_z[mm]"),
+            "{header}"
+        );
         // The joint columns read back as poses; command the truth with them.
         let commands = read_csv(&out, truth.tree(), truth.file.units, truth.tool());
         assert!(commands.is_err(), "commands carry no measured x, y, z");

@@ -34,8 +34,14 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
         .filter(|r| r.name.starts_with("calibrated") && r.training_poses == small)
         .map(|r| r.mean_abs_z_mm)
         .fold(f64::INFINITY, f64::min);
-    assert!(best_small <= 2.0 * table.noise_mean_abs_z_mm, "{best_small} mm; {table:#?}");
-    for paper_large in [format!("SSA-BP only, {large} poses"), format!("deflection + SSA-BP, {large} poses")] {
+    assert!(
+        best_small <= 2.0 * table.noise_mean_abs_z_mm,
+        "{best_small} mm; {table:#?}"
+    );
+    for paper_large in [
+        format!("SSA-BP only, {large} poses"),
+        format!("deflection + SSA-BP, {large} poses"),
+    ] {
         assert!(best_small < z(&paper_large), "{paper_large}: {table:#?}");
     }
 }

@@ -3,11 +3,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, bail};
+use armcomp_core::Units;
 use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::measurement::{joint_header, joint_row, split_header};
 use armcomp_core::units::LengthUnit;
-use armcomp_core::Units;
 use nalgebra::{Point3, Vector3};
 
 #[derive(clap::Args)]
@@ -180,7 +180,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             Frame::Measurement => "measurement",
             Frame::Base => "base",
         },
-        if comp.has_predictor() { ", with the fitted predictor" } else { ", no fitted predictor" }
+        if comp.has_predictor() {
+            ", with the fitted predictor"
+        } else {
+            ", no fitted predictor"
+        }
     );
     Ok(ExitCode::SUCCESS)
 }
