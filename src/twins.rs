@@ -38,6 +38,11 @@ pub const TWINS: &[Twin] = &[
         text: include_str!("../robots/industrial-6dof.toml"),
     },
     Twin {
+        name: "industrial-truth",
+        path: "robots/industrial-6dof-truth.toml",
+        text: include_str!("../robots/industrial-6dof-truth.toml"),
+    },
+    Twin {
         name: "industrial-dh",
         path: "robots/industrial-6dof-dh.toml",
         text: include_str!("../robots/industrial-6dof-dh.toml"),
