@@ -80,6 +80,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             super::demo_output::emit(&[table], args.json, args.report.as_deref())?;
         }
         "industrial" => {
+            if args.json {
+                let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
+                super::demo_output::emit(&[table], true, args.report.as_deref())?;
+                return Ok(ExitCode::SUCCESS);
+            }
             let mdh = describe(Twin::get("industrial").expect("built in"))?;
             // The same arm in three conventions: report how far apart their tools are.
             for other in ["industrial-dh", "industrial-poe"] {
@@ -92,6 +97,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 }
                 println!("   {other}: tool differs from the MDH form by at most {:.3e} m", worst);
             }
+            let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
+            super::demo_output::emit(&[table], false, args.report.as_deref())?;
         }
         other => bail!(
             "unknown twin `{other}`; built-in robots: rock-drill, industrial (files: {})",

@@ -1,6 +1,7 @@
 //! The papers' protocols run on the built-in twins with hidden truth (`armcomp demo`): every
 //! number is computed on each run; the papers' published values are carried as references.
 
+pub mod industrial;
 pub mod report;
 pub mod rock_drill;
 
