@@ -95,7 +95,12 @@ pub fn run(config: &Config) -> Result<Table> {
     let qrs = configurations(poe.tree(), Sampler::Sobol, config.pool, rng.random())?;
     let random = configurations(poe.tree(), Sampler::Random, config.pool, rng.random())?;
     // Identification points: the first of the QRS pool, which already spread over the space.
-    let ident = simulate(&truth, &qrs[..config.identification.min(qrs.len())], noise(rng.random()))?.samples;
+    let ident = simulate(
+        &truth,
+        &qrs[..config.identification.min(qrs.len())],
+        noise(rng.random()),
+    )?
+    .samples;
     let trajectory = u_trajectory(200);
     let targets = tool_positions(&truth, &u_trajectory(config.targets))?;
     let bench = TestBench {
@@ -118,9 +123,23 @@ pub fn run(config: &Config) -> Result<Table> {
     let mut rows: Vec<Row> = vec![bench.row("before (nominal)", &poe, None, exact, (0, 0.0), paper(5.12))?];
     let (poe_cal, s_poe) = timed(|| calibrate(&poe, &ident, &params, &mut |_| {}));
     let poe_cal = poe_cal?.robot;
-    rows.push(bench.row("POE identification", &poe_cal, None, exact, (ident.len(), s_poe), paper(1.81))?);
+    rows.push(bench.row(
+        "POE identification",
+        &poe_cal,
+        None,
+        exact,
+        (ident.len(), s_poe),
+        paper(1.81),
+    )?);
     let (dh_cal, s_dh) = timed(|| calibrate(&dh, &ident, &params, &mut |_| {}));
-    rows.push(bench.row("DH identification", &dh_cal?.robot, None, exact, (ident.len(), s_dh), paper(2.27))?);
+    rows.push(bench.row(
+        "DH identification",
+        &dh_cal?.robot,
+        None,
+        exact,
+        (ident.len(), s_dh),
+        paper(2.27),
+    )?);
 
     // ANN training sets: trajectory-similar or arbitrary picks from a QRS or pseudo-random pool.
     let per_point = 5;
@@ -141,11 +160,28 @@ pub fn run(config: &Config) -> Result<Table> {
         };
         let data: Vec<Sample> = simulate(&truth, &picks, noise(rng.random()))?.samples;
         let (fitted, s) = timed(|| fit_residual_predictor(&poe_cal, &spec, &data));
-        bench.row(name, &poe_cal, Some(fitted?.as_ref()), exact, (data.len(), s_poe + s), paper(paper_value))
+        bench.row(
+            name,
+            &poe_cal,
+            Some(fitted?.as_ref()),
+            exact,
+            (data.len(), s_poe + s),
+            paper(paper_value),
+        )
     };
-    rows.push(ann_row("POE + ANN, trajectory-similar points, QRS pool", &qrs, true, 1.23)?);
+    rows.push(ann_row(
+        "POE + ANN, trajectory-similar points, QRS pool",
+        &qrs,
+        true,
+        1.23,
+    )?);
     rows.push(ann_row("POE + ANN, arbitrary points, QRS pool", &qrs, false, 1.57)?);
-    rows.push(ann_row("POE + ANN, trajectory-similar points, random pool", &random, true, 1.53)?);
+    rows.push(ann_row(
+        "POE + ANN, trajectory-similar points, random pool",
+        &random,
+        true,
+        1.53,
+    )?);
     Ok(Table {
         title: "industrial twin: the ANN paper's Sec. 4".into(),
         setup: format!(
