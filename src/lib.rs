@@ -3,6 +3,7 @@
 //! (schema first, then semantics), reporting every problem with file, line and field.
 
 pub mod agile_justin;
+pub mod demos;
 pub mod diagnosis_report;
 pub mod load;
 pub mod registry;

@@ -26,7 +26,11 @@ enum Command {
     Calibrate(cmd::calibrate::Args),
     /// Find the physical effects a model misses, one by one, scored on held-out poses.
     Diagnose(cmd::diagnose::Args),
-    /// Position errors of a model on measurements, in mm.
+    /// Fit the model's residual predictor on measurements and store it in the model.
+    Learn(cmd::learn::Args),
+    /// Joint commands that put the tool on targets, through the model and its predictor.
+    Compensate(cmd::compensate::Args),
+    /// Position errors of a model (and its fitted predictor) on measurements, in mm.
     Evaluate(cmd::evaluate::Args),
     /// Measurement poses: even sets, D-optimal subsets, trajectory-similar subsets.
     Plan(cmd::plan::Args),
@@ -50,6 +54,8 @@ fn main() -> ExitCode {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Diagnose(a) => cmd::diagnose::run(a),
+        Command::Learn(a) => cmd::learn::run(a),
+        Command::Compensate(a) => cmd::compensate::run(a),
         Command::Evaluate(a) => cmd::evaluate::run(a),
         Command::Plan(a) => cmd::plan::run(a),
         Command::Validate(a) => cmd::validate::run(a),

@@ -23,9 +23,24 @@ pub const TWINS: &[Twin] = &[
         text: include_str!("../robots/rock-drill.toml"),
     },
     Twin {
+        name: "rock-drill-deflection",
+        path: "robots/rock-drill-deflection.toml",
+        text: include_str!("../robots/rock-drill-deflection.toml"),
+    },
+    Twin {
+        name: "rock-drill-truth",
+        path: "robots/rock-drill-truth.toml",
+        text: include_str!("../robots/rock-drill-truth.toml"),
+    },
+    Twin {
         name: "industrial",
         path: "robots/industrial-6dof.toml",
         text: include_str!("../robots/industrial-6dof.toml"),
+    },
+    Twin {
+        name: "industrial-truth",
+        path: "robots/industrial-6dof-truth.toml",
+        text: include_str!("../robots/industrial-6dof-truth.toml"),
     },
     Twin {
         name: "industrial-dh",

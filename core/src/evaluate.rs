@@ -3,7 +3,9 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use crate::error::{Error, Result};
 use crate::measurement::Sample;
+use crate::plugin::{FittedPredictor, PredictorSpec, TrainingSet};
 use crate::robot::{Conditions, Robot};
 
 /// Statistics of 3-D position errors, in millimetres (the unit people compare arms in).
@@ -68,11 +70,57 @@ impl ErrorStats {
 }
 
 /// Measured minus modelled position of each sample (m, measurement frame), through the
-/// robot's full model and its measurement-frame guess.
+/// robot's full model, its measurement-frame guess and, when the file carries one, its fitted
+/// residual predictor.
 pub fn position_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
+    let mut errors = model_errors(robot, samples);
+    if let Some(p) = robot.file.fitted_predictor.as_deref() {
+        let (mut out, mut scratch) = ([0.0; 3], Vec::new());
+        for (e, s) in errors.iter_mut().zip(samples) {
+            p.predict_into(&s.q, &mut out, &mut scratch);
+            *e -= Vector3::from(out);
+        }
+    }
+    errors
+}
+
+/// Measured minus modelled position of each sample (m, measurement frame) through the physical
+/// model alone (chain and error models, no predictor): what a residual predictor learns.
+pub fn model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut ws = robot.workspace();
     samples
         .iter()
         .map(|s| s.position - robot.measured_position(&s.q, s.point, Conditions::of(s), &mut ws))
         .collect()
+}
+
+/// Fits `spec` on what the physical model of `robot` leaves on `samples`: joint values in,
+/// the position residual (m, measurement frame) out. Every sample must be of the same point,
+/// since the predictor sees joint values only.
+pub fn fit_residual_predictor(
+    robot: &Robot,
+    spec: &dyn PredictorSpec,
+    samples: &[Sample],
+) -> Result<Box<dyn FittedPredictor>> {
+    let Some(first) = samples.first() else {
+        return Err(Error::Input("no measurements to learn the residual from".into()));
+    };
+    if let Some(s) = samples.iter().find(|s| s.point != first.point) {
+        let names = robot.tree().points();
+        return Err(Error::Input(format!(
+            "the residual predictor sees joint values only, so its data must measure one point; found `{}` and `{}`",
+            names[first.point].name, names[s.point].name
+        )));
+    }
+    let inputs: Vec<f64> = samples.iter().flat_map(|s| s.q.iter().copied()).collect();
+    let targets: Vec<f64> = model_errors(robot, samples)
+        .iter()
+        .flat_map(|e| e.iter().copied())
+        .collect();
+    spec.fit(&TrainingSet {
+        inputs: &inputs,
+        targets: &targets,
+        n_inputs: robot.tree().nq(),
+        n_outputs: 3,
+    })
 }

@@ -6,6 +6,7 @@
 
 pub mod calibrate;
 pub mod collision;
+pub mod compensate;
 pub mod diagnose;
 pub mod error;
 pub mod evaluate;

@@ -54,7 +54,8 @@ enum Column {
     Torque(usize),
 }
 
-fn split_header(h: &str) -> (&str, Option<&str>) {
+/// Splits a column header `x[mm]` into its name and optional unit.
+pub fn split_header(h: &str) -> (&str, Option<&str>) {
     let h = h.trim();
     match (h.find('['), h.ends_with(']')) {
         (Some(i), true) => (h[..i].trim(), Some(h[i + 1..h.len() - 1].trim())),
@@ -413,7 +414,7 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
 }
 
 /// Joint column headers with units (`j2[deg]`, `j3[mm]`).
-fn joint_header(tree: &KinematicTree, units: Units) -> Vec<String> {
+pub fn joint_header(tree: &KinematicTree, units: Units) -> Vec<String> {
     let (lu, au) = (units.length.symbol(), units.angle.symbol());
     tree.coordinate_names()
         .iter()
@@ -423,7 +424,7 @@ fn joint_header(tree: &KinematicTree, units: Units) -> Vec<String> {
 }
 
 /// Joint values of one row in the header's units.
-fn joint_row(q: &[f64], tree: &KinematicTree, units: Units) -> Vec<String> {
+pub fn joint_row(q: &[f64], tree: &KinematicTree, units: Units) -> Vec<String> {
     q.iter()
         .zip(tree.coordinate_is_prismatic())
         .map(|(v, p)| format!("{}", if *p { units.len_out(*v) } else { units.ang_out(*v) }))

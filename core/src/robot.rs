@@ -615,6 +615,7 @@ impl Robot {
                 .map(|(m, v)| m.spec_with(v))
                 .collect(),
             predictor: None,
+            fitted_predictor: None,
             measurement: self.file.measurement.clone(),
             fixtures: self.file.fixtures.clone(),
             collision: self.file.collision.clone(),

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Issue, Result};
 use crate::mass::Section;
-use crate::plugin::{ErrorModelSpec, KinematicsSpec, PredictorSpec};
+use crate::plugin::{ErrorModelSpec, FittedPredictor, KinematicsSpec, PredictorSpec};
 use crate::shape::Geometry;
 use crate::units::Units;
 
@@ -60,6 +60,12 @@ pub struct RobotFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(with = "Option<PredictorPlugin>")]
     pub predictor: Option<Box<dyn PredictorSpec>>,
+    /// The predictor fitted on this model's residuals (`armcomp learn` writes it): joint
+    /// values in, measured minus modelled position (m, measurement frame) out. Dropped when
+    /// the model's parameters change, since it no longer matches them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(with = "Option<serde_json::Map<String, serde_json::Value>>")]
+    pub fitted_predictor: Option<Box<dyn FittedPredictor>>,
     /// The measurement setup: where the tracker is, which points it sees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measurement: Option<MeasurementSpec>,

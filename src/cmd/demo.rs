@@ -6,12 +6,24 @@ use armcomp_core::Robot;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Which twin: `rock-drill` (default) or `industrial`.
+    /// Which twin: `rock-drill` (default), `industrial` or `agile-justin` (real data).
     #[arg(default_value = "rock-drill")]
     twin: String,
-    /// Options of the chosen demo (`agile-justin --help` lists them).
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
-    options: Vec<String>,
+    /// Seed of every random draw of the protocol; the same seed gives the same tables.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print the tables as JSON instead of text.
+    #[arg(long)]
+    json: bool,
+    /// Also write an HTML page with the tables into this folder.
+    #[arg(long)]
+    report: Option<std::path::PathBuf>,
+    /// agile-justin: folds of the cross-validation (0 skips it).
+    #[arg(long, default_value_t = 5)]
+    folds: usize,
+    /// agile-justin: leave out the residual predictor over the calibrated elastic model.
+    #[arg(long)]
+    no_predictor: bool,
 }
 
 /// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
@@ -67,9 +79,18 @@ fn describe(twin: &Twin) -> anyhow::Result<Robot> {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     match args.twin.as_str() {
         "rock-drill" => {
-            describe(Twin::get("rock-drill").expect("built in"))?;
+            if !args.json {
+                describe(Twin::get("rock-drill").expect("built in"))?;
+            }
+            let table = armcomp::demos::rock_drill::run(&armcomp::demos::rock_drill::Config::paper(args.seed))?;
+            super::demo_output::emit(&[table], args.json, args.report.as_deref())?;
         }
         "industrial" => {
+            if args.json {
+                let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
+                super::demo_output::emit(&[table], true, args.report.as_deref())?;
+                return Ok(ExitCode::SUCCESS);
+            }
             let mdh = describe(Twin::get("industrial").expect("built in"))?;
             // The same arm in three conventions: report how far apart their tools are.
             for other in ["industrial-dh", "industrial-poe"] {
@@ -82,8 +103,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 }
                 println!("   {other}: tool differs from the MDH form by at most {:.3e} m", worst);
             }
+            let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
+            super::demo_output::emit(&[table], false, args.report.as_deref())?;
         }
-        "agile-justin" => return super::demo_justin::run(&args.options),
+        "agile-justin" => {
+            return super::demo_justin::run(&super::demo_justin::Options {
+                json: args.json,
+                folds: args.folds,
+                seed: args.seed,
+                no_predictor: args.no_predictor,
+            });
+        }
         other => bail!(
             "unknown twin `{other}`; built-in robots: rock-drill, industrial (files: {})",
             TWINS.iter().map(|t| t.path).collect::<Vec<_>>().join(", ")

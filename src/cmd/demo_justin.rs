@@ -9,26 +9,19 @@ use armcomp::agile_justin::{STEPS, StepResult, half_split, kfold_table, parse_me
 use armcomp::twins::Twin;
 use armcomp_core::PredictorSpec;
 use armcomp_core::evaluate::ErrorStats;
-use clap::Parser;
 use serde::Serialize;
 
-/// Options after `armcomp demo agile-justin`.
-#[derive(Parser)]
-#[command(name = "armcomp demo agile-justin")]
-struct Options {
+/// Options of `armcomp demo agile-justin`.
+pub struct Options {
     /// Print the results as JSON on stdout.
-    #[arg(long)]
-    json: bool,
+    pub json: bool,
     /// Folds of the cross-validation (0 skips it).
-    #[arg(long, default_value_t = 5)]
-    folds: usize,
+    pub folds: usize,
     /// Seed of the 250 / 250 split and of the folds.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Leave out the residual predictor (ridge regression on the joint angles' sines and cosines)
-    /// over the calibrated elastic model.
-    #[arg(long)]
-    no_predictor: bool,
+    pub seed: u64,
+    /// Leave out the residual predictor (ridge regression on the joint angles' sines and
+    /// cosines) over the calibrated elastic model.
+    pub no_predictor: bool,
 }
 
 #[derive(Serialize)]
@@ -45,8 +38,7 @@ fn cells(s: &ErrorStats) -> String {
     format!("{:>6.2} {:>6.2} {:>6.2}", s.mean_mm, s.std_mm, s.max_mm)
 }
 
-pub fn run(options: &[String]) -> anyhow::Result<ExitCode> {
-    let opts = Options::try_parse_from(std::iter::once("agile-justin".to_string()).chain(options.iter().cloned()))?;
+pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     let robot = Twin::get("agile-justin").expect("built in").robot()?;
     let samples = parse_measurements(MEASUREMENTS, Path::new(MEASUREMENTS_PATH), &robot)?;

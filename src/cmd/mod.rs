@@ -2,12 +2,15 @@
 
 pub mod calibrate;
 pub mod check_pose;
+pub mod compensate;
 pub mod demo;
 pub mod demo_justin;
+pub mod demo_output;
 pub mod diagnose;
 pub mod evaluate;
 pub mod export_urdf;
 pub mod fk;
+pub mod learn;
 pub mod plan;
 pub mod plugins;
 pub mod schema;

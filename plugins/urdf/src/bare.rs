@@ -46,6 +46,7 @@ pub fn robot_file_for_urdf(path: &Path) -> Result<RobotFile, Vec<String>> {
         payload: None,
         error_models: Vec::new(),
         predictor: None,
+        fitted_predictor: None,
         measurement: None,
         fixtures: Vec::new(),
         collision: None,

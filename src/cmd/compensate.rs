@@ -1,0 +1,190 @@
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, bail};
+use armcomp_core::Units;
+use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::measurement::{joint_header, joint_row, split_header};
+use armcomp_core::units::LengthUnit;
+use nalgebra::{Point3, Vector3};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The model: a robot or model file; its fitted predictor (from `armcomp learn`) is used
+    /// when it carries one.
+    #[arg(long)]
+    model: PathBuf,
+    /// Targets CSV: columns x, y, z with units in the header (`x[mm]`), else the model's length
+    /// unit; `#` starts a comment line.
+    #[arg(long)]
+    targets: PathBuf,
+    /// Output CSV of joint commands and corrected targets (written atomically).
+    #[arg(long)]
+    out: PathBuf,
+    /// `exact` solves the model including the predicted residual; `paper` is the deflection
+    /// paper's two-step (IK, predict, shift the target, IK again).
+    #[arg(long, value_enum, default_value = "exact")]
+    mode: Mode,
+    /// Frame of the targets and of the corrected targets written: `measurement` (the tracker's,
+    /// as in measurement files) or `base` (the robot base).
+    #[arg(long, value_enum, default_value = "measurement")]
+    frame: Frame,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Mode {
+    Paper,
+    Exact,
+}
+
+#[derive(Clone, Copy, PartialEq, clap::ValueEnum)]
+enum Frame {
+    Measurement,
+    Base,
+}
+
+/// Reads `x, y, z` targets (m) with their line numbers, erroring with file, line and column.
+fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Vector3<f64>)>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let Some((header_line, header)) = lines.next() else {
+        bail!("{}: empty; expected a header `x[mm],y[mm],z[mm]`", path.display());
+    };
+    let mut columns = [None; 3];
+    let mut n_columns = 0;
+    for (c, h) in header.split(',').enumerate() {
+        n_columns += 1;
+        let (name, unit) = split_header(h);
+        let axis = match name {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => bail!(
+                "{}:{header_line}: column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`",
+                path.display(),
+                c + 1
+            ),
+        };
+        let scale = match unit {
+            None => units.length.to_si(),
+            Some(u) => LengthUnit::parse(u).map(LengthUnit::to_si).with_context(|| {
+                format!(
+                    "{}:{header_line}: column {}: unknown length unit `{u}` (expected m, cm, mm or in)",
+                    path.display(),
+                    c + 1
+                )
+            })?,
+        };
+        if columns[axis].replace((c, scale)).is_some() {
+            bail!("{}:{header_line}: column `{name}` appears twice", path.display());
+        }
+    }
+    let Some(columns) = columns.iter().copied().collect::<Option<Vec<_>>>() else {
+        bail!("{}:{header_line}: expected the columns x, y and z", path.display());
+    };
+    let mut targets = Vec::new();
+    for (line, row) in lines {
+        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
+        if cells.len() != n_columns {
+            bail!(
+                "{}:{line}: {} values, the header has {n_columns}",
+                path.display(),
+                cells.len()
+            );
+        }
+        let mut p = Vector3::zeros();
+        for (axis, &(c, scale)) in columns.iter().enumerate() {
+            let v: f64 = cells[c].parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| {
+                format!(
+                    "{}:{line}: column {}: `{}` is not a finite number",
+                    path.display(),
+                    c + 1,
+                    cells[c]
+                )
+            })?;
+            p[axis] = v * scale;
+        }
+        targets.push((line, p));
+    }
+    if targets.is_empty() {
+        bail!("{}: no targets", path.display());
+    }
+    Ok(targets)
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    check_not_input(&args.out, &[&args.model, &args.targets])?;
+    let robot = armcomp::load_robot(&args.model)?;
+    let units = robot.file.units;
+    let targets = read_targets(&args.targets, units)?;
+    let mode = match args.mode {
+        Mode::Paper => CompensationMode::Paper,
+        Mode::Exact => CompensationMode::Exact,
+    };
+    let mut comp = Compensator::for_model(&robot, CompensationOptions::default())?;
+    let t_meas_base = robot.t_meas_base();
+    let q0 = mid_range(&robot);
+    let mut rows = Vec::with_capacity(targets.len());
+    let mut stds = Vec::with_capacity(targets.len());
+    for (line, t) in &targets {
+        let target_base = match args.frame {
+            Frame::Measurement => t_meas_base.inverse_transform_point(&Point3::from(*t)).coords,
+            Frame::Base => *t,
+        };
+        let c = comp
+            .compensate(&target_base, &q0, mode)
+            .with_context(|| format!("{}:{line}", args.targets.display()))?;
+        let corrected = match args.frame {
+            Frame::Measurement => t_meas_base.transform_point(&Point3::from(c.corrected_target)).coords,
+            Frame::Base => c.corrected_target,
+        };
+        let mut row = joint_row(comp.q(), robot.tree(), units);
+        row.extend(corrected.iter().map(|v| units.len_out(*v).to_string()));
+        rows.push(row);
+        stds.push(comp.residual_std());
+    }
+    let lu = units.length.symbol();
+    let mut out = joint_header(robot.tree(), units).join(",");
+    write!(out, ",x_cmd[{lu}],y_cmd[{lu}],z_cmd[{lu}]")?;
+    // Predictors with a predictive standard deviation (the GP) add it, measurement frame.
+    let with_std = stds.iter().all(Option::is_some);
+    if with_std {
+        write!(out, ",std_x[{lu}],std_y[{lu}],std_z[{lu}]")?;
+    }
+    out.push('\n');
+    for (row, std) in rows.iter().zip(&stds) {
+        out.push_str(&row.join(","));
+        if let (true, Some(s)) = (with_std, std) {
+            for v in s.iter() {
+                write!(out, ",{}", units.len_out(*v))?;
+            }
+        }
+        out.push('\n');
+    }
+    write_atomic(&args.out, out.as_bytes())?;
+    eprintln!(
+        "wrote {} joint commands to {} ({} mode, targets in the {} frame{})",
+        targets.len(),
+        args.out.display(),
+        match mode {
+            CompensationMode::Paper => "paper",
+            CompensationMode::Exact => "exact",
+        },
+        match args.frame {
+            Frame::Measurement => "measurement",
+            Frame::Base => "base",
+        },
+        if comp.has_predictor() {
+            ", with the fitted predictor"
+        } else {
+            ", no fitted predictor"
+        }
+    );
+    Ok(ExitCode::SUCCESS)
+}

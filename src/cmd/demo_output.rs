@@ -1,0 +1,21 @@
+//! How `armcomp demo` hands out its tables: text or JSON on stdout, optionally an HTML report.
+
+use std::path::Path;
+
+use armcomp::demos::Table;
+
+/// Prints `tables` (JSON with `json`) and writes the HTML report when asked.
+pub fn emit(tables: &[Table], json: bool, report: Option<&Path>) -> anyhow::Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(tables)?);
+    } else {
+        for t in tables {
+            t.print();
+        }
+    }
+    if let Some(dir) = report {
+        let page = armcomp::demos::report::write(dir, tables)?;
+        eprintln!("wrote {}", page.display());
+    }
+    Ok(())
+}

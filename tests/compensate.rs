@@ -1,0 +1,179 @@
+//! Compensation: commanding the truth robot with the computed command lands on the target.
+
+use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator};
+use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::measurement::{read_csv, write_csv};
+use armcomp_core::simulate::{SimulateParams, simulate};
+use nalgebra::Vector3;
+
+use crate::cli::armcomp;
+use crate::common::{Scratch, random_configurations, robot, root};
+
+/// Truth tool positions at random configurations (m, base = measurement frame of the twin).
+fn targets(truth: &armcomp_core::Robot, n: usize, seed: u64) -> Vec<Vector3<f64>> {
+    random_configurations(truth, n, seed)
+        .iter()
+        .map(|q| truth.forward(q).unwrap().point[truth.tool()].translation.vector)
+        .collect()
+}
+
+#[test]
+fn the_truth_as_model_compensates_exactly() {
+    let truth = robot("rock-drill-truth.toml");
+    let mut comp = Compensator::for_model(&truth, CompensationOptions::default()).unwrap();
+    let q0 = vec![0.0, 0.2, 0.05, 0.5, -0.4, 0.0, 0.03];
+    for t in targets(&truth, 10, 3) {
+        let c = comp.compensate(&t, &q0, CompensationMode::Exact).unwrap();
+        assert_eq!(c.shifts, 0);
+        let landed = truth.forward(comp.q()).unwrap().point[truth.tool()].translation.vector;
+        assert!((landed - t).norm() < 1e-8, "{}", (landed - t).norm());
+    }
+}
+
+#[test]
+fn learn_then_compensate_lands_the_truth_near_its_targets() {
+    let dir = Scratch::new("compensate");
+    let truth = robot("rock-drill-truth.toml");
+    // The nominal deflection model with a GP for what it misses.
+    let nominal_text = std::fs::read_to_string(root().join("robots/rock-drill-deflection.toml")).unwrap();
+    let model = dir.file(
+        "model.toml",
+        &format!("{nominal_text}\n[predictor]\ntype = \"gp\"\nseed = 1\nmax_optimization_samples = 150\n"),
+    );
+    let poses = random_configurations(&truth, 250, 11);
+    let data = simulate(
+        &truth,
+        &poses,
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 1,
+        },
+    )
+    .unwrap();
+    let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.file.units));
+    let fitted = dir.0.join("fitted.toml");
+    let (code, _, err) = armcomp(&[
+        "learn",
+        "--model",
+        model.to_str().unwrap(),
+        "--data",
+        data_path.to_str().unwrap(),
+        "--out",
+        fitted.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+
+    // Evaluate includes the predictor: on fresh data it beats the model alone by far.
+    let fitted_robot = armcomp_core::Robot::from_path(&fitted).unwrap();
+    let nominal = robot("rock-drill-deflection.toml");
+    let fresh = simulate(
+        &truth,
+        &random_configurations(&truth, 50, 12),
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 2,
+        },
+    )
+    .unwrap();
+    let alone = ErrorStats::from_errors(&position_errors(&nominal, &fresh.samples));
+    let with = ErrorStats::from_errors(&position_errors(&fitted_robot, &fresh.samples));
+    assert!(
+        with.mean_mm < 0.1 * alone.mean_mm,
+        "{} vs {}",
+        with.mean_mm,
+        alone.mean_mm
+    );
+
+    let goals = targets(&truth, 20, 13);
+    let mut csv = String::from("# tool targets\nx[m],y[m],z[m]\n");
+    for t in &goals {
+        csv.push_str(&format!("{},{},{}\n", t.x, t.y, t.z));
+    }
+    let targets_path = dir.file("targets.csv", &csv);
+    let mut landed_error = Vec::new();
+    for mode in ["paper", "exact"] {
+        let out = dir.0.join(format!("commands-{mode}.csv"));
+        let (code, _, err) = armcomp(&[
+            "compensate",
+            "--model",
+            fitted.to_str().unwrap(),
+            "--targets",
+            targets_path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--mode",
+            mode,
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let header = text.lines().next().unwrap();
+        assert!(
+            header.ends_with("x_cmd[mm],y_cmd[mm],z_cmd[mm],std_x[mm],std_y[mm],std_z[mm]"),
+            "{header}"
+        );
+        // The joint columns read back as poses; command the truth with them.
+        let commands = read_csv(&out, truth.tree(), truth.file.units, truth.tool());
+        assert!(commands.is_err(), "commands carry no measured x, y, z");
+        let poses = armcomp_core::measurement::parse_poses(
+            &text
+                .lines()
+                .map(|l| l.split(',').take(7).collect::<Vec<_>>().join(","))
+                .collect::<Vec<_>>()
+                .join("\n"),
+            &out,
+            truth.tree(),
+            truth.file.units,
+        )
+        .unwrap();
+        let errors: Vec<f64> = poses
+            .iter()
+            .zip(&goals)
+            .map(|(q, t)| (truth.forward(q).unwrap().point[truth.tool()].translation.vector - t).norm())
+            .collect();
+        let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+        landed_error.push(mean);
+    }
+    // Uncompensated through the nominal deflection model, for scale.
+    let mut comp = Compensator::for_model(&nominal, CompensationOptions::default()).unwrap();
+    let q0 = armcomp_core::compensate::mid_range(&nominal);
+    let mut before = 0.0;
+    for t in &goals {
+        comp.compensate(t, &q0, CompensationMode::Exact).unwrap();
+        before += (truth.forward(comp.q()).unwrap().point[truth.tool()].translation.vector - t).norm();
+    }
+    before /= goals.len() as f64;
+    let (paper, exact) = (landed_error[0], landed_error[1]);
+    assert!(exact < 0.1 * before, "exact {exact} m vs uncompensated {before} m");
+    assert!(paper < 0.3 * before, "paper {paper} m vs uncompensated {before} m");
+    assert!(exact <= paper * 1.05, "exact {exact} m, paper {paper} m");
+}
+
+#[test]
+fn compensate_reports_bad_targets_with_line_and_column() {
+    let dir = Scratch::new("compensate-bad");
+    let bad = dir.file("t.csv", "x[mm],y[mm],z[mm]\n100,0,400\n100,abc,400\n");
+    let out = dir.0.join("c.csv");
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        "robots/rock-drill.toml",
+        "--targets",
+        bad.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("t.csv:3: column 2: `abc` is not a finite number"), "{err}");
+    assert!(!out.exists());
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        "robots/rock-drill.toml",
+        "--targets",
+        bad.to_str().unwrap(),
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("refusing to overwrite an input"), "{err}");
+}
