@@ -115,7 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             });
         }
         other => bail!(
-            "unknown twin `{other}`; built-in robots: rock-drill, industrial (files: {})",
+            "unknown twin `{other}`; demos: rock-drill, industrial, agile-justin (robot files: {})",
             TWINS.iter().map(|t| t.path).collect::<Vec<_>>().join(", ")
         ),
     }
