@@ -68,17 +68,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let collision = CollisionModel::new(&robot);
     let collision_ws = RefCell::new(collision.workspace());
     let accept = |q: &[f64]| !collision.collides(q, &mut collision_ws.borrow_mut());
+    let pool_sampler = Sampler::parse(&args.pool_sampler)?;
+    let pool = |n: usize| spread(&robot, space, pool_sampler, n, args.seed, &accept);
     let (poses, note) = match args.method.as_str() {
         "d-optimal" => {
-            let pool_n = args.pool.unwrap_or(10 * args.n);
-            let pool = spread(
-                &robot,
-                space,
-                Sampler::parse(&args.pool_sampler)?,
-                pool_n,
-                args.seed,
-                &accept,
-            )?;
+            let pool = pool(args.pool.unwrap_or(10 * args.n))?;
             let (chosen, log_det) = d_optimal(&robot, &pool.poses, args.n.min(pool.poses.len()), &args.identify)?;
             (
                 chosen.iter().map(|&i| pool.poses[i].clone()).collect::<Vec<_>>(),
@@ -95,15 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             };
             let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
             let trajectory = parse_poses(&text, path, robot.tree(), robot.file.units)?;
-            let pool_n = args.pool.unwrap_or(2000);
-            let pool = spread(
-                &robot,
-                space,
-                Sampler::parse(&args.pool_sampler)?,
-                pool_n,
-                args.seed,
-                &accept,
-            )?;
+            let pool = pool(args.pool.unwrap_or(2000))?;
             let chosen = trajectory_similar(
                 &robot,
                 &trajectory,
