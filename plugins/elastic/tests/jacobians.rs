@@ -213,7 +213,13 @@ fn every_plugin_is_registered_with_a_schema() {
     }
     let mut g = schemars::SchemaGenerator::default();
     for p in &plugins {
-        assert!(p.diagnosis_candidate && !p.doc.is_empty());
+        assert!(!p.doc.is_empty(), "{} has no doc", p.type_name);
+        // Geometric offsets duplicate what the base frame and marker offsets already identify,
+        // so diagnosis does not try them; every physical effect is a candidate that can place
+        // itself on a robot.
+        let candidate = p.type_name != "geometric_offsets";
+        assert_eq!(p.diagnosis_candidate, candidate, "{}", p.type_name);
+        assert_eq!(p.candidates.is_some(), candidate, "{}", p.type_name);
         let s = (p.schema)(&mut g);
         assert!(s.as_object().is_some_and(|o| !o.is_empty()), "{}", p.type_name);
     }
