@@ -451,10 +451,10 @@ impl Problem<'_> {
     fn residuals(&self, predicted: &[Vector3<f64>]) -> DVector<f64> {
         DVector::from_iterator(
             3 * self.samples.len(),
-            predicted
-                .iter()
-                .zip(self.samples)
-                .flat_map(|(p, s)| ((p - s.position) / self.sigma).into_iter().copied().collect::<Vec<_>>()),
+            predicted.iter().zip(self.samples).flat_map(|(p, s)| {
+                let r = (p - s.position) / self.sigma;
+                [r.x, r.y, r.z]
+            }),
         )
     }
 
@@ -470,16 +470,19 @@ impl Problem<'_> {
                         axis: (k - space.marker_offset) % 3,
                     },
                     ParamGroup::Base => {
-                        let (t, h) = step(theta, k, p);
-                        ColumnPlan::Base { theta: t, k, h }
+                        let (mut t, h) = step(theta, k, p);
+                        t[k] += h;
+                        ColumnPlan::Base {
+                            from: space.base_pose(theta),
+                            to: space.base_pose(&t),
+                            h,
+                        }
                     }
                     ParamGroup::ErrorModel(i) => {
                         let (_, h) = step(theta, k, p);
-                        ColumnPlan::Model {
-                            model: i,
-                            index: k - space.error_offsets[i],
-                            h,
-                        }
+                        let mut values = d.errors[i].clone();
+                        values[k - space.error_offsets[i]] += h;
+                        ColumnPlan::Model { model: i, values, h }
                     }
                     ParamGroup::Geometry => {
                         let (mut t, h) = step(theta, k, p);
@@ -551,12 +554,8 @@ impl Problem<'_> {
                                 }
                                 r_meas * e.marker_rot[s_idx].column(*axis)
                             }
-                            ColumnPlan::Base { theta, k, h } => {
-                                let mut t = theta.clone();
-                                let t0 = self.space.base_pose(&t);
-                                t[*k] += h;
-                                let t1 = self.space.base_pose(&t);
-                                (t1.transform_point(&p.into()) - t0.transform_point(&p.into())) / *h
+                            ColumnPlan::Base { from, to, h } => {
+                                (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h
                             }
                             ColumnPlan::Twists { joints, points } => {
                                 let mut dp = Vector3::zeros();
@@ -579,15 +578,13 @@ impl Problem<'_> {
                                     / *h;
                                 r_meas * dp
                             }
-                            ColumnPlan::Model { model, index, h } => {
+                            ColumnPlan::Model { model, values, h } => {
                                 // Total deformation with this model's share re-evaluated at
                                 // the stepped value; the rigid frames stay as they are.
-                                let mut values = d.errors[*model].clone();
-                                values[*index] += h;
                                 scratch.clone_from(&ws.perturbation);
                                 subtract(scratch, &base_perts[*model]);
                                 self.robot
-                                    .model_perturbation_into(*model, &d.tree, &values, s, ws, scratch);
+                                    .model_perturbation_into(*model, &d.tree, values, s, ws, scratch);
                                 d.tree.forward_perturbed_into(&s.q, scratch, &mut ws_fd.frames);
                                 let dp = (ws_fd.frames.point[s.point].translation.vector
                                     - ws.frames.point[s.point].translation.vector)
@@ -643,9 +640,15 @@ enum ColumnPlan {
     Finite { tree: KinematicTree, h: f64 },
     /// An error-model parameter: finite differences of the deformed kinematics with that
     /// model's deformation re-evaluated (the rigid kinematics is reused).
-    Model { model: usize, index: usize, h: f64 },
-    /// A base-frame parameter: finite differences of `T_meas_base` (no kinematics).
-    Base { theta: Vec<f64>, k: usize, h: f64 },
+    /// `values` are the model's parameters with this one stepped by `h`.
+    Model { model: usize, values: Vec<f64>, h: f64 },
+    /// A base-frame parameter: finite differences of `T_meas_base` (no kinematics) between
+    /// the current pose and the one with the parameter stepped by `h`.
+    Base {
+        from: Isometry3<f64>,
+        to: Isometry3<f64>,
+        h: f64,
+    },
     /// A marker offset along `axis` of its link frame: exact.
     Marker { point: usize, axis: usize },
 }
