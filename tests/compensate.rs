@@ -1,9 +1,13 @@
 //! Compensation: commanding the truth robot with the computed command lands on the target.
 
-use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, position_errors};
+use armcomp_core::ik::{IkOptions, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
 use armcomp_core::measurement::{read_csv, write_csv};
 use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::PredictorSpec;
+use armcomp_learn::{GpSpec, KnnSpec};
+use nalgebra::Matrix3xX;
 use nalgebra::Vector3;
 
 use crate::cli::armcomp;
@@ -27,6 +31,85 @@ fn the_truth_as_model_compensates_exactly() {
         assert_eq!(c.shifts, 0);
         let landed = truth.forward(comp.q()).unwrap().point[truth.tool()].translation.vector;
         assert!((landed - t).norm() < 1e-8, "{}", (landed - t).norm());
+    }
+}
+
+#[test]
+fn ik_with_a_linear_offset_solves_the_offset_model() {
+    let robot = robot("rock-drill-deflection.toml");
+    let nq = robot.tree().nq();
+    // An offset of a few millimetres that changes with every joint.
+    let offset = LinearOffset {
+        value: Vector3::new(0.004, -0.003, 0.006),
+        jacobian: Matrix3xX::from_fn(nq, |r, c| 0.002 * ((r + 2 * c) as f64).sin()),
+        q_ref: mid_range(&robot),
+    };
+    let mut ws = IkWorkspace::new(&robot);
+    for t in targets(&robot, 8, 21) {
+        let opts = IkOptions {
+            position_tolerance: 1e-10,
+            ..IkOptions::default()
+        };
+        solve_ik_with_offset(
+            &robot,
+            robot.tool(),
+            &IkTarget::Position(t),
+            Some(&offset),
+            &mid_range(&robot),
+            &opts,
+            &mut ws,
+        )
+        .unwrap();
+        // Independently: the model's point plus value + C (q − q_ref) is on the target.
+        let q = ws.q();
+        let dq = nalgebra::DVector::from_iterator(nq, q.iter().zip(&offset.q_ref).map(|(a, b)| a - b));
+        let moved = offset.value + &offset.jacobian * dq;
+        let at = robot.forward(q).unwrap().point[robot.tool()].translation.vector + moved;
+        assert!((at - t).norm() < 1e-9, "{:e}", (at - t).norm());
+    }
+}
+
+/// Exact mode with predictors that do and do not have a derivative: the model plus the
+/// predicted residual, evaluated here on its own, lands on every target.
+#[test]
+fn exact_mode_solves_model_plus_residual() {
+    let truth = robot("rock-drill-truth.toml");
+    let model = robot("rock-drill-deflection.toml");
+    let data = simulate(
+        &truth,
+        &random_configurations(&truth, 120, 31),
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 1,
+        },
+    )
+    .unwrap();
+    let gp = GpSpec {
+        max_optimization_samples: 60,
+        max_iterations: 15,
+        ..GpSpec::default()
+    };
+    let knn = KnnSpec::default();
+    let rotation = model.t_meas_base().rotation.inverse();
+    for (name, spec) in [("gp", &gp as &dyn PredictorSpec), ("knn", &knn)] {
+        let predictor = fit_residual_predictor(&model, spec, &data.samples).unwrap();
+        let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationOptions::default()).unwrap();
+        let q0 = mid_range(&model);
+        let (mut out, mut scratch) = ([0.0; 3], Vec::new());
+        for t in targets(&truth, 6, 32) {
+            let c = comp.compensate(&t, &q0, CompensationMode::Exact).unwrap();
+            let q = comp.q().to_vec();
+            predictor.predict_into(&q, &mut out, &mut scratch);
+            let at = model.forward(&q).unwrap().point[model.tool()].translation.vector + rotation * Vector3::from(out);
+            let miss = (at - t).norm();
+            assert!(miss <= 1e-8, "{name}: the full model misses by {miss:e} m");
+            assert!(
+                (c.mismatch - miss).abs() < 1e-12,
+                "{name}: reported {:e}, {miss:e}",
+                c.mismatch
+            );
+            assert!(c.shifts >= 1, "{name}: the residual was never applied");
+        }
     }
 }
 

@@ -6,16 +6,25 @@
 //! Two ways to invert that:
 //! - [`CompensationMode::Paper`], the deflection paper's Sec. II.C two-step: IK on the model,
 //!   predict the residual at that command, shift the target by it, IK again;
-//! - [`CompensationMode::Exact`]: solves `FK(q) + e(q) = target` itself, by repeating the shift
-//!   until the command no longer moves (a fixed point; the residual changes slowly with `q`,
-//!   so each repetition shrinks the remaining mismatch by the residual's sensitivity).
+//! - [`CompensationMode::Exact`]: solves `FK(q) + e(q) = target` itself, by Newton's method on
+//!   the model and the residual together: the residual is linearised at the current command
+//!   (value and derivative, for predictors that have one) and IK solves the model plus that
+//!   linear offset; this repeats, with the value re-predicted and the derivative kept (the
+//!   chord method), until the full model lands within the tolerance, typically after two
+//!   solves. Predictors without a derivative get the fixed-point version (the residual held
+//!   constant within each solve), which converges linearly at the rate of the residual's
+//!   sensitivity.
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
-use crate::ik::{IkError, IkOptions, IkReport, IkTarget, IkWorkspace, solve_ik};
+use crate::ik::{IkError, IkOptions, IkReport, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
 use crate::plugin::FittedPredictor;
 use crate::robot::Robot;
+
+/// Position tolerance (m) of the first solve when a predictor follows: far below any residual
+/// a predictor learns, so the residual is predicted where the final command will be.
+const FIRST_SOLVE_TOLERANCE: f64 = 1e-6;
 
 /// How the predictor's residual enters the inverse kinematics.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
@@ -33,10 +42,11 @@ pub enum CompensationMode {
 pub struct CompensationOptions {
     /// The inverse kinematics of each step.
     pub ik: IkOptions,
-    /// Most target shifts in exact mode.
+    /// Most re-linearisations of the residual in exact mode.
     pub max_shifts: usize,
-    /// Exact mode stops when a shift moves the corrected target by less than this (m).
-    pub shift_tolerance: f64,
+    /// Exact mode stops when the full model (chain, error models and predicted residual) puts
+    /// the point within this distance of the target (m).
+    pub tolerance: f64,
 }
 
 impl Default for CompensationOptions {
@@ -47,7 +57,7 @@ impl Default for CompensationOptions {
                 ..IkOptions::default()
             },
             max_shifts: 20,
-            shift_tolerance: 1e-8,
+            tolerance: 1e-8,
         }
     }
 }
@@ -55,15 +65,20 @@ impl Default for CompensationOptions {
 /// One compensated target; the joint command is in [`Compensator::q`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Compensation {
-    /// The target given to the model without the residual: the target minus the predicted
-    /// residual (m, base frame). Equal to the target without a predictor.
+    /// Where the model without the residual puts the point at the command: the target minus
+    /// the predicted residual the command was solved for (m, base frame). The target itself,
+    /// within the IK tolerance, without a predictor.
     pub corrected_target: Vector3<f64>,
-    /// The predicted residual at the command (m, base frame); zero without a predictor.
+    /// The residual predicted at the command (m, base frame); zero without a predictor.
     pub residual: Vector3<f64>,
     /// The last inverse kinematics solve.
     pub ik: IkReport,
-    /// Target shifts done (0 without a predictor, 1 in paper mode).
+    /// Solves after the first, each with the residual predicted at the previous command (0
+    /// without a predictor, 1 in paper mode).
     pub shifts: usize,
+    /// Distance from the target of the point the full model (with the predicted residual)
+    /// gives at the command (m); within the tolerance once exact mode converged.
+    pub mismatch: f64,
 }
 
 /// Reusable buffers and the model to compensate with; nothing is allocated per target after
@@ -76,8 +91,12 @@ pub struct Compensator<'a> {
     base_from_meas: UnitQuaternion<f64>,
     options: CompensationOptions,
     ik: IkWorkspace,
+    /// The residual linearised at the current command (base frame).
+    offset: LinearOffset,
     start: Vec<f64>,
     out: [f64; 3],
+    /// Row-major `3 × nq` derivative of the residual (measurement frame).
+    derivative: Vec<f64>,
     scratch: Vec<f64>,
 }
 
@@ -106,8 +125,10 @@ impl<'a> Compensator<'a> {
             base_from_meas: robot.t_meas_base().rotation.inverse(),
             options,
             ik: IkWorkspace::new(robot),
+            offset: LinearOffset::zeros(robot.tree().nq()),
             start: vec![0.0; robot.tree().nq()],
             out: [0.0; 3],
+            derivative: vec![0.0; 3 * robot.tree().nq()],
             scratch: Vec::new(),
         })
     }
@@ -134,43 +155,49 @@ impl<'a> Compensator<'a> {
         q0: &[f64],
         mode: CompensationMode,
     ) -> std::result::Result<Compensation, IkError> {
-        let mut corrected = *target;
-        let mut report = self.solve(&corrected, q0)?;
-        let mut residual = Vector3::zeros();
-        let mut shifts = 0;
-        if self.predictor.is_none() {
+        // With a predictor the first solve only has to come near: the solves after it, from
+        // its result, set the final accuracy. Without one it is the answer.
+        let first_tolerance = match self.predictor {
+            Some(_) => self.options.ik.position_tolerance.max(FIRST_SOLVE_TOLERANCE),
+            None => self.options.ik.position_tolerance,
+        };
+        let mut report = self.solve(target, None, q0, first_tolerance)?;
+        let Some(predictor) = self.predictor else {
             return Ok(Compensation {
-                corrected_target: corrected,
-                residual,
+                corrected_target: self.ik.robot.frames.point[self.robot.tool()].translation.vector,
+                residual: Vector3::zeros(),
                 ik: report,
-                shifts,
+                shifts: 0,
+                mismatch: report.position_error,
             });
-        }
+        };
         let max_shifts = match mode {
             CompensationMode::Paper => 1,
             CompensationMode::Exact => self.options.max_shifts,
         };
-        while shifts < max_shifts {
-            residual = self.residual_at_command();
-            let next = target - residual;
-            let moved = (next - corrected).norm();
-            corrected = next;
-            shifts += 1;
+        let mut shifts = 0;
+        loop {
+            let residual = self.linearise(predictor, mode, shifts == 0);
+            let at = self.ik.robot.frames.point[self.robot.tool()].translation.vector;
+            let mismatch = (at + residual - target).norm();
+            if shifts == max_shifts || (mode == CompensationMode::Exact && mismatch <= self.options.tolerance) {
+                return Ok(Compensation {
+                    corrected_target: at,
+                    residual,
+                    ik: report,
+                    shifts,
+                    mismatch,
+                });
+            }
             self.start.copy_from_slice(self.ik.q());
             let start = std::mem::take(&mut self.start);
-            let solved = self.solve(&corrected, &start);
+            let offset = std::mem::replace(&mut self.offset, LinearOffset::zeros(0));
+            let solved = self.solve(target, Some(&offset), &start, self.options.ik.position_tolerance);
             self.start = start;
+            self.offset = offset;
             report = solved?;
-            if moved < self.options.shift_tolerance {
-                break;
-            }
+            shifts += 1;
         }
-        Ok(Compensation {
-            corrected_target: corrected,
-            residual,
-            ik: report,
-            shifts,
-        })
     }
 
     /// Predictive standard deviation of the residual at the last command (m, measurement
@@ -181,25 +208,55 @@ impl<'a> Compensator<'a> {
             .then(|| Vector3::from(self.out))
     }
 
-    fn solve(&mut self, target: &Vector3<f64>, q0: &[f64]) -> std::result::Result<IkReport, IkError> {
-        let tool = self.robot.tool();
-        solve_ik(
+    fn solve(
+        &mut self,
+        target: &Vector3<f64>,
+        offset: Option<&LinearOffset>,
+        q0: &[f64],
+        position_tolerance: f64,
+    ) -> std::result::Result<IkReport, IkError> {
+        let options = IkOptions {
+            position_tolerance,
+            ..self.options.ik
+        };
+        solve_ik_with_offset(
             self.robot,
-            tool,
+            self.robot.tool(),
             &IkTarget::Position(*target),
+            offset,
             q0,
-            &self.options.ik,
+            &options,
             &mut self.ik,
         )
     }
 
-    /// The predicted residual at the current command, rotated into the base frame.
-    fn residual_at_command(&mut self) -> Vector3<f64> {
-        let Some(p) = self.predictor else {
-            return Vector3::zeros();
-        };
-        p.predict_into(self.ik.q(), &mut self.out, &mut self.scratch);
-        self.base_from_meas * Vector3::from(self.out)
+    /// Predicts the residual at the current command into `self.offset` (rotated into the base
+    /// frame) and returns its value. In exact mode the first call also takes the predictor's
+    /// derivative, when it has one, and later calls keep it: the derivative changes little over
+    /// the few millimetres the command still moves, so the chord method converges nearly as fast
+    /// as Newton's while predicting only the value. Paper mode holds the residual constant.
+    fn linearise(&mut self, predictor: &dyn FittedPredictor, mode: CompensationMode, first: bool) -> Vector3<f64> {
+        let q = self.ik.q();
+        let rotation: Matrix3<f64> = self.base_from_meas.to_rotation_matrix().into_inner();
+        if first {
+            let derivative = mode == CompensationMode::Exact
+                && predictor.predict_jacobian_into(q, &mut self.out, &mut self.derivative, &mut self.scratch);
+            if !derivative {
+                self.derivative.fill(0.0);
+                predictor.predict_into(q, &mut self.out, &mut self.scratch);
+            }
+            let nq = q.len();
+            let d = &self.derivative;
+            for c in 0..nq {
+                let column = rotation * Vector3::new(d[c], d[nq + c], d[2 * nq + c]);
+                self.offset.jacobian.set_column(c, &column);
+            }
+        } else {
+            predictor.predict_into(q, &mut self.out, &mut self.scratch);
+        }
+        self.offset.value = rotation * Vector3::from(self.out);
+        self.offset.q_ref.copy_from_slice(q);
+        self.offset.value
     }
 }
 

@@ -15,7 +15,7 @@
 //! reaches the tolerance the error carries the closest configuration found and its distance;
 //! the iteration count is capped, so the solver always returns.
 
-use nalgebra::{Cholesky, Isometry3, Matrix6, Matrix6xX, Vector3, Vector6};
+use nalgebra::{Cholesky, Isometry3, Matrix3xX, Matrix6, Matrix6xX, Vector3, Vector6};
 
 use crate::robot::{Robot, RobotWorkspace};
 
@@ -36,6 +36,39 @@ pub enum IkMethod {
     /// Damped least squares with adaptive damping.
     #[default]
     DampedLeastSquares,
+}
+
+/// A position offset linear in the joint values, `value + jacobian · (q − q_ref)` (m, base
+/// frame), added to the point's modelled position: the first-order model of a learnt residual
+/// around `q_ref`, so that one solve inverts the model and the residual together.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearOffset {
+    /// The offset at `q_ref` (m).
+    pub value: Vector3<f64>,
+    /// Its derivative with respect to each joint value (m/rad or m/m), `3 × nq`.
+    pub jacobian: Matrix3xX<f64>,
+    /// Where it is linearised.
+    pub q_ref: Vec<f64>,
+}
+
+impl LinearOffset {
+    /// A zero offset for `nq` joint values.
+    pub fn zeros(nq: usize) -> Self {
+        LinearOffset {
+            value: Vector3::zeros(),
+            jacobian: Matrix3xX::zeros(nq),
+            q_ref: vec![0.0; nq],
+        }
+    }
+
+    /// The offset at `q` (m).
+    pub fn at(&self, q: &[f64]) -> Vector3<f64> {
+        let mut v = self.value;
+        for (c, (a, b)) in q.iter().zip(&self.q_ref).enumerate() {
+            v += self.jacobian.column(c) * (a - b);
+        }
+        v
+    }
 }
 
 /// Settings of [`solve_ik`].
@@ -150,15 +183,24 @@ impl IkWorkspace {
 
 /// Weighted error of the point's current pose in `ws.frames` with respect to `target`:
 /// rows 0–2 position (m), rows 3–5 orientation as a world rotation vector times the weight.
-fn task_error(rw: &RobotWorkspace, point: usize, target: &IkTarget, weight: f64) -> (Vector6<f64>, f64, f64) {
+/// The position includes `offset` at `q`, when there is one.
+fn task_error(
+    rw: &RobotWorkspace,
+    point: usize,
+    target: &IkTarget,
+    weight: f64,
+    offset: Option<&LinearOffset>,
+    q: &[f64],
+) -> (Vector6<f64>, f64, f64) {
     let pose = &rw.frames.point[point];
+    let position = pose.translation.vector + offset.map_or_else(Vector3::zeros, |o| o.at(q));
     match target {
         IkTarget::Position(p) => {
-            let e = p - pose.translation.vector;
+            let e = p - position;
             (Vector6::new(e.x, e.y, e.z, 0.0, 0.0, 0.0), e.norm(), 0.0)
         }
         IkTarget::Pose(t) => {
-            let e = t.translation.vector - pose.translation.vector;
+            let e = t.translation.vector - position;
             let r = (t.rotation * pose.rotation.inverse()).scaled_axis();
             let w = r * weight;
             (Vector6::new(e.x, e.y, e.z, w.x, w.y, w.z), e.norm(), r.norm())
@@ -243,6 +285,20 @@ pub fn solve_ik(
     opts: &IkOptions,
     ws: &mut IkWorkspace,
 ) -> Result<IkReport, IkError> {
+    solve_ik_with_offset(robot, point, target, None, q0, opts, ws)
+}
+
+/// [`solve_ik`] for the point moved by a [`LinearOffset`] (its Jacobian joins the task
+/// Jacobian's position rows), e.g. a learnt residual linearised at the previous solution.
+pub fn solve_ik_with_offset(
+    robot: &Robot,
+    point: usize,
+    target: &IkTarget,
+    offset: Option<&LinearOffset>,
+    q0: &[f64],
+    opts: &IkOptions,
+    ws: &mut IkWorkspace,
+) -> Result<IkReport, IkError> {
     let tree = robot.tree();
     let n = tree.nq();
     tree.check_q(q0).map_err(|e| IkError::Input(e.to_string()))?;
@@ -261,6 +317,14 @@ pub fn solve_ik(
     }
     if ws.q.len() != n {
         return Err(IkError::Input("IK workspace was made for another robot".into()));
+    }
+    if let Some(o) = offset
+        && (o.q_ref.len() != n || o.jacobian.ncols() != n)
+    {
+        return Err(IkError::Input(format!(
+            "the linear offset is made for {} joint values, the robot has {n}",
+            o.q_ref.len()
+        )));
     }
     let pose_target = matches!(target, IkTarget::Pose(_));
     let w = opts.orientation_weight;
@@ -285,7 +349,7 @@ pub fn solve_ik(
         }
         project(robot, &mut ws.q);
         robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
-        let (mut e, mut pe, mut oe) = task_error(&ws.robot, point, target, w);
+        let (mut e, mut pe, mut oe) = task_error(&ws.robot, point, target, w, offset, &ws.q);
         let mut cost = e.norm_squared();
         let mut mu = opts.damping.max(0.0);
         let mut checkpoint = cost;
@@ -297,6 +361,11 @@ pub fn solve_ik(
             // Task Jacobian of the deformed arm, orientation rows weighted.
             tree.pose_jacobian_into(&ws.robot.frames, point, &mut ws.jac);
             for c in 0..n {
+                if let Some(o) = offset {
+                    for r in 0..3 {
+                        ws.jac[(r, c)] += o.jacobian[(r, c)];
+                    }
+                }
                 for r in 3..6 {
                     ws.jac[(r, c)] = if pose_target { ws.jac[(r, c)] * w } else { 0.0 };
                 }
@@ -341,7 +410,7 @@ pub fn solve_ik(
                     }
                     project(robot, &mut ws.trial);
                     robot.forward_into(&ws.trial, opts.temperature, &mut ws.robot);
-                    let (e2, pe2, oe2) = task_error(&ws.robot, point, target, w);
+                    let (e2, pe2, oe2) = task_error(&ws.robot, point, target, w, offset, &ws.trial);
                     let c2 = e2.norm_squared();
                     if c2 < cost {
                         ws.q.copy_from_slice(&ws.trial);
@@ -388,10 +457,11 @@ pub fn solve_ik(
     }
     ws.q.copy_from_slice(&ws.best);
     robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
-    let (_, pe, oe) = task_error(&ws.robot, point, target, w);
+    let (_, pe, oe) = task_error(&ws.robot, point, target, w, offset, &ws.q);
     Err(IkError::Unreachable {
         closest_q: ws.best.clone(),
-        closest_point: ws.robot.frames.point[point].translation.vector,
+        closest_point: ws.robot.frames.point[point].translation.vector
+            + offset.map_or_else(Vector3::zeros, |o| o.at(&ws.q)),
         distance: pe,
         orientation_error: oe,
         iterations,

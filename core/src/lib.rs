@@ -32,7 +32,9 @@ pub mod workspace;
 
 pub use collision::{CollisionModel, CollisionWorkspace, Contact};
 pub use error::{Error, Issue, Issues, Result};
-pub use ik::{IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, solve_ik};
+pub use ik::{
+    IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, LinearOffset, solve_ik, solve_ik_with_offset,
+};
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{

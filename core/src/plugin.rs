@@ -224,4 +224,17 @@ pub trait FittedPredictor: Debug + Send + Sync {
     fn predict_std_into(&self, _input: &[f64], _out: &mut [f64], _scratch: &mut Vec<f64>) -> bool {
         false
     }
+    /// Predicts into `out` and the derivative of every output with respect to every input into
+    /// `jacobian` (row-major, `n_outputs × n_inputs`), for predictors that are differentiable;
+    /// returns false (and leaves both alone) for those that are not. Compensation uses it to
+    /// solve the model and the residual together by Newton's method.
+    fn predict_jacobian_into(
+        &self,
+        _input: &[f64],
+        _out: &mut [f64],
+        _jacobian: &mut [f64],
+        _scratch: &mut Vec<f64>,
+    ) -> bool {
+        false
+    }
 }

@@ -127,11 +127,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Mode::Paper => CompensationMode::Paper,
         Mode::Exact => CompensationMode::Exact,
     };
-    let mut comp = Compensator::for_model(&robot, CompensationOptions::default())?;
+    let options = CompensationOptions::default();
+    let mut comp = Compensator::for_model(&robot, options)?;
     let t_meas_base = robot.t_meas_base();
     let q0 = mid_range(&robot);
     let mut rows = Vec::with_capacity(targets.len());
     let mut stds = Vec::with_capacity(targets.len());
+    // Exact-mode targets where the model with the residual still misses (line, m).
+    let mut unconverged = Vec::new();
     for (line, t) in &targets {
         let target_base = match args.frame {
             Frame::Measurement => t_meas_base.inverse_transform_point(&Point3::from(*t)).coords,
@@ -140,6 +143,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let c = comp
             .compensate(&target_base, &q0, mode)
             .with_context(|| format!("{}:{line}", args.targets.display()))?;
+        if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
+            unconverged.push((*line, c.mismatch));
+        }
         let corrected = match args.frame {
             Frame::Measurement => t_meas_base.transform_point(&Point3::from(c.corrected_target)).coords,
             Frame::Base => c.corrected_target,
@@ -186,5 +192,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             ", no fitted predictor"
         }
     );
-    Ok(ExitCode::SUCCESS)
+    if unconverged.is_empty() {
+        return Ok(ExitCode::SUCCESS);
+    }
+    eprintln!(
+        "exact mode did not converge for {} target(s) within {} iterations; their commands are the closest found:",
+        unconverged.len(),
+        options.max_shifts
+    );
+    for (line, miss) in &unconverged {
+        eprintln!(
+            "  {}:{line}: the model with the residual misses by {} {lu}",
+            args.targets.display(),
+            units.len_out(*miss)
+        );
+    }
+    Ok(ExitCode::from(2))
 }

@@ -271,11 +271,69 @@ pub struct GpModel {
     pub kernels: Vec<GpKernelModel>,
 }
 
-/// Per-kernel data derived from the model: length-scaled inputs and the Cholesky factor.
+/// Per-kernel data derived from the model, laid out for prediction: the length-scaled training
+/// inputs and the weights α stored column by column (one contiguous run of n values per input
+/// dimension and per output), so that the per-query loops run along the training rows and
+/// vectorise; and the Cholesky factor of the kernel matrix.
 #[derive(Debug, Clone)]
 struct KernelCache {
-    scaled: Vec<f64>,
+    /// `d × n`: run `j` holds the `j`-th length-scaled input of every training row.
+    columns: Vec<f64>,
+    /// `m × n`: run `l` holds the weights of the kernel's `l`-th output.
+    alpha: Vec<f64>,
     chol: DMatrix<f64>,
+}
+
+impl KernelCache {
+    /// From the row-major length-scaled inputs (`n × d`) and weights (`n × m`).
+    fn new(scaled: &[f64], d: usize, alpha: &[f64], m: usize, chol: DMatrix<f64>) -> Self {
+        KernelCache {
+            columns: transpose(scaled, d),
+            alpha: transpose(alpha, m),
+            chol,
+        }
+    }
+
+    /// `w_i = σ_f² exp(-½ |u − x_i|²)` for every training row `i` (length-scaled `u`).
+    fn kernel_values(&self, u: &[f64], signal_variance: f64, w: &mut [f64]) {
+        let n = w.len();
+        w.fill(0.0);
+        for (column, uj) in self.columns.chunks_exact(n).zip(u) {
+            for (wi, x) in w.iter_mut().zip(column) {
+                let t = x - uj;
+                *wi += t * t;
+            }
+        }
+        for wi in w.iter_mut() {
+            *wi = signal_variance * (-0.5 * *wi).exp();
+        }
+    }
+}
+
+/// Row-major `rows × width` into width runs of `rows` values.
+fn transpose(values: &[f64], width: usize) -> Vec<f64> {
+    let rows = values.len() / width;
+    let mut out = vec![0.0; values.len()];
+    for (i, row) in values.chunks_exact(width).enumerate() {
+        for (j, v) in row.iter().enumerate() {
+            out[j * rows + i] = *v;
+        }
+    }
+    out
+}
+
+/// Dot product with four running sums: one sum would fix the order of the additions and keep
+/// the compiler from vectorising it.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
+    let mut acc = [0.0; 4];
+    for (x, y) in ca.zip(cb) {
+        for l in 0..4 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// A fitted Gaussian process (`gp_fitted`). The predictive standard deviation is that of the
@@ -337,7 +395,7 @@ impl TryFrom<GpModel> for FittedGp {
             let scaled = scale_inputs(&model.train_inputs, &kernel.hyper.length_scales);
             let chol = factor(&scaled, d, &kernel.hyper, kernel.jitter)
                 .ok_or_else(|| Error::Input("gp_fitted: kernel matrix is not positive definite".into()))?;
-            caches.push(KernelCache { scaled, chol });
+            caches.push(KernelCache::new(&scaled, d, &kernel.alpha, kernel.outputs.len(), chol));
         }
         if covered.contains(&false) {
             return Err(Error::Input("gp_fitted: some outputs have no kernel".into()));
@@ -356,6 +414,11 @@ impl FittedGp {
     /// The stored model.
     pub fn model(&self) -> &GpModel {
         &self.model
+    }
+
+    /// Number of training rows.
+    fn n_training(&self) -> usize {
+        self.model.train_inputs.len() / self.n_inputs()
     }
 
     /// Standardises `input` and divides it by each kernel's length-scales into `scratch`
@@ -391,33 +454,70 @@ impl FittedPredictor for FittedGp {
         let d = self.n_inputs();
         assert_eq!(input.len(), d, "gp_fitted: input length");
         assert_eq!(out.len(), self.n_outputs(), "gp_fitted: output length");
-        let z = self.prepare(input, scratch, 0);
-        out.fill(0.0);
-        for ((kernel, cache), zk) in self.model.kernels.iter().zip(&self.caches).zip(z.chunks_exact(d)) {
-            let sf2 = kernel.hyper.signal_std * kernel.hyper.signal_std;
-            let m = kernel.outputs.len();
-            for (row, alpha) in cache.scaled.chunks_exact(d).zip(kernel.alpha.chunks_exact(m)) {
-                let kv = sf2 * (-0.5 * sq_dist(zk, row)).exp();
-                for (&o, a) in kernel.outputs.iter().zip(alpha) {
-                    out[o] += kv * a;
-                }
+        let n = self.n_training();
+        let buf = self.prepare(input, scratch, n);
+        let (u, w) = buf.split_at_mut(d * self.model.kernels.len());
+        for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
+            cache.kernel_values(uk, kernel.hyper.signal_std * kernel.hyper.signal_std, w);
+            for (&o, alpha) in kernel.outputs.iter().zip(cache.alpha.chunks_exact(n)) {
+                out[o] = dot(w, alpha);
             }
         }
         self.model.outputs.restore(out);
+    }
+
+    fn predict_jacobian_into(
+        &self,
+        input: &[f64],
+        out: &mut [f64],
+        jacobian: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> bool {
+        let d = self.n_inputs();
+        let k = self.n_outputs();
+        assert_eq!(input.len(), d, "gp_fitted: input length");
+        assert_eq!(out.len(), k, "gp_fitted: output length");
+        assert_eq!(jacobian.len(), k * d, "gp_fitted: jacobian length");
+        let n = self.n_training();
+        let buf = self.prepare(input, scratch, 2 * n);
+        let (u, rest) = buf.split_at_mut(d * self.model.kernels.len());
+        let (w, weighted) = rest.split_at_mut(n);
+        for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
+            cache.kernel_values(uk, kernel.hyper.signal_std * kernel.hyper.signal_std, w);
+            for (&o, alpha) in kernel.outputs.iter().zip(cache.alpha.chunks_exact(n)) {
+                // With u = z/ℓ and rows x_i (length-scaled): ∂k_i/∂u_j = k_i (x_ij − u_j), so
+                // ∂mean/∂u_j = Σ_i x_ij α_i k_i − u_j · mean.
+                let mean = dot(w, alpha);
+                for ((v, wi), a) in weighted.iter_mut().zip(w.iter()).zip(alpha) {
+                    *v = wi * a;
+                }
+                let scale = self.model.outputs.scale[o];
+                for (j, (g, column)) in jacobian[o * d..(o + 1) * d]
+                    .iter_mut()
+                    .zip(cache.columns.chunks_exact(n))
+                    .enumerate()
+                {
+                    // Back to the raw units of the input: ∂u_j/∂x_j = 1 / (s_j ℓ_j).
+                    *g = (dot(column, weighted) - uk[j] * mean) * scale
+                        / (self.model.inputs.scale[j] * kernel.hyper.length_scales[j]);
+                }
+                out[o] = mean;
+            }
+        }
+        self.model.outputs.restore(out);
+        true
     }
 
     fn predict_std_into(&self, input: &[f64], out: &mut [f64], scratch: &mut Vec<f64>) -> bool {
         let d = self.n_inputs();
         assert_eq!(input.len(), d, "gp_fitted: input length");
         assert_eq!(out.len(), self.n_outputs(), "gp_fitted: output length");
-        let n = self.model.train_inputs.len() / d;
+        let n = self.n_training();
         let buf = self.prepare(input, scratch, n);
-        let (z, kstar) = buf.split_at_mut(d * self.model.kernels.len());
-        for ((kernel, cache), zk) in self.model.kernels.iter().zip(&self.caches).zip(z.chunks_exact(d)) {
+        let (u, kstar) = buf.split_at_mut(d * self.model.kernels.len());
+        for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
             let sf2 = kernel.hyper.signal_std * kernel.hyper.signal_std;
-            for (kv, row) in kstar.iter_mut().zip(cache.scaled.chunks_exact(d)) {
-                *kv = sf2 * (-0.5 * sq_dist(zk, row)).exp();
-            }
+            cache.kernel_values(uk, sf2, kstar);
             // v = L⁻¹ k*, var = σ_f² − vᵀv.
             let mut v = DVectorViewMut::from_slice(kstar, n);
             cache.chol.solve_lower_triangular_mut(&mut v);
@@ -537,13 +637,13 @@ impl PredictorSpec for GpSpec {
                 .flat_map(|i| (0..group.len()).map(move |c| (i, c)))
                 .map(|(i, c)| a[(i, c)])
                 .collect();
+            caches.push(KernelCache::new(&scaled, d, &alpha, group.len(), chol));
             kernels.push(GpKernelModel {
                 outputs: group,
                 hyper,
                 jitter,
                 alpha,
             });
-            caches.push(KernelCache { scaled, chol });
         }
         Ok(Box::new(FittedGp {
             model: GpModel {

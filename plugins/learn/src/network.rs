@@ -72,6 +72,44 @@ impl Network {
         }
     }
 
+    /// The derivative of the outputs with respect to the inputs at the `x` whose activations
+    /// [`forward`](Self::forward) left in `acts`, into `jacobian` (row-major, outputs × inputs),
+    /// by forward-mode differentiation; `tangents` is scratch of `n_activations × n_inputs`.
+    pub fn input_jacobian(&self, params: &[f64], acts: &[f64], tangents: &mut [f64], jacobian: &mut [f64]) {
+        let d = self.sizes[0];
+        let layers = self.sizes.len() - 1;
+        let (mut p, mut a) = (0, 0);
+        for l in 0..layers {
+            let (n_in, n_out) = (self.sizes[l], self.sizes[l + 1]);
+            let weights = &params[p..p + n_in * n_out];
+            let (done, rest) = tangents.split_at_mut(a * d);
+            let out = &mut rest[..n_out * d];
+            for (o_row, w_row) in out.chunks_exact_mut(d).zip(weights.chunks_exact(n_in)) {
+                if l == 0 {
+                    // The input's own tangent is the identity.
+                    o_row.copy_from_slice(w_row);
+                } else {
+                    o_row.fill(0.0);
+                    for (w, t_row) in w_row.iter().zip(done[(a - n_in) * d..].chunks_exact(d)) {
+                        for (o, t) in o_row.iter_mut().zip(t_row) {
+                            *o += w * t;
+                        }
+                    }
+                }
+            }
+            if l + 1 < layers {
+                // tanh' = 1 - tanh².
+                for (o_row, h) in out.chunks_exact_mut(d).zip(&acts[a..a + n_out]) {
+                    o_row.iter_mut().for_each(|o| *o *= 1.0 - h * h);
+                }
+            }
+            p += (n_in + 1) * n_out;
+            a += n_out;
+        }
+        let k = self.sizes[layers];
+        jacobian.copy_from_slice(&tangents[(a - k) * d..a * d]);
+    }
+
     /// Adds to `grad` the gradient, with respect to the parameters, of `Σ dout · output` at `x`
     /// (back-propagation); `acts` must hold [`forward`](Self::forward)'s result for `x`, and
     /// `deltas` is scratch of the same length.
@@ -194,5 +232,40 @@ impl FittedPredictor for FittedMlp {
         m.network.forward(&m.params, x, acts);
         out.copy_from_slice(&acts[acts.len() - k..]);
         m.outputs.restore(out);
+    }
+
+    fn predict_jacobian_into(
+        &self,
+        input: &[f64],
+        out: &mut [f64],
+        jacobian: &mut [f64],
+        scratch: &mut Vec<f64>,
+    ) -> bool {
+        let m = &self.0;
+        let d = self.n_inputs();
+        let k = self.n_outputs();
+        assert_eq!(input.len(), d, "mlp_fitted: input length");
+        assert_eq!(out.len(), k, "mlp_fitted: output length");
+        assert_eq!(jacobian.len(), k * d, "mlp_fitted: jacobian length");
+        let n_acts = m.network.n_activations();
+        let need = d + n_acts * (1 + d);
+        if scratch.len() < need {
+            scratch.resize(need, 0.0);
+        }
+        let (x, rest) = scratch.split_at_mut(d);
+        let (acts, tangents) = rest.split_at_mut(n_acts);
+        m.inputs.apply(input, x);
+        m.network.forward(&m.params, x, acts);
+        out.copy_from_slice(&acts[n_acts - k..]);
+        m.outputs.restore(out);
+        m.network
+            .input_jacobian(&m.params, acts, &mut tangents[..n_acts * d], jacobian);
+        // Back to raw units: outputs scale up, inputs were divided by their scale.
+        for (row, so) in jacobian.chunks_exact_mut(d).zip(&m.outputs.scale) {
+            for (g, si) in row.iter_mut().zip(&m.inputs.scale) {
+                *g *= so / si;
+            }
+        }
+        true
     }
 }

@@ -185,6 +185,57 @@ fn prediction_allocates_only_on_first_call() {
 }
 
 #[test]
+fn jacobians_match_central_differences_of_the_prediction() {
+    let data = Data::residuals(60, 17);
+    let probe = Data::residuals(6, 18);
+    for (name, spec) in specs(6) {
+        let model = spec.fit(&data.set(7, 3)).unwrap();
+        let (mut value, mut jac, mut scratch) = ([0.0; 3], [0.0; 21], Vec::new());
+        let has = model.predict_jacobian_into(&probe.inputs[..7], &mut value, &mut jac, &mut scratch);
+        // The networks and the GP are smooth; ridge and kNN do not offer a derivative.
+        assert_eq!(has, !name.starts_with("ridge") && !name.starts_with("knn"), "{name}");
+        if !has {
+            continue;
+        }
+        let before = ALLOCATIONS.with(Cell::get);
+        for q in probe.inputs.chunks(7) {
+            assert!(model.predict_jacobian_into(q, &mut value, &mut jac, &mut scratch));
+            let mut plain = [0.0; 3];
+            model.predict_into(q, &mut plain, &mut scratch);
+            for o in 0..3 {
+                assert!(
+                    (value[o] - plain[o]).abs() <= 1e-12 * (1.0 + plain[o].abs()),
+                    "{name}: value"
+                );
+            }
+            for j in 0..7 {
+                let h = 1e-6 * (1.0 + q[j].abs());
+                let (mut up, mut down) = (q.to_vec(), q.to_vec());
+                up[j] += h;
+                down[j] -= h;
+                let (mut fu, mut fd) = ([0.0; 3], [0.0; 3]);
+                model.predict_into(&up, &mut fu, &mut scratch);
+                model.predict_into(&down, &mut fd, &mut scratch);
+                for o in 0..3 {
+                    let numeric = (fu[o] - fd[o]) / (2.0 * h);
+                    let analytic = jac[o * 7 + j];
+                    assert!(
+                        (analytic - numeric).abs() <= 1e-5 * (1.0 + numeric.abs()),
+                        "{name}: ∂out{o}/∂in{j} = {analytic}, central difference {numeric}"
+                    );
+                }
+            }
+        }
+        // The allocations above are the probe vectors of the differences only (2 per input).
+        assert_eq!(
+            ALLOCATIONS.with(Cell::get) - before,
+            6 * 7 * 2,
+            "{name}: the Jacobian allocated"
+        );
+    }
+}
+
+#[test]
 fn bad_training_sets_are_errors() {
     let data = Data::residuals(30, 16);
     let mut nan_inputs = data.inputs.clone();
