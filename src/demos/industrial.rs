@@ -62,8 +62,10 @@ impl Config {
     }
 }
 
-/// The paper's sizes' workspace: a box in front of the arm and below the shoulder.
-pub const WORKSPACE_M: [[f64; 2]; 3] = [[0.25, 0.60], [-0.35, 0.35], [-0.50, -0.10]];
+/// The task's workspace of [`Config::paper`]: a box in front of the arm from 0.6 m below to 0.4 m above the
+/// shoulder, as far as the arm reaches it (points the tool cannot reach at the task's orientation
+/// are skipped), so the pool spans the arm's whole working range.
+pub const WORKSPACE_M: [[f64; 2]; 3] = [[0.15, 0.80], [-0.70, 0.70], [-0.60, 0.40]];
 
 /// The U-shaped assembly path (m, base frame): from the pick point down, across, and up to the
 /// place point.
