@@ -92,7 +92,7 @@ impl Table {
             self.noise_mm, self.noise_mean_abs_z_mm
         );
         println!(
-            "   {:<44} {:>6} {:>9} {:>10} {:>10} {:>9} {:>9} {:>14}",
+            "   {:<50} {:>6} {:>9} {:>10} {:>10} {:>9} {:>9} {:>14}",
             "pipeline", "poses", "train s", "mean|z|", "variance", "3-D mean", "3-D max", "paper"
         );
         for r in &self.rows {
@@ -105,7 +105,7 @@ impl Table {
                 None => String::new(),
             };
             println!(
-                "   {:<44} {:>6} {:>9.2} {:>10.3} {:>10.3} {:>9.3} {:>9.3} {:>14}",
+                "   {:<50} {:>6} {:>9.2} {:>10.3} {:>10.3} {:>9.3} {:>9.3} {:>14}",
                 r.name, r.training_poses, r.training_s, r.mean_abs_z_mm, r.variance_mm2, r.mean_mm, r.max_mm, paper
             );
         }
