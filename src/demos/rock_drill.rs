@@ -103,13 +103,14 @@ fn twin(name: &str) -> Result<Robot> {
 }
 
 /// The model this project calibrates: the nominal deflection model plus compliances of the
-/// loaded joints, all of them identified.
+/// loaded joints and the angle scales of the servo-driven revolute joints, all of them
+/// identified.
 fn elastic_start() -> Result<Robot> {
     let deflection = Twin::get("rock-drill-deflection").expect("built in");
     let src = SourceFile {
         path: deflection.path.into(),
         text: format!(
-            "{}\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j2 = 1e-5, j3 = 1e-6, j5 = 1e-5 }}\n",
+            "{}\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j2 = 1e-5, j3 = 1e-6, j5 = 1e-5 }}\n\n[[error_models]]\ntype = \"transmission_scale\"\nscale = {{ j1 = 0.0, j2 = 0.0, j4 = 0.0, j5 = 0.0, j6 = 0.0 }}\n",
             deflection.text
         ),
         format: Format::Toml,
