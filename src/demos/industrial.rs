@@ -1,23 +1,23 @@
 //! The ANN paper's Sec. 4 on the industrial twin. As in the paper the tool keeps one orientation
-//! (pointing down) and every point is a position in the task's workspace, turned into joint
-//! values by the nominal inverse kinematics: a 2000-point pool from a quasi-random sequence
-//! (Sobol) or a pseudo-random one; geometric identification with POE and with DH on the pool's
-//! first 80 points; then an ANN for what joint stiffness under the payload leaves, trained on
-//! 500 pool points near a U-shaped assembly path (50 path points, each with its 10 nearest pool
-//! points) or on 500 arbitrary pool points. Tested at 50 targets along the path, each
-//! compensated from its taught configuration.
+//! and every point is a position in the task's workspace, turned into joint values by the
+//! nominal inverse kinematics: a 2000-point pool from a quasi-random sequence (Sobol) or a
+//! pseudo-random one; geometric identification with POE and with DH on the pool's first 80
+//! points; then an ANN for what joint stiffness under the payload leaves, trained on 500 pool
+//! points near a U-shaped assembly path (50 path points, each with its 10 nearest pool points)
+//! or on 500 arbitrary pool points, measured with the identified model in the controller.
+//! Tested at 50 targets along the path, which every model commands at the task's orientation.
 
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::compensate::CompensationMode;
 use armcomp_core::evaluate::fit_residual_predictor;
-use armcomp_core::ik::{IkOptions, IkTarget, IkWorkspace, solve_ik};
+use armcomp_core::ik::IkWorkspace;
 use armcomp_core::measurement::Sample;
 use armcomp_core::plan::{resample_by_arc_length, trajectory_similar};
 use armcomp_core::sampling::{Sampler, unit_points};
 use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_core::{Result, Robot};
 use armcomp_learn::MlpSpec;
-use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -62,9 +62,9 @@ impl Config {
     }
 }
 
-/// The task's workspace of [`Config::paper`]: a box in front of the arm from 0.6 m below to 0.4 m above the
-/// shoulder, as far as the arm reaches it (points the tool cannot reach at the task's orientation
-/// are skipped), so the pool spans the arm's whole working range.
+/// The task's workspace of [`Config::paper`]: a box in front of the arm from 0.6 m below to
+/// 0.4 m above the shoulder, as far as the arm reaches it (points the tool cannot reach at the
+/// task's orientation are skipped), so the pool spans the arm's whole working range.
 pub const WORKSPACE_M: [[f64; 2]; 3] = [[0.15, 0.80], [-0.70, 0.70], [-0.60, 0.40]];
 
 /// The U-shaped assembly path (m, base frame): from the pick point down, across, and up to the
@@ -76,16 +76,16 @@ pub const U_PATH_M: [[f64; 3]; 4] = [
     [0.45, 0.25, -0.15],
 ];
 
+/// The task's tool orientation: pointing down (its orientation at q = 0), tilted by a roll about
+/// the base x axis and a pitch about the base y axis (deg), as a tool reaching into a fixture.
+/// The tilt keeps the wrist away from its singular stretched pose.
+pub const TOOL_TILT_DEG: [f64; 2] = [10.0, 20.0];
+
 fn twin(name: &str) -> Result<Robot> {
     Twin::get(name)
         .ok_or_else(|| armcomp_core::Error::Input(format!("no built-in robot `{name}`")))?
         .robot()
 }
-
-/// The task's tool orientation: pointing down (its orientation at q = 0), tilted by a roll about
-/// the base x axis and a pitch about the base y axis (deg), as a tool reaching into a fixture.
-/// The tilt keeps the wrist away from its singular stretched pose.
-pub const TOOL_TILT_DEG: [f64; 2] = [10.0, 20.0];
 
 /// The task's tool orientation (base frame).
 fn task_orientation(robot: &Robot) -> Result<UnitQuaternion<f64>> {
@@ -106,9 +106,9 @@ struct Poses {
 }
 
 /// Solves the nominal inverse kinematics at the task's tool orientation for each position,
-/// each from `start`, or from the previous solution when `chain` is set (a path), without
-/// restarts. Solutions off the start's branch (the wrist flipped: j5 of the other sign) and
-/// positions it cannot reach are left out, up to `n` kept.
+/// each from `start`, or from the previous solution when `chain` is set (a path). Solutions off
+/// the start's branch (the wrist flipped: j5 of the other sign) and positions it cannot reach
+/// are left out, up to `n` kept.
 fn inverse(
     robot: &Robot,
     positions: impl IntoIterator<Item = Vector3<f64>>,
@@ -117,13 +117,6 @@ fn inverse(
     chain: bool,
 ) -> Result<Poses> {
     let orientation = task_orientation(robot)?;
-    let opts = IkOptions {
-        restarts: 0,
-        max_iterations: 100,
-        position_tolerance: 1e-9,
-        orientation_tolerance: 1e-9,
-        ..IkOptions::default()
-    };
     let mut ik = IkWorkspace::new(robot);
     let mut out = Poses {
         positions: Vec::with_capacity(n),
@@ -134,13 +127,15 @@ fn inverse(
         if out.q.len() == n {
             break;
         }
-        let target = IkTarget::Pose(Isometry3::from_parts(Translation3::from(p), orientation));
-        if solve_ik(robot, robot.tool(), &target, &from, &opts, &mut ik).is_ok() && ik.q()[4] * start[4] > 0.0 {
-            out.positions.push(p);
-            out.q.push(ik.q().to_vec());
-            if chain {
-                from.copy_from_slice(ik.q());
+        match pose_command(robot, &p, &orientation, &from, &mut ik) {
+            Some(q) if q[4] * start[4] > 0.0 => {
+                if chain {
+                    from.copy_from_slice(&q);
+                }
+                out.positions.push(p);
+                out.q.push(q);
             }
+            _ => {}
         }
     }
     Ok(out)
@@ -285,7 +280,10 @@ pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
         let mut ik = IkWorkspace::new(model);
         let q: Vec<Vec<f64>> = picks
             .iter()
-            .map(|&i| pose_command(model, &pool.positions[i], &orientation, &pool.q[i], &mut ik))
+            .map(|&i| {
+                pose_command(model, &pool.positions[i], &orientation, &pool.q[i], &mut ik)
+                    .unwrap_or_else(|| pool.q[i].clone())
+            })
             .collect();
         let data: Vec<Sample> = simulate(truth, &q, noise(rng.random()))?.samples;
         let (fitted, s) = timed(|| fit_residual_predictor(model, &spec, &data));

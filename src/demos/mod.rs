@@ -159,7 +159,8 @@ impl TestBench<'_> {
             let target_model = t_model.inverse_transform_point(&target_meas).coords;
             if let Some(task) = &self.task {
                 let rotation = t_model.rotation.inverse() * task.orientation;
-                q0 = pose_command(model, &target_model, &rotation, &task.taught[i], &mut ik);
+                q0 = pose_command(model, &target_model, &rotation, &task.taught[i], &mut ik)
+                    .unwrap_or_else(|| task.taught[i].clone());
             }
             match comp.compensate(&target_model, &q0, mode) {
                 Ok(_) => commands.push(comp.q().to_vec()),
@@ -199,23 +200,22 @@ impl TestBench<'_> {
 
 /// The joint values at which `model` puts its tool at `position` with `orientation` (its base
 /// frame), by inverse kinematics from `start` without restarts, so the solution stays on the
-/// start's branch; `start` itself when that fails.
+/// start's branch; `None` when it does not converge.
 pub fn pose_command(
     model: &Robot,
     position: &Vector3<f64>,
     orientation: &UnitQuaternion<f64>,
     start: &[f64],
     ik: &mut IkWorkspace,
-) -> Vec<f64> {
+) -> Option<Vec<f64>> {
     let options = IkOptions {
         restarts: 0,
         ..IkOptions::default()
     };
     let pose = IkTarget::Pose(Isometry3::from_parts((*position).into(), *orientation));
-    match solve_ik(model, model.tool(), &pose, start, &options, ik) {
-        Ok(_) => ik.q().to_vec(),
-        Err(_) => start.to_vec(),
-    }
+    solve_ik(model, model.tool(), &pose, start, &options, ik)
+        .ok()
+        .map(|_| ik.q().to_vec())
 }
 
 /// Runs `f` and returns its value with the seconds it took.

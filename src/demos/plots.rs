@@ -17,6 +17,15 @@ pub const BEFORE_COLOR: RGBColor = RGBColor(214, 39, 40);
 /// Colour of the errors of the best pipeline.
 pub const AFTER_COLOR: RGBColor = MEASURED_COLOR;
 
+/// An SVG document, or why it could not be drawn.
+pub type Svg = Result<String, String>;
+
+/// A plot of a table.
+pub type Plot = fn(&Table) -> Svg;
+
+/// A quantity of a row (mm).
+type RowValue = fn(&Row) -> f64;
+
 /// Bins of the error histograms.
 pub const HISTOGRAM_BINS: usize = 20;
 
@@ -40,7 +49,7 @@ fn norms(row: &Row) -> Vec<f64> {
 }
 
 /// Counts of `values` in `bins` bins of `width` from zero; the last bin takes the overflow.
-pub fn bin_counts(values: &[f64], width: f64, bins: usize) -> Vec<usize> {
+fn bin_counts(values: &[f64], width: f64, bins: usize) -> Vec<usize> {
     let mut counts = vec![0usize; bins];
     for v in values {
         counts[((v / width) as usize).min(bins - 1)] += 1;
@@ -50,7 +59,7 @@ pub fn bin_counts(values: &[f64], width: f64, bins: usize) -> Vec<usize> {
 
 /// Horizontal bars of every row: mean |z| and mean 3-D error, each with the paper's value where
 /// the paper gives that quantity. Every bar carries its value as a label.
-pub fn bars(table: &Table) -> Result<String, String> {
+pub fn bars(table: &Table) -> Svg {
     let n = table.rows.len();
     let mut svg = String::new();
     {
@@ -58,7 +67,7 @@ pub fn bars(table: &Table) -> Result<String, String> {
         let root = SVGBackend::with_string(&mut svg, (1000, height)).into_drawing_area();
         root.fill(&WHITE).map_err(draw_error)?;
         let panels = root.split_evenly((2, 1));
-        let quantities: [(&str, PaperMetric, fn(&Row) -> f64); 2] = [
+        let quantities: [(&str, PaperMetric, RowValue); 2] = [
             ("mean |z| error (mm)", PaperMetric::MeanAbsZ, |r| r.mean_abs_z_mm),
             ("mean 3-D error (mm)", PaperMetric::Mean3d, |r| r.mean_mm),
         ];
@@ -165,7 +174,7 @@ pub fn bars(table: &Table) -> Result<String, String> {
 /// Histograms of the 3-D errors at the test targets before compensation (the first row) and with
 /// the best pipeline, side by side, each on its own 20 bins from zero to its largest error and
 /// both on one count scale.
-pub fn histogram(table: &Table) -> Result<String, String> {
+pub fn histogram(table: &Table) -> Svg {
     let series: Vec<(String, Vec<f64>, RGBColor)> = table
         .rows
         .first()
@@ -223,7 +232,7 @@ pub fn histogram(table: &Table) -> Result<String, String> {
 
 /// The x, y and z errors at every test target (in the order the targets were drawn, along the
 /// task for the industrial trajectory) before compensation and with the best pipeline.
-pub fn per_axis(table: &Table) -> Result<String, String> {
+pub fn per_axis(table: &Table) -> Svg {
     let rows: Vec<(&Row, RGBColor, &str)> = table
         .rows
         .first()

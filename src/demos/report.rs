@@ -41,7 +41,7 @@ pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
     );
     for (i, t) in tables.iter().enumerate() {
         let stem = stem(i, t);
-        let plots: [(&str, &str, fn(&Table) -> std::result::Result<String, String>); 3] = [
+        let plots: [(&str, &str, plots::Plot); 3] = [
             ("bars", "The table's rows beside the paper's values", plots::bars),
             (
                 "histogram",
