@@ -8,6 +8,7 @@ mod common;
 mod compensate;
 mod conventions;
 mod demo;
+mod demo_report;
 mod diagnose;
 mod fk;
 mod jacobian;

@@ -2,6 +2,7 @@
 //! number is computed on each run; the papers' published values are carried as references.
 
 pub mod industrial;
+pub mod plots;
 pub mod report;
 pub mod rock_drill;
 
@@ -9,11 +10,12 @@ use std::time::Instant;
 
 use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
 use armcomp_core::evaluate::ErrorStats;
+use armcomp_core::ik::{IkOptions, IkTarget, IkWorkspace, solve_ik};
 use armcomp_core::measurement::Sample;
 use armcomp_core::plugin::FittedPredictor;
 use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_core::{Result, Robot};
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde::Serialize;
 
 /// A published value of the paper a row reproduces.
@@ -48,6 +50,16 @@ pub struct Row {
     pub errors_mm: Vec<[f64; 3]>,
 }
 
+/// What a table's paper column measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PaperMetric {
+    /// Mean absolute error along z (the deflection paper's Table I).
+    MeanAbsZ,
+    /// Mean 3-D error (the ANN paper's accuracy).
+    Mean3d,
+}
+
 /// A table of rows with what they were computed on.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Table {
@@ -59,6 +71,8 @@ pub struct Table {
     pub noise_mm: f64,
     /// Mean |z| of the measurement noise alone (mm): σ·√(2/π).
     pub noise_mean_abs_z_mm: f64,
+    /// What the rows' paper values measure.
+    pub paper_metric: PaperMetric,
     /// The rows.
     pub rows: Vec<Row>,
 }
@@ -78,7 +92,7 @@ impl Table {
             self.noise_mm, self.noise_mean_abs_z_mm
         );
         println!(
-            "   {:<44} {:>6} {:>9} {:>10} {:>10} {:>9} {:>9} {:>14}",
+            "   {:<50} {:>6} {:>9} {:>10} {:>10} {:>9} {:>9} {:>14}",
             "pipeline", "poses", "train s", "mean|z|", "variance", "3-D mean", "3-D max", "paper"
         );
         for r in &self.rows {
@@ -91,7 +105,7 @@ impl Table {
                 None => String::new(),
             };
             println!(
-                "   {:<44} {:>6} {:>9.2} {:>10.3} {:>10.3} {:>9.3} {:>9.3} {:>14}",
+                "   {:<50} {:>6} {:>9.2} {:>10.3} {:>10.3} {:>9.3} {:>9.3} {:>14}",
                 r.name, r.training_poses, r.training_s, r.mean_abs_z_mm, r.variance_mm2, r.mean_mm, r.max_mm, paper
             );
         }
@@ -106,6 +120,20 @@ pub struct TestBench<'a> {
     pub targets: Vec<Vector3<f64>>,
     /// Noise of the camera that checks where the tool went.
     pub noise: SimulateParams,
+    /// A task that keeps the tool's orientation; without one, every target's compensation
+    /// starts from the middle of the joint ranges.
+    pub task: Option<TaughtTask>,
+}
+
+/// A task whose tool keeps one orientation, as a controller runs it: for each target its model's
+/// inverse kinematics at the task's orientation, started from the taught configuration, gives
+/// the command that compensation then corrects (so a redundant position target stays on the
+/// task's branch and orientation).
+pub struct TaughtTask {
+    /// Taught configuration per target (rad).
+    pub taught: Vec<Vec<f64>>,
+    /// The tool orientation of the task (truth's measurement frame).
+    pub orientation: UnitQuaternion<f64>,
 }
 
 impl TestBench<'_> {
@@ -121,13 +149,19 @@ impl TestBench<'_> {
         paper: Option<PaperValue>,
     ) -> Result<Row> {
         let mut comp = Compensator::new(model, predictor, CompensationOptions::default())?;
-        let q0 = mid_range(model);
+        let mut q0 = mid_range(model);
         let t_model = model.t_meas_base();
+        let mut ik = IkWorkspace::new(model);
         let mut commands = Vec::with_capacity(self.targets.len());
-        for t in &self.targets {
+        for (i, t) in self.targets.iter().enumerate() {
             // Targets are given to the model in its own idea of the measurement frame.
             let target_meas = self.truth.t_meas_base().transform_point(&(*t).into());
             let target_model = t_model.inverse_transform_point(&target_meas).coords;
+            if let Some(task) = &self.task {
+                let rotation = t_model.rotation.inverse() * task.orientation;
+                q0 = pose_command(model, &target_model, &rotation, &task.taught[i], &mut ik)
+                    .unwrap_or_else(|| task.taught[i].clone());
+            }
             match comp.compensate(&target_model, &q0, mode) {
                 Ok(_) => commands.push(comp.q().to_vec()),
                 // The closest configuration is what a controller would be sent.
@@ -162,6 +196,26 @@ impl TestBench<'_> {
             errors_mm: errors.iter().map(|e| [e.x * 1e3, e.y * 1e3, e.z * 1e3]).collect(),
         })
     }
+}
+
+/// The joint values at which `model` puts its tool at `position` with `orientation` (its base
+/// frame), by inverse kinematics from `start` without restarts, so the solution stays on the
+/// start's branch; `None` when it does not converge.
+pub fn pose_command(
+    model: &Robot,
+    position: &Vector3<f64>,
+    orientation: &UnitQuaternion<f64>,
+    start: &[f64],
+    ik: &mut IkWorkspace,
+) -> Option<Vec<f64>> {
+    let options = IkOptions {
+        restarts: 0,
+        ..IkOptions::default()
+    };
+    let pose = IkTarget::Pose(Isometry3::from_parts((*position).into(), *orientation));
+    solve_ik(model, model.tool(), &pose, start, &options, ik)
+        .ok()
+        .map(|_| ik.q().to_vec())
 }
 
 /// Runs `f` and returns its value with the seconds it took.

@@ -1,30 +1,111 @@
-//! The demo's HTML report: the tables and SVG plots of the errors.
+//! The demo's HTML report: per table, the rows beside the paper's values and three SVG plots
+//! (bars of the rows, error histograms before and after compensation, per-axis errors at the
+//! test targets), every file written atomically.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Result;
 use armcomp_core::io::write_atomic;
 
-use super::Table;
+use super::{PaperMetric, Table, plots};
 
-/// Writes `index.html` into `dir` (created when missing) and returns its path.
+/// The file-name stem of a table's plots: its title up to the colon, in lower-case words
+/// joined by dashes, numbered so that two tables never share files.
+pub fn stem(index: usize, table: &Table) -> String {
+    let head = table.title.split(':').next().unwrap_or_default().to_lowercase();
+    let words: Vec<&str> = head
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .collect();
+    format!("{}-{}", index + 1, words.join("-"))
+}
+
+/// Escapes text for HTML.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// Writes `index.html` and the plots of every table into `dir` (created when missing) and
+/// returns the page's path.
 pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).map_err(|e| armcomp_core::Error::Io {
         path: dir.to_path_buf(),
         message: e.to_string(),
     })?;
-    let mut html = String::from("<!doctype html><meta charset=\"utf-8\"><title>armcomp demo</title><body>\n");
-    for t in tables {
-        html.push_str(&format!("<h2>{}</h2><p>{}</p><table border=1><tr><th>pipeline</th><th>poses</th><th>mean |z| mm</th><th>variance mm²</th><th>3-D mean mm</th><th>3-D max mm</th></tr>\n", t.title, t.setup));
+    let mut html = String::from(
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>armcomp demo</title>\
+         <style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}\
+         td,th{border:1px solid #aaa;padding:2px 8px;text-align:right}td:first-child,th:first-child{text-align:left}</style>\
+         </head><body>\n<h1>armcomp demo</h1>\n",
+    );
+    for (i, t) in tables.iter().enumerate() {
+        let stem = stem(i, t);
+        let plots: [(&str, &str, plots::Plot); 3] = [
+            ("bars", "The table's rows beside the paper's values", plots::bars),
+            (
+                "histogram",
+                "The 3-D errors at the test targets before compensation and with the best pipeline",
+                plots::histogram,
+            ),
+            (
+                "axes",
+                "The x, y and z errors at every test target before compensation and with the best pipeline",
+                plots::per_axis,
+            ),
+        ];
+        let _ = writeln!(
+            html,
+            "<h2>{}</h2>\n<p>{}. Measurement noise {:.3} mm per axis (mean |z| of the noise alone {:.3} mm).</p>",
+            esc(&t.title),
+            esc(&t.setup),
+            t.noise_mm,
+            t.noise_mean_abs_z_mm
+        );
+        let paper_head = match t.paper_metric {
+            PaperMetric::MeanAbsZ => "paper: mean |z| mm / variance mm²",
+            PaperMetric::Mean3d => "paper: 3-D mean mm",
+        };
+        let _ = writeln!(
+            html,
+            "<table><tr><th>pipeline</th><th>poses</th><th>training s</th><th>mean |z| mm</th><th>variance mm²</th><th>3-D mean mm</th><th>3-D max mm</th><th>{paper_head}</th></tr>"
+        );
         for r in &t.rows {
-            html.push_str(&format!(
-                "<tr><td>{}</td><td>{}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td></tr>\n",
-                r.name, r.training_poses, r.mean_abs_z_mm, r.variance_mm2, r.mean_mm, r.max_mm
-            ));
+            let paper = match r.paper {
+                Some(p) => match p.variance_mm2 {
+                    Some(v) => format!("{:.2} / {v:.2}", p.mean_mm),
+                    None => format!("{:.2}", p.mean_mm),
+                },
+                None => String::new(),
+            };
+            let _ = writeln!(
+                html,
+                "<tr><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{paper}</td></tr>",
+                esc(&r.name),
+                r.training_poses,
+                r.training_s,
+                r.mean_abs_z_mm,
+                r.variance_mm2,
+                r.mean_mm,
+                r.max_mm
+            );
         }
         html.push_str("</table>\n");
+        for (kind, caption, draw) in plots {
+            let name = format!("{stem}-{kind}.svg");
+            let path = dir.join(&name);
+            let svg = draw(t).map_err(|message| armcomp_core::Error::Io {
+                path: path.clone(),
+                message,
+            })?;
+            write_atomic(&path, svg.as_bytes())?;
+            let _ = writeln!(
+                html,
+                "<figure><img src=\"{name}\" alt=\"{caption}\"><figcaption>{caption}</figcaption></figure>"
+            );
+        }
     }
-    html.push_str("</body>\n");
+    html.push_str("</body></html>\n");
     let page = dir.join("index.html");
     write_atomic(&page, html.as_bytes())?;
     Ok(page)

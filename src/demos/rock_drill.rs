@@ -14,7 +14,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
-use super::{PaperValue, Row, Table, TestBench, timed};
+use super::{PaperMetric, PaperValue, Row, Table, TestBench, timed};
 use crate::twins::Twin;
 
 /// Table I of the deflection paper, its rows in order: mean |Z| error (mm) and variance (mm²).
@@ -103,13 +103,14 @@ fn twin(name: &str) -> Result<Robot> {
 }
 
 /// The model this project calibrates: the nominal deflection model plus compliances of the
-/// loaded joints, all of them identified.
+/// loaded joints and the angle scales of the servo-driven revolute joints, all of them
+/// identified.
 fn elastic_start() -> Result<Robot> {
     let deflection = Twin::get("rock-drill-deflection").expect("built in");
     let src = SourceFile {
         path: deflection.path.into(),
         text: format!(
-            "{}\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j2 = 1e-5, j3 = 1e-6, j5 = 1e-5 }}\n",
+            "{}\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j2 = 1e-5, j3 = 1e-6, j5 = 1e-5 }}\n\n[[error_models]]\ntype = \"transmission_scale\"\nscale = {{ j1 = 0.0, j2 = 0.0, j4 = 0.0, j5 = 0.0, j6 = 0.0 }}\n",
             deflection.text
         ),
         format: Format::Toml,
@@ -127,9 +128,14 @@ fn ssa_bp(config: &Config, seed: u64) -> SsaBpSpec {
     spec
 }
 
-/// Runs the protocol and returns the table (rows in the paper's order, then this project's).
+/// Runs the protocol on the built-in truth and returns the table (rows in the paper's order,
+/// then this project's).
 pub fn run(config: &Config) -> Result<Table> {
-    let truth = twin("rock-drill-truth")?;
+    run_on(&twin("rock-drill-truth")?, config)
+}
+
+/// Runs the protocol with `truth` as the boom that is measured and commanded.
+pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
     let rigid = twin("rock-drill")?;
     let deflection = twin("rock-drill-deflection")?;
     let mut rng = StdRng::seed_from_u64(config.seed);
@@ -140,7 +146,7 @@ pub fn run(config: &Config) -> Result<Table> {
         noise_std: config.noise_mm * 1e-3,
         seed,
     };
-    let large = simulate(&truth, &grid, noise(rng.random()))?.samples;
+    let large = simulate(truth, &grid, noise(rng.random()))?.samples;
     let small: Vec<Sample> = large[..config.small.min(large.len())].to_vec();
 
     // Random targets the truth can reach: its tool at random joint values.
@@ -155,9 +161,10 @@ pub fn run(config: &Config) -> Result<Table> {
         })
         .collect::<Result<Vec<_>>>()?;
     let bench = TestBench {
-        truth: &truth,
+        truth,
         targets,
         noise: noise(rng.random()),
+        task: None,
     };
     let paper = |i: usize| {
         Some(PaperValue {
@@ -238,6 +245,7 @@ pub fn run(config: &Config) -> Result<Table> {
         ),
         noise_mm: config.noise_mm,
         noise_mean_abs_z_mm: config.noise_mm * (2.0 / std::f64::consts::PI).sqrt(),
+        paper_metric: PaperMetric::MeanAbsZ,
         rows,
     })
 }
