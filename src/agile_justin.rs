@@ -10,6 +10,7 @@
 use std::path::Path;
 
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
+use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::Sample;
 use armcomp_core::split::{Split, holdout, kfold, pose_groups, subset};
@@ -228,10 +229,20 @@ pub const MEASUREMENT_STD: f64 = 1e-3;
 /// Calibrates `steps` in turn on `train`, each starting from the previous step's result, and
 /// returns the robot after each.
 pub fn calibrate_steps(robot: &Robot, train: &[Sample], steps: &[Step]) -> Result<Vec<Robot>> {
-    let mut out: Vec<Robot> = Vec::with_capacity(steps.len());
-    for step in steps {
+    let selections: Vec<Vec<String>> = steps
+        .iter()
+        .map(|s| s.identify.iter().map(|w| w.to_string()).collect())
+        .collect();
+    calibrate_sequence(robot, train, &selections)
+}
+
+/// Calibrates each selection (see `ParameterSpace::select`) in turn on `train`, each starting
+/// from the previous result; returns the robot after each.
+fn calibrate_sequence(robot: &Robot, train: &[Sample], selections: &[Vec<String>]) -> Result<Vec<Robot>> {
+    let mut out: Vec<Robot> = Vec::with_capacity(selections.len());
+    for identify in selections {
         let params = CalibrationParams {
-            identify: step.identify.iter().map(|s| s.to_string()).collect(),
+            identify: identify.clone(),
             measurement_std: MEASUREMENT_STD,
             ..CalibrationParams::default()
         };
@@ -240,6 +251,118 @@ pub fn calibrate_steps(robot: &Robot, train: &[Sample], steps: &[Step]) -> Resul
         out.push(calibrated);
     }
     Ok(out)
+}
+
+/// A parameter group of the paper's leave-one-out analysis (full model minus that group).
+#[derive(Debug, Clone, Copy)]
+pub struct ParamGroup {
+    /// The paper's name of the group.
+    pub label: &'static str,
+    /// The parameters it stands for (see `ParameterSpace::select`).
+    pub identify: &'static str,
+    /// The paper's mean residual (mm) of the full model without the group.
+    pub paper_mean_mm: f64,
+}
+
+/// The full model's parameter groups, in the order of the paper's leave-one-out ranking (the
+/// group whose removal hurts most first).
+pub const GROUPS: [ParamGroup; 6] = [
+    ParamGroup {
+        label: "joint compliance (kappa_theta)",
+        identify: "joint_compliance",
+        paper_mean_mm: 9.09,
+    },
+    ParamGroup {
+        label: "DH alpha",
+        identify: "*.alpha",
+        paper_mean_mm: 6.48,
+    },
+    ParamGroup {
+        label: "DH theta (joint offsets)",
+        identify: "*.theta",
+        paper_mean_mm: 6.35,
+    },
+    ParamGroup {
+        label: "lateral compliance (kappa_alpha, kappa_beta)",
+        identify: "lateral_compliance",
+        paper_mean_mm: 4.85,
+    },
+    ParamGroup {
+        label: "DH r (a)",
+        identify: "*.a",
+        paper_mean_mm: 4.33,
+    },
+    ParamGroup {
+        label: "DH d",
+        identify: "*.d",
+        paper_mean_mm: 3.46,
+    },
+];
+
+/// The full model's steps (frames; geometry; + joint compliance; + lateral compliance) with
+/// `left_out` (a [`GROUPS`] entry's `identify`) taken out of every step.
+fn steps_without(left_out: &str) -> Vec<Vec<String>> {
+    let frames = ["base", "markers"];
+    let geometry = ["*.theta", "*.alpha", "*.a", "*.d"];
+    let mut steps: Vec<Vec<&str>> = vec![frames.to_vec()];
+    let mut all: Vec<&str> = frames.iter().chain(&geometry).copied().collect();
+    steps.push(all.clone());
+    for model in ["joint_compliance", "lateral_compliance"] {
+        all.push(model);
+        steps.push(all.clone());
+    }
+    steps
+        .into_iter()
+        .map(|s| s.into_iter().filter(|w| *w != left_out).map(String::from).collect())
+        .collect()
+}
+
+/// Held-out errors on `split` of the full model without each of [`GROUPS`] in turn (same
+/// order), each calibrated step by step on the training poses.
+pub fn leave_one_out(robot: &Robot, samples: &[Sample], split: &Split) -> Result<Vec<ErrorStats>> {
+    let train = subset(samples, &split.train);
+    let test = subset(samples, &split.test);
+    GROUPS
+        .iter()
+        .map(|g| {
+            let robots = calibrate_sequence(robot, &train, &steps_without(g.identify))?;
+            let last = robots.last().expect("four steps");
+            Ok(ErrorStats::from_errors(&position_errors(last, &test)))
+        })
+        .collect()
+}
+
+/// `robot` without its error models: the rigid model whose frames the paper's first step fits.
+pub fn rigid(robot: &Robot) -> Result<Robot> {
+    let mut file = robot.to_file();
+    file.error_models.clear();
+    robot.rebuild(file)
+}
+
+/// `armcomp diagnose` on the data, starting from the frames-only model: the rigid robot whose
+/// measurement frame and markers are identified, every candidate effect of `plugins` tried on
+/// top (k-fold held-out scores, `folds` folds split by pose with `seed`), at most `max_steps`
+/// effects accepted.
+pub fn diagnose_from_frames(
+    robot: &Robot,
+    samples: &[Sample],
+    plugins: &[armcomp_core::PluginInfo],
+    folds: usize,
+    seed: u64,
+    max_steps: usize,
+) -> Result<DiagnosisReport> {
+    let params = DiagnoseParams {
+        folds,
+        seed,
+        calibration: CalibrationParams {
+            identify: STEPS[0].identify.iter().map(|s| s.to_string()).collect(),
+            measurement_std: MEASUREMENT_STD,
+            ..CalibrationParams::default()
+        },
+        max_steps,
+        ..DiagnoseParams::default()
+    };
+    Ok(diagnose(&rigid(robot)?, samples, plugins, None, &params)?.report)
 }
 
 /// Residual statistics of one step on the fitted and the held-out poses.

@@ -201,6 +201,7 @@ pub fn diagnose(
         )));
     }
     let splits = kfold(samples, params.folds, params.seed)?;
+    let given = robot.error_models().len();
     // The robot as given plus the accepted effects at their neutral values.
     let mut model = robot.rebuild(robot.to_file())?;
     let mut current = heldout_errors(&model, samples, &splits, &params.calibration)?;
@@ -221,7 +222,7 @@ pub fn diagnose(
             .collect();
         let mut ranking: Vec<RankedCandidate> = offers
             .par_iter()
-            .map(|o| score(&model, o, samples, &splits, &current, params))
+            .map(|o| score(&model, given, o, samples, &splits, &current, params))
             .collect();
         ranking.sort_by(|a, b| rank_key(a).total_cmp(&rank_key(b)).then_with(|| a.label.cmp(&b.label)));
         let Some(best) = ranking.first().filter(|c| c.earns_parameters).cloned() else {
@@ -233,7 +234,7 @@ pub fn diagnose(
             .find(|o| o.effect == best.effect && o.candidate.location == best.location)
             .expect("the ranking is made of the offers");
         model = with_effect(&model, offer)?;
-        fitted = calibrate(&model, samples, &params.calibration, &mut |_| {})?.robot;
+        fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
         let before = ErrorStats::from_errors(&current);
         let after = best.heldout.expect("an accepted candidate was evaluated");
         let values = new_model_values(&fitted);
@@ -274,7 +275,15 @@ pub fn diagnose(
         heldout_norms_mm.push(norms_mm(&current));
     }
     let learnable_residual = match predictor {
-        Some((name, spec)) => Some(learnable(&model, samples, &splits, &current, name, spec, params)?),
+        Some((name, spec)) => Some(learnable(
+            &model,
+            samples,
+            &splits,
+            &current,
+            name,
+            spec,
+            &selection(&model, given, params),
+        )?),
         None => None,
     };
     let report = DiagnosisReport {
@@ -318,6 +327,19 @@ fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
     model.rebuild(file)
 }
 
+/// The calibration settings for `model`: the caller's selection plus, when the caller names
+/// one, the parameters of the effects the diagnosis added after the `given` models of the
+/// robot file (those are always identified; an empty selection already includes them).
+fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> CalibrationParams {
+    let mut out = params.calibration.clone();
+    if !out.identify.is_empty() {
+        let added = model.error_models().iter().skip(given);
+        out.identify
+            .extend(added.flat_map(|m| m.params().iter().map(|p| p.name.clone())));
+    }
+    out
+}
+
 /// Held-out RMS for ranking; candidates that could not be evaluated go last.
 fn rank_key(c: &RankedCandidate) -> f64 {
     c.heldout.map_or(f64::INFINITY, |s| s.rms_mm)
@@ -356,6 +378,7 @@ fn norms_mm(errors: &[Vector3<f64>]) -> Vec<f64> {
 /// against the held-out errors `current` of the model without it.
 fn score(
     model: &Robot,
+    given: usize,
     offer: &Offer,
     samples: &[Sample],
     splits: &[Split],
@@ -376,7 +399,8 @@ fn score(
     let evaluated = (|| {
         let model = with_effect(model, offer)?;
         let n_params = model.error_models().last().map_or(0, |m| m.params().len());
-        Ok::<_, Error>((n_params, heldout_errors(&model, samples, splits, &params.calibration)?))
+        let calibration = selection(&model, given, params);
+        Ok::<_, Error>((n_params, heldout_errors(&model, samples, splits, &calibration)?))
     })();
     match evaluated {
         Err(e) => out.error = Some(e.to_string()),
@@ -427,13 +451,13 @@ fn learnable(
     current: &[Vector3<f64>],
     name: &str,
     spec: &dyn PredictorSpec,
-    params: &DiagnoseParams,
+    calibration: &CalibrationParams,
 ) -> Result<LearnableResidual> {
     let nq = model.tree().nq();
     let mut corrected = current.to_vec();
     for split in splits {
         let train = subset(samples, &split.train);
-        let fit = calibrate(model, &train, &params.calibration, &mut |_| {})?;
+        let fit = calibrate(model, &train, calibration, &mut |_| {})?;
         let residuals = position_errors(&fit.robot, &train);
         let inputs: Vec<f64> = train.iter().flat_map(|s| s.q.iter().copied()).collect();
         let targets: Vec<f64> = residuals.iter().flat_map(|r| r.iter().copied()).collect();

@@ -24,6 +24,14 @@ pub struct Args {
     /// agile-justin: leave out the residual predictor over the calibrated elastic model.
     #[arg(long)]
     no_predictor: bool,
+    /// agile-justin: also the paper's leave-one-out analysis (full model without one parameter
+    /// group at a time) on the fixed split.
+    #[arg(long)]
+    leave_one_out: bool,
+    /// agile-justin: also `armcomp diagnose` from the frames-only model, with at most this many
+    /// effects (0 skips it; minutes per effect).
+    #[arg(long, default_value_t = 0)]
+    diagnose_steps: usize,
 }
 
 /// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
@@ -112,6 +120,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 folds: args.folds,
                 seed: args.seed,
                 no_predictor: args.no_predictor,
+                leave_one_out: args.leave_one_out,
+                diagnose_steps: args.diagnose_steps,
             });
         }
         other => bail!(

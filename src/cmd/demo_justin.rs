@@ -4,10 +4,14 @@
 use std::path::Path;
 use std::process::ExitCode;
 
+use armcomp::agile_justin::{
+    GROUPS, STEPS, StepResult, diagnose_from_frames, half_split, kfold_table, leave_one_out, parse_measurements,
+    step_table,
+};
 use armcomp::agile_justin::{MEASUREMENTS, MEASUREMENTS_PATH};
-use armcomp::agile_justin::{STEPS, StepResult, half_split, kfold_table, parse_measurements, step_table};
 use armcomp::twins::Twin;
 use armcomp_core::PredictorSpec;
+use armcomp_core::diagnose::DiagnosisReport;
 use armcomp_core::evaluate::ErrorStats;
 use serde::Serialize;
 
@@ -22,6 +26,21 @@ pub struct Options {
     /// Leave out the residual predictor (ridge regression on the joint angles' sines and
     /// cosines) over the calibrated elastic model.
     pub no_predictor: bool,
+    /// Run the paper's leave-one-out analysis on the fixed split.
+    pub leave_one_out: bool,
+    /// Most effects `armcomp diagnose` may add to the frames-only model (0 skips it).
+    pub diagnose_steps: usize,
+}
+
+/// Folds of the diagnosis' held-out scores (its default).
+const DIAGNOSE_FOLDS: usize = 3;
+
+/// The full model without one parameter group: the paper's number and ours (held-out).
+#[derive(Serialize)]
+struct LeaveOneOutRow {
+    group: &'static str,
+    paper_mean_mm: f64,
+    heldout: ErrorStats,
 }
 
 #[derive(Serialize)]
@@ -31,6 +50,8 @@ struct Output {
     steps: Vec<StepResult>,
     folds: usize,
     kfold_test: Vec<ErrorStats>,
+    leave_one_out: Vec<LeaveOneOutRow>,
+    diagnosis: Option<DiagnosisReport>,
     seconds: f64,
 }
 
@@ -55,12 +76,40 @@ pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
     } else {
         Vec::new()
     };
+    let leave_one_out = if opts.leave_one_out {
+        let stats = leave_one_out(&robot, &samples, &split)?;
+        GROUPS
+            .iter()
+            .zip(stats)
+            .map(|(g, heldout)| LeaveOneOutRow {
+                group: g.label,
+                paper_mean_mm: g.paper_mean_mm,
+                heldout,
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let diagnosis = if opts.diagnose_steps > 0 {
+        Some(diagnose_from_frames(
+            &robot,
+            &samples,
+            &armcomp::plugins(),
+            DIAGNOSE_FOLDS,
+            opts.seed,
+            opts.diagnose_steps,
+        )?)
+    } else {
+        None
+    };
     let out = Output {
         poses: samples.len() / 2,
         seed: opts.seed,
         steps,
         folds: opts.folds,
         kfold_test,
+        leave_one_out,
+        diagnosis,
         seconds: started.elapsed().as_secs_f64(),
     };
     if opts.json {
@@ -95,6 +144,49 @@ pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
             .unwrap_or_default();
         println!("   {:<30} {paper}  {}  {}{k}", s.step, cells(&s.train), cells(&s.test));
     }
+    if !out.leave_one_out.is_empty() {
+        let last = out.steps.get(STEPS.len() - 1).map_or(f64::NAN, |s| s.test.mean_mm);
+        println!(
+            "\n   leave one out: the full model without one group, held-out mean (mm; full model {last:.2}, paper 3.12)"
+        );
+        println!("   {:<46} {:>6} {:>6}", "without", "paper", "ours");
+        for r in &out.leave_one_out {
+            println!("   {:<46} {:>6.2} {:>6.2}", r.group, r.paper_mean_mm, r.heldout.mean_mm);
+        }
+    }
+    if let Some(d) = &out.diagnosis {
+        print_diagnosis(d);
+    }
     println!("   ({:.1} s)", out.seconds);
     Ok(ExitCode::SUCCESS)
+}
+
+/// The effects `armcomp diagnose` adds to the frames-only model, beside the paper's ranking.
+fn print_diagnosis(d: &DiagnosisReport) {
+    println!(
+        "\n   armcomp diagnose from the frames-only model ({}-fold held-out, mean / RMS mm)",
+        d.folds
+    );
+    println!("   {:<4} {:<46} {:>6} {:>6}", "step", "effect", "mean", "RMS");
+    println!(
+        "   {:<4} {:<46} {:>6.2} {:>6.2}",
+        0, "frames only (base + markers)", d.initial.mean_mm, d.initial.rms_mm
+    );
+    for (i, s) in d.steps.iter().enumerate() {
+        println!(
+            "   {:<4} + {:<44} {:>6.2} {:>6.2}",
+            i + 1,
+            s.label,
+            s.heldout_after.mean_mm,
+            s.heldout_after.rms_mm
+        );
+    }
+    if let Some(best) = d.final_model.ranking.first() {
+        println!(
+            "   stopped: the best next candidate ({}) does not earn its parameters",
+            best.label
+        );
+    }
+    let paper: Vec<&str> = GROUPS.iter().map(|g| g.label).collect();
+    println!("   paper's leave-one-out ranking: {}", paper.join(" > "));
 }

@@ -2,11 +2,19 @@
 //! `dq_i = c_i · τ_i(q)` (DESIGN formulas), with `τ_i` the gravity torque about the joint axis
 //! (or force along it, for a prismatic joint) of everything the joint moves, payload included.
 //! Without a torque sensor only `c_i` times the masses is identifiable.
+//!
+//! Mimic couplings are taken as mechanical (a linkage, like the one that keeps Agile Justin's
+//! chest upright): the drive of an independent joint carries the generalised gravity force of
+//! its coordinate, its own torque plus `k · τ_m` of every joint `m` coupled to it with
+//! multiplier `k` (virtual work), and its deflection moves those joints too (`k · dq_i`). A
+//! compliance given for a mimic joint is the coupling's own elasticity, `c_m · τ_m` on that
+//! joint alone.
 
 use std::collections::BTreeMap;
 
 use armcomp_core::{
-    ErrorModel, ErrorModelSpec, Issues, ModelContext, Motion, ParamInfo, Perturbation, Quantity, StaticState,
+    Coordinate, ErrorModel, ErrorModelSpec, Issues, KinematicTree, ModelContext, Motion, ParamInfo, Perturbation,
+    Quantity, StaticState,
 };
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -41,13 +49,38 @@ pub struct JointComplianceSpec {
     pub compliance: BTreeMap<String, f64>,
 }
 
+/// A compliant joint and the mimic joints coupled to its coordinate.
+#[derive(Debug, Clone)]
+struct CompliantJoint {
+    joint: usize,
+    /// `(mimic joint, multiplier)`; empty for mimic joints themselves.
+    followers: Vec<(usize, f64)>,
+}
+
 /// The built joint-compliance model.
 #[derive(Debug, Clone)]
 pub struct JointComplianceModel {
     spec: JointComplianceSpec,
-    joints: Vec<usize>,
+    joints: Vec<CompliantJoint>,
     subtrees: Subtrees,
     params: Vec<ParamInfo>,
+}
+
+/// The mimic joints of `tree` that follow the coordinate of joint `j`, with their multipliers.
+fn followers(tree: &KinematicTree, j: usize) -> Vec<(usize, f64)> {
+    let Coordinate::Independent(i) = tree.joints()[j].coordinate else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for (m, joint) in tree.joints().iter().enumerate() {
+        if let Coordinate::Mimic(c) = &joint.coordinate {
+            let k: f64 = c.terms.iter().filter(|(c, _)| *c == i).map(|(_, k)| k).sum();
+            if k != 0.0 {
+                out.push((m, k));
+            }
+        }
+    }
+    out
 }
 
 #[typetag::serde(name = "joint_compliance")]
@@ -80,7 +113,13 @@ impl ErrorModelSpec for JointComplianceSpec {
             .collect();
         Ok(Box::new(JointComplianceModel {
             spec: self.clone(),
-            joints: resolved.iter().map(|(j, _)| *j).collect(),
+            joints: resolved
+                .iter()
+                .map(|&(joint, _)| CompliantJoint {
+                    joint,
+                    followers: followers(ctx.tree, joint),
+                })
+                .collect(),
             subtrees: Subtrees::new(ctx.tree),
             params,
         }))
@@ -93,8 +132,16 @@ impl ErrorModel for JointComplianceModel {
     }
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
-        for (&j, &c) in self.joints.iter().zip(values) {
-            out.joint_offset[j] += c * joint_gravity_load(state, &self.subtrees, j);
+        for (cj, &c) in self.joints.iter().zip(values) {
+            let mut load = joint_gravity_load(state, &self.subtrees, cj.joint);
+            for &(m, k) in &cj.followers {
+                load += k * joint_gravity_load(state, &self.subtrees, m);
+            }
+            let dq = c * load;
+            out.joint_offset[cj.joint] += dq;
+            for &(m, k) in &cj.followers {
+                out.joint_offset[m] += k * dq;
+            }
         }
     }
 

@@ -402,6 +402,63 @@ fn compliance_under_known_torque_gives_expected_angle() {
     assert!((p - Vector3::new(angle.cos(), 0.0, -angle.sin())).norm() < 1e-12, "{p}");
 }
 
+/// Two parallel horizontal joints, the second coupled to the first as `b = -a` (a parallelogram
+/// that keeps link `b` level): 8 kg at 0.5 m on link `a` (1 m long), 5 kg at 0.5 m on link `b`.
+#[test]
+fn coupled_joint_compliance_carries_the_generalised_load() {
+    let (ca, cb) = (3.0e-4, 1.0e-4);
+    let r = robot(&format!(
+        r#"
+name = "parallelogram"
+[kinematics]
+type = "mdh"
+[[kinematics.joints]]
+name = "a"
+alpha = 1.5707963267948966
+[[kinematics.joints]]
+name = "b"
+a = 1.0
+mimic = {{ joints = ["a"], multipliers = [-1.0] }}
+[[links]]
+name = "a"
+mass = 8.0
+com = [0.5, 0, 0]
+[[links]]
+name = "b"
+mass = 5.0
+com = [0.5, 0, 0]
+[[points]]
+name = "tool"
+link = "b"
+xyz = [0.7, 0, 0]
+[[error_models]]
+type = "joint_compliance"
+compliance = {{ a = {ca:e}, b = {cb:e} }}
+"#
+    ));
+    for q in [0.0, 0.6, -1.2] {
+        let (pert, _) = perturbation_of(&r, 0, &[ca, cb], &[q], None);
+        // Gravity torque about the axes (0, -1, 0): minus weight times horizontal lever.
+        let tau_a = -G * (8.0 * 0.5 * q.cos() + 5.0 * (q.cos() + 0.5));
+        let tau_b = -G * 5.0 * 0.5;
+        // The drive of `a` holds τ_a + (-1)·τ_b: the linkage carries link b's own moment.
+        let dq_a = ca * (tau_a - tau_b);
+        assert!(
+            close(pert.joint_offset[0], dq_a, 1e-12),
+            "q={q}: {}",
+            pert.joint_offset[0]
+        );
+        // `b` follows the deflected `a` (stays level) and gives way by the coupling's own
+        // compliance.
+        let want_b = -dq_a + cb * tau_b;
+        assert!(
+            close(pert.joint_offset[1], want_b, 1e-12),
+            "q={q}: {}",
+            pert.joint_offset[1]
+        );
+    }
+}
+
 #[test]
 fn lateral_compliance_tilts_with_the_bending_moment() {
     let src = r#"
