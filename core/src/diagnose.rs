@@ -383,7 +383,11 @@ fn mark_ties(ranking: &mut [RankedCandidate]) {
 /// z-score of the mean per-pose difference `|b|² − |a|²` of two sets of held-out errors:
 /// how many standard errors `b` is worse than `a` (0 when they agree at every pose).
 fn paired_z(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
-    let d: Vec<f64> = a.iter().zip(b).map(|(a, b)| b.norm_squared() - a.norm_squared()).collect();
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(a, b)| b.norm_squared() - a.norm_squared())
+        .collect();
     let n = d.len() as f64;
     if n < 2.0 {
         return 0.0;
