@@ -153,18 +153,20 @@ fn html(r: &DiagnosisReport) -> String {
             esc(&s.label),
             esc(&s.summary)
         );
-        h.push_str("<table><tr><th>candidate</th><th>params</th><th>held-out RMS (mm)</th><th>removed</th><th>earns its parameters</th></tr>\n");
+        h.push_str("<table><tr><th>candidate</th><th>params (determined / added)</th><th>held-out RMS (mm)</th><th>removed</th><th>earns its parameters</th><th>data cannot tell it from the first</th></tr>\n");
         for c in &s.ranking {
             let rms = c
                 .heldout
                 .map_or_else(|| "failed".to_string(), |x| format!("{:.4}", x.rms_mm));
             let _ = writeln!(
                 h,
-                "<tr><td>{}</td><td>{}</td><td>{rms}</td><td>{:.1}%</td><td>{}</td></tr>",
+                "<tr><td>{}</td><td>{} / {}</td><td>{rms}</td><td>{:.1}%</td><td>{}</td><td>{}</td></tr>",
                 esc(&c.label),
+                c.identified_params,
                 c.n_params,
                 100.0 * c.share_removed,
-                if c.earns_parameters { "yes" } else { "no" }
+                if c.earns_parameters { "yes" } else { "no" },
+                if c.indistinguishable_from_best { "yes" } else { "" }
             );
         }
         h.push_str("</table>\n");

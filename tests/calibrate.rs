@@ -487,3 +487,45 @@ fn identification_jacobian_matches_finite_differences_of_the_full_model() {
         }
     }
 }
+
+#[test]
+fn an_identified_base_tilt_evaluates_from_its_model_file_as_it_did_in_the_fit() {
+    // A tilt turns the joints seated on the base through their placement, which calibration
+    // moves as well (`j1.alpha` here): the identified robot must predict what the fit did. The
+    // joint compliances make the tilt identifiable apart from the measurement frame.
+    let base = robot("rock-drill.toml");
+    let mut file = base.to_file();
+    let tilt = serde_json::json!({"type": "base_tilt", "tilt": [0.0, 0.0], "compliance": {"j1": 1e-3, "j2": 1e-3}});
+    file.error_models.push(serde_json::from_value(tilt).unwrap());
+    let nominal = base.rebuild(file).unwrap();
+    let deg = 1f64.to_radians();
+    let (truth, _) = truth_of(
+        &nominal,
+        &[
+            ("base_tilt.x", 3.0 * deg),
+            ("base_tilt.y", 2.0 * deg),
+            ("j1.alpha", 0.5 * deg),
+            ("j2.a", 1e-3),
+        ],
+    );
+    let data = measure(&truth, 60, 4);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let cal = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap();
+    let (alpha, _) = value(&cal.report, "j1.alpha");
+    let (tilt, _) = value(&cal.report, "base_tilt.x");
+    assert!(
+        alpha.abs() > 0.01 * deg && tilt.abs() > 0.5 * deg,
+        "j1.alpha {alpha} and the tilt {tilt} must both move for the test to mean something"
+    );
+    let from_file = ErrorStats::from_errors(&position_errors(&cal.robot, &data));
+    assert!(
+        (from_file.rms_mm - cal.report.after.rms_mm).abs() < 1e-6,
+        "fit {:.6} mm, model file {:.6} mm",
+        cal.report.after.rms_mm,
+        from_file.rms_mm
+    );
+    assert!(from_file.rms_mm < 1.5 * NOISE * 3f64.sqrt() * 1e3, "{from_file:?}");
+}

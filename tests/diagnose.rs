@@ -1,11 +1,13 @@
 //! Diagnosis on simulated data of truths carrying a hidden effect with known parameters: the
 //! workflow must name the effect at the right joint or link first and cut the held-out RMS by
-//! at least half; two hidden effects are found in turn; nothing is added when nothing is
-//! missing; a seed gives the same result.
+//! at least half, and say so when the data cannot tell it from another candidate; an effect
+//! that calibrating the model as given absorbs adds nothing; two hidden effects are found in
+//! turn; nothing is added when nothing is missing; a seed gives the same result.
 
 use armcomp_core::Robot;
-use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
+use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::Sample;
 use armcomp_core::robot::Conditions;
 use armcomp_core::sampling::{Sampler, configurations};
@@ -27,9 +29,16 @@ fn with_effects(nominal: &Robot, specs: &[Value]) -> Robot {
     nominal.rebuild(file).expect("test truth builds")
 }
 
-/// Measurements of `truth` at `n` Sobol poses with Gaussian noise `noise` (m per axis); the
-/// temperature drifts from 15 to 35 °C over the campaign when `drift` is set.
-fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, drift: bool) -> Vec<Sample> {
+/// How a campaign measures: the temperature drifts from 15 to 35 °C over it when `drift` is set;
+/// with `payloads` (kg) the poses are measured carrying each in turn.
+#[derive(Debug, Clone, Copy, Default)]
+struct Campaign {
+    drift: bool,
+    payloads: &'static [f64],
+}
+
+/// Measurements of `truth` at `n` Sobol poses with Gaussian noise `noise` (m per axis).
+fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -> Vec<Sample> {
     let poses = configurations(truth.tree(), Sampler::Sobol, n, seed).unwrap();
     let normal = Normal::new(0.0, noise).unwrap();
     let mut rng = StdRng::seed_from_u64(seed + 1000);
@@ -39,10 +48,9 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, drift: bool) -> Vec<S
         .into_iter()
         .enumerate()
         .map(|(i, q)| {
-            let temperature = drift.then(|| 15.0 + 20.0 * i as f64 / n as f64);
             let conditions = Conditions {
-                temperature,
-                payload: None,
+                temperature: campaign.drift.then(|| 15.0 + 20.0 * i as f64 / n as f64),
+                payload: (!campaign.payloads.is_empty()).then(|| campaign.payloads[i % campaign.payloads.len()]),
             };
             let mut p = truth.measured_position(&q, point, conditions, &mut ws);
             for k in 0..3 {
@@ -53,8 +61,8 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, drift: bool) -> Vec<S
                 point,
                 position: p,
                 orientation: None,
-                payload: None,
-                temperature,
+                payload: conditions.payload,
+                temperature: conditions.temperature,
                 torque: None,
             }
         })
@@ -81,167 +89,415 @@ fn run(start: &Robot, samples: &[Sample], noise: f64, max_steps: usize) -> Diagn
         .report
 }
 
-/// A hidden effect on a built-in robot.
-struct Case {
-    robot: &'static str,
-    effect: &'static str,
-    location: &'static str,
-    truth: Value,
-    noise: f64,
-    drift: bool,
+/// What the diagnosis must conclude about a hidden effect.
+#[derive(Debug, Clone)]
+enum Expect {
+    /// Named first at `location`; the step must also say that the data cannot tell it from
+    /// each of `equivalent` (effect, location), which the comment of the case explains.
+    ///
+    /// It must cut the held-out RMS by at least half, unless `below_noise`: then what the model
+    /// as given leaves of the effect after calibration (on noise-free data) is smaller than
+    /// the noise floor, which the test checks, so no diagnosis can halve the held-out RMS, and
+    /// it must instead bring it down to the noise floor.
+    Named {
+        location: &'static str,
+        equivalent: &'static [(&'static str, &'static str)],
+        below_noise: bool,
+    },
+    /// Calibrating the model as given absorbs it (hidden `at` a joint, or the base and tool):
+    /// nothing is added and the held-out RMS already sits at the noise floor.
+    Absorbed { at: &'static str },
 }
 
-/// Every case of the sweep: each effect the library can reveal on each robot, at magnitudes a
-/// real machine shows (the rock drill is a soft 3-D printed scale model seen by a camera, the
-/// industrial arm a steel PUMA seen by a laser tracker).
-fn cases() -> Vec<Case> {
-    let case = |robot, effect, location, truth, noise, drift| Case {
-        robot,
-        effect,
+/// A hidden effect on a built-in robot.
+#[derive(Debug, Clone)]
+struct Case {
+    robot: &'static str,
+    /// Beam sections the nominal file declares (link, `[links.beam]` as JSON).
+    beams: Vec<(&'static str, Value)>,
+    /// Error models the nominal model already knows (the truth has them too).
+    known: Vec<Value>,
+    /// The hidden effect.
+    hidden: Value,
+    expect: Expect,
+    noise: f64,
+    campaign: Campaign,
+}
+
+impl Case {
+    fn effect(&self) -> &str {
+        self.hidden["type"].as_str().unwrap()
+    }
+
+    /// The robot file as given, with the beams and the known effects.
+    fn nominal(&self) -> Robot {
+        let base = robot(self.robot);
+        let mut file = base.to_file();
+        for (link, beam) in &self.beams {
+            let spec = file
+                .links
+                .iter_mut()
+                .find(|l| l.name == *link)
+                .expect("the link exists");
+            spec.beam = Some(serde_json::from_value(beam.clone()).expect("test beam reads"));
+        }
+        with_effects(&base.rebuild(file).expect("nominal builds"), &self.known)
+    }
+}
+
+/// Hidden on the rock drill, a soft 3-D printed scale model seen by a binocular camera
+/// (0.05 mm per axis).
+fn rock_drill(hidden: Value, expect: Expect) -> Case {
+    Case {
+        robot: "rock-drill.toml",
+        beams: Vec::new(),
+        known: Vec::new(),
+        hidden,
+        expect,
+        noise: 0.05e-3,
+        campaign: Campaign::default(),
+    }
+}
+
+/// Hidden on the industrial arm, a PUMA 560 seen by a laser tracker (0.02 mm per axis).
+fn industrial(hidden: Value, expect: Expect) -> Case {
+    Case {
+        robot: "industrial-6dof.toml",
+        beams: Vec::new(),
+        known: Vec::new(),
+        hidden,
+        expect,
+        noise: 0.02e-3,
+        campaign: Campaign::default(),
+    }
+}
+
+fn named(location: &'static str) -> Expect {
+    Expect::Named {
         location,
-        truth,
-        noise,
-        drift,
-    };
-    let (camera, tracker) = (0.05e-3, 0.02e-3);
+        equivalent: &[],
+        below_noise: false,
+    }
+}
+
+fn named_below_noise(location: &'static str) -> Expect {
+    Expect::Named {
+        location,
+        equivalent: &[],
+        below_noise: true,
+    }
+}
+
+/// Every case of the sweep: each effect of the library on each built-in robot, at magnitudes a
+/// real machine shows.
+fn cases() -> Vec<Case> {
     vec![
-        case(
-            "rock-drill.toml",
-            "joint_compliance",
-            "j2",
+        // The swing link is a 60 mm stub from the swing axis to the boom pivot: its bending
+        // turns the pivot about j2's axis in proportion to the moment about it, exactly as the
+        // compliance of j2 does.
+        rock_drill(
             json!({"type": "joint_compliance", "compliance": {"j2": 1e-3}}),
-            camera,
-            false,
+            Expect::Named {
+                location: "j2",
+                equivalent: &[("cantilever_deflection", "swing")],
+                below_noise: false,
+            },
         ),
-        case(
-            "rock-drill.toml",
-            "lateral_compliance",
-            "j2",
-            json!({"type": "lateral_compliance", "compliance": {"j2": [4e-4, 4e-4]}}),
-            camera,
-            false,
+        // Torsion of the swing stub turns the boom pivot about the stub's axis in proportion
+        // to the moment about that axis: exactly j2's lateral tilt (its other lateral axis is
+        // vertical, and gravity never loads it). No pose or payload tells them apart. The
+        // printed pin tilts about as easily as the joint turns (1e-3 above); at the truth
+        // twin's 3e-4, calibrating the geometry leaves less of it than the camera's noise.
+        rock_drill(
+            json!({"type": "lateral_compliance", "compliance": {"j2": [1.5e-3, 1.5e-3]}}),
+            Expect::Named {
+                location: "j2",
+                equivalent: &[("cantilever_deflection", "swing")],
+                below_noise: false,
+            },
         ),
-        case(
-            "rock-drill.toml",
-            "cantilever_deflection",
-            "boom",
+        rock_drill(
+            json!({"type": "lateral_compliance", "compliance": {"j2": [3e-4, 3e-4]}}),
+            Expect::Named {
+                location: "j2",
+                equivalent: &[("cantilever_deflection", "swing")],
+                below_noise: true,
+            },
+        ),
+        rock_drill(
             json!({"type": "cantilever_deflection", "links": ["boom"], "ei_scale": {"boom": 0.5}}),
-            camera,
-            false,
+            named("boom"),
         ),
-        case(
-            "rock-drill.toml",
-            "backlash",
-            "j6",
-            json!({"type": "backlash", "backlash": {"j6": 0.3}}),
-            camera,
-            false,
-        ),
-        case(
-            "rock-drill.toml",
-            "transmission_scale",
-            "j2",
+        rock_drill(json!({"type": "backlash", "backlash": {"j6": 0.3}}), named("j6")),
+        // Over j2's 30° range an eccentricity a·sin q + b·cos q is a scale and an offset.
+        rock_drill(
             json!({"type": "transmission_scale", "scale": {"j2": 0.01}}),
-            camera,
-            false,
+            Expect::Named {
+                location: "j2",
+                equivalent: &[("encoder_eccentricity", "j2")],
+                below_noise: false,
+            },
         ),
-        case(
-            "rock-drill.toml",
-            "thermal_growth",
-            "global",
-            json!({"type": "thermal_growth", "coefficient": 7e-5}),
-            camera,
-            true,
+        Case {
+            campaign: Campaign {
+                drift: true,
+                payloads: &[],
+            },
+            ..rock_drill(json!({"type": "thermal_growth", "coefficient": 7e-5}), named("global"))
+        },
+        rock_drill(
+            json!({"type": "encoder_eccentricity", "eccentricity": {"j4": [0.8, -0.6]}}),
+            named("j4"),
         ),
-        case(
-            "industrial-6dof.toml",
-            "joint_compliance",
-            "j2",
+        // A base set 2 mm and 0.3° off and a tool 1.5 mm off are what the measurement frame and
+        // the marker offsets identify.
+        rock_drill(
+            json!({"type": "geometric_offsets", "base": [2.0, -1.5, 1.0, 0.3, -0.2, 0.5], "tool": [1.0, 0.5, -1.5, 0.0, 0.0, 0.0]}),
+            Expect::Absorbed { at: "base and tool" },
+        ),
+        // A drill rig in a mine decline of 1:11 (5°); the joint compliances are known from an
+        // earlier diagnosis (j2) and the data sheet (j1, which a level base never loads). The
+        // measurement frame takes up the rigid turn; what the tilted gravity bends is left.
+        Case {
+            known: vec![json!({"type": "joint_compliance", "compliance": {"j1": 1e-3, "j2": 1e-3}})],
+            ..rock_drill(
+                json!({"type": "base_tilt", "tilt": [0.0, 5.0], "compliance": {"j1": 1e-3, "j2": 1e-3}}),
+                named_below_noise("global"),
+            )
+        },
+        // The drill is 0.15 kg heavier than its file says; the campaign measures with no, a
+        // 0.2 kg and a 0.5 kg test weight, which pins the compliance down. Over j2's 30° the
+        // extra weight bends the boom by nearly the same angle everywhere, which the joint
+        // offset takes up, so little of it is left to find.
+        Case {
+            known: vec![json!({"type": "joint_compliance", "compliance": {"j2": 1e-3}})],
+            campaign: Campaign {
+                drift: false,
+                payloads: &[0.0, 0.2, 0.5],
+            },
+            ..rock_drill(
+                json!({"type": "payload_mass_error", "mass": 0.15, "compliance": {"j2": 1e-3}}),
+                named_below_noise("global"),
+            )
+        },
+        // The PUMA's shoulder j2 sits at the origin of j1's frame: j1 tilting about the axis
+        // parallel to j2's in proportion to the moment about it is j2's compliance.
+        industrial(
             json!({"type": "joint_compliance", "compliance": {"j2": 5e-6}}),
-            tracker,
-            false,
+            Expect::Named {
+                location: "j2",
+                equivalent: &[("lateral_compliance", "j1")],
+                below_noise: false,
+            },
         ),
-        case(
-            "industrial-6dof.toml",
-            "lateral_compliance",
-            "j2",
-            json!({"type": "lateral_compliance", "compliance": {"j2": [5e-6, 5e-6]}}),
-            tracker,
-            false,
+        // The lateral moment at the shoulder is the weight beyond it times the 149 mm shoulder
+        // offset along j2's axis, the same in every pose: the tilt is a constant that
+        // calibrating the geometry takes up.
+        industrial(
+            json!({"type": "lateral_compliance", "compliance": {"j2": [5e-5, 5e-5]}}),
+            Expect::Absorbed { at: "j2" },
         ),
-        case(
-            "industrial-6dof.toml",
-            "backlash",
-            "j2",
-            json!({"type": "backlash", "backlash": {"j2": 0.03}}),
-            tracker,
-            false,
+        // The pedestal gives way under the arm's moment, more about one base axis than the other.
+        industrial(
+            json!({"type": "lateral_compliance", "compliance": {"j1": [8e-6, 2e-6]}}),
+            named("j1"),
         ),
-        case(
-            "industrial-6dof.toml",
-            "encoder_eccentricity",
-            "j3",
+        industrial(json!({"type": "backlash", "backlash": {"j2": 0.03}}), named("j2")),
+        industrial(
             json!({"type": "encoder_eccentricity", "eccentricity": {"j3": [0.03, 0.02]}}),
-            tracker,
-            false,
+            named("j3"),
         ),
-        case(
-            "industrial-6dof.toml",
-            "transmission_scale",
-            "j3",
+        industrial(
             json!({"type": "transmission_scale", "scale": {"j3": 0.001}}),
-            tracker,
-            false,
+            named("j3"),
         ),
-        case(
-            "industrial-6dof.toml",
-            "thermal_growth",
-            "global",
-            json!({"type": "thermal_growth", "coefficient": 1.2e-5}),
-            tracker,
-            true,
+        Case {
+            campaign: Campaign {
+                drift: true,
+                payloads: &[],
+            },
+            // Cast aluminium links.
+            ..industrial(
+                json!({"type": "thermal_growth", "coefficient": 2.3e-5}),
+                named("global"),
+            )
+        },
+        // The upper arm and forearm as cast aluminium boxes; the truth bends twice as much, a
+        // few micrometres at the tool, below the tracker's noise.
+        Case {
+            beams: vec![
+                (
+                    "link2",
+                    json!({"section": {"shape": "rect_tube", "width": 100.0, "height": 150.0, "wall": 6.0}, "youngs_modulus": 70e9}),
+                ),
+                (
+                    "link3",
+                    json!({"section": {"shape": "rect_tube", "width": 80.0, "height": 100.0, "wall": 5.0}, "youngs_modulus": 70e9}),
+                ),
+            ],
+            ..industrial(
+                json!({"type": "cantilever_deflection", "links": ["link2"], "ei_scale": {"link2": 0.5}}),
+                named_below_noise("link2"),
+            )
+        },
+        industrial(
+            json!({"type": "geometric_offsets", "base": [2.0, -1.5, 1.0, 0.3, -0.2, 0.5], "tool": [1.0, 0.5, -1.5, 0.0, 0.0, 0.0]}),
+            Expect::Absorbed { at: "base and tool" },
         ),
+        // Mounted on a mobile platform standing 2° off level both ways; compliances of the
+        // truth twin; measured with and without a 2.5 kg test weight.
+        Case {
+            known: vec![
+                json!({"type": "joint_compliance", "compliance": {"j1": 6e-5, "j2": 6e-5, "j3": 1e-4, "j5": 1.5e-4}}),
+            ],
+            campaign: Campaign {
+                drift: false,
+                payloads: &[0.0, 2.5],
+            },
+            ..industrial(
+                json!({"type": "base_tilt", "tilt": [2.0, 2.0], "compliance": {"j1": 6e-5, "j2": 6e-5, "j3": 1e-4, "j5": 1.5e-4}}),
+                named_below_noise("global"),
+            )
+        },
+        // The gripper weighs 1 kg more than declared; measured with and without a 2.5 kg
+        // test weight.
+        Case {
+            known: vec![json!({"type": "joint_compliance", "compliance": {"j2": 6e-5, "j3": 1e-4, "j5": 1.5e-4}})],
+            campaign: Campaign {
+                drift: false,
+                payloads: &[0.0, 2.5],
+            },
+            ..industrial(
+                json!({"type": "payload_mass_error", "mass": 1.0, "compliance": {"j2": 6e-5, "j3": 1e-4, "j5": 1.5e-4}}),
+                named("global"),
+            )
+        },
     ]
 }
 
-fn check_case(c: &Case, n: usize) {
-    let nominal = robot(c.robot);
-    let truth = with_effects(&nominal, std::slice::from_ref(&c.truth));
-    let samples = measure(&truth, n, c.noise, 11, c.drift);
+/// Diagnoses `n` measurements of the case's truth, starting from the model as given, and checks
+/// what the case expects.
+fn check_case(c: &Case, n: usize) -> CaseResult {
+    let nominal = c.nominal();
+    let truth = with_effects(&nominal, std::slice::from_ref(&c.hidden));
+    let samples = measure(&truth, n, c.noise, 11, c.campaign);
     let r = run(&nominal, &samples, c.noise, 1);
-    let step = r.steps.first().unwrap_or_else(|| {
-        panic!(
-            "{} {}: nothing found; ranking {:#?}",
-            c.robot, c.effect, r.final_model.ranking
-        )
-    });
-    assert_eq!(
-        (step.effect.as_str(), step.location.as_str()),
-        (c.effect, c.location),
-        "{}: found {} instead of {} at {}",
-        c.robot,
-        step.label,
-        c.effect,
-        c.location
-    );
-    assert!(
-        step.heldout_after.rms_mm <= 0.5 * r.initial.rms_mm,
-        "{} {}: held-out RMS {:.4} → {:.4} mm is not cut by half",
-        c.robot,
-        c.effect,
-        r.initial.rms_mm,
-        step.heldout_after.rms_mm
-    );
+    let what = format!("{} {}", c.robot, c.effect());
+    // Held-out norms of Gaussian noise have an RMS of σ√3 (mm); predicting with some forty
+    // parameters fitted on two thirds of the poses adds 5 to 10 %.
+    let floor = c.noise * 1e3 * 3f64.sqrt();
+    let result = CaseResult {
+        named: r.steps.first().map(|s| s.label.clone()),
+        before_mm: r.initial.rms_mm,
+        after_mm: r.steps.first().map_or(r.initial.rms_mm, |s| s.heldout_after.rms_mm),
+    };
+    match &c.expect {
+        Expect::Named {
+            location,
+            equivalent,
+            below_noise,
+        } => {
+            let step = r
+                .steps
+                .first()
+                .unwrap_or_else(|| panic!("{what}: nothing found; ranking {:#?}", r.final_model.ranking));
+            assert_eq!(
+                (step.effect.as_str(), step.location.as_str()),
+                (c.effect(), *location),
+                "{what}: found {} instead, at {}",
+                step.label,
+                step.location
+            );
+            if *below_noise {
+                let left = left_after_calibration(&nominal, &truth, n, c);
+                assert!(
+                    left < floor,
+                    "{what}: calibration leaves {left:.4} mm of it on exact data, not below the noise floor {floor:.4} mm"
+                );
+                assert!(
+                    step.heldout_after.rms_mm < 1.2 * floor,
+                    "{what}: held-out RMS {:.4} mm after the step is above the noise floor {floor:.4} mm",
+                    step.heldout_after.rms_mm
+                );
+            } else {
+                assert!(
+                    step.heldout_after.rms_mm <= 0.5 * r.initial.rms_mm,
+                    "{what}: held-out RMS {:.4} → {:.4} mm is not cut by half",
+                    r.initial.rms_mm,
+                    step.heldout_after.rms_mm
+                );
+            }
+            for (effect, location) in *equivalent {
+                let tied = step
+                    .ranking
+                    .iter()
+                    .find(|k| k.effect == *effect && k.location == *location)
+                    .is_some_and(|k| k.indistinguishable_from_best);
+                assert!(
+                    tied,
+                    "{what}: the diagnosis does not say that the data cannot tell it from {effect} at {location}; it lists {:?}",
+                    step.equivalent
+                );
+            }
+        }
+        Expect::Absorbed { .. } => {
+            // The reason, independently: on noise-free data of the truth, calibrating the
+            // model as given leaves nothing above a tenth of the noise.
+            let left = left_after_calibration(&nominal, &truth, n, c);
+            assert!(
+                left < 0.1 * c.noise * 1e3,
+                "{what}: calibration leaves {left:.5} mm of it on exact data"
+            );
+            assert!(
+                r.steps.is_empty(),
+                "{what}: added {:?}",
+                r.steps.iter().map(|s| &s.label).collect::<Vec<_>>()
+            );
+            assert!(
+                r.initial.rms_mm < 1.2 * floor,
+                "{what}: held-out RMS {:.4} mm is above the noise floor {floor:.4} mm",
+                r.initial.rms_mm
+            );
+        }
+    }
+    result
+}
+
+/// RMS (mm) of what calibrating `nominal` leaves of `truth` on `n` noise-free measurements.
+fn left_after_calibration(nominal: &Robot, truth: &Robot, n: usize, c: &Case) -> f64 {
+    let exact = measure(truth, n, 1e-12, 11, c.campaign);
+    let fit = calibrate(nominal, &exact, &params(c.noise, 1).calibration, &mut |_| {}).unwrap();
+    ErrorStats::from_errors(&position_errors(&fit.robot, &exact)).rms_mm
+}
+
+/// One row of the sweep's table.
+struct CaseResult {
+    named: Option<String>,
+    before_mm: f64,
+    after_mm: f64,
+}
+
+/// The sweep's case of `effect` hidden in `robot` (the first, when there are several).
+fn case(robot: &str, effect: &str) -> Case {
+    cases()
+        .into_iter()
+        .find(|c| c.robot == robot && c.effect() == effect)
+        .expect("the sweep has the case")
 }
 
 #[test]
-fn rock_drill_joint_compliance_is_named_first() {
-    check_case(&cases()[0], 90);
+fn rock_drill_joint_compliance_is_named_first_and_its_twin_the_swing_bending_said_to_be_tied() {
+    check_case(&case("rock-drill.toml", "joint_compliance"), 90);
 }
 
 #[test]
 fn industrial_backlash_is_named_first() {
-    check_case(&cases()[8], 90);
+    check_case(&case("industrial-6dof.toml", "backlash"), 90);
+}
+
+#[test]
+fn industrial_geometric_offsets_are_absorbed_and_nothing_is_added() {
+    check_case(&case("industrial-6dof.toml", "geometric_offsets"), 60);
 }
 
 #[test]
@@ -255,7 +511,7 @@ fn two_hidden_effects_are_found_in_turn() {
         ],
     );
     let noise = 0.02e-3;
-    let samples = measure(&truth, 100, noise, 5, false);
+    let samples = measure(&truth, 100, noise, 5, Campaign::default());
     let r = run(&nominal, &samples, noise, 3);
     let mut found: Vec<(&str, &str)> = r
         .steps
@@ -276,7 +532,7 @@ fn two_hidden_effects_are_found_in_turn() {
 fn nothing_is_added_when_nothing_is_missing() {
     let nominal = robot("rock-drill.toml");
     let noise = 0.05e-3;
-    let samples = measure(&nominal, 60, noise, 3, false);
+    let samples = measure(&nominal, 60, noise, 3, Campaign::default());
     let r = run(&nominal, &samples, noise, 2);
     assert!(
         r.steps.is_empty(),
@@ -295,7 +551,7 @@ fn a_seed_gives_the_same_diagnosis_and_the_rest_is_scored_by_a_predictor() {
         &[json!({"type": "joint_compliance", "compliance": {"j3": 1e-5}})],
     );
     let noise = 0.02e-3;
-    let samples = measure(&truth, 60, noise, 9, false);
+    let samples = measure(&truth, 60, noise, 9, Campaign::default());
     let predictor = armcomp_learn::RidgeSpec::default();
     let go = || {
         let d = diagnose(
@@ -314,12 +570,52 @@ fn a_seed_gives_the_same_diagnosis_and_the_rest_is_scored_by_a_predictor() {
     assert!(report["learnable_residual"]["heldout_after"]["rms_mm"].is_number());
 }
 
-/// The whole sweep: every effect the library can reveal, on both built-in robots.
-/// `cargo test --release --test integration diagnose::full_sweep -- --ignored`
+/// The whole sweep: every effect of the library, on both built-in robots; prints the table.
+/// `cargo test --release --test integration diagnose::full_sweep -- --ignored --nocapture`
 #[test]
 #[ignore]
 fn full_sweep() {
+    let mut failures = Vec::new();
+    println!("| effect | robot | hidden at | requirement | named first | held-out RMS before → after (mm) |");
+    println!("|---|---|---|---|---|---|");
     for c in cases() {
-        check_case(&c, 120);
+        match std::panic::catch_unwind(|| check_case(&c, 120)) {
+            Ok(r) => println!(
+                "| {} | {} | {} | {} | {} | {:.3} → {:.3} |",
+                c.effect(),
+                c.robot.trim_end_matches(".toml"),
+                match &c.expect {
+                    Expect::Named { location, .. } => location,
+                    Expect::Absorbed { at } => at,
+                },
+                match &c.expect {
+                    Expect::Named { below_noise: false, .. } => "named, RMS halved",
+                    Expect::Named { below_noise: true, .. } => "named, RMS to the noise floor",
+                    Expect::Absorbed { .. } => "nothing added, at the noise floor",
+                },
+                r.named.as_deref().unwrap_or("nothing"),
+                r.before_mm,
+                r.after_mm
+            ),
+            Err(e) => {
+                let message = e
+                    .downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default();
+                println!(
+                    "| {} | {} | | | FAILED | |",
+                    c.effect(),
+                    c.robot.trim_end_matches(".toml")
+                );
+                failures.push(message);
+            }
+        }
     }
+    assert!(
+        failures.is_empty(),
+        "{} case(s) failed:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
 }

@@ -689,13 +689,19 @@ fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64) -> Column
 
 /// A copy of `theta` and a forward-difference step for parameter `k`, signed to stay within
 /// the upper bound. Steps are 1e-6 of the value or of a typical scale, whichever is larger.
+///
+/// The typical scales are generous: a parameter that starts at zero (every candidate effect of
+/// the diagnosis does) is stepped by the typical scale alone, and the step must move the tool
+/// well above the round-off of metre-sized positions (1e-16 m) even under small loads. A
+/// compliance stepped by 1e-13 rad/(N m) under the 0.1 N m of a lateral moment moves it by
+/// 1e-14 m, which the identifiability analysis cannot tell from zero.
 fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
     let typical = if p.info.sigma.is_finite() {
         p.info.sigma
     } else {
         match p.info.quantity {
             Quantity::Length | Quantity::Angle | Quantity::Dimensionless => 1e-2,
-            Quantity::Compliance => 1e-7,
+            Quantity::Compliance => 1e-4,
             Quantity::Mass => 0.1,
             Quantity::Rigidity => 1e3,
             Quantity::PerKelvin => 1e-6,

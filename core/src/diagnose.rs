@@ -3,16 +3,31 @@
 //! The current model is calibrated on the training folds of a k-fold split by pose and scored
 //! on the poses each fold holds out. Every candidate effect the registry can instantiate on the
 //! robot (per joint, per link or once) is added in turn, calibrated together with everything
-//! the model already identifies, and scored the same way. The best candidate is accepted when
-//! it *earns its parameters*:
+//! the model already identifies, and scored the same way.
+//!
+//! A candidate's `k` is the number of its parameters the calibration determines (the most over
+//! the folds): a parameter that moves no measured position, like the tilt of a joint about the
+//! vertical, which gravity never loads, is found undeterminable and fixed by the calibration,
+//! and costs nothing. Candidates are ranked by the held-out BIC
+//! `n·ln(SSE/n) + k·ln n` (`n` scalar residuals, SSE pooled over the held-out poses), so of two
+//! candidates that explain the data equally well the one needing fewer parameters comes
+//! first. The best is accepted when it *earns its parameters*:
 //!
 //! - it lowers the pooled held-out RMS by at least [`DiagnoseParams::min_rms_reduction`]
 //!   (5 % by default): held-out scores already punish over-fitting, but a gain of a few percent
 //!   is within what the choice of folds moves a score by on a hundred poses, so it is not
 //!   evidence of a missing effect;
-//! - and the held-out Gaussian log-likelihood gain `n·ln(SSE₀/SSE₁)` (`n` scalar residuals)
-//!   exceeds the BIC penalty `k·ln n` of its `k` parameters, so that a candidate with many
-//!   parameters needs a proportionally larger gain.
+//! - and the held-out Gaussian log-likelihood gain `n·ln(SSE₀/SSE₁)` exceeds the BIC penalty
+//!   `k·ln n`, so that a candidate with many parameters needs a proportionally larger gain.
+//!
+//! Some effects are indistinguishable from tool positions on a given robot: on the rock drill,
+//! torsion of the short swing link turns the boom's pivot about the swing's axis in proportion
+//! to the moment about it, which is exactly a lateral compliance of joint j2; a transmission
+//! scale and an encoder eccentricity look alike over a joint's small range. The accepted
+//! step therefore lists the candidates the data cannot tell from it: those whose held-out
+//! squared errors do not differ from the winner's significantly (paired over the poses, less
+//! than [`TIE_Z`] standard errors). The engineer reads "joint j2 lateral compliance; the data
+//! cannot tell it from swing link bending" rather than a choice the noise made.
 //!
 //! The accepted effect joins the model and the search repeats until no candidate earns its
 //! parameters or [`DiagnoseParams::max_steps`] is reached. Finally a residual predictor is fitted
@@ -36,6 +51,10 @@ use crate::plugin::{Candidate, ErrorModelSpec, PluginInfo, PredictorSpec, Role, 
 use crate::residuals::{ResidualDescription, describe_residuals};
 use crate::robot::Robot;
 use crate::split::{Split, kfold, subset};
+
+/// Paired z-score of the held-out squared errors below which a candidate counts as explaining
+/// the data as well as the accepted one (about 95 % two-sided).
+pub const TIE_Z: f64 = 2.0;
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
@@ -75,17 +94,24 @@ pub struct RankedCandidate {
     pub label: String,
     /// Parameters it adds.
     pub n_params: usize,
+    /// Of these, the ones the calibration determines (see the module documentation).
+    pub identified_params: usize,
     /// Held-out errors with it added (pooled over the folds), when it could be evaluated.
     pub heldout: Option<ErrorStats>,
+    /// Held-out BIC `n·ln(SSE/n) + k·ln n` (SSE in mm²), the ranking key; lower is better.
+    pub heldout_bic: f64,
     /// Share of the held-out RMS before the round that it removes (negative when worse).
     pub share_removed: f64,
     /// Whether it passes the acceptance rule (see the module documentation).
     pub earns_parameters: bool,
+    /// Whether the data cannot tell it from the best candidate of the round (paired z-score of
+    /// the held-out squared errors below [`TIE_Z`]); false for the best itself.
+    pub indistinguishable_from_best: bool,
     /// Why it could not be evaluated.
     pub error: Option<String>,
-    /// Held-out errors per sample (m), for the next round.
+    /// Held-out errors per sample and fold ranks, for ties and the next round.
     #[serde(skip)]
-    heldout_errors: Vec<Vector3<f64>>,
+    evaluation: Option<Heldout>,
 }
 
 /// An identified parameter value (SI).
@@ -116,6 +142,9 @@ pub struct DiagnosisStep {
     pub heldout_after: ErrorStats,
     /// Share of the held-out RMS it removes.
     pub share_removed: f64,
+    /// Other candidates that explain the data as well (labels), which the data cannot tell
+    /// from this one; it comes first by needing fewer parameters or by a margin within noise.
+    pub equivalent: Vec<String>,
     /// Every candidate of the round, best first.
     pub ranking: Vec<RankedCandidate>,
 }
@@ -204,10 +233,10 @@ pub fn diagnose(
     let given = robot.error_models().len();
     // The robot as given plus the accepted effects at their neutral values.
     let mut model = robot.rebuild(robot.to_file())?;
-    let mut current = heldout_errors(&model, samples, &splits, &params.calibration)?;
-    let initial = ErrorStats::from_errors(&current);
-    let initial_residuals = describe_residuals(robot, samples, &current);
-    let mut heldout_norms_mm = vec![norms_mm(&current)];
+    let mut current = heldout(&model, samples, &splits, &params.calibration)?;
+    let initial = ErrorStats::from_errors(&current.errors);
+    let initial_residuals = describe_residuals(robot, samples, &current.errors);
+    let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
     let mut fitted = calibrate(&model, samples, &params.calibration, &mut |_| {})?.robot;
     let mut steps: Vec<DiagnosisStep> = Vec::new();
     let mut last_ranking = Vec::new();
@@ -224,26 +253,41 @@ pub fn diagnose(
             .par_iter()
             .map(|o| score(&model, given, o, samples, &splits, &current, params))
             .collect();
-        ranking.sort_by(|a, b| rank_key(a).total_cmp(&rank_key(b)).then_with(|| a.label.cmp(&b.label)));
+        ranking.sort_by(|a, b| {
+            a.heldout_bic
+                .total_cmp(&b.heldout_bic)
+                .then_with(|| a.label.cmp(&b.label))
+        });
+        mark_ties(&mut ranking);
         let Some(best) = ranking.first().filter(|c| c.earns_parameters).cloned() else {
             last_ranking = ranking;
             break;
         };
+        let equivalent: Vec<String> = ranking
+            .iter()
+            .filter(|c| c.indistinguishable_from_best)
+            .map(|c| c.label.clone())
+            .collect();
         let offer = offers
             .iter()
             .find(|o| o.effect == best.effect && o.candidate.location == best.location)
             .expect("the ranking is made of the offers");
         model = with_effect(&model, offer)?;
         fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
-        let before = ErrorStats::from_errors(&current);
+        let before = ErrorStats::from_errors(&current.errors);
         let after = best.heldout.expect("an accepted candidate was evaluated");
         let values = new_model_values(&fitted);
+        let alternatives = if equivalent.is_empty() {
+            String::new()
+        } else {
+            format!("; the data cannot tell it from: {}", equivalent.join(", "))
+        };
         steps.push(DiagnosisStep {
             effect: best.effect.clone(),
             location: best.location.clone(),
             label: best.label.clone(),
             summary: format!(
-                "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm)",
+                "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm){alternatives}",
                 best.label,
                 values
                     .iter()
@@ -269,11 +313,13 @@ pub fn diagnose(
             heldout_before: before,
             heldout_after: after,
             share_removed: best.share_removed,
+            equivalent,
             ranking,
         });
-        current = best.heldout_errors;
-        heldout_norms_mm.push(norms_mm(&current));
+        current = best.evaluation.expect("an accepted candidate was evaluated");
+        heldout_norms_mm.push(norms_mm(&current.errors));
     }
+    let current = current.errors;
     let learnable_residual = match predictor {
         Some((name, spec)) => Some(learnable(
             &model,
@@ -340,21 +386,64 @@ fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> Calibratio
     out
 }
 
-/// Held-out RMS for ranking; candidates that could not be evaluated go last.
-fn rank_key(c: &RankedCandidate) -> f64 {
-    c.heldout.map_or(f64::INFINITY, |s| s.rms_mm)
+
+/// Marks the candidates whose held-out squared errors do not differ significantly from those
+/// of the first (paired over the poses): the data cannot tell them apart.
+fn mark_ties(ranking: &mut [RankedCandidate]) {
+    let Some((best, rest)) = ranking.split_first_mut() else {
+        return;
+    };
+    let Some(reference) = &best.evaluation else {
+        return;
+    };
+    for c in rest {
+        if let Some(e) = &c.evaluation {
+            c.indistinguishable_from_best = paired_z(&reference.errors, &e.errors) < TIE_Z;
+        }
+    }
 }
 
-/// Held-out errors per sample (m): each fold's calibration scored on the poses it held out.
-fn heldout_errors(
-    model: &Robot,
-    samples: &[Sample],
-    splits: &[Split],
-    calibration: &CalibrationParams,
-) -> Result<Vec<Vector3<f64>>> {
+/// z-score of the mean per-pose difference `|b|² − |a|²` of two sets of held-out errors:
+/// how many standard errors `b` is worse than `a` (0 when they agree at every pose).
+fn paired_z(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let d: Vec<f64> = a
+        .iter()
+        .zip(b)
+        .map(|(a, b)| b.norm_squared() - a.norm_squared())
+        .collect();
+    let n = d.len() as f64;
+    if n < 2.0 {
+        return 0.0;
+    }
+    let mean = d.iter().sum::<f64>() / n;
+    let var = d.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0);
+    let se = (var / n).sqrt();
+    if se > 0.0 { mean / se } else { 0.0 }
+}
+
+/// Held-out errors of a model and what its calibrations could determine.
+#[derive(Debug, Clone, PartialEq)]
+struct Heldout {
+    /// Per sample (m): each fold's calibration scored on the poses it held out.
+    errors: Vec<Vector3<f64>>,
+    /// Per fold, the parameters its calibration could not determine and fixed.
+    fixed: Vec<Vec<String>>,
+}
+
+/// Calibrates `model` on each fold's training poses and scores it on the poses held out.
+fn heldout(model: &Robot, samples: &[Sample], splits: &[Split], calibration: &CalibrationParams) -> Result<Heldout> {
     let mut errors = vec![Vector3::zeros(); samples.len()];
+    let mut fixed = Vec::with_capacity(splits.len());
     for split in splits {
         let fit = calibrate(model, &subset(samples, &split.train), calibration, &mut |_| {})?;
+        fixed.push(
+            fit.report
+                .params
+                .iter()
+                .filter(|p| p.fixed)
+                .map(|p| p.name.clone())
+                .collect(),
+        );
         for (&i, e) in split
             .test
             .iter()
@@ -363,7 +452,13 @@ fn heldout_errors(
             errors[i] = e;
         }
     }
-    Ok(errors)
+    Ok(Heldout { errors, fixed })
+}
+
+/// Held-out BIC of `k` determined parameters over the scalar residuals of `errors` (in mm).
+fn bic(errors: &[Vector3<f64>], k: usize) -> f64 {
+    let n = 3.0 * errors.len() as f64;
+    n * (sse(errors) * 1e6 / n).ln() + k as f64 * n.ln()
 }
 
 fn sse(errors: &[Vector3<f64>]) -> f64 {
@@ -374,15 +469,15 @@ fn norms_mm(errors: &[Vector3<f64>]) -> Vec<f64> {
     errors.iter().map(|e| e.norm() * 1e3).collect()
 }
 
-/// Adds the offered effect to `model_file`, scores it by k-fold and applies the acceptance rule
-/// against the held-out errors `current` of the model without it.
+/// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
+/// against the held-out evaluation `current` of the model without it.
 fn score(
     model: &Robot,
     given: usize,
     offer: &Offer,
     samples: &[Sample],
     splits: &[Split],
-    current: &[Vector3<f64>],
+    current: &Heldout,
     params: &DiagnoseParams,
 ) -> RankedCandidate {
     let mut out = RankedCandidate {
@@ -390,29 +485,44 @@ fn score(
         location: offer.candidate.location.clone(),
         label: offer.candidate.label.clone(),
         n_params: 0,
+        identified_params: 0,
         heldout: None,
+        // Candidates that could not be evaluated go last.
+        heldout_bic: f64::INFINITY,
         share_removed: 0.0,
         earns_parameters: false,
+        indistinguishable_from_best: false,
         error: None,
-        heldout_errors: Vec::new(),
+        evaluation: None,
     };
     let evaluated = (|| {
         let model = with_effect(model, offer)?;
-        let n_params = model.error_models().last().map_or(0, |m| m.params().len());
-        let calibration = selection(&model, given, params);
-        Ok::<_, Error>((n_params, heldout_errors(&model, samples, splits, &calibration)?))
+        let names: Vec<String> = model
+            .error_models()
+            .last()
+            .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
+        Ok::<_, Error>((names, heldout(&model, samples, splits, &selection(&model, given, params))?))
     })();
     match evaluated {
         Err(e) => out.error = Some(e.to_string()),
-        Ok((n_params, errors)) => {
-            let (sse0, sse1) = (sse(current), sse(&errors));
+        Ok((names, evaluation)) => {
+            let n_params = names.len();
+            let k = evaluation
+                .fixed
+                .iter()
+                .map(|fixed| names.iter().filter(|n| !fixed.contains(n)).count())
+                .max()
+                .unwrap_or(n_params);
+            let (sse0, sse1) = (sse(&current.errors), sse(&evaluation.errors));
             let n = 3.0 * samples.len() as f64;
             out.n_params = n_params;
+            out.identified_params = k;
             out.share_removed = 1.0 - (sse1 / sse0).sqrt();
             out.earns_parameters =
-                out.share_removed >= params.min_rms_reduction && n * (sse0 / sse1).ln() > n_params as f64 * n.ln();
-            out.heldout = Some(ErrorStats::from_errors(&errors));
-            out.heldout_errors = errors;
+                out.share_removed >= params.min_rms_reduction && n * (sse0 / sse1).ln() > k as f64 * n.ln();
+            out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
+            out.heldout_bic = bic(&evaluation.errors, k);
+            out.evaluation = Some(evaluation);
         }
     }
     out

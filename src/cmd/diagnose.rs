@@ -146,8 +146,9 @@ fn print_ranking(ranking: &[RankedCandidate]) {
     for c in ranking.iter().take(5) {
         match &c.heldout {
             Some(h) => println!(
-                "    {:<48} {:>2} params  RMS {:.4} mm  {:+6.1}%{}",
+                "    {:<48} {:>2}/{} params  RMS {:.4} mm  {:+6.1}%{}{}",
                 c.label,
+                c.identified_params,
                 c.n_params,
                 h.rms_mm,
                 -100.0 * c.share_removed,
@@ -155,6 +156,11 @@ fn print_ranking(ranking: &[RankedCandidate]) {
                     ""
                 } else {
                     "  (does not earn its parameters)"
+                },
+                if c.indistinguishable_from_best {
+                    "  (the data cannot tell it from the first)"
+                } else {
+                    ""
                 }
             ),
             None => println!("    {:<48} failed: {}", c.label, c.error.as_deref().unwrap_or("")),

@@ -12,7 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{Subtrees, check_finite, joint_gravity_load, resolve_joint_table};
-use crate::geometric_offsets::{Seats, apply_base_motion, base_attachments};
+use crate::geometric_offsets::BaseAttachments;
 use crate::joint_compliance::check_compliance;
 
 /// Base tilt as written in the robot file.
@@ -32,8 +32,7 @@ pub struct BaseTiltSpec {
 pub struct BaseTiltModel {
     spec: BaseTiltSpec,
     units: armcomp_core::Units,
-    base_joints: Seats,
-    base_points: Seats,
+    base: BaseAttachments,
     compliance: Vec<(usize, f64)>,
     subtrees: Subtrees,
     params: Vec<ParamInfo>,
@@ -52,12 +51,10 @@ impl ErrorModelSpec for BaseTiltSpec {
             return Err(issues);
         }
         let u = ctx.build.units;
-        let (base_joints, base_points) = base_attachments(ctx.tree);
         Ok(Box::new(BaseTiltModel {
             spec: self.clone(),
             units: u,
-            base_joints,
-            base_points,
+            base: BaseAttachments::new(ctx.tree),
             compliance,
             subtrees: Subtrees::new(ctx.tree),
             params: vec![
@@ -75,7 +72,7 @@ impl ErrorModel for BaseTiltModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         let eps = Vector6::new(0.0, 0.0, 0.0, values[0], values[1], 0.0);
-        apply_base_motion(&eps, &self.base_joints, &self.base_points, out);
+        self.base.apply(&eps, state.tree, out);
         if self.compliance.is_empty() {
             return;
         }

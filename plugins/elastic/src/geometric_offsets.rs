@@ -5,8 +5,10 @@
 //! on the base gets `Ad(X⁻¹) ε_b` with `X` its placement, which is exactly `E · X`. The tool
 //! error is the point's own twist. Twists are `[dx, dy, dz, rx, ry, rz]` in the frame they move.
 
-use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, StaticState};
-use nalgebra::{Isometry3, Vector6};
+use armcomp_core::{
+    ErrorModel, ErrorModelSpec, Issues, KinematicTree, ModelContext, ParamInfo, Perturbation, Quantity, StaticState,
+};
+use nalgebra::Vector6;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -36,10 +38,7 @@ pub struct GeometricOffsetsSpec {
 pub struct GeometricOffsetsModel {
     spec: GeometricOffsetsSpec,
     units: armcomp_core::Units,
-    /// Joints seated on the base, with the inverse of their placement.
-    base_joints: Seats,
-    /// Points on the base, with the inverse of their pose.
-    base_points: Seats,
+    base: BaseAttachments,
     tool: usize,
     params: Vec<ParamInfo>,
 }
@@ -69,41 +68,37 @@ pub(crate) fn frame_params(prefix: &str, values: &[f64; 6], units: &armcomp_core
         .collect()
 }
 
-/// Rigid motions of the base (`eps`, base coordinates) as twists of the base's joints and points.
-pub(crate) fn apply_base_motion(
-    eps: &Vector6<f64>,
-    joints: &[(usize, Isometry3<f64>)],
-    points: &[(usize, Isometry3<f64>)],
-    out: &mut Perturbation,
-) {
-    for (j, inv) in joints {
-        out.joint_twist[*j] += adjoint(inv, eps);
-    }
-    for (p, inv) in points {
-        out.point_twist[*p] += adjoint(inv, eps);
-    }
+/// The joints seated on the base and the points on it, which a rigid motion of the base moves.
+#[derive(Debug, Clone)]
+pub(crate) struct BaseAttachments {
+    joints: Vec<usize>,
+    points: Vec<usize>,
 }
 
-/// Indices of frames with the inverse of their placement.
-pub(crate) type Seats = Vec<(usize, Isometry3<f64>)>;
+impl BaseAttachments {
+    pub fn new(tree: &KinematicTree) -> Self {
+        BaseAttachments {
+            joints: (0..tree.joints().len())
+                .filter(|&j| tree.joints()[j].parent == 0)
+                .collect(),
+            points: (0..tree.points().len())
+                .filter(|&p| tree.points()[p].body == 0)
+                .collect(),
+        }
+    }
 
-/// Joints seated on the base and points on it, with their inverse placements.
-pub(crate) fn base_attachments(tree: &armcomp_core::KinematicTree) -> (Seats, Seats) {
-    let joints = tree
-        .joints()
-        .iter()
-        .enumerate()
-        .filter(|(_, j)| j.parent == 0)
-        .map(|(i, j)| (i, j.placement.inverse()))
-        .collect();
-    let points = tree
-        .points()
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.body == 0)
-        .map(|(i, p)| (i, p.local.inverse()))
-        .collect();
-    (joints, points)
+    /// Adds the rigid motion `eps` of the base (base coordinates) as twists of its joints and
+    /// points. Their placements are read from `tree`, the one being evaluated: calibration
+    /// varies the placement of a joint on the base (its `alpha`, `d`, ...), and a twist mapped
+    /// through the placement the model was built with would turn the wrong way.
+    pub fn apply(&self, eps: &Vector6<f64>, tree: &KinematicTree, out: &mut Perturbation) {
+        for &j in &self.joints {
+            out.joint_twist[j] += adjoint(&tree.joints()[j].placement.inverse(), eps);
+        }
+        for &p in &self.points {
+            out.point_twist[p] += adjoint(&tree.points()[p].local.inverse(), eps);
+        }
+    }
 }
 
 #[typetag::serde(name = "geometric_offsets")]
@@ -137,12 +132,10 @@ impl ErrorModelSpec for GeometricOffsetsSpec {
             &self.tool,
             &units,
         ));
-        let (base_joints, base_points) = base_attachments(ctx.tree);
         Ok(Box::new(GeometricOffsetsModel {
             spec: self.clone(),
             units,
-            base_joints,
-            base_points,
+            base: BaseAttachments::new(ctx.tree),
             tool,
             params,
         }))
@@ -154,9 +147,9 @@ impl ErrorModel for GeometricOffsetsModel {
         &self.params
     }
 
-    fn perturb(&self, _state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
+    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         let base = Vector6::from_column_slice(&values[..6]);
-        apply_base_motion(&base, &self.base_joints, &self.base_points, out);
+        self.base.apply(&base, state.tree, out);
         out.point_twist[self.tool] += Vector6::from_column_slice(&values[6..12]);
     }
 
