@@ -619,3 +619,61 @@ fn full_sweep() {
         failures.join("\n")
     );
 }
+
+#[test]
+fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
+    // A two-link arm turning in the vertical x-y plane (gravity along −y), a 0.5 kg payload
+    // given by the measurement at the tool: τ_i = −g Σ m·x over what joint i carries.
+    let robot = crate::common::robot_from_toml(
+        r#"
+name = "vertical-2r"
+gravity = [0.0, -9.81, 0.0]
+[units]
+length = "m"
+angle = "rad"
+[kinematics]
+type = "mdh"
+[[kinematics.joints]]
+name = "j1"
+[[kinematics.joints]]
+name = "j2"
+a = 0.7
+[[links]]
+name = "j1"
+mass = 2.0
+com = [0.35, 0.0, 0.0]
+[[links]]
+name = "j2"
+mass = 1.0
+com = [0.2, 0.0, 0.0]
+[[points]]
+name = "tool"
+link = "j2"
+xyz = [0.4, 0.0, 0.0]
+"#,
+    );
+    let g = 9.81;
+    let poses = [[0.0, 0.0], [0.4, -1.2], [2.1, 0.7]];
+    let samples: Vec<Sample> = poses
+        .iter()
+        .map(|q| Sample {
+            q: q.to_vec(),
+            point: robot.tool(),
+            position: nalgebra::Vector3::zeros(),
+            orientation: None,
+            payload: Some(0.5),
+            temperature: None,
+            torque: None,
+        })
+        .collect();
+    let loads = armcomp_core::residuals::gravity_loads(&robot, &samples);
+    for (q, l) in poses.iter().zip(&loads) {
+        let (c1, c12) = (q[0].cos(), (q[0] + q[1]).cos());
+        let tau2 = -g * (1.0 * 0.2 * c12 + 0.5 * 0.4 * c12);
+        let tau1 = -g * (2.0 * 0.35 * c1 + 1.0 * 0.7 * c1 + 0.5 * 0.7 * c1) + tau2;
+        assert!(
+            (l[0] - tau1).abs() < 1e-12 && (l[1] - tau2).abs() < 1e-12,
+            "{l:?} vs {tau1}, {tau2}"
+        );
+    }
+}

@@ -11,6 +11,7 @@ pub mod diagnose;
 pub mod error;
 pub mod evaluate;
 pub mod geom;
+pub mod gravity;
 pub mod ik;
 pub mod io;
 pub mod mass;

@@ -6,7 +6,9 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
+use crate::gravity::{Subtrees, joint_gravity_load};
 use crate::measurement::Sample;
+use crate::plugin::StaticState;
 use crate::robot::{Conditions, Robot};
 use crate::tree::Motion;
 
@@ -112,52 +114,23 @@ pub fn describe_residuals(robot: &Robot, samples: &[Sample], residuals: &[Vector
 /// moves, payload included, at each sample of the rigid model; one entry per tree joint.
 pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
     let tree = robot.tree();
+    let subtrees = Subtrees::new(tree);
     let mut ws = robot.workspace();
     samples
         .iter()
         .map(|s| {
             let conditions = Conditions::of(s);
-            robot.forward_with_into(tree, robot.error_values(), &s.q, conditions, &mut ws);
-            let mass = if conditions.payload.is_some() {
-                &ws.mass
-            } else {
-                robot.mass()
+            tree.forward_into(&s.q, &mut ws.rigid);
+            let state = StaticState {
+                q: &s.q,
+                tree,
+                frames: &ws.rigid,
+                mass: robot.mass_under(conditions, &mut ws.mass),
+                gravity: robot.gravity(),
+                temperature: conditions.temperature,
             };
-            let g = robot.gravity();
-            // Weight and its point of application, world frame.
-            let mut loads: Vec<(usize, Vector3<f64>, Vector3<f64>)> = mass
-                .bodies
-                .iter()
-                .enumerate()
-                .filter(|(_, b)| b.mass > 0.0)
-                .map(|(b, m)| (b, ws.rigid.body[b].transform_point(&m.com.into()).coords, m.mass * g))
-                .collect();
-            if let Some(p) = mass.payload {
-                loads.push((
-                    p.body,
-                    ws.rigid.body[p.body].transform_point(&p.com.into()).coords,
-                    p.mass * g,
-                ));
-            }
-            tree.joints()
-                .iter()
-                .enumerate()
-                .map(|(j, joint)| {
-                    let frame = &ws.rigid.joint_frame[j];
-                    let moved = loads.iter().filter(|(b, _, _)| tree.support(*b).contains(&j));
-                    match joint.motion {
-                        Motion::Revolute(axis) => {
-                            let o = frame.translation.vector;
-                            let m: Vector3<f64> = moved.map(|(_, c, f)| (c - o).cross(f)).sum();
-                            (frame.rotation * axis.into_inner()).dot(&m)
-                        }
-                        Motion::Prismatic(axis) => {
-                            let f: Vector3<f64> = moved.map(|(_, _, f)| *f).sum();
-                            (frame.rotation * axis.into_inner()).dot(&f)
-                        }
-                        Motion::Fixed => 0.0,
-                    }
-                })
+            (0..tree.joints().len())
+                .map(|j| joint_gravity_load(&state, &subtrees, j))
                 .collect()
         })
         .collect()

@@ -515,16 +515,7 @@ impl Robot {
             return;
         }
         ws.perturbation.clear();
-        let mass = match conditions.payload {
-            Some(m) => {
-                ws.mass.clone_from(&self.mass);
-                let (body, com) = self.payload_site;
-                let site = ws.mass.payload.get_or_insert(Payload { mass: 0.0, body, com });
-                site.mass = m;
-                &ws.mass
-            }
-            None => &self.mass,
-        };
+        let mass = self.mass_under(conditions, &mut ws.mass);
         let state = StaticState {
             q,
             tree,
@@ -537,6 +528,21 @@ impl Robot {
             m.perturb(&state, v, &mut ws.perturbation);
         }
         tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+    }
+
+    /// The mass model under `conditions`: the robot's own, or, when they carry a payload, a copy
+    /// in `scratch` with that payload mass at the payload's site.
+    pub fn mass_under<'a>(&'a self, conditions: Conditions, scratch: &'a mut MassModel) -> &'a MassModel {
+        match conditions.payload {
+            Some(m) => {
+                scratch.clone_from(&self.mass);
+                let (body, com) = self.payload_site;
+                let site = scratch.payload.get_or_insert(Payload { mass: 0.0, body, com });
+                site.mass = m;
+                scratch
+            }
+            None => &self.mass,
+        }
     }
 
     /// Adds the deformation of error model `model` alone, with parameter `values`, to `out`,

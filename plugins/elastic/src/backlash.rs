@@ -11,7 +11,8 @@ use armcomp_core::{
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{Subtrees, check_finite, check_positive, joint_gravity_load, resolve_joint_table};
+use crate::common::{check_finite, check_positive, resolve_joint_table};
+use armcomp_core::gravity::{Subtrees, joint_gravity_load};
 
 fn default_smoothing() -> f64 {
     1.0

@@ -11,9 +11,10 @@ use nalgebra::{UnitQuaternion, Vector3, Vector6};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{Subtrees, check_finite, joint_gravity_load, resolve_joint_table};
+use crate::common::{check_finite, resolve_joint_table};
 use crate::geometric_offsets::BaseAttachments;
 use crate::joint_compliance::check_compliance;
+use armcomp_core::gravity::{Subtrees, joint_gravity_load};
 
 /// Base tilt as written in the robot file.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]

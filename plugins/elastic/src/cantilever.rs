@@ -31,7 +31,8 @@ use nalgebra::{Isometry3, Vector3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{Subtrees, check_positive, name_list, subtree_wrench, world_motion_to_twist};
+use crate::common::{check_positive, name_list, world_motion_to_twist};
+use armcomp_core::gravity::{Subtrees, subtree_wrench};
 
 /// Links below this free length (m) are treated as rigid.
 const MIN_LENGTH: f64 = 1e-9;

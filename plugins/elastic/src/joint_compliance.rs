@@ -19,7 +19,8 @@ use armcomp_core::{
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{Subtrees, joint_gravity_load, resolve_joint_table};
+use crate::common::resolve_joint_table;
+use armcomp_core::gravity::{Subtrees, joint_gravity_load};
 
 /// Checks a compliance: finite and not negative.
 pub(crate) fn check_compliance(issues: &mut Issues, path: &str, v: f64) -> bool {

@@ -13,7 +13,8 @@ use nalgebra::{Vector3, Vector6};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{Subtrees, check_finite, name_list, subtree_wrench};
+use crate::common::{check_finite, name_list};
+use armcomp_core::gravity::{Subtrees, subtree_wrench};
 
 /// Lateral compliance as written in the robot file.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
