@@ -386,7 +386,6 @@ fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> Calibratio
     out
 }
 
-
 /// Marks the candidates whose held-out squared errors do not differ significantly from those
 /// of the first (paired over the poses): the data cannot tell them apart.
 fn mark_ties(ranking: &mut [RankedCandidate]) {
@@ -501,7 +500,10 @@ fn score(
             .error_models()
             .last()
             .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
-        Ok::<_, Error>((names, heldout(&model, samples, splits, &selection(&model, given, params))?))
+        Ok::<_, Error>((
+            names,
+            heldout(&model, samples, splits, &selection(&model, given, params))?,
+        ))
     })();
     match evaluated {
         Err(e) => out.error = Some(e.to_string()),
