@@ -43,11 +43,12 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::calibrate::{CalibrationParams, calibrate};
+use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
 use crate::measurement::Sample;
 use crate::param::Quantity;
-use crate::plugin::{Candidate, ErrorModelSpec, PluginInfo, PredictorSpec, Role, TrainingSet};
+use crate::plugin::{ErrorModelSpec, PluginInfo, PredictorSpec, Role, TrainingSet};
 use crate::residuals::{ResidualDescription, describe_residuals};
 use crate::robot::Robot;
 use crate::split::{Split, kfold, subset};

@@ -5,6 +5,7 @@
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
 
 pub mod calibrate;
+pub mod candidate;
 pub mod collision;
 pub mod compensate;
 pub mod diagnose;
@@ -31,6 +32,7 @@ pub mod tree;
 pub mod units;
 pub mod workspace;
 
+pub use candidate::{Candidate, CandidateFn, CandidateScope, CandidateTemplate};
 pub use collision::{CollisionModel, CollisionWorkspace, Contact};
 pub use error::{Error, Issue, Issues, Result};
 pub use ik::{
@@ -39,8 +41,8 @@ pub use ik::{
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Candidate, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData,
-    ModelContext, PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
+    PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};

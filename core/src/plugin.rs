@@ -10,11 +10,11 @@ use std::path::Path;
 use nalgebra::{Isometry3, Vector3};
 use schemars::{Schema, SchemaGenerator};
 
+use crate::candidate::CandidateFn;
 use crate::error::{Issues, Result};
 use crate::mass::MassModel;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
-use crate::robot::Robot;
 use crate::shape::Shape;
 use crate::tree::KinematicTree;
 use crate::units::Units;
@@ -56,7 +56,7 @@ pub struct PluginInfo {
     pub diagnosis_candidate: bool,
     /// The instances of the effect worth trying on a robot (per joint, per link or global),
     /// for the diagnosis workflow; `None` for plugins it cannot instantiate.
-    pub candidates: Option<fn(&Robot) -> Vec<Candidate>>,
+    pub candidates: Option<&'static CandidateFn>,
     /// Generates the JSON Schema of its spec (without the `type` field).
     pub schema: fn(&mut SchemaGenerator) -> Schema,
 }
@@ -68,18 +68,6 @@ impl Debug for PluginInfo {
             .field("role", &self.role)
             .finish()
     }
-}
-
-/// One instance of an error model the diagnosis workflow may add to a robot.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Candidate {
-    /// Where it acts: a joint or link name, or `global`.
-    pub location: String,
-    /// What a field engineer calls it, e.g. `joint j2 compliance`.
-    pub label: String,
-    /// The spec as the robot file's JSON form (with its `type`), at values that add nothing
-    /// yet (zero compliances, unit rigidity scales): calibration identifies them.
-    pub spec: serde_json::Value,
 }
 
 /// What a spec needs to know about the file it came from.

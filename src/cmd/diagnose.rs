@@ -59,12 +59,19 @@ pub struct Args {
     /// Residual predictor that scores what remains learnable.
     #[arg(long, value_enum, default_value_t = Predictor::Gp)]
     predictor: Predictor,
+    /// A run-time plugin library whose error models join the candidates (repeatable); without
+    /// an extension the platform's naming applies (`libNAME.so`, ...).
+    #[arg(long = "library", value_name = "LIB")]
+    libraries: Vec<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let inputs = [args.robot.as_path(), args.data.as_path()];
     if let Some(out) = &args.out {
         check_not_input(out, &inputs)?;
+    }
+    for lib in &args.libraries {
+        armcomp_sdk::load_library(lib).map_err(|m| anyhow::anyhow!("--library {}: {m}", lib.display()))?;
     }
     let robot = armcomp::load_robot(&args.robot)?;
     let data = read_measurements(&robot, &args.data)?;

@@ -39,11 +39,11 @@ pub use payload_mass_error::{PayloadMassErrorModel, PayloadMassErrorSpec};
 pub use thermal_growth::{ThermalGrowthModel, ThermalGrowthSpec};
 pub use transmission_scale::{TransmissionScaleModel, TransmissionScaleSpec};
 
-use armcomp_core::{Candidate, PluginInfo, Robot, Role};
+use armcomp_core::{CandidateFn, PluginInfo, Role};
 
 macro_rules! entry {
     ($name:literal, $spec:ty, $candidates:expr, $doc:literal) => {{
-        let candidates: Option<fn(&Robot) -> Vec<Candidate>> = $candidates;
+        let candidates: Option<&'static CandidateFn> = $candidates;
         PluginInfo {
             type_name: $name,
             role: Role::ErrorModel,
@@ -61,19 +61,19 @@ pub fn plugins() -> Vec<PluginInfo> {
         entry!(
             "cantilever_deflection",
             CantileverSpec,
-            Some(candidates::cantilever_deflection),
+            Some(&candidates::cantilever_deflection),
             "Links bend under gravity as Euler-Bernoulli cantilevers (own weight, tip force and moment), per-link EI/GJ scale"
         ),
         entry!(
             "joint_compliance",
             JointComplianceSpec,
-            Some(candidates::joint_compliance),
+            Some(&candidates::joint_compliance),
             "Joints give way in proportion to their gravity torque: dq = c * tau(q)"
         ),
         entry!(
             "lateral_compliance",
             LateralComplianceSpec,
-            Some(candidates::lateral_compliance),
+            Some(&candidates::lateral_compliance),
             "Joints tilt about the two axes perpendicular to their axis in proportion to the bending moment they carry"
         ),
         entry!(
@@ -87,37 +87,37 @@ pub fn plugins() -> Vec<PluginInfo> {
         entry!(
             "backlash",
             BacklashSpec,
-            Some(candidates::backlash),
+            Some(&candidates::backlash),
             "Gear dead band per joint; the joint rests on the side its gravity torque pushes it to"
         ),
         entry!(
             "encoder_eccentricity",
             EncoderEccentricitySpec,
-            Some(candidates::encoder_eccentricity),
+            Some(&candidates::encoder_eccentricity),
             "Off-centre encoder: joint angle error a*sin(q) + b*cos(q) per joint"
         ),
         entry!(
             "thermal_growth",
             ThermalGrowthSpec,
-            Some(candidates::thermal_growth),
+            Some(&candidates::thermal_growth),
             "Link lengths grow with temperature: expansion coefficient per kelvin"
         ),
         entry!(
             "base_tilt",
             BaseTiltSpec,
-            Some(candidates::base_tilt),
+            Some(&candidates::base_tilt),
             "The base stands tilted by two small angles; the arm turns with it and gravity tilts through given joint compliances"
         ),
         entry!(
             "payload_mass_error",
             PayloadMassErrorSpec,
-            Some(candidates::payload_mass_error),
+            Some(&candidates::payload_mass_error),
             "The payload is heavier or lighter than declared; the difference bends the joints through their compliances"
         ),
         entry!(
             "transmission_scale",
             TransmissionScaleSpec,
-            Some(candidates::transmission_scale),
+            Some(&candidates::transmission_scale),
             "Gear ratio or encoder scale error per joint: the joint turns (1 + s) times the command"
         ),
     ]

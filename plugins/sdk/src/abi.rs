@@ -42,7 +42,9 @@
 use std::os::raw::c_void;
 
 /// The ABI version this crate speaks. Bumped on any change of a layout or a signature.
-pub const ABI_VERSION: u32 = 1;
+///
+/// Version 2 added [`AbiTypeInfo::candidate_template`].
+pub const ABI_VERSION: u32 = 2;
 
 /// The call succeeded.
 pub const STATUS_OK: i32 = 0;
@@ -118,6 +120,12 @@ pub struct AbiTypeInfo {
     pub diagnosis_candidate: u32,
     /// JSON Schema of the config (draft 2020-12); empty for none.
     pub config_schema: AbiStr,
+    /// How the diagnosis workflow instantiates a candidate error model, as the JSON of
+    /// `armcomp_core::CandidateTemplate`: `{"per": "joint" | "link" | "global", "field": <the
+    /// config field that takes the joint or link name>, "label": <what the effect is called>,
+    /// "config": <the rest of the config at values that add nothing until calibrated>}`.
+    /// Empty: once, globally, with an empty config, labelled with the type name.
+    pub candidate_template: AbiStr,
 }
 
 /// The kinematic tree (see `armcomp_core::KinematicTree`): body 0 is the base, body `j + 1` the

@@ -13,8 +13,8 @@ use std::sync::OnceLock;
 
 use armcomp_core::mass::MassModel;
 use armcomp_core::{
-    AngleUnit, BuildContext, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree, LengthUnit,
-    ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace, Units,
+    AngleUnit, BuildContext, CandidateTemplate, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree,
+    LengthUnit, ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace, Units,
 };
 use nalgebra::Vector3;
 use schemars::JsonSchema;
@@ -22,7 +22,10 @@ use schemars::generate::SchemaSettings;
 use serde::de::DeserializeOwned;
 
 use crate::abi::*;
+
+// The `export_plugins!` expansion builds candidate templates with `json!`.
 use crate::flat::{abi_str, frames_into, mass_into, slice, text, tree_from_abi};
+pub use serde_json;
 
 /// Why a call failed, before it becomes a status code.
 enum Failure {
@@ -111,6 +114,8 @@ pub struct TypeEntry {
     pub doc: &'static str,
     /// Whether diagnosis may try it.
     pub diagnosis_candidate: bool,
+    /// How diagnosis instantiates it (a `CandidateTemplate` as JSON), when it says how.
+    pub candidate_template: Option<fn() -> serde_json::Value>,
     /// How it is built.
     pub constructor: Constructor,
     /// JSON Schema of its config.
@@ -166,6 +171,29 @@ pub fn fit_predictor<S: PredictorSpec + DeserializeOwned>(
     spec.fit(data).map_err(|e| e.to_string())
 }
 
+/// The texts a type describes itself with, made once and kept for the life of the library
+/// (the ABI hands out pointers into them).
+pub struct TypeTexts {
+    schema: String,
+    candidate_template: String,
+}
+
+fn type_texts(t: &TypeEntry) -> Result<TypeTexts, String> {
+    let candidate_template = match t.candidate_template {
+        None => String::new(),
+        Some(template) => {
+            let text = template().to_string();
+            // Checked here so that a malformed template fails when the library is loaded.
+            CandidateTemplate::from_json(&text).map_err(|e| format!("type `{}`: {e}", t.name))?;
+            text
+        }
+    };
+    Ok(TypeTexts {
+        schema: (t.schema)(),
+        candidate_template,
+    })
+}
+
 /// `armcomp_type_count`.
 pub fn type_count(types: &[TypeEntry]) -> u32 {
     u32::try_from(types.len()).unwrap_or(u32::MAX)
@@ -183,13 +211,14 @@ fn entry(types: &[TypeEntry], index: u32) -> Result<&TypeEntry, Failure> {
 /// `out` must be valid for one write.
 pub unsafe fn type_info(
     types: &[TypeEntry],
-    schemas: &OnceLock<Vec<String>>,
+    texts: &OnceLock<Vec<Result<TypeTexts, String>>>,
     index: u32,
     out: *mut AbiTypeInfo,
 ) -> i32 {
     guard(|| {
         let t = entry(types, index)?;
-        let schemas = schemas.get_or_init(|| types.iter().map(|t| (t.schema)()).collect());
+        let texts = texts.get_or_init(|| types.iter().map(type_texts).collect());
+        let own = texts[index as usize].as_ref().map_err(|e| e.clone())?;
         let info = AbiTypeInfo {
             name: abi_str(t.name),
             doc: abi_str(t.doc),
@@ -198,7 +227,8 @@ pub unsafe fn type_info(
                 Constructor::Predictor(_) => ROLE_PREDICTOR,
             },
             diagnosis_candidate: u32::from(t.diagnosis_candidate),
-            config_schema: abi_str(&schemas[index as usize]),
+            config_schema: abi_str(&own.schema),
+            candidate_template: abi_str(&own.candidate_template),
         };
         // SAFETY: the caller guarantees `out` is valid for one write.
         unsafe { out.write(info) };

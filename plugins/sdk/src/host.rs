@@ -22,8 +22,9 @@ use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use armcomp_core::{
-    Error, ErrorModel, ErrorModelSpec, FittedPredictor, Issue, Issues, ModelContext, ParamInfo, Perturbation,
-    PluginInfo, PredictorSpec, Quantity, Result, Role, StaticState, TrainingSet, TreeWorkspace,
+    CandidateFn, CandidateScope, CandidateTemplate, Error, ErrorModel, ErrorModelSpec, FittedPredictor, Issue, Issues,
+    ModelContext, ParamInfo, Perturbation, PluginInfo, PredictorSpec, Quantity, Result, Role, StaticState, TrainingSet,
+    TreeWorkspace,
 };
 use libloading::Library;
 use nalgebra::{Vector3, Vector6};
@@ -188,6 +189,7 @@ impl PluginLibrary {
                 role: 0,
                 diagnosis_candidate: 0,
                 config_schema: abi_str(""),
+                candidate_template: abi_str(""),
             };
             // SAFETY: `info` is valid for one write.
             let status = unsafe { type_info(index, &mut info) };
@@ -195,7 +197,14 @@ impl PluginLibrary {
                 return Err(lib.describe_failure(status, &format!("type {index} cannot be described")));
             }
             // SAFETY: the strings are valid until the next call into the library.
-            let (name, doc, schema) = unsafe { (owned(info.name), owned(info.doc), owned(info.config_schema)) };
+            let (name, doc, schema, template) = unsafe {
+                (
+                    owned(info.name),
+                    owned(info.doc),
+                    owned(info.config_schema),
+                    owned(info.candidate_template),
+                )
+            };
             let role = match info.role {
                 ROLE_ERROR_MODEL => Role::ErrorModel,
                 ROLE_PREDICTOR => Role::Predictor,
@@ -217,16 +226,33 @@ impl PluginLibrary {
                     )
                 })?)
             };
+            let diagnosis_candidate = role == Role::ErrorModel && info.diagnosis_candidate == 1;
+            let candidates = if diagnosis_candidate {
+                let template = if template.is_empty() {
+                    CandidateTemplate {
+                        per: CandidateScope::Global,
+                        field: None,
+                        label: name.replace('_', " "),
+                        config: Default::default(),
+                    }
+                } else {
+                    CandidateTemplate::from_json(&template)
+                        .map_err(|e| format!("{}: type `{name}`: {e}", lib.file_name))?
+                };
+                Some(generic_candidates(path, &name, template))
+            } else {
+                None
+            };
             lib.types.push(LoadedType {
                 index,
-                // The registry holds `&'static str`s; the library lives as long, and is loaded
-                // once per path, so each name is leaked once.
+                // The registry holds `&'static` names and candidate functions; the library
+                // lives as long, and is loaded once per path, so each is leaked once.
                 info: PluginInfo {
                     type_name: Box::leak(name.into_boxed_str()),
                     role,
                     doc: Box::leak(doc.into_boxed_str()),
-                    diagnosis_candidate: info.diagnosis_candidate == 1,
-                    candidates: None,
+                    diagnosis_candidate,
+                    candidates,
                     schema: |g| <PluginErrorModelSpec as JsonSchema>::json_schema(g),
                 },
                 validator,
@@ -281,6 +307,19 @@ impl PluginLibrary {
             _ => format!("{}: {what}: {}", self.file_name, self.last_error()),
         }
     }
+}
+
+/// The diagnosis candidates of a library's error model: `template` instantiated on the robot,
+/// each config wrapped in the `plugin` spec that loads it from the library at `path`.
+fn generic_candidates(path: &Path, model: &str, template: CandidateTemplate) -> &'static CandidateFn {
+    let library = path.to_string_lossy().into_owned();
+    let model = model.to_string();
+    Box::leak(Box::new(move |robot: &armcomp_core::Robot| {
+        template.instantiate(
+            robot,
+            |config| serde_json::json!({ "type": "plugin", "library": library, "model": model, "config": config }),
+        )
+    }))
 }
 
 /// Registry entries of every type of every library loaded so far, in load order of paths.

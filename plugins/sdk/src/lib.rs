@@ -15,6 +15,8 @@
 //!         name: "cable_sag",
 //!         doc: "A cable hanging along the boom pulls its tip down",
 //!         diagnosis_candidate: true,
+//!         candidate: { "per": "link", "field": "link", "label": "cable sag",
+//!                      "config": { "mass_per_length": 0.0 } },
 //!     },
 //! }
 //! ```
@@ -34,9 +36,13 @@ pub use host::{
 /// Exports error models and predictors through the C ABI of [`abi`]. Call it once, at the root
 /// of a `cdylib` crate, listing every type the library provides:
 ///
-/// - `error_model Spec { name: "...", doc: "...", diagnosis_candidate: true }`, where `Spec`
-///   implements `ErrorModelSpec + serde::de::DeserializeOwned + schemars::JsonSchema`; its config
-///   in the robot file is `Spec` as JSON/TOML; `diagnosis_candidate` is optional (false).
+/// - `error_model Spec { name: "...", doc: "...", diagnosis_candidate: true, candidate: {...} }`,
+///   where `Spec` implements `ErrorModelSpec + serde::de::DeserializeOwned + schemars::JsonSchema`;
+///   its config in the robot file is `Spec` as JSON/TOML; `diagnosis_candidate` is optional
+///   (false); `candidate`, optional, is the JSON (as for `serde_json::json!`) of an
+///   `armcomp_core::CandidateTemplate` telling the diagnosis how to instantiate the model, e.g.
+///   `{ "per": "link", "field": "link", "label": "cable sag", "config": { "mass_per_length": 0.0 } }`
+///   (without it, a candidate is tried once, globally, with an empty config).
 /// - `predictor Spec { name: "...", doc: "..." }`, where `Spec` implements
 ///   `PredictorSpec + serde::de::DeserializeOwned + schemars::JsonSchema`.
 ///
@@ -45,12 +51,23 @@ pub use host::{
 /// the default `panic = "unwind"`: panics are caught at the boundary.
 #[macro_export]
 macro_rules! export_plugins {
-    ($($role:ident $spec:ty { name: $name:literal, doc: $doc:literal $(, diagnosis_candidate: $cand:literal)? $(,)? }),+ $(,)?) => {
+    ($($role:ident $spec:ty {
+        name: $name:literal,
+        doc: $doc:literal
+        $(, diagnosis_candidate: $cand:literal)?
+        $(, candidate: $template:tt)?
+        $(,)?
+    }),+ $(,)?) => {
         static ARMCOMP_PLUGIN_TYPES: &[$crate::export::TypeEntry] = &[
-            $($crate::export_plugins!(@entry $role $spec, $name, $doc, $crate::export_plugins!(@candidate $($cand)?))),+
+            $($crate::export_plugins!(
+                @entry $role $spec, $name, $doc,
+                $crate::export_plugins!(@candidate $($cand)?),
+                $crate::export_plugins!(@template $($template)?)
+            )),+
         ];
-        static ARMCOMP_PLUGIN_SCHEMAS: ::std::sync::OnceLock<::std::vec::Vec<::std::string::String>> =
-            ::std::sync::OnceLock::new();
+        static ARMCOMP_PLUGIN_TEXTS: ::std::sync::OnceLock<
+            ::std::vec::Vec<::std::result::Result<$crate::export::TypeTexts, ::std::string::String>>,
+        > = ::std::sync::OnceLock::new();
 
         /// The plugin ABI version this library speaks.
         #[unsafe(no_mangle)]
@@ -77,7 +94,7 @@ macro_rules! export_plugins {
         #[unsafe(no_mangle)]
         pub unsafe extern "C" fn armcomp_type_info(index: u32, out: *mut $crate::abi::AbiTypeInfo) -> i32 {
             // SAFETY: the host follows the ABI, which is what the callee requires.
-            unsafe { $crate::export::type_info(ARMCOMP_PLUGIN_TYPES, &ARMCOMP_PLUGIN_SCHEMAS, index, out) }
+            unsafe { $crate::export::type_info(ARMCOMP_PLUGIN_TYPES, &ARMCOMP_PLUGIN_TEXTS, index, out) }
         }
 
         /// See [`armcomp_sdk::abi`].
@@ -246,20 +263,24 @@ macro_rules! export_plugins {
     };
     (@candidate) => { false };
     (@candidate $cand:literal) => { $cand };
-    (@entry error_model $spec:ty, $name:literal, $doc:literal, $cand:expr) => {
+    (@template) => { None };
+    (@template $template:tt) => { Some(|| $crate::export::serde_json::json!($template)) };
+    (@entry error_model $spec:ty, $name:literal, $doc:literal, $cand:expr, $template:expr) => {
         $crate::export::TypeEntry {
             name: $name,
             doc: $doc,
             diagnosis_candidate: $cand,
+            candidate_template: $template,
             constructor: $crate::export::Constructor::ErrorModel($crate::export::create_model::<$spec>),
             schema: $crate::export::schema_of::<$spec>,
         }
     };
-    (@entry predictor $spec:ty, $name:literal, $doc:literal, $cand:expr) => {
+    (@entry predictor $spec:ty, $name:literal, $doc:literal, $cand:expr, $template:expr) => {
         $crate::export::TypeEntry {
             name: $name,
             doc: $doc,
             diagnosis_candidate: $cand,
+            candidate_template: $template,
             constructor: $crate::export::Constructor::Predictor($crate::export::fit_predictor::<$spec>),
             schema: $crate::export::schema_of::<$spec>,
         }

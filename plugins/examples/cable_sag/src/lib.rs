@@ -5,7 +5,9 @@
 //! `[links.beam]` sections); each bending plane deflects as
 //! `v(x) = w x² (6L² − 4Lx + x²) / (24 EI)` with slope `θ(x) = w x (3L² − 3Lx + x²) / (6 EI)`,
 //! and beyond `L` the link continues rigidly. Joint seats and points on the link move with it.
-//! `μ` is the parameter calibration identifies (`cable_sag.<link>.mass_per_length`).
+//! `μ` is the parameter calibration identifies (`cable_sag.<link>.mass_per_length`). Without a
+//! `length` the hose runs the whole link, to its farthest joint seat or point along x; so the
+//! diagnosis can try a hose on every link that has a beam, from `μ = 0`.
 //!
 //! The same crate is an rlib (the model linked in, `type = "cable_sag"`) and a cdylib (the
 //! run-time plugin, `type = "plugin"`, `model = "cable_sag"`), exported with one macro call.
@@ -21,9 +23,11 @@ use serde::{Deserialize, Serialize};
 pub struct CableSagSpec {
     /// The link the hose runs along; it needs a `[links.beam]`.
     pub link: String,
-    /// Length over which the hose rests on the link, from the link origin (length unit).
+    /// Length over which the hose rests on the link, from the link origin (length unit);
+    /// default: to the link's farthest joint seat or point along its x axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0))]
-    pub length: f64,
+    pub length: Option<f64>,
     /// Mass of the hose per metre (kg/m).
     #[schemars(range(min = 0.0))]
     pub mass_per_length: f64,
@@ -65,10 +69,12 @@ impl ErrorModelSpec for CableSagSpec {
             ),
             Some(_) => {}
         }
-        if !(self.length.is_finite() && self.length > 0.0) {
+        if let Some(length) = self.length
+            && !(length.is_finite() && length > 0.0)
+        {
             issues.push(
                 format!("{path}.length"),
-                format!("expected a positive length, got {}", self.length),
+                format!("expected a positive length, got {length}"),
             );
         }
         if !(self.mass_per_length.is_finite() && self.mass_per_length >= 0.0) {
@@ -89,18 +95,34 @@ impl ErrorModelSpec for CableSagSpec {
             to_local: x.rotation.inverse(),
         };
         let tree = ctx.tree;
+        let seats: Vec<Attached> = (tree.joints().iter().enumerate())
+            .filter(|(_, j)| j.parent == body)
+            .map(|(i, j)| attached(&j.placement, i))
+            .collect();
+        let points: Vec<Attached> = (tree.points().iter().enumerate())
+            .filter(|(_, p)| p.body == body)
+            .map(|(i, p)| attached(&p.local, i))
+            .collect();
+        let length = match self.length {
+            Some(l) => ctx.build.units.len(l),
+            None => seats.iter().chain(&points).map(|a| a.x).fold(0.0, f64::max),
+        };
+        if length <= 0.0 {
+            issues.push(
+                format!("{path}.length"),
+                format!(
+                    "link `{}` has no joint seat or point ahead of its origin along x; give the hose's length",
+                    self.link
+                ),
+            );
+            return Err(issues);
+        }
         Ok(Box::new(CableSagModel {
             spec: self.clone(),
             body,
-            length: ctx.build.units.len(self.length),
-            seats: (tree.joints().iter().enumerate())
-                .filter(|(_, j)| j.parent == body)
-                .map(|(i, j)| attached(&j.placement, i))
-                .collect(),
-            points: (tree.points().iter().enumerate())
-                .filter(|(_, p)| p.body == body)
-                .map(|(i, p)| attached(&p.local, i))
-                .collect(),
+            length,
+            seats,
+            points,
             params: vec![ParamInfo::new(
                 format!("cable_sag.{}.mass_per_length", self.link),
                 Quantity::Other("kg/m"),
@@ -166,5 +188,6 @@ armcomp_sdk::export_plugins! {
         name: "cable_sag",
         doc: "A hose hanging along a link adds its weight as a uniform load: the link bends as a cantilever",
         diagnosis_candidate: true,
+        candidate: { "per": "link", "field": "link", "label": "cable sag", "config": { "mass_per_length": 0.0 } },
     },
 }
