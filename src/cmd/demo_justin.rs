@@ -149,9 +149,9 @@ pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
         println!(
             "\n   leave one out: the full model without one group, held-out mean (mm; full model {last:.2}, paper 3.12)"
         );
-        println!("   {:<46} {:>6} {:>6}", "without", "paper", "ours");
+        println!("   {:<52} {:>6} {:>6}", "without", "paper", "ours");
         for r in &out.leave_one_out {
-            println!("   {:<46} {:>6.2} {:>6.2}", r.group, r.paper_mean_mm, r.heldout.mean_mm);
+            println!("   {:<52} {:>6.2} {:>6.2}", r.group, r.paper_mean_mm, r.heldout.mean_mm);
         }
     }
     if let Some(d) = &out.diagnosis {
@@ -167,25 +167,26 @@ fn print_diagnosis(d: &DiagnosisReport) {
         "\n   armcomp diagnose from the frames-only model ({}-fold held-out, mean / RMS mm)",
         d.folds
     );
-    println!("   {:<4} {:<46} {:>6} {:>6}", "step", "effect", "mean", "RMS");
+    println!("   {:<4} {:<52} {:>6} {:>6}", "step", "effect", "mean", "RMS");
     println!(
-        "   {:<4} {:<46} {:>6.2} {:>6.2}",
+        "   {:<4} {:<52} {:>6.2} {:>6.2}",
         0, "frames only (base + markers)", d.initial.mean_mm, d.initial.rms_mm
     );
     for (i, s) in d.steps.iter().enumerate() {
         println!(
-            "   {:<4} + {:<44} {:>6.2} {:>6.2}",
+            "   {:<4} + {:<50} {:>6.2} {:>6.2}",
             i + 1,
             s.label,
             s.heldout_after.mean_mm,
             s.heldout_after.rms_mm
         );
     }
-    if let Some(best) = d.final_model.ranking.first() {
-        println!(
+    match d.final_model.ranking.first() {
+        Some(best) => println!(
             "   stopped: the best next candidate ({}) does not earn its parameters",
             best.label
-        );
+        ),
+        None => println!("   stopped at the step limit"),
     }
     let paper: Vec<&str> = GROUPS.iter().map(|g| g.label).collect();
     println!("   paper's leave-one-out ranking: {}", paper.join(" > "));
