@@ -394,6 +394,7 @@ fn check_case(c: &Case, n: usize) -> CaseResult {
     let floor = c.noise * 1e3 * 3f64.sqrt();
     let result = CaseResult {
         named: r.steps.first().map(|s| s.label.clone()),
+        summary: r.steps.first().map(|s| s.summary.clone()),
         before_mm: r.initial.rms_mm,
         after_mm: r.steps.first().map_or(r.initial.rms_mm, |s| s.heldout_after.rms_mm),
     };
@@ -478,6 +479,7 @@ fn left_after_calibration(nominal: &Robot, truth: &Robot, n: usize, c: &Case) ->
 
 /// One row of the sweep's table.
 struct CaseResult {
+    summary: Option<String>,
     named: Option<String>,
     before_mm: f64,
     after_mm: f64,
@@ -582,27 +584,31 @@ fn a_seed_gives_the_same_diagnosis_and_the_rest_is_scored_by_a_predictor() {
 #[ignore]
 fn full_sweep() {
     let mut failures = Vec::new();
+    let mut findings = Vec::new();
     println!("| effect | robot | hidden at | requirement | named first | held-out RMS before → after (mm) |");
     println!("|---|---|---|---|---|---|");
     for c in cases() {
         match std::panic::catch_unwind(|| check_case(&c, 120)) {
-            Ok(r) => println!(
-                "| {} | {} | {} | {} | {} | {:.3} → {:.3} |",
-                c.effect(),
-                c.robot.trim_end_matches(".toml"),
-                match &c.expect {
-                    Expect::Named { location, .. } => location,
-                    Expect::Absorbed { at } => at,
-                },
-                match &c.expect {
-                    Expect::Named { below_noise: false, .. } => "named, RMS halved",
-                    Expect::Named { below_noise: true, .. } => "named, RMS to the noise floor",
-                    Expect::Absorbed { .. } => "nothing added, at the noise floor",
-                },
-                r.named.as_deref().unwrap_or("nothing"),
-                r.before_mm,
-                r.after_mm
-            ),
+            Ok(r) => {
+                findings.extend(r.summary.clone());
+                println!(
+                    "| {} | {} | {} | {} | {} | {:.3} → {:.3} |",
+                    c.effect(),
+                    c.robot.trim_end_matches(".toml"),
+                    match &c.expect {
+                        Expect::Named { location, .. } => location,
+                        Expect::Absorbed { at } => at,
+                    },
+                    match &c.expect {
+                        Expect::Named { below_noise: false, .. } => "named, RMS halved",
+                        Expect::Named { below_noise: true, .. } => "named, RMS to the noise floor",
+                        Expect::Absorbed { .. } => "nothing added, at the noise floor",
+                    },
+                    r.named.as_deref().unwrap_or("nothing"),
+                    r.before_mm,
+                    r.after_mm
+                )
+            }
             Err(e) => {
                 let message = e
                     .downcast_ref::<String>()
@@ -617,6 +623,10 @@ fn full_sweep() {
                 failures.push(message);
             }
         }
+    }
+    println!();
+    for f in findings {
+        println!("- {f}");
     }
     assert!(
         failures.is_empty(),
