@@ -68,6 +68,10 @@ impl<'a> Samples<'a> {
     }
 }
 
+/// Smallest scale (rad or m) a joint input is divided by: a milliradian or a millimetre, below
+/// which a joint's spread in the training data is encoder or measurement jitter.
+pub const INPUT_SCALE_FLOOR: f64 = 1e-3;
+
 /// Per-column affine map to zero mean and unit standard deviation, learnt on the training set.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Standardizer {
@@ -104,6 +108,16 @@ impl Standardizer {
             };
         }
         Standardizer { mean, scale }
+    }
+
+    /// [`fit`](Self::fit) for joint values (rad or m): a column that spans less than
+    /// [`INPUT_SCALE_FLOOR`] is scaled by that floor, so a joint that holds still in the data
+    /// stays a near-constant input instead of its encoder jitter growing into one as large as
+    /// the joints that move.
+    pub fn fit_inputs(values: &[f64], width: usize) -> Self {
+        let mut s = Self::fit(values, width);
+        s.scale.iter_mut().for_each(|v| *v = v.max(INPUT_SCALE_FLOOR));
+        s
     }
 
     /// Standardises `raw` into `out`.

@@ -607,7 +607,7 @@ impl PredictorSpec for GpSpec {
         self.check()?;
         let s = Samples::check(data, 2)?;
         let (d, k) = (s.n_inputs, s.n_outputs);
-        let inputs = Standardizer::fit(s.inputs, d);
+        let inputs = Standardizer::fit_inputs(s.inputs, d);
         let outputs = Standardizer::fit(s.targets, k);
         let x = inputs.apply_rows(s.inputs);
         let y = outputs.apply_rows(s.targets);

@@ -168,7 +168,7 @@ impl PredictorSpec for RidgeSpec {
             trig: self.trig,
         };
         let nf = features.count(d);
-        let inputs = Standardizer::fit(s.inputs, d);
+        let inputs = Standardizer::fit_inputs(s.inputs, d);
         let mut z = vec![0.0; d];
         let mut raw = vec![0.0; n * nf];
         for (i, row) in raw.chunks_exact_mut(nf).enumerate() {
