@@ -47,21 +47,6 @@ impl Data {
         Data { inputs, targets }
     }
 
-    /// The same rows with an eighth input for a joint that holds still at 0.3 rad, its encoder
-    /// jittering uniformly by up to `±jitter` (rad).
-    pub fn with_still_joint(&self, jitter: f64, seed: u64) -> Self {
-        let mut rng = StdRng::seed_from_u64(seed);
-        let mut inputs = Vec::with_capacity(self.inputs.len() / 7 * 8);
-        for row in self.inputs.chunks_exact(7) {
-            inputs.extend_from_slice(row);
-            inputs.push(0.3 + jitter * rng.random_range(-1.0..=1.0));
-        }
-        Data {
-            inputs,
-            targets: self.targets.clone(),
-        }
-    }
-
     pub fn set(&self, n_inputs: usize, n_outputs: usize) -> TrainingSet<'_> {
         TrainingSet {
             inputs: &self.inputs,
