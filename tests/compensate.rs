@@ -8,7 +8,7 @@ use armcomp_core::measurement::{read_csv, write_csv};
 use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_learn::{GpSpec, KnnSpec, RidgeSpec};
 use nalgebra::Matrix3xX;
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 
 use crate::cli::armcomp;
 use crate::common::{Scratch, random_configurations, robot, root};
@@ -234,6 +234,150 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
     assert!(exact < 0.1 * before, "exact {exact} m vs uncompensated {before} m");
     assert!(paper < 0.3 * before, "paper {paper} m vs uncompensated {before} m");
     assert!(exact <= paper * 1.05, "exact {exact} m, paper {paper} m");
+}
+
+/// Tool poses of `model` at configurations in the middle half of its joint ranges, their
+/// positions moved by `shift` (m): targets a pose command can reach from the middle.
+fn inner_poses(model: &armcomp_core::Robot, n: usize, seed: u64, shift: Vector3<f64>) -> Vec<Isometry3<f64>> {
+    let mid = mid_range(model);
+    random_configurations(model, n, seed)
+        .iter()
+        .map(|q| {
+            let q: Vec<f64> = q.iter().zip(&mid).map(|(v, m)| m + 0.5 * (v - m)).collect();
+            let mut pose = model.forward(&q).unwrap().point[model.tool()];
+            pose.translation.vector += shift;
+            pose
+        })
+        .collect()
+}
+
+/// A pose target: the tool keeps the asked orientation while the model plus the predicted
+/// residual lands on the asked position, both checked on the model and the predictor directly.
+#[test]
+fn exact_mode_keeps_the_orientation_of_a_pose_target() {
+    let truth = robot("rock-drill-truth.toml");
+    let model = robot("rock-drill-deflection.toml");
+    let data = simulate(
+        &truth,
+        &random_configurations(&truth, 120, 41),
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 1,
+        },
+    )
+    .unwrap();
+    let gp = GpSpec {
+        max_optimization_samples: 60,
+        max_iterations: 15,
+        ..GpSpec::default()
+    };
+    let predictor = fit_residual_predictor(&model, &gp, &data.samples).unwrap();
+    let rotation = model.t_meas_base().rotation.inverse();
+    let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationOptions::default()).unwrap();
+    let (mut out, mut scratch) = ([0.0; 3], Vec::new());
+    for target in inner_poses(&model, 6, 42, Vector3::zeros()) {
+        let c = comp
+            .compensate_target(&IkTarget::Pose(target), &mid_range(&model), CompensationMode::Exact)
+            .unwrap();
+        let q = comp.q().to_vec();
+        let tool = model.forward(&q).unwrap().point[model.tool()];
+        predictor.predict_into(&q, &mut out, &mut scratch);
+        let miss = (tool.translation.vector + rotation * Vector3::from(out) - target.translation.vector).norm();
+        assert!(miss <= 1e-8, "the full model misses the position by {miss:e} m");
+        assert!((c.mismatch - miss).abs() < 1e-12, "reported {:e}, {miss:e}", c.mismatch);
+        let turn = tool.rotation.angle_to(&target.rotation);
+        assert!(
+            turn <= 1e-8,
+            "the tool is turned {turn:e} rad from the asked orientation"
+        );
+        assert!(c.shifts >= 1, "the residual was never applied");
+    }
+}
+
+/// `armcomp compensate` with `qw, qx, qy, qz` columns: the commands put the model's tool on each
+/// target pose, given in the measurement frame.
+#[test]
+fn compensate_cli_reads_pose_targets() {
+    let dir = Scratch::new("compensate-pose");
+    let model = robot("rock-drill-deflection.toml");
+    let t_meas_base = model.t_meas_base();
+    let goals: Vec<Isometry3<f64>> = inner_poses(&model, 5, 43, Vector3::new(0.004, -0.003, 0.005))
+        .into_iter()
+        .map(|p| t_meas_base * p)
+        .collect();
+    let mut csv = String::from("qw,qx,qy,qz,x[mm],y[mm],z[mm]\n");
+    for g in &goals {
+        let (q, p) = (g.rotation.quaternion(), g.translation.vector * 1e3);
+        csv.push_str(&format!("{},{},{},{},{},{},{}\n", q.w, q.i, q.j, q.k, p.x, p.y, p.z));
+    }
+    let targets_path = dir.file("poses.csv", &csv);
+    let out = dir.0.join("commands.csv");
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        "robots/rock-drill-deflection.toml",
+        "--targets",
+        targets_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let nq = model.tree().nq();
+    let poses = armcomp_core::measurement::parse_poses(
+        &text
+            .lines()
+            .map(|l| l.split(',').take(nq).collect::<Vec<_>>().join(","))
+            .collect::<Vec<_>>()
+            .join("\n"),
+        &out,
+        model.tree(),
+        model.file.units,
+    )
+    .unwrap();
+    assert_eq!(poses.len(), goals.len());
+    for (q, goal) in poses.iter().zip(&goals) {
+        let landed = t_meas_base * model.forward(q).unwrap().point[model.tool()];
+        // The commands are written with the file's precision, not the solver's.
+        let miss = (landed.translation.vector - goal.translation.vector).norm();
+        assert!(miss < 1e-6, "position missed by {miss:e} m");
+        let turn = landed.rotation.angle_to(&goal.rotation);
+        assert!(turn < 1e-6, "orientation missed by {turn:e} rad");
+    }
+
+    let half = dir.file("half.csv", "x[mm],y[mm],z[mm],qw,qx\n1,2,3,1,0\n");
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        "robots/rock-drill-deflection.toml",
+        "--targets",
+        half.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("half.csv:1: an orientation needs all four columns qw, qx, qy, qz"),
+        "{err}"
+    );
+    let unnormed = dir.file(
+        "unnormed.csv",
+        "x[mm],y[mm],z[mm],qw,qx,qy,qz\n1,2,3,1,0,0,0\n1,2,3,0.5,0,0,0\n",
+    );
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        "robots/rock-drill-deflection.toml",
+        "--targets",
+        unnormed.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("unnormed.csv:3: orientation quaternion has norm 0.500000, expected 1"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -155,6 +155,22 @@ impl<'a> Compensator<'a> {
         q0: &[f64],
         mode: CompensationMode,
     ) -> std::result::Result<Compensation, IkError> {
+        self.compensate_target(&IkTarget::Position(*target), q0, mode)
+    }
+
+    /// The joint command that puts the tool on `target` (base frame), starting from `q0`: a
+    /// position, or a pose whose orientation the tool then keeps. The predictor corrects the
+    /// position only (it learns position residuals); the orientation is the model's.
+    pub fn compensate_target(
+        &mut self,
+        target: &IkTarget,
+        q0: &[f64],
+        mode: CompensationMode,
+    ) -> std::result::Result<Compensation, IkError> {
+        let position = match target {
+            IkTarget::Position(p) => *p,
+            IkTarget::Pose(t) => t.translation.vector,
+        };
         // With a predictor the first solve only has to come near: the solves after it, from
         // its result, set the final accuracy. Without one it is the answer.
         let first_tolerance = match self.predictor {
@@ -179,7 +195,7 @@ impl<'a> Compensator<'a> {
         loop {
             let residual = self.linearise(predictor, mode, shifts == 0);
             let at = self.ik.robot.frames.point[self.robot.tool()].translation.vector;
-            let mismatch = (at + residual - target).norm();
+            let mismatch = (at + residual - position).norm();
             if shifts == max_shifts || (mode == CompensationMode::Exact && mismatch <= self.options.tolerance) {
                 return Ok(Compensation {
                     corrected_target: at,
@@ -210,7 +226,7 @@ impl<'a> Compensator<'a> {
 
     fn solve(
         &mut self,
-        target: &Vector3<f64>,
+        target: &IkTarget,
         offset: Option<&LinearOffset>,
         q0: &[f64],
         position_tolerance: f64,
@@ -222,7 +238,7 @@ impl<'a> Compensator<'a> {
         solve_ik_with_offset(
             self.robot,
             self.robot.tool(),
-            &IkTarget::Position(*target),
+            target,
             offset,
             q0,
             &options,

@@ -5,10 +5,11 @@ use std::process::ExitCode;
 use anyhow::{Context, bail};
 use armcomp_core::Units;
 use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::ik::IkTarget;
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::measurement::{joint_header, joint_row, split_header};
 use armcomp_core::units::LengthUnit;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -17,7 +18,8 @@ pub struct Args {
     #[arg(long)]
     model: PathBuf,
     /// Targets CSV: columns x, y, z with units in the header (`x[mm]`), else the model's length
-    /// unit; `#` starts a comment line.
+    /// unit, and optionally qw, qx, qy, qz: a tool orientation to keep (unit quaternion, same
+    /// frame as the position); `#` starts a comment line.
     #[arg(long)]
     targets: PathBuf,
     /// Output CSV of joint commands and corrected targets (written atomically).
@@ -45,8 +47,17 @@ enum Frame {
     Base,
 }
 
-/// Reads `x, y, z` targets (m) with their line numbers, erroring with file, line and column.
-fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Vector3<f64>)>> {
+/// One target of the CSV: its line, position (m) and, with the `qw, qx, qy, qz` columns, the
+/// tool orientation to keep.
+struct Target {
+    line: usize,
+    position: Vector3<f64>,
+    orientation: Option<UnitQuaternion<f64>>,
+}
+
+/// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
+/// numbers, erroring with file, line and column.
+fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<Target>> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let mut lines = text
         .lines()
@@ -56,37 +67,49 @@ fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Vector3
     let Some((header_line, header)) = lines.next() else {
         bail!("{}: empty; expected a header `x[mm],y[mm],z[mm]`", path.display());
     };
-    let mut columns = [None; 3];
+    // Columns 0..3 are x, y, z (with their scale to m), 3..7 are qw, qx, qy, qz (scale 1).
+    let mut columns: [Option<(usize, f64)>; 7] = [None; 7];
     let mut n_columns = 0;
     for (c, h) in header.split(',').enumerate() {
         n_columns += 1;
         let (name, unit) = split_header(h);
-        let axis = match name {
-            "x" => 0,
-            "y" => 1,
-            "z" => 2,
-            _ => bail!(
-                "{}:{header_line}: column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`",
+        let Some(slot) = ["x", "y", "z", "qw", "qx", "qy", "qz"].iter().position(|n| *n == name) else {
+            bail!(
+                "{}:{header_line}: column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`, and optionally qw, qx, qy, qz",
                 path.display(),
                 c + 1
-            ),
+            );
         };
-        let scale = match unit {
-            None => units.length.to_si(),
-            Some(u) => LengthUnit::parse(u).map(LengthUnit::to_si).with_context(|| {
+        let scale = match (slot, unit) {
+            (0..3, None) => units.length.to_si(),
+            (0..3, Some(u)) => LengthUnit::parse(u).map(LengthUnit::to_si).with_context(|| {
                 format!(
                     "{}:{header_line}: column {}: unknown length unit `{u}` (expected m, cm, mm or in)",
                     path.display(),
                     c + 1
                 )
             })?,
+            (_, None) => 1.0,
+            (_, Some(u)) => bail!(
+                "{}:{header_line}: column {}: a quaternion component has no unit, found `[{u}]`",
+                path.display(),
+                c + 1
+            ),
         };
-        if columns[axis].replace((c, scale)).is_some() {
+        if columns[slot].replace((c, scale)).is_some() {
             bail!("{}:{header_line}: column `{name}` appears twice", path.display());
         }
     }
-    let Some(columns) = columns.iter().copied().collect::<Option<Vec<_>>>() else {
+    if columns[..3].iter().any(Option::is_none) {
         bail!("{}:{header_line}: expected the columns x, y and z", path.display());
+    }
+    let with_orientation = match columns[3..].iter().filter(|c| c.is_some()).count() {
+        0 => false,
+        4 => true,
+        _ => bail!(
+            "{}:{header_line}: an orientation needs all four columns qw, qx, qy, qz",
+            path.display()
+        ),
     };
     let mut targets = Vec::new();
     for (line, row) in lines {
@@ -98,8 +121,12 @@ fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Vector3
                 cells.len()
             );
         }
-        let mut p = Vector3::zeros();
-        for (axis, &(c, scale)) in columns.iter().enumerate() {
+        let mut values = [0.0; 7];
+        for (value, &(c, scale)) in values
+            .iter_mut()
+            .zip(&columns)
+            .filter_map(|(v, c)| c.as_ref().map(|c| (v, c)))
+        {
             let v: f64 = cells[c].parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| {
                 format!(
                     "{}:{line}: column {}: `{}` is not a finite number",
@@ -108,9 +135,27 @@ fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Vector3
                     cells[c]
                 )
             })?;
-            p[axis] = v * scale;
+            *value = v * scale;
         }
-        targets.push((line, p));
+        let orientation = if with_orientation {
+            let q = Quaternion::new(values[3], values[4], values[5], values[6]);
+            // The same tolerance as measurement files: rounded quaternions are renormalised.
+            if (q.norm() - 1.0).abs() > 1e-3 {
+                bail!(
+                    "{}:{line}: orientation quaternion has norm {:.6}, expected 1",
+                    path.display(),
+                    q.norm()
+                );
+            }
+            Some(UnitQuaternion::from_quaternion(q))
+        } else {
+            None
+        };
+        targets.push(Target {
+            line,
+            position: Vector3::new(values[0], values[1], values[2]),
+            orientation,
+        });
     }
     if targets.is_empty() {
         bail!("{}: no targets", path.display());
@@ -135,13 +180,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut stds = Vec::with_capacity(targets.len());
     // Exact-mode targets where the model with the residual still misses (line, m).
     let mut unconverged = Vec::new();
-    for (line, t) in &targets {
-        let target_base = match args.frame {
-            Frame::Measurement => t_meas_base.inverse_transform_point(&Point3::from(*t)).coords,
-            Frame::Base => *t,
+    for Target {
+        line,
+        position,
+        orientation,
+    } in &targets
+    {
+        let to_base = match args.frame {
+            Frame::Measurement => t_meas_base.inverse(),
+            Frame::Base => Isometry3::identity(),
+        };
+        let position = to_base.transform_point(&Point3::from(*position)).coords;
+        let target = match orientation {
+            Some(r) => IkTarget::Pose(Isometry3::from_parts(position.into(), to_base.rotation * r)),
+            None => IkTarget::Position(position),
         };
         let c = comp
-            .compensate(&target_base, &q0, mode)
+            .compensate_target(&target, &q0, mode)
             .with_context(|| format!("{}:{line}", args.targets.display()))?;
         if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
             unconverged.push((*line, c.mismatch));
