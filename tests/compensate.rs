@@ -73,24 +73,30 @@ fn ik_with_a_linear_offset_solves_the_offset_model() {
 /// the predicted residual, evaluated here on its own, lands on every target. kNN is not smooth
 /// enough for the fixed-point iteration to contract everywhere; where it does not, the miss it
 /// reports is the true one.
+/// The truth measured without noise at 120 random configurations.
+fn noiseless_data(truth: &armcomp_core::Robot, seed: u64) -> armcomp_core::measurement::MeasurementSet {
+    let params = SimulateParams {
+        noise_std: 0.0,
+        seed: 1,
+    };
+    simulate(truth, &random_configurations(truth, 120, seed), params).unwrap()
+}
+
+/// A GP whose hyper-parameter search is cut short, for speed.
+fn quick_gp() -> GpSpec {
+    GpSpec {
+        max_optimization_samples: 60,
+        max_iterations: 15,
+        ..GpSpec::default()
+    }
+}
+
 #[test]
 fn exact_mode_solves_model_plus_residual() {
     let truth = robot("rock-drill-truth.toml");
     let model = robot("rock-drill-deflection.toml");
-    let data = simulate(
-        &truth,
-        &random_configurations(&truth, 120, 31),
-        SimulateParams {
-            noise_std: 0.0,
-            seed: 1,
-        },
-    )
-    .unwrap();
-    let gp = GpSpec {
-        max_optimization_samples: 60,
-        max_iterations: 15,
-        ..GpSpec::default()
-    };
+    let data = noiseless_data(&truth, 31);
+    let gp = quick_gp();
     let ridge = RidgeSpec::default();
     let knn = KnnSpec::default();
     let rotation = model.t_meas_base().rotation.inverse();
@@ -257,21 +263,8 @@ fn inner_poses(model: &armcomp_core::Robot, n: usize, seed: u64, shift: Vector3<
 fn exact_mode_keeps_the_orientation_of_a_pose_target() {
     let truth = robot("rock-drill-truth.toml");
     let model = robot("rock-drill-deflection.toml");
-    let data = simulate(
-        &truth,
-        &random_configurations(&truth, 120, 41),
-        SimulateParams {
-            noise_std: 0.0,
-            seed: 1,
-        },
-    )
-    .unwrap();
-    let gp = GpSpec {
-        max_optimization_samples: 60,
-        max_iterations: 15,
-        ..GpSpec::default()
-    };
-    let predictor = fit_residual_predictor(&model, &gp, &data.samples).unwrap();
+    let data = noiseless_data(&truth, 41);
+    let predictor = fit_residual_predictor(&model, &quick_gp(), &data.samples).unwrap();
     let rotation = model.t_meas_base().rotation.inverse();
     let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationOptions::default()).unwrap();
     let (mut out, mut scratch) = ([0.0; 3], Vec::new());
@@ -345,39 +338,31 @@ fn compensate_cli_reads_pose_targets() {
         assert!(turn < 1e-6, "orientation missed by {turn:e} rad");
     }
 
-    let half = dir.file("half.csv", "x[mm],y[mm],z[mm],qw,qx\n1,2,3,1,0\n");
-    let (code, _, err) = armcomp(&[
-        "compensate",
-        "--model",
-        "robots/rock-drill-deflection.toml",
-        "--targets",
-        half.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        err.contains("half.csv:1: an orientation needs all four columns qw, qx, qy, qz"),
-        "{err}"
-    );
-    let unnormed = dir.file(
-        "unnormed.csv",
-        "x[mm],y[mm],z[mm],qw,qx,qy,qz\n1,2,3,1,0,0,0\n1,2,3,0.5,0,0,0\n",
-    );
-    let (code, _, err) = armcomp(&[
-        "compensate",
-        "--model",
-        "robots/rock-drill-deflection.toml",
-        "--targets",
-        unnormed.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert_ne!(code, 0);
-    assert!(
-        err.contains("unnormed.csv:3: orientation quaternion has norm 0.500000, expected 1"),
-        "{err}"
-    );
+    for (name, text, expected) in [
+        (
+            "half.csv",
+            "x[mm],y[mm],z[mm],qw,qx\n1,2,3,1,0\n",
+            "half.csv:1: an orientation needs all four columns qw, qx, qy, qz",
+        ),
+        (
+            "unnormed.csv",
+            "x[mm],y[mm],z[mm],qw,qx,qy,qz\n1,2,3,1,0,0,0\n1,2,3,0.5,0,0,0\n",
+            "unnormed.csv:3: orientation quaternion has norm 0.500000, expected 1",
+        ),
+    ] {
+        let bad = dir.file(name, text);
+        let (code, _, err) = armcomp(&[
+            "compensate",
+            "--model",
+            "robots/rock-drill-deflection.toml",
+            "--targets",
+            bad.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_ne!(code, 0);
+        assert!(err.contains(expected), "{err}");
+    }
 }
 
 #[test]
