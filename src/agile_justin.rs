@@ -381,7 +381,8 @@ pub struct StepResult {
     pub test: ErrorStats,
     /// The paper's row (none for steps beyond the paper).
     pub published: Option<PublishedRow>,
-    /// Seconds this step's identification (or the predictor's training) took.
+    /// Seconds this step's identification took (for the predictor: fitting it and predicting
+    /// the held-out poses).
     pub seconds: f64,
     /// Measured-minus-modelled position of every held-out sample (m, measurement frame), in
     /// the order of the split's held-out indices; for plots, not printed.
