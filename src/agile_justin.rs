@@ -8,6 +8,7 @@
 //! Each row becomes two samples, one per marker.
 
 use std::path::Path;
+use std::time::Instant;
 
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
@@ -233,22 +234,26 @@ pub fn calibrate_steps(robot: &Robot, train: &[Sample], steps: &[Step]) -> Resul
         .iter()
         .map(|s| s.identify.iter().map(|w| w.to_string()).collect())
         .collect();
-    calibrate_sequence(robot, train, &selections)
+    Ok(calibrate_sequence(robot, train, &selections)?
+        .into_iter()
+        .map(|(r, _)| r)
+        .collect())
 }
 
 /// Calibrates each selection (see `ParameterSpace::select`) in turn on `train`, each starting
-/// from the previous result; returns the robot after each.
-fn calibrate_sequence(robot: &Robot, train: &[Sample], selections: &[Vec<String>]) -> Result<Vec<Robot>> {
-    let mut out: Vec<Robot> = Vec::with_capacity(selections.len());
+/// from the previous result; returns the robot after each with the seconds its step took.
+fn calibrate_sequence(robot: &Robot, train: &[Sample], selections: &[Vec<String>]) -> Result<Vec<(Robot, f64)>> {
+    let mut out: Vec<(Robot, f64)> = Vec::with_capacity(selections.len());
     for identify in selections {
         let params = CalibrationParams {
             identify: identify.clone(),
             measurement_std: MEASUREMENT_STD,
             ..CalibrationParams::default()
         };
-        let start = out.last().unwrap_or(robot);
+        let start = out.last().map_or(robot, |(r, _)| r);
+        let started = Instant::now();
         let calibrated = calibrate(start, train, &params, &mut |_| {})?.robot;
-        out.push(calibrated);
+        out.push((calibrated, started.elapsed().as_secs_f64()));
     }
     Ok(out)
 }
@@ -326,7 +331,7 @@ pub fn leave_one_out(robot: &Robot, samples: &[Sample], split: &Split) -> Result
         .iter()
         .map(|g| {
             let robots = calibrate_sequence(robot, &train, &steps_without(g.identify))?;
-            let last = robots.last().expect("four steps");
+            let (last, _) = robots.last().expect("four steps");
             Ok(ErrorStats::from_errors(&position_errors(last, &test)))
         })
         .collect()
@@ -376,6 +381,13 @@ pub struct StepResult {
     pub test: ErrorStats,
     /// The paper's row (none for steps beyond the paper).
     pub published: Option<PublishedRow>,
+    /// Seconds this step's identification took (for the predictor: fitting it and predicting
+    /// the held-out poses).
+    pub seconds: f64,
+    /// Measured-minus-modelled position of every held-out sample (m, measurement frame), in
+    /// the order of the split's held-out indices; for plots, not printed.
+    #[serde(skip)]
+    pub test_errors: Vec<Vector3<f64>>,
 }
 
 /// Label of the row that adds a residual predictor over the last step.
@@ -387,6 +399,13 @@ type Errors = Vec<Vector3<f64>>;
 /// Per-pose rows of a predictor: the samples of each pose, joint values, residuals.
 type PoseRows = (Vec<Vec<usize>>, Vec<f64>, Vec<f64>);
 
+/// One step's errors on one split: fitted, held-out, and the seconds the step took.
+struct StepErrors {
+    train: Errors,
+    test: Errors,
+    seconds: f64,
+}
+
 /// Fitted and held-out errors of every step on one split, and of `predictor` (when given)
 /// learning the last step's residual on the fitted poses.
 fn split_errors(
@@ -395,17 +414,29 @@ fn split_errors(
     test: &[Sample],
     steps: &[Step],
     predictor: Option<&dyn PredictorSpec>,
-) -> Result<Vec<(Errors, Errors)>> {
-    let robots = calibrate_steps(robot, train, steps)?;
+) -> Result<Vec<StepErrors>> {
+    let selections: Vec<Vec<String>> = steps
+        .iter()
+        .map(|s| s.identify.iter().map(|w| w.to_string()).collect())
+        .collect();
+    let robots = calibrate_sequence(robot, train, &selections)?;
     let mut out: Vec<_> = robots
         .iter()
-        .map(|r| (position_errors(r, train), position_errors(r, test)))
+        .map(|(r, seconds)| StepErrors {
+            train: position_errors(r, train),
+            test: position_errors(r, test),
+            seconds: *seconds,
+        })
         .collect();
-    if let (Some(p), Some(last)) = (predictor, robots.last()) {
-        out.push((
-            residual_corrected_errors(last, train, train, p)?,
-            residual_corrected_errors(last, train, test, p)?,
-        ));
+    if let (Some(p), Some((last, _))) = (predictor, robots.last()) {
+        let started = Instant::now();
+        let test_errors = residual_corrected_errors(last, train, test, p)?;
+        let seconds = started.elapsed().as_secs_f64();
+        out.push(StepErrors {
+            train: residual_corrected_errors(last, train, train, p)?,
+            test: test_errors,
+            seconds,
+        });
     }
     Ok(out)
 }
@@ -424,13 +455,20 @@ pub fn step_table(
     Ok(errors
         .iter()
         .enumerate()
-        .map(|(k, (tr, te))| StepResult {
-            step: steps.get(k).map_or(PREDICTOR_STEP, |s| s.label).to_string(),
-            train: ErrorStats::from_errors(tr),
-            test: ErrorStats::from_errors(te),
+        .map(|(k, e)| StepResult {
+            step: step_label(steps, k).to_string(),
+            train: ErrorStats::from_errors(&e.train),
+            test: ErrorStats::from_errors(&e.test),
             published: steps.get(k).map(|s| s.published),
+            seconds: e.seconds,
+            test_errors: e.test.clone(),
         })
         .collect())
+}
+
+/// The label of row `k` of a table of `steps` (the predictor's row after the steps).
+fn step_label(steps: &[Step], k: usize) -> &'static str {
+    steps.get(k).map_or(PREDICTOR_STEP, |s| s.label)
 }
 
 /// Held-out errors of every step (and of `predictor`) over `k` folds, each pose held out
@@ -443,17 +481,58 @@ pub fn kfold_table(
     steps: &[Step],
     predictor: Option<&dyn PredictorSpec>,
 ) -> Result<Vec<ErrorStats>> {
-    let mut pooled: Vec<Vec<Vector3<f64>>> = Vec::new();
+    Ok(kfold_errors(robot, samples, k, seed, steps, predictor)?
+        .iter()
+        .map(|f| ErrorStats::from_errors(&f.test_errors))
+        .collect())
+}
+
+/// One row of the k-fold table: every sample's held-out error, pooled over the folds.
+#[derive(Debug, Clone)]
+pub struct KfoldErrors {
+    /// The step's label.
+    pub step: String,
+    /// Measured-minus-modelled position of every sample (m, measurement frame) while its pose
+    /// was held out, fold after fold in the folds' held-out order.
+    pub test_errors: Vec<Vector3<f64>>,
+    /// Poses fitted in each fold (the smallest fold's count when folds differ).
+    pub train_poses: usize,
+    /// Seconds of the step, summed over the folds.
+    pub seconds: f64,
+}
+
+/// The held-out errors of every step (and of `predictor`) over `k` folds, each pose held out
+/// once, pooled; see [`kfold_table`] for their statistics.
+pub fn kfold_errors(
+    robot: &Robot,
+    samples: &[Sample],
+    k: usize,
+    seed: u64,
+    steps: &[Step],
+    predictor: Option<&dyn PredictorSpec>,
+) -> Result<Vec<KfoldErrors>> {
+    let mut pooled: Vec<KfoldErrors> = Vec::new();
     for split in kfold(samples, k, seed)? {
         let train = subset(samples, &split.train);
         let test = subset(samples, &split.test);
+        let train_poses = pose_groups(&train).len();
         let errors = split_errors(robot, &train, &test, steps, predictor)?;
-        pooled.resize(errors.len(), Vec::new());
-        for (all, (_, te)) in pooled.iter_mut().zip(errors) {
-            all.extend(te);
+        for (i, e) in errors.into_iter().enumerate() {
+            if pooled.len() <= i {
+                pooled.push(KfoldErrors {
+                    step: step_label(steps, i).to_string(),
+                    test_errors: Vec::new(),
+                    train_poses,
+                    seconds: 0.0,
+                });
+            }
+            let row = &mut pooled[i];
+            row.test_errors.extend(e.test);
+            row.train_poses = row.train_poses.min(train_poses);
+            row.seconds += e.seconds;
         }
     }
-    Ok(pooled.iter().map(|e| ErrorStats::from_errors(e)).collect())
+    Ok(pooled)
 }
 
 /// The fixed 250 / 250 split of the poses used for the held-out table.

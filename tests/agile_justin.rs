@@ -3,13 +3,15 @@
 
 use std::path::Path;
 
-use armcomp::agile_justin::{MEASUREMENTS, STEPS, diagnose_from_frames, half_split, parse_measurements, step_table};
+use armcomp::agile_justin::{
+    MEASUREMENTS, STEPS, diagnose_from_frames, half_split, kfold_errors, kfold_table, parse_measurements, step_table,
+};
 use armcomp_core::Robot;
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::split::subset;
 
-use crate::common::robot;
+use crate::common::{Scratch, robot};
 
 fn justin() -> Robot {
     robot("agile-justin.toml")
@@ -173,4 +175,77 @@ fn diagnosis_from_frames_identifies_what_it_adds() {
     assert_eq!(step.effect, "joint_compliance");
     assert!(step.heldout_after.rms_mm < 0.95 * report.initial.rms_mm);
     assert!(step.params.values().all(|v| v.value > 0.0), "{:?}", step.params);
+}
+
+/// `armcomp demo agile-justin --report`: the first two steps on the fixed split and over two
+/// folds become the demo tables, one row per step carrying its held-out errors and the paper's
+/// mean, and the report page lists every row beside the paper with its three plots.
+#[test]
+fn report_shows_each_step_beside_the_paper() {
+    let r = justin();
+    let samples = parse_measurements(MEASUREMENTS, Path::new("m.csv"), &r).unwrap();
+    let split = half_split(&samples, 1).unwrap();
+    let steps = step_table(&r, &samples, &split, &STEPS[..2], None).unwrap();
+    let folds = kfold_errors(&r, &samples, 2, 1, &STEPS[..2], None).unwrap();
+    let tables = armcomp::demos::agile_justin::tables(500, 250, 1, &steps, Some((2, &folds)));
+    assert_eq!(tables.len(), 2);
+    let (fixed, kfold) = (&tables[0], &tables[1]);
+    assert_eq!(fixed.rows.len(), 2);
+    assert_eq!(kfold.rows.len(), 2);
+    let kfold_stats = kfold_table(&r, &samples, 2, 1, &STEPS[..2], None).unwrap();
+    for (k, step) in STEPS[..2].iter().enumerate() {
+        let row = &fixed.rows[k];
+        assert_eq!(row.name, step.label);
+        assert_eq!(row.paper.map(|p| p.mean_mm), Some(step.published.mean_mm));
+        assert_eq!((row.training_poses, row.errors_mm.len()), (250, 500));
+        assert!(
+            (row.mean_mm - steps[k].test.mean_mm).abs() < 1e-9,
+            "{} {:?}",
+            row.mean_mm,
+            steps[k].test
+        );
+        assert!((row.max_mm - steps[k].test.max_mm).abs() < 1e-9);
+        assert!(row.training_s > 0.0);
+        // Every pose held out once over the folds: both markers of all 500 poses.
+        let pooled = &kfold.rows[k];
+        assert_eq!(pooled.name, step.label);
+        assert_eq!((pooled.training_poses, pooled.errors_mm.len()), (250, 1000));
+        assert!((pooled.mean_mm - kfold_stats[k].mean_mm).abs() < 1e-9);
+    }
+
+    let dir = Scratch::new("agile-justin-report");
+    let page = armcomp::demos::report::write(&dir.0, &tables).unwrap();
+    let html = std::fs::read_to_string(&page).unwrap();
+    for t in &tables {
+        assert!(html.contains(&t.title), "{html}");
+        for row in &t.rows {
+            let paper = row.paper.unwrap().mean_mm;
+            let cells = format!(
+                "<td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{paper:.2}</td>",
+                row.name,
+                row.training_poses,
+                row.training_s,
+                row.mean_abs_z_mm,
+                row.variance_mm2,
+                row.mean_mm,
+                row.max_mm
+            );
+            assert!(html.contains(&cells), "{cells} not in {html}");
+        }
+    }
+    for (i, t) in tables.iter().enumerate() {
+        let stem = armcomp::demos::report::stem(i, t);
+        for kind in ["bars", "histogram", "axes"] {
+            let name = format!("{stem}-{kind}.svg");
+            assert!(html.contains(&format!("src=\"{name}\"")), "{name}");
+            let svg = std::fs::read_to_string(dir.0.join(&name)).unwrap();
+            assert!(svg.starts_with("<svg"), "{name}");
+            if kind == "axes" {
+                // A dot per held-out marker and axis for the frames-only and the best step.
+                let n = t.rows[0].errors_mm.len();
+                assert_eq!(svg.matches("<circle").count(), 2 * 3 * n, "{name}");
+            }
+        }
+    }
+    assert_eq!(std::fs::read_dir(&dir.0).unwrap().count(), 7, "the page and six plots");
 }

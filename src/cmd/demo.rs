@@ -122,6 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 no_predictor: args.no_predictor,
                 leave_one_out: args.leave_one_out,
                 diagnose_steps: args.diagnose_steps,
+                report: args.report,
             });
         }
         other => bail!(

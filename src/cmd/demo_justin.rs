@@ -1,11 +1,11 @@
 //! `armcomp demo agile-justin`: the paper's calibration table reproduced on DLR's 500 real
 //! measurements, on the fitted poses and on held-out poses, beside the published numbers.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use armcomp::agile_justin::{
-    GROUPS, STEPS, StepResult, diagnose_from_frames, half_split, kfold_table, leave_one_out, parse_measurements,
+    GROUPS, STEPS, StepResult, diagnose_from_frames, half_split, kfold_errors, leave_one_out, parse_measurements,
     step_table,
 };
 use armcomp::agile_justin::{MEASUREMENTS, MEASUREMENTS_PATH};
@@ -30,6 +30,8 @@ pub struct Options {
     pub leave_one_out: bool,
     /// Most effects `armcomp diagnose` may add to the frames-only model (0 skips it).
     pub diagnose_steps: usize,
+    /// Also write the HTML report (tables and plots of the held-out errors) into this folder.
+    pub report: Option<PathBuf>,
 }
 
 /// Folds of the diagnosis' held-out scores (its default).
@@ -71,11 +73,12 @@ pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
     };
     let predictor: Option<&dyn PredictorSpec> = (!opts.no_predictor).then_some(&predictor);
     let steps = step_table(&robot, &samples, &split, &STEPS, predictor)?;
-    let kfold_test = if opts.folds > 0 {
-        kfold_table(&robot, &samples, opts.folds, opts.seed, &STEPS, predictor)?
+    let kfold = if opts.folds > 0 {
+        kfold_errors(&robot, &samples, opts.folds, opts.seed, &STEPS, predictor)?
     } else {
         Vec::new()
     };
+    let kfold_test = kfold.iter().map(|f| ErrorStats::from_errors(&f.test_errors)).collect();
     let leave_one_out = if opts.leave_one_out {
         let stats = leave_one_out(&robot, &samples, &split)?;
         GROUPS
@@ -102,6 +105,17 @@ pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
     } else {
         None
     };
+    if let Some(dir) = &opts.report {
+        let tables = armcomp::demos::agile_justin::tables(
+            samples.len() / 2,
+            split.train.len() / 2,
+            opts.seed,
+            &steps,
+            (opts.folds > 0).then_some((opts.folds, kfold.as_slice())),
+        );
+        let page = armcomp::demos::report::write(dir, &tables)?;
+        eprintln!("wrote {}", page.display());
+    }
     let out = Output {
         poses: samples.len() / 2,
         seed: opts.seed,

@@ -1,6 +1,7 @@
 //! The papers' protocols run on the built-in twins with hidden truth (`armcomp demo`): every
 //! number is computed on each run; the papers' published values are carried as references.
 
+pub mod agile_justin;
 pub mod industrial;
 pub mod plots;
 pub mod report;
@@ -176,7 +177,15 @@ impl TestBench<'_> {
             .zip(&self.targets)
             .map(|(s, t): (&Sample, _)| s.position - self.truth.t_meas_base().transform_point(&(*t).into()).coords)
             .collect();
-        let stats = ErrorStats::from_errors(&errors);
+        Ok(Row::from_errors(name, paper, training, &errors))
+    }
+}
+
+impl Row {
+    /// The row of a pipeline from its errors at the test targets (m, measurement frame,
+    /// measured minus wanted); `training` is (poses, seconds).
+    pub fn from_errors(name: &str, paper: Option<PaperValue>, training: (usize, f64), errors: &[Vector3<f64>]) -> Row {
+        let stats = ErrorStats::from_errors(errors);
         let n = errors.len() as f64;
         let mean = errors.iter().sum::<Vector3<f64>>() / n;
         let variance = (0..3)
@@ -184,7 +193,7 @@ impl TestBench<'_> {
             .sum::<f64>()
             / 3.0
             * 1e6;
-        Ok(Row {
+        Row {
             name: name.to_string(),
             paper,
             training_poses: training.0,
@@ -194,7 +203,7 @@ impl TestBench<'_> {
             mean_mm: stats.mean_mm,
             max_mm: stats.max_mm,
             errors_mm: errors.iter().map(|e| [e.x * 1e3, e.y * 1e3, e.z * 1e3]).collect(),
-        })
+        }
     }
 }
 
