@@ -27,9 +27,12 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
     let z = |name: &str| table.row(name).unwrap_or_else(|| panic!("row {name}")).mean_abs_z_mm;
     let (large, small) = (config.large, config.small);
     assert!(z("deflection only") < z("original"), "{table:#?}");
-    // The nominal deflection model removes a minor share: geometry, servo scales and joint
-    // compliance dominate the error (the paper's Table I: 13 %).
-    assert!(z("deflection only") > 0.55 * z("original"), "{table:#?}");
+    // The nominal deflection model removes a minor share: servo scales and zeros, geometry and
+    // joint compliance dominate the error and change sign over the workspace (the paper's
+    // Table I: 13 % of the mean, 4 % of the variance).
+    assert!(z("deflection only") > 0.75 * z("original"), "{table:#?}");
+    let variance = |name: &str| table.row(name).unwrap().variance_mm2;
+    assert!(variance("deflection only") > 0.7 * variance("original"), "{table:#?}");
     // The hybrid helps most with few poses.
     assert!(
         z(&format!("deflection + SSA-BP, {small} poses")) < z(&format!("SSA-BP only, {small} poses")),
