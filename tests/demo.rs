@@ -1,6 +1,7 @@
-//! The demos' claims on smaller configurations and fresh seeds. Rock drill: the paper's rows
-//! come out in the paper's order, and this project's best pipeline with the small training set
-//! is near the measurement noise and beats the paper's pipelines with the large one. Industrial:
+//! The demos' claims on smaller configurations and fresh seeds. Rock drill: the nominal
+//! deflection model removes a minor share of the error, the hybrid beats the network alone with
+//! the small training set, and this project's best pipeline with the small training set is near
+//! the measurement noise and beats the paper's pipelines with the large one. Industrial:
 //! the orderings of the ANN paper that hold on its twin.
 
 use armcomp::demos::industrial;
@@ -27,9 +28,12 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
     let z = |name: &str| table.row(name).unwrap_or_else(|| panic!("row {name}")).mean_abs_z_mm;
     let (large, small) = (config.large, config.small);
     assert!(z("deflection only") < z("original"), "{table:#?}");
-    // The nominal deflection model removes a minor share: geometry, servo scales and joint
-    // compliance dominate the error (the paper's Table I: 13 %).
-    assert!(z("deflection only") > 0.55 * z("original"), "{table:#?}");
+    // The nominal deflection model removes a minor share: servo scales and zeros, geometry and
+    // joint compliance dominate the error and change sign over the workspace (the paper's
+    // Table I: 13 % of the mean, 4 % of the variance).
+    assert!(z("deflection only") > 0.75 * z("original"), "{table:#?}");
+    let variance = |name: &str| table.row(name).unwrap().variance_mm2;
+    assert!(variance("deflection only") > 0.7 * variance("original"), "{table:#?}");
     // The hybrid helps most with few poses.
     assert!(
         z(&format!("deflection + SSA-BP, {small} poses")) < z(&format!("SSA-BP only, {small} poses")),
