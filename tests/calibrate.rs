@@ -384,6 +384,48 @@ fn calibrate_and_evaluate_on_the_command_line() {
     let mean = errors.iter().map(|e| e.norm()).sum::<f64>() / errors.len() as f64 * 1e3;
     assert!((mean - after["mean_mm"].as_f64().unwrap()).abs() < 1e-9);
 
+    // Per-sample residuals of the nominal model, against its forward kinematics directly.
+    let residuals = dir.0.join("residuals.csv");
+    let out = Command::new(bin)
+        .args(["evaluate", "--model"])
+        .arg(&nominal_path)
+        .arg("--data")
+        .arg(&test)
+        .arg("--residuals")
+        .arg(&residuals)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&residuals).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert_eq!(header[..2], ["sample", "point"]);
+    assert_eq!(
+        header[header.len() - 4..],
+        ["x_err[mm]", "y_err[mm]", "z_err[mm]", "err[mm]"]
+    );
+    let rows: Vec<Vec<String>> = lines.map(|l| l.split(',').map(String::from).collect()).collect();
+    assert_eq!(rows.len(), samples.len());
+    for (i, (row, s)) in rows.iter().zip(&samples).enumerate() {
+        assert_eq!(row[0], (i + 1).to_string());
+        assert_eq!(row[1], nominal.tree().points()[s.point].name);
+        let modelled = (nominal.t_meas_base() * nominal.forward(&s.q).unwrap().point[s.point])
+            .translation
+            .vector;
+        let expected = (s.position - modelled) * 1e3;
+        let n = row.len();
+        let got: Vec<f64> = row[n - 4..].iter().map(|v| v.parse().unwrap()).collect();
+        for k in 0..3 {
+            assert!(
+                (got[k] - expected[k]).abs() < 1e-9,
+                "sample {i} axis {k}: {} vs {}",
+                got[k],
+                expected[k]
+            );
+        }
+        assert!((got[3] - expected.norm()).abs() < 1e-9);
+    }
+
     // The output may not be an input.
     let out = Command::new(bin)
         .args(["calibrate", "--robot"])
