@@ -126,10 +126,9 @@ pub struct TestBench<'a> {
     pub task: Option<TaughtTask>,
 }
 
-/// A task whose tool keeps one orientation, as a controller runs it: for each target its model's
-/// inverse kinematics at the task's orientation, started from the taught configuration, gives
-/// the command that compensation then corrects (so a redundant position target stays on the
-/// task's branch and orientation).
+/// A task whose tool keeps one orientation, as a controller runs it: every target is compensated
+/// as a pose at the task's orientation, started from its taught configuration without restarts
+/// (so the command stays on the task's branch).
 pub struct TaughtTask {
     /// Taught configuration per target (rad).
     pub taught: Vec<Vec<f64>>,
@@ -149,21 +148,28 @@ impl TestBench<'_> {
         training: (usize, f64),
         paper: Option<PaperValue>,
     ) -> Result<Row> {
-        let mut comp = Compensator::new(model, predictor, CompensationOptions::default())?;
-        let mut q0 = mid_range(model);
+        let mut options = CompensationOptions::default();
+        if self.task.is_some() {
+            // Stay on the taught configuration's branch, as a controller would.
+            options.ik.restarts = 0;
+        }
+        let mut comp = Compensator::new(model, predictor, options)?;
+        let mid = mid_range(model);
         let t_model = model.t_meas_base();
-        let mut ik = IkWorkspace::new(model);
         let mut commands = Vec::with_capacity(self.targets.len());
         for (i, t) in self.targets.iter().enumerate() {
             // Targets are given to the model in its own idea of the measurement frame.
             let target_meas = self.truth.t_meas_base().transform_point(&(*t).into());
             let target_model = t_model.inverse_transform_point(&target_meas).coords;
-            if let Some(task) = &self.task {
-                let rotation = t_model.rotation.inverse() * task.orientation;
-                q0 = pose_command(model, &target_model, &rotation, &task.taught[i], &mut ik)
-                    .unwrap_or_else(|| task.taught[i].clone());
-            }
-            match comp.compensate(&target_model, &q0, mode) {
+            let (target, q0) = match &self.task {
+                Some(task) => {
+                    let rotation = t_model.rotation.inverse() * task.orientation;
+                    let pose = Isometry3::from_parts(target_model.into(), rotation);
+                    (IkTarget::Pose(pose), &task.taught[i])
+                }
+                None => (IkTarget::Position(target_model), &mid),
+            };
+            match comp.compensate_target(&target, q0, mode) {
                 Ok(_) => commands.push(comp.q().to_vec()),
                 // The closest configuration is what a controller would be sent.
                 Err(armcomp_core::IkError::Unreachable { closest_q, .. }) => commands.push(closest_q),
