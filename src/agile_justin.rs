@@ -227,19 +227,6 @@ pub const STEPS: [Step; 5] = [
 /// Tracker noise assumed by the fits (m per axis): Vicon markers on a moving humanoid.
 pub const MEASUREMENT_STD: f64 = 1e-3;
 
-/// Calibrates `steps` in turn on `train`, each starting from the previous step's result, and
-/// returns the robot after each.
-pub fn calibrate_steps(robot: &Robot, train: &[Sample], steps: &[Step]) -> Result<Vec<Robot>> {
-    let selections: Vec<Vec<String>> = steps
-        .iter()
-        .map(|s| s.identify.iter().map(|w| w.to_string()).collect())
-        .collect();
-    Ok(calibrate_sequence(robot, train, &selections)?
-        .into_iter()
-        .map(|(r, _)| r)
-        .collect())
-}
-
 /// Calibrates each selection (see `ParameterSpace::select`) in turn on `train`, each starting
 /// from the previous result; returns the robot after each with the seconds its step took.
 fn calibrate_sequence(robot: &Robot, train: &[Sample], selections: &[Vec<String>]) -> Result<Vec<(Robot, f64)>> {
@@ -471,22 +458,6 @@ fn step_label(steps: &[Step], k: usize) -> &'static str {
     steps.get(k).map_or(PREDICTOR_STEP, |s| s.label)
 }
 
-/// Held-out errors of every step (and of `predictor`) over `k` folds, each pose held out
-/// once, pooled.
-pub fn kfold_table(
-    robot: &Robot,
-    samples: &[Sample],
-    k: usize,
-    seed: u64,
-    steps: &[Step],
-    predictor: Option<&dyn PredictorSpec>,
-) -> Result<Vec<ErrorStats>> {
-    Ok(kfold_errors(robot, samples, k, seed, steps, predictor)?
-        .iter()
-        .map(|f| ErrorStats::from_errors(&f.test_errors))
-        .collect())
-}
-
 /// One row of the k-fold table: every sample's held-out error, pooled over the folds.
 #[derive(Debug, Clone)]
 pub struct KfoldErrors {
@@ -502,7 +473,7 @@ pub struct KfoldErrors {
 }
 
 /// The held-out errors of every step (and of `predictor`) over `k` folds, each pose held out
-/// once, pooled; see [`kfold_table`] for their statistics.
+/// once, pooled.
 pub fn kfold_errors(
     robot: &Robot,
     samples: &[Sample],

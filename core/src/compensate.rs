@@ -10,9 +10,9 @@
 //!   the model and the residual together: the residual is linearised at the current command
 //!   (value and derivative, for predictors that have one) and IK solves the model plus that
 //!   linear offset; this repeats, with the value re-predicted and the derivative kept (the
-//!   chord method), until the full model lands within the tolerance, typically after two
-//!   solves. Predictors without a derivative get the fixed-point version (the residual held
-//!   constant within each solve), which converges linearly at the rate of the residual's
+//!   chord method), until the full model lands within the tolerance, typically after two or
+//!   three solves. Predictors without a derivative get the fixed-point version (the residual
+//!   held constant within each solve), which converges linearly at the rate of the residual's
 //!   sensitivity.
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
@@ -177,7 +177,15 @@ impl<'a> Compensator<'a> {
             Some(_) => self.options.ik.position_tolerance.max(FIRST_SOLVE_TOLERANCE),
             None => self.options.ik.position_tolerance,
         };
-        let mut report = self.solve(target, None, q0, first_tolerance)?;
+        let mut report = solve(
+            self.robot,
+            &self.options.ik,
+            &mut self.ik,
+            target,
+            None,
+            q0,
+            first_tolerance,
+        )?;
         let Some(predictor) = self.predictor else {
             return Ok(Compensation {
                 corrected_target: self.ik.robot.frames.point[self.robot.tool()].translation.vector,
@@ -206,12 +214,16 @@ impl<'a> Compensator<'a> {
                 });
             }
             self.start.copy_from_slice(self.ik.q());
-            let start = std::mem::take(&mut self.start);
-            let offset = std::mem::replace(&mut self.offset, LinearOffset::zeros(0));
-            let solved = self.solve(target, Some(&offset), &start, self.options.ik.position_tolerance);
-            self.start = start;
-            self.offset = offset;
-            report = solved?;
+            let tolerance = self.options.ik.position_tolerance;
+            report = solve(
+                self.robot,
+                &self.options.ik,
+                &mut self.ik,
+                target,
+                Some(&self.offset),
+                &self.start,
+                tolerance,
+            )?;
             shifts += 1;
         }
     }
@@ -222,28 +234,6 @@ impl<'a> Compensator<'a> {
         let p = self.predictor?;
         p.predict_std_into(self.ik.q(), &mut self.out, &mut self.scratch)
             .then(|| Vector3::from(self.out))
-    }
-
-    fn solve(
-        &mut self,
-        target: &IkTarget,
-        offset: Option<&LinearOffset>,
-        q0: &[f64],
-        position_tolerance: f64,
-    ) -> std::result::Result<IkReport, IkError> {
-        let options = IkOptions {
-            position_tolerance,
-            ..self.options.ik
-        };
-        solve_ik_with_offset(
-            self.robot,
-            self.robot.tool(),
-            target,
-            offset,
-            q0,
-            &options,
-            &mut self.ik,
-        )
     }
 
     /// Predicts the residual at the current command into `self.offset` (rotated into the base
@@ -274,6 +264,24 @@ impl<'a> Compensator<'a> {
         self.offset.q_ref.copy_from_slice(q);
         self.offset.value
     }
+}
+
+/// IK of `robot`'s tool onto `target` with the model plus `offset`, from `q0`, to
+/// `position_tolerance` (the other settings from `options`).
+fn solve(
+    robot: &Robot,
+    options: &IkOptions,
+    ik: &mut IkWorkspace,
+    target: &IkTarget,
+    offset: Option<&LinearOffset>,
+    q0: &[f64],
+    position_tolerance: f64,
+) -> std::result::Result<IkReport, IkError> {
+    let options = IkOptions {
+        position_tolerance,
+        ..*options
+    };
+    solve_ik_with_offset(robot, robot.tool(), target, offset, q0, &options, ik)
 }
 
 /// The middle of the joint limits (zero for unlimited joints), a start that makes each
