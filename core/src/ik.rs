@@ -15,7 +15,7 @@
 //! reaches the tolerance the error carries the closest configuration found and its distance;
 //! the iteration count is capped, so the solver always returns.
 
-use nalgebra::{Cholesky, Isometry3, Matrix3xX, Matrix6, Matrix6xX, Vector3, Vector6};
+use nalgebra::{Cholesky, Isometry3, Matrix3, Matrix3xX, Matrix6, Matrix6xX, Vector3, Vector6};
 
 use crate::robot::{Robot, RobotWorkspace};
 
@@ -156,6 +156,8 @@ pub struct IkWorkspace {
     pub robot: RobotWorkspace,
     jac: Matrix6xX<f64>,
     q: Vec<f64>,
+    /// The start of the current solve.
+    start: Vec<f64>,
     trial: Vec<f64>,
     best: Vec<f64>,
     dq: Vec<f64>,
@@ -169,6 +171,7 @@ impl IkWorkspace {
             robot: robot.workspace(),
             jac: Matrix6xX::zeros(n),
             q: vec![0.0; n],
+            start: vec![0.0; n],
             trial: vec![0.0; n],
             best: vec![0.0; n],
             dq: vec![0.0; n],
@@ -229,6 +232,19 @@ fn gram(jac: &Matrix6xX<f64>, pose_target: bool) -> Matrix6<f64> {
         }
     }
     jjt
+}
+
+/// `(J Jᵀ + reg I)⁻¹ e` from the Gram matrix `jjt`. For position targets the orientation rows
+/// of `J` are zero, so only the 3 × 3 position block is factored: a fifth of the work of the
+/// 6 × 6 system, which otherwise costs as much as a Jacobian.
+fn solve_normal(jjt: &Matrix6<f64>, reg: f64, e: &Vector6<f64>, pose_target: bool) -> Option<Vector6<f64>> {
+    if pose_target {
+        let a = jjt + Matrix6::from_diagonal_element(reg);
+        return Cholesky::new(a).map(|ch| ch.solve(e));
+    }
+    let a = jjt.fixed_view::<3, 3>(0, 0) + Matrix3::from_diagonal_element(reg);
+    let y = Cholesky::new(a)?.solve(&e.fixed_rows::<3>(0).into_owned());
+    Some(Vector6::new(y.x, y.y, y.z, 0.0, 0.0, 0.0))
 }
 
 /// Zeroes the Jacobian columns of joints sitting at a limit whose step points beyond it;
@@ -299,9 +315,42 @@ pub fn solve_ik_with_offset(
     opts: &IkOptions,
     ws: &mut IkWorkspace,
 ) -> Result<IkReport, IkError> {
+    solve_from(robot, point, target, offset, Start::Given(q0), opts, ws)
+}
+
+/// Where a solve starts.
+#[derive(Clone, Copy)]
+pub(crate) enum Start<'q> {
+    /// These joint values.
+    Given(&'q [f64]),
+    /// Where the last solve with the same robot, workspace and temperature ended
+    /// ([`IkWorkspace::q`]), whose frames the workspace still holds: saves one evaluation of
+    /// the full model when solves follow each other.
+    Previous,
+}
+
+/// [`solve_ik_with_offset`] from `start`.
+pub(crate) fn solve_from(
+    robot: &Robot,
+    point: usize,
+    target: &IkTarget,
+    offset: Option<&LinearOffset>,
+    start_at: Start<'_>,
+    opts: &IkOptions,
+    ws: &mut IkWorkspace,
+) -> Result<IkReport, IkError> {
     let tree = robot.tree();
     let n = tree.nq();
-    tree.check_q(q0).map_err(|e| IkError::Input(e.to_string()))?;
+    if ws.q.len() != n {
+        return Err(IkError::Input("IK workspace was made for another robot".into()));
+    }
+    match start_at {
+        Start::Given(q0) => {
+            tree.check_q(q0).map_err(|e| IkError::Input(e.to_string()))?;
+            ws.start.copy_from_slice(q0);
+        }
+        Start::Previous => ws.start.copy_from_slice(&ws.q),
+    }
     if point >= tree.points().len() {
         return Err(IkError::Input(format!(
             "point {point} does not exist; the robot has {} points",
@@ -314,9 +363,6 @@ pub fn solve_ik_with_offset(
     };
     if !finite {
         return Err(IkError::Input("the IK target is not finite".into()));
-    }
-    if ws.q.len() != n {
-        return Err(IkError::Input("IK workspace was made for another robot".into()));
     }
     if let Some(o) = offset
         && (o.q_ref.len() != n || o.jacobian.ncols() != n)
@@ -335,20 +381,23 @@ pub fn solve_ik_with_offset(
     let limits = tree.coordinate_limits();
     for start in 0..=opts.restarts {
         // Start: the given one, then Halton points within the limits.
+        let previous = start == 0 && matches!(start_at, Start::Previous);
         if start == 0 {
-            ws.q.copy_from_slice(q0);
+            ws.q.copy_from_slice(&ws.start);
         } else {
             for (k, v) in ws.q.iter_mut().enumerate() {
                 let h = radical_inverse(start, prime(k));
                 *v = match limits[k] {
                     Some(l) => l.lower + (l.upper - l.lower) * h,
-                    None if tree.coordinate_is_prismatic()[k] => q0[k],
+                    None if tree.coordinate_is_prismatic()[k] => ws.start[k],
                     None => -std::f64::consts::PI + 2.0 * std::f64::consts::PI * h,
                 };
             }
         }
-        project(robot, &mut ws.q);
-        robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
+        if !previous {
+            project(robot, &mut ws.q);
+            robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
+        }
         let (mut e, mut pe, mut oe) = task_error(&ws.robot, point, target, w, offset, &ws.q);
         let mut cost = e.norm_squared();
         let mut mu = opts.damping.max(0.0);
@@ -378,15 +427,10 @@ pub fn solve_ik_with_offset(
                     IkMethod::NewtonRaphson => 1e-14 * scale,
                     IkMethod::DampedLeastSquares => mu + 1e-14 * scale,
                 };
-                let mut a = jjt;
-                for r in 0..6 {
-                    a[(r, r)] += reg;
-                }
-                let Some(ch) = Cholesky::new(a) else {
+                let Some(y) = solve_normal(&jjt, reg, &e, pose_target) else {
                     mu = (mu * 10.0).max(1e-12 * scale);
                     continue;
                 };
-                let y = ch.solve(&e);
                 for (c, d) in ws.dq.iter_mut().enumerate() {
                     *d = ws.jac.column(c).dot(&y);
                 }

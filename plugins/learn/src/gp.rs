@@ -10,6 +10,9 @@
 //! (the O(n³) likelihood is evaluated tens of times; the full set is factorised once at the
 //! end), the predictor itself uses every row.
 
+use crate::data::{Samples, Standardizer, check_count, check_positive, progress};
+use crate::lbfgs;
+use crate::rbf::{dot, kernel_row};
 use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use nalgebra::{DMatrix, DVectorViewMut};
 use rand::rngs::StdRng;
@@ -17,10 +20,6 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
-use wide::f64x4;
-
-use crate::data::{Samples, Standardizer, check_count, check_positive, progress};
-use crate::lbfgs;
 
 /// Whether the outputs share one kernel.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
@@ -294,35 +293,6 @@ impl KernelCache {
             chol,
         }
     }
-
-    /// `w_i = σ_f² exp(-½ |u − x_i|²)` for every training row `i` (length-scaled `u`).
-    fn kernel_values(&self, u: &[f64], signal_variance: f64, w: &mut [f64]) {
-        let n = w.len();
-        // Four rows at a time, every dimension summed in registers, then one SIMD `exp`
-        // (wide's polynomial, within an ulp or two): a quarter faster than one pass over `w`
-        // per dimension and libm's scalar `exp`.
-        let (half, sv) = (f64x4::splat(-0.5), f64x4::splat(signal_variance));
-        let (quads, rest) = w.as_chunks_mut::<4>();
-        for (b, quad) in quads.iter_mut().enumerate() {
-            let mut acc = f64x4::ZERO;
-            for (column, &uj) in self.columns.chunks_exact(n).zip(u) {
-                let x: [f64; 4] = column[4 * b..4 * b + 4].try_into().expect("four rows");
-                let t = f64x4::from(x) - f64x4::splat(uj);
-                acc += t * t;
-            }
-            *quad = (sv * (half * acc).exp()).to_array();
-        }
-        let done = 4 * quads.len();
-        for (i, wi) in rest.iter_mut().enumerate() {
-            let sq: f64 = self
-                .columns
-                .chunks_exact(n)
-                .zip(u)
-                .map(|(c, uj)| (c[done + i] - uj).powi(2))
-                .sum();
-            *wi = signal_variance * (-0.5 * sq).exp();
-        }
-    }
 }
 
 /// Row-major `rows × width` into width runs of `rows` values.
@@ -335,20 +305,6 @@ fn transpose(values: &[f64], width: usize) -> Vec<f64> {
         }
     }
     out
-}
-
-/// Dot product with four running sums: one sum would fix the order of the additions and keep
-/// the compiler from vectorising it.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f64 = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-    let mut acc = [0.0; 4];
-    for (x, y) in ca.zip(cb) {
-        for l in 0..4 {
-            acc[l] += x[l] * y[l];
-        }
-    }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// A fitted Gaussian process (`gp_fitted`). The predictive standard deviation is that of the
@@ -473,7 +429,7 @@ impl FittedPredictor for FittedGp {
         let buf = self.prepare(input, scratch, n);
         let (u, w) = buf.split_at_mut(d * self.model.kernels.len());
         for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
-            cache.kernel_values(uk, kernel.hyper.signal_std * kernel.hyper.signal_std, w);
+            kernel_row(&cache.columns, uk, kernel.hyper.signal_std * kernel.hyper.signal_std, w);
             for (&o, alpha) in kernel.outputs.iter().zip(cache.alpha.chunks_exact(n)) {
                 out[o] = dot(w, alpha);
             }
@@ -494,29 +450,32 @@ impl FittedPredictor for FittedGp {
         assert_eq!(out.len(), k, "gp_fitted: output length");
         assert_eq!(jacobian.len(), k * d, "gp_fitted: jacobian length");
         let n = self.n_training();
-        let buf = self.prepare(input, scratch, 2 * n);
+        let buf = self.prepare(input, scratch, (1 + k) * n);
         let (u, rest) = buf.split_at_mut(d * self.model.kernels.len());
         let (w, weighted) = rest.split_at_mut(n);
         for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
-            cache.kernel_values(uk, kernel.hyper.signal_std * kernel.hyper.signal_std, w);
-            for (&o, alpha) in kernel.outputs.iter().zip(cache.alpha.chunks_exact(n)) {
-                // With u = z/ℓ and rows x_i (length-scaled): ∂k_i/∂u_j = k_i (x_ij − u_j), so
-                // ∂mean/∂u_j = Σ_i x_ij α_i k_i − u_j · mean.
-                let mean = dot(w, alpha);
-                for ((v, wi), a) in weighted.iter_mut().zip(w.iter()).zip(alpha) {
+            kernel_row(&cache.columns, uk, kernel.hyper.signal_std * kernel.hyper.signal_std, w);
+            // With u = z/ℓ and rows x_i (length-scaled): ∂k_i/∂u_j = k_i (x_ij − u_j), so
+            // ∂mean/∂u_j = Σ_i x_ij α_i k_i − u_j · mean.
+            let m = kernel.outputs.len();
+            for ((&o, alpha), run) in kernel
+                .outputs
+                .iter()
+                .zip(cache.alpha.chunks_exact(n))
+                .zip(weighted.chunks_exact_mut(n))
+            {
+                out[o] = dot(w, alpha);
+                for ((v, wi), a) in run.iter_mut().zip(w.iter()).zip(alpha) {
                     *v = wi * a;
                 }
-                let scale = self.model.outputs.scale[o];
-                for (j, (g, column)) in jacobian[o * d..(o + 1) * d]
-                    .iter_mut()
-                    .zip(cache.columns.chunks_exact(n))
-                    .enumerate()
-                {
-                    // Back to the raw units of the input: ∂u_j/∂x_j = 1 / (s_j ℓ_j).
-                    *g = (dot(column, weighted) - uk[j] * mean) * scale
-                        / (self.model.inputs.scale[j] * kernel.hyper.length_scales[j]);
+            }
+            // Each input's column once, against every output's weights while it is in cache.
+            for (j, column) in cache.columns.chunks_exact(n).enumerate() {
+                // Back to the raw units of the input: ∂u_j/∂x_j = 1 / (s_j ℓ_j).
+                let per_input = 1.0 / (self.model.inputs.scale[j] * kernel.hyper.length_scales[j]);
+                for (&o, run) in kernel.outputs.iter().zip(weighted[..m * n].chunks_exact(n)) {
+                    jacobian[o * d + j] = (dot(column, run) - uk[j] * out[o]) * self.model.outputs.scale[o] * per_input;
                 }
-                out[o] = mean;
             }
         }
         self.model.outputs.restore(out);
@@ -532,7 +491,7 @@ impl FittedPredictor for FittedGp {
         let (u, kstar) = buf.split_at_mut(d * self.model.kernels.len());
         for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
             let sf2 = kernel.hyper.signal_std * kernel.hyper.signal_std;
-            cache.kernel_values(uk, sf2, kstar);
+            kernel_row(&cache.columns, uk, sf2, kstar);
             // v = L⁻¹ k*, var = σ_f² − vᵀv.
             let mut v = DVectorViewMut::from_slice(kstar, n);
             cache.chol.solve_lower_triangular_mut(&mut v);

@@ -32,6 +32,7 @@ macro_rules! stored_model {
 
 mod data;
 mod lbfgs;
+mod rbf;
 
 pub mod gp;
 pub mod knn;
