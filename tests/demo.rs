@@ -5,10 +5,12 @@
 //! the orderings of the ANN paper that hold on its twin.
 
 use armcomp::demos::industrial;
-use armcomp::demos::rock_drill::{Config, run};
+use armcomp::demos::rock_drill::{Config, collection_order, paper_grid, run};
 use armcomp_learn::SparrowParams;
 
 use crate::common::Scratch;
+use rand::SeedableRng;
+use rand::rngs::StdRng;
 
 #[test]
 fn rock_drill_demo_orders_the_pipelines_as_claimed() {
@@ -55,6 +57,32 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
     ] {
         assert!(best_small < z(&paper_large), "{paper_large}: {table:#?}");
     }
+}
+
+#[test]
+fn grouped_collection_measures_one_telescope_setting_after_another() {
+    let grid = paper_grid();
+    let order = collection_order(grid.clone(), &mut StdRng::seed_from_u64(3));
+    // Every grid pose once.
+    let key = |q: &Vec<f64>| q.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let mut a: Vec<_> = grid.iter().map(key).collect();
+    let mut b: Vec<_> = order.iter().map(key).collect();
+    a.sort();
+    b.sort();
+    assert_eq!(a, b);
+    // Six settings of (j3, j7), each a run of 3^5 = 243 consecutive poses.
+    let settings: Vec<(f64, f64)> = order.chunks(243).map(|c| (c[0][2], c[0][6])).collect();
+    assert_eq!(settings.len(), 6);
+    for (run, &(j3, j7)) in order.chunks(243).zip(&settings) {
+        assert!(run.iter().all(|q| q[2] == j3 && q[6] == j7));
+    }
+    let mut distinct = settings.clone();
+    distinct.sort_by(|x, y| x.partial_cmp(y).unwrap());
+    distinct.dedup();
+    assert_eq!(distinct.len(), 6);
+    // Shuffled, and the same for the same seed.
+    assert_ne!(order, grid);
+    assert_eq!(order, collection_order(grid, &mut StdRng::seed_from_u64(3)));
 }
 
 #[test]

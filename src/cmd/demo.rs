@@ -18,6 +18,10 @@ pub struct Args {
     /// Also write an HTML page with the tables into this folder.
     #[arg(long)]
     report: Option<std::path::PathBuf>,
+    /// rock-drill: take the training poses group by group (one setting of the telescopic joints
+    /// after another), as the paper collected them, instead of at random from the grid.
+    #[arg(long)]
+    grouped: bool,
     /// agile-justin: folds of the cross-validation (0 skips it).
     #[arg(long, default_value_t = 5)]
     folds: usize,
@@ -90,7 +94,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             if !args.json {
                 describe(Twin::get("rock-drill").expect("built in"))?;
             }
-            let table = armcomp::demos::rock_drill::run(&armcomp::demos::rock_drill::Config::paper(args.seed))?;
+            let config = armcomp::demos::rock_drill::Config {
+                grouped: args.grouped,
+                ..armcomp::demos::rock_drill::Config::paper(args.seed)
+            };
+            let table = armcomp::demos::rock_drill::run(&config)?;
             super::demo_output::emit(&[table], args.json, args.report.as_deref())?;
         }
         "industrial" => {
