@@ -352,17 +352,21 @@ fn calibrate_and_evaluate_on_the_command_line() {
     assert_eq!(report["converged"], true);
     assert!(report["after"]["rms_mm"].as_f64().unwrap() < report["before"]["rms_mm"].as_f64().unwrap());
 
-    let evaluate = |model: &std::path::Path| {
+    // `armcomp evaluate --model M --data test.csv` with `extra` arguments; stdout.
+    let evaluate_cli = |model: &std::path::Path, extra: &[&std::ffi::OsStr]| {
         let out = Command::new(bin)
             .args(["evaluate", "--model"])
             .arg(model)
             .arg("--data")
             .arg(&test)
-            .arg("--json")
+            .args(extra)
             .output()
             .unwrap();
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+        out.stdout
+    };
+    let evaluate = |model: &std::path::Path| {
+        serde_json::from_slice::<serde_json::Value>(&evaluate_cli(model, &["--json".as_ref()])).unwrap()
     };
     let after = evaluate(&model);
     let before = evaluate(&nominal_path);
@@ -386,16 +390,7 @@ fn calibrate_and_evaluate_on_the_command_line() {
 
     // Per-sample residuals of the nominal model, against its forward kinematics directly.
     let residuals = dir.0.join("residuals.csv");
-    let out = Command::new(bin)
-        .args(["evaluate", "--model"])
-        .arg(&nominal_path)
-        .arg("--data")
-        .arg(&test)
-        .arg("--residuals")
-        .arg(&residuals)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    evaluate_cli(&nominal_path, &["--residuals".as_ref(), residuals.as_os_str()]);
     let text = std::fs::read_to_string(&residuals).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();

@@ -21,6 +21,26 @@ fn targets(truth: &armcomp_core::Robot, n: usize, seed: u64) -> Vec<Vector3<f64>
         .collect()
 }
 
+/// `armcomp compensate --model M --targets T --out O [extra…]`: exit code, stdout, stderr.
+fn compensate_cli(
+    model: &str,
+    targets: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> (i32, String, String) {
+    let mut args = vec![
+        "compensate",
+        "--model",
+        model,
+        "--targets",
+        targets.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    armcomp(&args)
+}
+
 #[test]
 fn the_truth_as_model_compensates_exactly() {
     let truth = robot("rock-drill-truth.toml");
@@ -187,17 +207,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
     let mut landed_error = Vec::new();
     for mode in ["paper", "exact"] {
         let out = dir.0.join(format!("commands-{mode}.csv"));
-        let (code, _, err) = armcomp(&[
-            "compensate",
-            "--model",
-            fitted.to_str().unwrap(),
-            "--targets",
-            targets_path.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--mode",
-            mode,
-        ]);
+        let (code, _, err) = compensate_cli(fitted.to_str().unwrap(), &targets_path, &out, &["--mode", mode]);
         assert_eq!(code, 0, "{err}");
         let text = std::fs::read_to_string(&out).unwrap();
         let header = text.lines().next().unwrap();
@@ -305,15 +315,7 @@ fn compensate_cli_reads_pose_targets() {
     }
     let targets_path = dir.file("poses.csv", &csv);
     let out = dir.0.join("commands.csv");
-    let (code, _, err) = armcomp(&[
-        "compensate",
-        "--model",
-        "robots/rock-drill-deflection.toml",
-        "--targets",
-        targets_path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, err) = compensate_cli("robots/rock-drill-deflection.toml", &targets_path, &out, &[]);
     assert_eq!(code, 0, "{err}");
     let text = std::fs::read_to_string(&out).unwrap();
     let nq = model.tree().nq();
@@ -351,15 +353,7 @@ fn compensate_cli_reads_pose_targets() {
         ),
     ] {
         let bad = dir.file(name, text);
-        let (code, _, err) = armcomp(&[
-            "compensate",
-            "--model",
-            "robots/rock-drill-deflection.toml",
-            "--targets",
-            bad.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ]);
+        let (code, _, err) = compensate_cli("robots/rock-drill-deflection.toml", &bad, &out, &[]);
         assert_ne!(code, 0);
         assert!(err.contains(expected), "{err}");
     }
@@ -370,27 +364,11 @@ fn compensate_reports_bad_targets_with_line_and_column() {
     let dir = Scratch::new("compensate-bad");
     let bad = dir.file("t.csv", "x[mm],y[mm],z[mm]\n100,0,400\n100,abc,400\n");
     let out = dir.0.join("c.csv");
-    let (code, _, err) = armcomp(&[
-        "compensate",
-        "--model",
-        "robots/rock-drill.toml",
-        "--targets",
-        bad.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let (code, _, err) = compensate_cli("robots/rock-drill.toml", &bad, &out, &[]);
     assert_ne!(code, 0);
     assert!(err.contains("t.csv:3: column 2: `abc` is not a finite number"), "{err}");
     assert!(!out.exists());
-    let (code, _, err) = armcomp(&[
-        "compensate",
-        "--model",
-        "robots/rock-drill.toml",
-        "--targets",
-        bad.to_str().unwrap(),
-        "--out",
-        bad.to_str().unwrap(),
-    ]);
+    let (code, _, err) = compensate_cli("robots/rock-drill.toml", &bad, &bad, &[]);
     assert_ne!(code, 0);
     assert!(err.contains("refusing to overwrite an input"), "{err}");
 }

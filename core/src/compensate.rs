@@ -11,9 +11,9 @@
 //!   (value and derivative, for predictors that have one) and IK solves the model plus that
 //!   linear offset; this repeats, with the value re-predicted and the derivative kept (the
 //!   chord method), until the full model lands within the tolerance, typically three solves
-//!   after the first on the rock-drill twin. Predictors without a derivative get the fixed-point version (the residual
-//!   held constant within each solve), which converges linearly at the rate of the residual's
-//!   sensitivity.
+//!   after the first on the rock-drill twin. Predictors without a derivative get the
+//!   fixed-point version (the residual held constant within each solve), which converges
+//!   linearly at the rate of the residual's sensitivity.
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 

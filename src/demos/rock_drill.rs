@@ -99,6 +99,9 @@ pub fn paper_grid() -> Vec<Vec<f64>> {
     poses
 }
 
+/// Positions of the two prismatic (telescopic) joints, j3 and j7, in the grid's poses.
+const TELESCOPES: [usize; 2] = [2, 6];
+
 /// The grid in the order it is measured: group by group, a group being one setting of the two
 /// prismatic joints with every revolute combination (Sec. III.B collects its training set in
 /// groups); groups and poses within a group in a seeded random order. A training set cut from
@@ -107,7 +110,7 @@ pub fn paper_grid() -> Vec<Vec<f64>> {
 pub fn collection_order(grid: Vec<Vec<f64>>, rng: &mut StdRng) -> Vec<Vec<f64>> {
     let mut groups: Vec<Vec<Vec<f64>>> = Vec::new();
     for q in grid {
-        match groups.iter_mut().find(|g| g[0][2] == q[2] && g[0][6] == q[6]) {
+        match groups.iter_mut().find(|g| TELESCOPES.iter().all(|&k| g[0][k] == q[k])) {
             Some(g) => g.push(q),
             None => groups.push(vec![q]),
         }

@@ -10,9 +10,6 @@
 //! (the O(n³) likelihood is evaluated tens of times; the full set is factorised once at the
 //! end), the predictor itself uses every row.
 
-use crate::data::{Samples, Standardizer, check_count, check_positive, progress};
-use crate::lbfgs;
-use crate::rbf::{dot, kernel_row};
 use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use nalgebra::{DMatrix, DVectorViewMut};
 use rand::rngs::StdRng;
@@ -20,6 +17,10 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
+
+use crate::data::{Samples, Standardizer, check_count, check_positive, progress};
+use crate::lbfgs;
+use crate::rbf::{dot, kernel_row};
 
 /// Whether the outputs share one kernel.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
