@@ -547,6 +547,7 @@ pub fn residual_corrected_errors(
         targets: &targets,
         n_inputs: nq,
         n_outputs: 3 * DATA_MARKERS.len(),
+        input_ranges: robot.tree().coordinate_limits(),
     })?;
     let (groups, inputs, targets) = rows(test)?;
     let mut out = vec![Vector3::zeros(); test.len()];

@@ -579,6 +579,7 @@ fn learnable(
             targets: &targets,
             n_inputs: nq,
             n_outputs: 3,
+            input_ranges: model.tree().coordinate_limits(),
         })?;
         let (mut out, mut scratch) = ([0.0; 3], Vec::new());
         for &i in &split.test {

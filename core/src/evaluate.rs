@@ -122,5 +122,6 @@ pub fn fit_residual_predictor(
         targets: &targets,
         n_inputs: robot.tree().nq(),
         n_outputs: 3,
+        input_ranges: robot.tree().coordinate_limits(),
     })
 }

@@ -16,7 +16,7 @@ use crate::mass::MassModel;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::shape::Shape;
-use crate::tree::KinematicTree;
+use crate::tree::{KinematicTree, Limits};
 use crate::units::Units;
 use crate::workspace::TreeWorkspace;
 
@@ -188,6 +188,10 @@ pub struct TrainingSet<'a> {
     pub n_inputs: usize,
     /// Number of outputs per row.
     pub n_outputs: usize,
+    /// The range each input is used over (rad or m: the robot's joint limits), one per input,
+    /// or empty when unknown. Predictors scale an input by at least its range, so what they learn
+    /// from a narrow slice of it is not blown up when they are queried across the whole of it.
+    pub input_ranges: &'a [Option<Limits>],
 }
 
 /// A residual predictor's hyper-parameters as written in a robot file.

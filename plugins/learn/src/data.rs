@@ -1,6 +1,6 @@
 //! What every predictor does with its training set: check it, standardise it, split it.
 
-use armcomp_core::{Error, Result, TrainingSet};
+use armcomp_core::{Error, Limits, Result, TrainingSet};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -14,6 +14,8 @@ pub(crate) struct Samples<'a> {
     pub n: usize,
     pub n_inputs: usize,
     pub n_outputs: usize,
+    /// One range per input, or empty.
+    pub input_ranges: &'a [Option<Limits>],
 }
 
 impl<'a> Samples<'a> {
@@ -54,12 +56,30 @@ impl<'a> Samples<'a> {
                 )));
             }
         }
+        if !data.input_ranges.is_empty() && data.input_ranges.len() != d {
+            return Err(Error::Dimension {
+                what: format!("training input ranges (one per input, {d} inputs)"),
+                expected: d,
+                got: data.input_ranges.len(),
+            });
+        }
+        for (j, r) in data.input_ranges.iter().enumerate() {
+            if let Some(r) = r
+                && !(r.lower.is_finite() && r.upper.is_finite() && r.lower <= r.upper)
+            {
+                return Err(Error::Input(format!(
+                    "training set: range of input {j} is [{}, {}]; expected finite bounds, lower ≤ upper",
+                    r.lower, r.upper
+                )));
+            }
+        }
         Ok(Samples {
             inputs: data.inputs,
             targets: data.targets,
             n,
             n_inputs: d,
             n_outputs: k,
+            input_ranges: data.input_ranges,
         })
     }
 
@@ -68,8 +88,9 @@ impl<'a> Samples<'a> {
     }
 }
 
-/// Smallest scale (rad or m) a joint input is divided by: a milliradian or a millimetre, below
-/// which a joint's spread in the training data is encoder or measurement jitter.
+/// Spread (rad or m: a milliradian or a millimetre) below which a joint's values in the
+/// training data are encoder or measurement jitter: the joint held still, and nothing about it
+/// can be learnt.
 pub const INPUT_SCALE_FLOOR: f64 = 1e-3;
 
 /// Per-column affine map to zero mean and unit standard deviation, learnt on the training set.
@@ -77,13 +98,32 @@ pub const INPUT_SCALE_FLOOR: f64 = 1e-3;
 pub struct Standardizer {
     /// Column means.
     pub mean: Vec<f64>,
-    /// Column standard deviations (1 for constant columns, which then only get centred).
+    /// Column scales: standard deviations (1 for constant columns, which then only get centred);
+    /// for inputs, 0 marks a column that is ignored (mapped to 0), see
+    /// [`fit_inputs`](Self::fit_inputs).
     pub scale: Vec<f64>,
 }
 
 impl Standardizer {
     /// Fits the map to the columns of the row-major `values` (`width` columns).
     pub fn fit(values: &[f64], width: usize) -> Self {
+        let (mean, sd) = Self::moments(values, width);
+        let scale = sd
+            .into_iter()
+            // A constant column carries no information; scaling it by 1 keeps it harmless.
+            .map(|sd| {
+                if sd > 1e-12 * (1.0 + sd) && sd.is_normal() {
+                    sd
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        Standardizer { mean, scale }
+    }
+
+    /// Column means and standard deviations.
+    fn moments(values: &[f64], width: usize) -> (Vec<f64>, Vec<f64>) {
         let n = (values.len() / width).max(1) as f64;
         let mut mean = vec![0.0; width];
         for row in values.chunks_exact(width) {
@@ -98,32 +138,55 @@ impl Standardizer {
                 *s += (v - m) * (v - m);
             }
         }
-        for s in &mut scale {
-            let sd = (*s / n).sqrt();
-            // A constant column carries no information; scaling it by 1 keeps it harmless.
-            *s = if sd > 1e-12 * (1.0 + sd) && sd.is_normal() {
-                sd
-            } else {
-                1.0
-            };
-        }
+        scale.iter_mut().for_each(|s| *s = (*s / n).sqrt());
+        (mean, scale)
+    }
+
+    /// [`fit`](Self::fit) for joint values (rad or m), each used over its range in `ranges` (one
+    /// per column, or empty when unknown):
+    /// - A column whose standard deviation is below [`INPUT_SCALE_FLOOR`] held still in the
+    ///   data: it is ignored (scale 0), and what is learnt holds whatever value it takes later.
+    ///   Its jitter would otherwise be scaled up into a feature, and weights nothing trained
+    ///   would act on it once it moves.
+    /// - Any other column is scaled by at least the standard deviation of a uniform spread over
+    ///   its range, `(upper − lower)/√12`. A column seen at two close values (two extensions of
+    ///   a telescope, 1 mm apart) would otherwise have a slope learnt over that millimetre
+    ///   multiplied by a hundred when queried at the other end of its range.
+    pub fn fit_inputs(values: &[f64], width: usize, ranges: &[Option<Limits>]) -> Self {
+        let (mean, sd) = Self::moments(values, width);
+        let scale = sd
+            .into_iter()
+            .enumerate()
+            .map(|(j, sd)| {
+                if sd < INPUT_SCALE_FLOOR {
+                    return 0.0;
+                }
+                let uniform = ranges
+                    .get(j)
+                    .copied()
+                    .flatten()
+                    .map_or(0.0, |r| (r.upper - r.lower) / 12f64.sqrt());
+                sd.max(uniform)
+            })
+            .collect();
         Standardizer { mean, scale }
     }
 
-    /// [`fit`](Self::fit) for joint values (rad or m): a column that spans less than
-    /// [`INPUT_SCALE_FLOOR`] is scaled by that floor, so a joint that holds still in the data
-    /// stays a near-constant input instead of its encoder jitter growing into one as large as
-    /// the joints that move.
-    pub fn fit_inputs(values: &[f64], width: usize) -> Self {
-        let mut s = Self::fit(values, width);
-        s.scale.iter_mut().for_each(|v| *v = v.max(INPUT_SCALE_FLOOR));
-        s
+    /// Factor a deviation from column `j`'s mean is multiplied by: `1/scale`, 0 for an ignored
+    /// column.
+    pub fn gain(&self, j: usize) -> f64 {
+        if self.ignores(j) { 0.0 } else { 1.0 / self.scale[j] }
+    }
+
+    /// Whether column `j` is ignored (held still in the training data).
+    pub fn ignores(&self, j: usize) -> bool {
+        self.scale[j] <= 0.0
     }
 
     /// Standardises `raw` into `out`.
     pub fn apply(&self, raw: &[f64], out: &mut [f64]) {
         for (((o, r), m), s) in out.iter_mut().zip(raw).zip(&self.mean).zip(&self.scale) {
-            *o = (r - m) / s;
+            *o = if *s <= 0.0 { 0.0 } else { (r - m) / s };
         }
     }
 

@@ -142,6 +142,7 @@ impl<'a> GpLikelihood<'a> {
                 targets,
                 n_inputs,
                 n_outputs,
+                input_ranges: &[],
             },
             1,
         )?;
@@ -473,7 +474,7 @@ impl FittedPredictor for FittedGp {
             // Each input's column once, against every output's weights while it is in cache.
             for (j, column) in cache.columns.chunks_exact(n).enumerate() {
                 // Back to the raw units of the input: ∂u_j/∂x_j = 1 / (s_j ℓ_j).
-                let per_input = 1.0 / (self.model.inputs.scale[j] * kernel.hyper.length_scales[j]);
+                let per_input = self.model.inputs.gain(j) / kernel.hyper.length_scales[j];
                 for (&o, run) in kernel.outputs.iter().zip(weighted[..m * n].chunks_exact(n)) {
                     jacobian[o * d + j] = (dot(column, run) - uk[j] * out[o]) * self.model.outputs.scale[o] * per_input;
                 }
@@ -567,7 +568,7 @@ impl PredictorSpec for GpSpec {
         self.check()?;
         let s = Samples::check(data, 2)?;
         let (d, k) = (s.n_inputs, s.n_outputs);
-        let inputs = Standardizer::fit_inputs(s.inputs, d);
+        let inputs = Standardizer::fit_inputs(s.inputs, d, s.input_ranges);
         let outputs = Standardizer::fit(s.targets, k);
         let x = inputs.apply_rows(s.inputs);
         let y = outputs.apply_rows(s.targets);

@@ -154,7 +154,7 @@ impl PredictorSpec for KnnSpec {
     fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
         check_count("k", self.k, 1)?;
         let s = Samples::check(data, self.k)?;
-        let inputs = Standardizer::fit_inputs(s.inputs, s.n_inputs);
+        let inputs = Standardizer::fit_inputs(s.inputs, s.n_inputs, s.input_ranges);
         Ok(Box::new(FittedKnn::try_from(KnnModel {
             k: self.k,
             weighting: self.weighting,

@@ -262,8 +262,8 @@ impl FittedPredictor for FittedMlp {
             .input_jacobian(&m.params, acts, &mut tangents[..n_acts * d], jacobian);
         // Back to raw units: outputs scale up, inputs were divided by their scale.
         for (row, so) in jacobian.chunks_exact_mut(d).zip(&m.outputs.scale) {
-            for (g, si) in row.iter_mut().zip(&m.inputs.scale) {
-                *g *= so / si;
+            for (j, g) in row.iter_mut().enumerate() {
+                *g *= so * m.inputs.gain(j);
             }
         }
         true

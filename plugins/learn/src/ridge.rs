@@ -45,8 +45,9 @@ impl RidgeFeatures {
         d + if self.degree == 2 { d * (d + 1) / 2 } else { 0 } + if self.trig { 2 * d } else { 0 }
     }
 
-    /// Features of one row from its raw inputs `x` and standardised inputs `z`.
-    fn compute(self, x: &[f64], z: &[f64], out: &mut [f64]) {
+    /// Features of one row from its raw inputs `x` and standardised inputs `z` (`inputs` made
+    /// them; an input it ignores gives no trigonometric features either).
+    fn compute(self, x: &[f64], inputs: &Standardizer, z: &[f64], out: &mut [f64]) {
         let d = x.len();
         out[..d].copy_from_slice(z);
         let mut f = d;
@@ -59,9 +60,10 @@ impl RidgeFeatures {
             }
         }
         if self.trig {
-            for v in x {
-                out[f] = v.sin();
-                out[f + 1] = v.cos();
+            for (j, v) in x.iter().enumerate() {
+                let (sin, cos) = if inputs.ignores(j) { (0.0, 0.0) } else { v.sin_cos() };
+                out[f] = sin;
+                out[f + 1] = cos;
                 f += 2;
             }
         }
@@ -139,7 +141,7 @@ impl FittedPredictor for FittedRidge {
         let (z, rest) = scratch.split_at_mut(d);
         let (raw, phi) = rest.split_at_mut(nf);
         m.inputs.apply(input, z);
-        m.features.compute(input, z, raw);
+        m.features.compute(input, &m.inputs, z, raw);
         m.feature_scaling.apply(raw, &mut phi[..nf]);
         out.fill(0.0);
         for (f, w) in phi[..nf].iter().zip(m.weights.chunks_exact(k)) {
@@ -168,12 +170,12 @@ impl PredictorSpec for RidgeSpec {
             trig: self.trig,
         };
         let nf = features.count(d);
-        let inputs = Standardizer::fit_inputs(s.inputs, d);
+        let inputs = Standardizer::fit_inputs(s.inputs, d, s.input_ranges);
         let mut z = vec![0.0; d];
         let mut raw = vec![0.0; n * nf];
         for (i, row) in raw.chunks_exact_mut(nf).enumerate() {
             inputs.apply(s.input(i), &mut z);
-            features.compute(s.input(i), &z, row);
+            features.compute(s.input(i), &inputs, &z, row);
         }
         let feature_scaling = Standardizer::fit(&raw, nf);
         let outputs = Standardizer::fit(s.targets, k);

@@ -93,7 +93,7 @@ pub(crate) struct NetData {
 
 impl NetData {
     pub fn new(samples: &Samples<'_>, validation_fraction: f64, rng: &mut StdRng) -> Self {
-        let inputs = Standardizer::fit_inputs(samples.inputs, samples.n_inputs);
+        let inputs = Standardizer::fit_inputs(samples.inputs, samples.n_inputs, samples.input_ranges);
         let outputs = Standardizer::fit(samples.targets, samples.n_outputs);
         let (train, held_out) = split_indices(samples.n, validation_fraction, rng);
         NetData {

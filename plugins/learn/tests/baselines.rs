@@ -26,6 +26,7 @@ fn ridge_recovers_linear_function() {
         targets: &y,
         n_inputs: d,
         n_outputs: k,
+        input_ranges: &[],
     };
     for (degree, trig) in [(1, false), (2, true)] {
         let model = RidgeSpec {
@@ -76,6 +77,7 @@ fn knn_averages_nearest_rows() {
         targets: &y,
         n_inputs: 1,
         n_outputs: 1,
+        input_ranges: &[],
     })
     .unwrap();
     let mut out = [0.0];

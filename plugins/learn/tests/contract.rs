@@ -5,13 +5,14 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use armcomp_core::{Error, FittedPredictor, PredictorSpec, RobotFile, TrainingSet};
+use armcomp_core::{Error, FittedPredictor, Limits, PredictorSpec, RobotFile, TrainingSet};
 use armcomp_learn::{
     GpHyperParams, GpSpec, GradientMethod, KnnSpec, KnnWeighting, MlpSpec, RidgeSpec, SparrowParams, SsaBpSpec,
-    TrainingParams,
+    Standardizer, TrainingParams,
 };
 
 use crate::common::Data;
+use crate::common::RANGES;
 
 /// Counts this thread's allocations, so tests running in parallel do not disturb each other.
 struct CountingAllocator;
@@ -238,6 +239,7 @@ fn jacobians_match_central_differences_of_the_prediction() {
 #[test]
 fn bad_training_sets_are_errors() {
     let data = Data::residuals(30, 16);
+    let ranges = joint_ranges();
     let mut nan_inputs = data.inputs.clone();
     nan_inputs[7 * 4 + 2] = f64::NAN;
     for (name, spec) in specs(5) {
@@ -270,7 +272,104 @@ fn bad_training_sets_are_errors() {
             ..data.set(7, 3)
         };
         assert!(matches!(spec.fit(&none), Err(Error::Input(_))), "{name}");
+        let few_ranges = TrainingSet {
+            input_ranges: &ranges[..6],
+            ..data.set(7, 3)
+        };
+        match spec.fit(&few_ranges) {
+            Err(Error::Dimension { expected, got, .. }) => assert_eq!((expected, got), (7, 6), "{name}"),
+            other => panic!("{name}: six ranges for seven inputs gave {other:?}"),
+        }
+        let mut inverted = ranges.clone();
+        inverted[3] = Some(Limits { lower: 1.0, upper: 0.0 });
+        match spec.fit(&TrainingSet {
+            input_ranges: &inverted,
+            ..data.set(7, 3)
+        }) {
+            Err(Error::Input(m)) => assert!(m.contains("range of input 3 is [1, 0]"), "{name}: {m}"),
+            other => panic!("{name}: an inverted range gave {other:?}"),
+        }
     }
+}
+
+/// The rock-drill's joint ranges as the robot would declare them.
+fn joint_ranges() -> Vec<Option<Limits>> {
+    RANGES
+        .iter()
+        .map(|&(lower, upper)| Some(Limits { lower, upper }))
+        .collect()
+}
+
+#[test]
+fn a_joint_that_held_still_is_ignored_by_every_predictor() {
+    // j7 jitters by 10 µm around 30 mm in the training data: below the input scale floor.
+    let mut data = Data::residuals(60, 21);
+    for (i, row) in data.inputs.chunks_exact_mut(7).enumerate() {
+        row[6] = 0.03 + 1e-5 * (i % 2) as f64;
+    }
+    let ranges = joint_ranges();
+    let set = TrainingSet {
+        input_ranges: &ranges,
+        ..data.set(7, 3)
+    };
+    let probe = Data::residuals(3, 22);
+    for (name, spec) in specs(8) {
+        let model = spec.fit(&set).unwrap();
+        let mut scratch = Vec::new();
+        for q in probe.inputs.chunks(7) {
+            // Anywhere in its range, even far from where it held still, j7 changes nothing.
+            let (mut at_zero, mut at_end) = ([0.0; 3], [0.0; 3]);
+            let (mut lo, mut hi) = (q.to_vec(), q.to_vec());
+            lo[6] = 0.0;
+            hi[6] = 0.063;
+            model.predict_into(&lo, &mut at_zero, &mut scratch);
+            model.predict_into(&hi, &mut at_end, &mut scratch);
+            assert_eq!(at_zero, at_end, "{name}: the held-still joint moved the prediction");
+            let (mut value, mut jac) = ([0.0; 3], [0.0; 21]);
+            if model.predict_jacobian_into(&lo, &mut value, &mut jac, &mut scratch) {
+                assert!((0..3).all(|o| jac[o * 7 + 6] == 0.0), "{name}: ∂/∂j7 = {jac:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn inputs_are_scaled_by_at_least_their_range() {
+    // Column 0 at two extensions 5 mm apart, column 1 spread across its range, column 2
+    // without a declared range.
+    let rows: Vec<[f64; 3]> = (0..8)
+        .map(|i| [if i < 6 { 0.1 } else { 0.105 }, 0.01 * i as f64, 0.003 * i as f64])
+        .collect();
+    let values: Vec<f64> = rows.iter().flatten().copied().collect();
+    let ranges = [
+        Some(Limits {
+            lower: 0.0,
+            upper: 0.105,
+        }),
+        Some(Limits {
+            lower: 0.0,
+            upper: 0.07,
+        }),
+        None,
+    ];
+    let s = Standardizer::fit_inputs(&values, 3, &ranges);
+    let std_of = |j: usize| {
+        let m = rows.iter().map(|r| r[j]).sum::<f64>() / 8.0;
+        (rows.iter().map(|r| (r[j] - m).powi(2)).sum::<f64>() / 8.0).sqrt()
+    };
+    // sd of {100 mm ×6, 105 mm ×2} = 5 mm · √(0.75 · 0.25) = 2.2 mm < the uniform sd 30.3 mm.
+    assert!(
+        std_of(0) > 2e-3 && (s.scale[0] - 0.105 / 12f64.sqrt()).abs() < 1e-15,
+        "{:?}",
+        s.scale
+    );
+    // 0, 10, ..., 70 mm: sd 22.9 mm > the uniform sd of 0..70 mm, 20.2 mm.
+    assert!((s.scale[1] - std_of(1)).abs() < 1e-15 && std_of(1) > 0.07 / 12f64.sqrt());
+    assert!((s.scale[2] - std_of(2)).abs() < 1e-15);
+    let mut z = [0.0; 3];
+    s.apply(&[0.0, 0.0, 0.0], &mut z);
+    // The far end of the telescope is 3.3 of its scales away, not 47 of its 2.2 mm.
+    assert!((z[0] + 0.10125 / (0.105 / 12f64.sqrt())).abs() < 1e-12, "{z:?}");
 }
 
 #[test]

@@ -46,6 +46,7 @@ fn posterior_matches_closed_form() {
             targets: &ys,
             n_inputs: 1,
             n_outputs: 1,
+            input_ranges: &[],
         })
         .unwrap();
 
@@ -164,6 +165,7 @@ fn recovers_length_scale() {
             targets: &y,
             n_inputs: 2,
             n_outputs: 1,
+            input_ranges: &[],
         })
         .unwrap();
     let json = serde_json::to_value(&model).unwrap();

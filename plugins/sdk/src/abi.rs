@@ -43,8 +43,9 @@ use std::os::raw::c_void;
 
 /// The ABI version this crate speaks. Bumped on any change of a layout or a signature.
 ///
-/// Version 2 added [`AbiTypeInfo::candidate_template`].
-pub const ABI_VERSION: u32 = 2;
+/// Version 2 added [`AbiTypeInfo::candidate_template`]; version 3 the input ranges of
+/// [`AbiTrainingSet`].
+pub const ABI_VERSION: u32 = 3;
 
 /// The call succeeded.
 pub const STATUS_OK: i32 = 0;
@@ -290,6 +291,12 @@ pub struct AbiTrainingSet {
     pub n_inputs: usize,
     /// Outputs per row.
     pub n_outputs: usize,
+    /// The range each input is used over (the robot's joint limits, rad or m), `2 ×
+    /// n_input_ranges` numbers `[lower, upper]` per input, NaN bounds for an input of unknown
+    /// range.
+    pub input_ranges: *const f64,
+    /// Inputs with a range entry: 0 (none known) or `n_inputs`.
+    pub n_input_ranges: usize,
 }
 
 /// Signatures of the exported symbols, as the host calls them.

@@ -14,7 +14,8 @@ use std::sync::OnceLock;
 use armcomp_core::mass::MassModel;
 use armcomp_core::{
     AngleUnit, BuildContext, CandidateTemplate, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree,
-    LengthUnit, ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace, Units,
+    LengthUnit, Limits, ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace,
+    Units,
 };
 use nalgebra::Vector3;
 use schemars::JsonSchema;
@@ -525,18 +526,29 @@ pub unsafe fn predictor_fit(
         // SAFETY: the caller guarantees valid data for this call.
         let d = unsafe { data.as_ref() }.ok_or_else(|| "null training set".to_string())?;
         // SAFETY: as above, with the declared lengths.
-        let (config, inputs, targets) = unsafe {
+        let (config, inputs, targets, ranges) = unsafe {
             (
                 text(config)?,
                 slice(d.inputs, d.n_samples * d.n_inputs)?,
                 slice(d.targets, d.n_samples * d.n_outputs)?,
+                slice(d.input_ranges, 2 * d.n_input_ranges)?,
             )
         };
+        let input_ranges: Vec<Option<Limits>> = ranges
+            .chunks_exact(2)
+            .map(|r| {
+                (!r[0].is_nan() && !r[1].is_nan()).then_some(Limits {
+                    lower: r[0],
+                    upper: r[1],
+                })
+            })
+            .collect();
         let set = TrainingSet {
             inputs,
             targets,
             n_inputs: d.n_inputs,
             n_outputs: d.n_outputs,
+            input_ranges: &input_ranges,
         };
         let predictor = fit(config, &set)?;
         // SAFETY: forwarded from the caller.

@@ -799,12 +799,26 @@ impl PredictorSpec for PluginPredictorSpec {
                 data.n_outputs
             )));
         }
+        if !data.input_ranges.is_empty() && data.input_ranges.len() != data.n_inputs {
+            return Err(Error::Input(format!(
+                "training set has {} input ranges for {} inputs; expected one per input or none",
+                data.input_ranges.len(),
+                data.n_inputs
+            )));
+        }
+        let ranges: Vec<f64> = data
+            .input_ranges
+            .iter()
+            .flat_map(|r| r.map_or([f64::NAN; 2], |r| [r.lower, r.upper]))
+            .collect();
         let set = AbiTrainingSet {
             inputs: data.inputs.as_ptr(),
             targets: data.targets.as_ptr(),
             n_samples: n,
             n_inputs: data.n_inputs,
             n_outputs: data.n_outputs,
+            input_ranges: ranges.as_ptr(),
+            n_input_ranges: data.input_ranges.len(),
         };
         let config = self.config.to_string();
         let mut handle = std::ptr::null_mut();

@@ -2,7 +2,7 @@
 
 mod residual;
 
-pub use residual::Data;
+pub use residual::{Data, RANGES};
 
 use armcomp_core::FittedPredictor;
 

@@ -53,6 +53,7 @@ impl Data {
             targets: &self.targets,
             n_inputs,
             n_outputs,
+            input_ranges: &[],
         }
     }
 }
