@@ -2,10 +2,11 @@
 //! deflection model removes a minor share of the error, the hybrid beats the network alone with
 //! the small training set, and this project's best pipeline with the small training set is near
 //! the measurement noise and beats the paper's pipelines with the large one. Industrial:
-//! the orderings of the ANN paper that hold on its twin.
+//! the orderings of the ANN paper that hold on its twin. A sweep over seeds summarises the runs
+//! of its seeds.
 
 use armcomp::demos::industrial;
-use armcomp::demos::rock_drill::{Config, collection_order, paper_grid, run};
+use armcomp::demos::rock_drill::{Config, collection_order, paper_grid, run, sweep};
 use armcomp_learn::SparrowParams;
 
 use crate::common::Scratch;
@@ -57,6 +58,53 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
     ] {
         assert!(best_small < z(&paper_large), "{paper_large}: {table:#?}");
     }
+}
+
+#[test]
+fn seed_sweep_summarises_the_runs_of_its_seeds() {
+    let config = Config {
+        large: 240,
+        small: 80,
+        targets: 8,
+        search: SparrowParams {
+            population: 8,
+            iterations: 5,
+            ..SparrowParams::default()
+        },
+        max_epochs: 60,
+        grouped: true,
+        ..Config::paper(20_261_122)
+    };
+    let mut started = Vec::new();
+    let summary = sweep(&config, 3, &mut |s| started.push(s)).unwrap();
+    assert_eq!(started, [20_261_122, 20_261_123, 20_261_124]);
+    // Each seed run on its own gives the same errors.
+    let alone: Vec<_> = started
+        .iter()
+        .map(|&seed| run(&Config { seed, ..config.clone() }).unwrap())
+        .collect();
+    for (i, row) in summary.rows.iter().enumerate() {
+        let mut v: Vec<f64> = alone.iter().map(|t| t.rows[i].mean_abs_z_mm).collect();
+        assert_eq!(row.name, alone[0].rows[i].name);
+        v.sort_by(f64::total_cmp);
+        let mean = (v[0] + v[1] + v[2]) / 3.0;
+        assert!((row.mean_mm - mean).abs() <= 1e-12 * mean, "{row:?} vs {v:?}");
+        assert_eq!((row.min_mm, row.median_mm, row.max_mm), (v[0], v[1], v[2]), "{row:?}");
+    }
+    let wins = alone
+        .iter()
+        .filter(|t| {
+            let z = |name: &str| t.row(name).unwrap().mean_abs_z_mm;
+            z("deflection + SSA-BP, 80 poses") < z("SSA-BP only, 80 poses")
+        })
+        .count();
+    let claim = summary
+        .claims
+        .iter()
+        .find(|c| c.claim == "the hybrid beats SSA-BP alone with 80 poses")
+        .unwrap();
+    assert_eq!((claim.held, claim.of), (wins, 3));
+    assert!(sweep(&config, 0, &mut |_| {}).is_err());
 }
 
 #[test]

@@ -22,6 +22,10 @@ pub struct Args {
     /// after another), as the paper collected them, instead of at random from the grid.
     #[arg(long)]
     grouped: bool,
+    /// rock-drill: run the protocol on this many consecutive seeds from `--seed` and print how
+    /// each row spreads over them and on how many seeds each claim held.
+    #[arg(long)]
+    seeds: Option<usize>,
     /// agile-justin: folds of the cross-validation (0 skips it).
     #[arg(long, default_value_t = 5)]
     folds: usize,
@@ -88,7 +92,33 @@ fn describe(twin: &Twin) -> anyhow::Result<Robot> {
     Ok(robot)
 }
 
+/// `--seeds N` on the rock drill.
+fn sweep(config: &armcomp::demos::rock_drill::Config, n: usize, args: &Args) -> anyhow::Result<ExitCode> {
+    if args.report.is_some() {
+        bail!("--report draws one seed's run; leave out --seeds, or --report");
+    }
+    let bar = indicatif::ProgressBar::new(n as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("seeds {bar:30} {pos}/{len}  {msg}").expect("the template is valid"),
+    );
+    let sweep = armcomp::demos::rock_drill::sweep(config, n, &mut |seed| {
+        bar.set_message(format!("seed {seed}"));
+        bar.set_position(seed.wrapping_sub(config.seed));
+    });
+    bar.finish_and_clear();
+    let sweep = sweep?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&sweep)?);
+    } else {
+        sweep.print();
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if args.seeds.is_some() && args.twin != "rock-drill" {
+        bail!("--seeds runs the rock-drill demo only, not `{}`", args.twin);
+    }
     match args.twin.as_str() {
         "rock-drill" => {
             if !args.json {
@@ -98,6 +128,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 grouped: args.grouped,
                 ..armcomp::demos::rock_drill::Config::paper(args.seed)
             };
+            if let Some(n) = args.seeds {
+                return sweep(&config, n, &args);
+            }
             let table = armcomp::demos::rock_drill::run(&config)?;
             super::demo_output::emit(&[table], args.json, args.report.as_deref())?;
         }

@@ -6,6 +6,7 @@ pub mod industrial;
 pub mod plots;
 pub mod report;
 pub mod rock_drill;
+pub mod seed_sweep;
 
 use std::time::Instant;
 

@@ -14,6 +14,7 @@ use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 
+use super::seed_sweep::SeedSweep;
 use super::{PaperMetric, PaperValue, Row, Table, TestBench, timed};
 use crate::twins::Twin;
 
@@ -162,6 +163,66 @@ fn ssa_bp(config: &Config, seed: u64) -> SsaBpSpec {
 /// then this project's).
 pub fn run(config: &Config) -> Result<Table> {
     run_on(&twin("rock-drill-truth")?, config)
+}
+
+/// The protocol over the `n` seeds from `config.seed` on; `on_seed` hears each seed as it
+/// starts.
+pub fn sweep(config: &Config, n: usize, on_seed: &mut dyn FnMut(u64)) -> Result<SeedSweep> {
+    if n == 0 {
+        return Err(armcomp_core::Error::Input("seeds: expected at least 1".into()));
+    }
+    let seeds: Vec<u64> = (0..n as u64).map(|k| config.seed.wrapping_add(k)).collect();
+    let tables = seeds
+        .iter()
+        .map(|&seed| {
+            on_seed(seed);
+            run(&Config { seed, ..config.clone() })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok(SeedSweep::new(seeds, tables, |t| claims(t, config)))
+}
+
+/// The README's claims on one table: the paper's findings first (its order of the rows that
+/// have a paper value), then this project's targets.
+pub fn claims(table: &Table, config: &Config) -> Vec<(String, bool)> {
+    let (large, small) = (config.large, config.small);
+    let z = |name: String| table.row(&name).map_or(f64::NAN, |r| r.mean_abs_z_mm);
+    let ssa = |n: usize| z(format!("SSA-BP only, {n} poses"));
+    let hybrid = |n: usize| z(format!("deflection + SSA-BP, {n} poses"));
+    let best = table
+        .rows
+        .iter()
+        .filter(|r| r.name.starts_with("calibrated") && r.training_poses == small)
+        .map(|r| r.mean_abs_z_mm)
+        .fold(f64::INFINITY, f64::min);
+    vec![
+        (
+            "the nominal deflection model lowers the error".into(),
+            z("deflection only".into()) < z("original".into()),
+        ),
+        (
+            format!("every learned row beats the deflection model; {large} poses beat {small}"),
+            ssa(small).max(hybrid(small)) < z("deflection only".into())
+                && ssa(large) < ssa(small)
+                && hybrid(large) < hybrid(small),
+        ),
+        (
+            format!("the hybrid beats SSA-BP alone with {small} poses"),
+            hybrid(small) < ssa(small),
+        ),
+        (
+            format!("the hybrid helps most with few poses (gain at {small} > gain at {large})"),
+            ssa(small) - hybrid(small) > ssa(large) - hybrid(large),
+        ),
+        (
+            format!("best pipeline with {small} poses within twice the noise's mean |z|"),
+            best <= 2.0 * table.noise_mean_abs_z_mm,
+        ),
+        (
+            format!("best pipeline with {small} poses beats the paper's pipelines with {large}"),
+            best < ssa(large).min(hybrid(large)),
+        ),
+    ]
 }
 
 /// Runs the protocol with `truth` as the boom that is measured and commanded.
