@@ -99,4 +99,17 @@ fn schema_out_plugins_and_demo() {
     let (code, _, err) = armcomp(&["demo", "nope"]);
     assert_eq!(code, 1);
     assert!(err.contains("rock-drill"), "{err}");
+    // A sweep over seeds: rock drill only, at least one seed, no report; refused before running.
+    for (args, says) in [
+        (&["demo", "industrial", "--seeds", "2"][..], "rock-drill demo only"),
+        (&["demo", "--seeds", "0"][..], "expected at least 1"),
+        (
+            &["demo", "--seeds", "2", "--report", "out"][..],
+            "--report draws one seed",
+        ),
+    ] {
+        let (code, _, err) = armcomp(args);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
 }
