@@ -18,10 +18,10 @@ pub struct Args {
     /// Also write an HTML page with the tables into this folder.
     #[arg(long)]
     report: Option<std::path::PathBuf>,
-    /// rock-drill: take the training poses group by group (one setting of the telescopic joints
-    /// after another), as the paper collected them, instead of at random from the grid.
+    /// rock-drill: draw the training poses at random from the whole grid instead of group by
+    /// group (one setting of the telescopic joints after another) as the paper collected them.
     #[arg(long)]
-    grouped: bool,
+    random_poses: bool,
     /// rock-drill: run the protocol on this many consecutive seeds from `--seed` and print how
     /// each row spreads over them and on how many seeds each claim held.
     #[arg(long)]
@@ -125,7 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 describe(Twin::get("rock-drill").expect("built in"))?;
             }
             let config = armcomp::demos::rock_drill::Config {
-                grouped: args.grouped,
+                grouped: !args.random_poses,
                 ..armcomp::demos::rock_drill::Config::paper(args.seed)
             };
             if let Some(n) = args.seeds {

@@ -46,12 +46,14 @@ pub struct Config {
     /// Adam epochs of the SSA-BP refinement.
     pub max_epochs: usize,
     /// Take the training poses group by group in the order they are measured (see
-    /// [`collection_order`]) instead of at random from the whole grid.
+    /// [`collection_order`]), as the paper collected them; false draws them at random from the
+    /// whole grid.
     pub grouped: bool,
 }
 
 impl Config {
-    /// The paper's sizes: 900 and 300 poses, 40 targets, SSA-BP at its default settings.
+    /// The paper's protocol: 900 and 300 poses collected group by group, 40 targets, SSA-BP at
+    /// its default settings.
     pub fn paper(seed: u64) -> Self {
         Config {
             seed,
@@ -61,7 +63,7 @@ impl Config {
             targets: 40,
             search: SparrowParams::default(),
             max_epochs: 1000,
-            grouped: false,
+            grouped: true,
         }
     }
 }
