@@ -132,14 +132,14 @@ impl Standardizer {
             }
         }
         mean.iter_mut().for_each(|m| *m /= n);
-        let mut scale = vec![0.0; width];
+        let mut sd = vec![0.0; width];
         for row in values.chunks_exact(width) {
-            for ((s, v), m) in scale.iter_mut().zip(row).zip(&mean) {
+            for ((s, v), m) in sd.iter_mut().zip(row).zip(&mean) {
                 *s += (v - m) * (v - m);
             }
         }
-        scale.iter_mut().for_each(|s| *s = (*s / n).sqrt());
-        (mean, scale)
+        sd.iter_mut().for_each(|s| *s = (*s / n).sqrt());
+        (mean, sd)
     }
 
     /// [`fit`](Self::fit) for joint values (rad or m), each used over its range in `ranges` (one
@@ -150,8 +150,8 @@ impl Standardizer {
     ///   would act on it once it moves.
     /// - Any other column is scaled by at least the standard deviation of a uniform spread over
     ///   its range, `(upper − lower)/√12`. A column seen at two close values (two extensions of
-    ///   a telescope, 1 mm apart) would otherwise have a slope learnt over that millimetre
-    ///   multiplied by a hundred when queried at the other end of its range.
+    ///   a telescope a few millimetres apart) would otherwise have a slope learnt over that gap
+    ///   multiplied by the ratio of its range to the gap when queried at the other end.
     pub fn fit_inputs(values: &[f64], width: usize, ranges: &[Option<Limits>]) -> Self {
         let (mean, sd) = Self::moments(values, width);
         let scale = sd
