@@ -13,6 +13,7 @@ use armcomp_learn::{GpSpec, SparrowParams, SsaBpSpec};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
 
 use super::seed_sweep::SeedSweep;
 use super::{PaperMetric, PaperValue, Row, Table, TestBench, timed};
@@ -167,18 +168,20 @@ pub fn run(config: &Config) -> Result<Table> {
     run_on(&twin("rock-drill-truth")?, config)
 }
 
-/// The protocol over the `n` seeds from `config.seed` on; `on_seed` hears each seed as it
-/// starts.
-pub fn sweep(config: &Config, n: usize, on_seed: &mut dyn FnMut(u64)) -> Result<SeedSweep> {
+/// The protocol over the `n` seeds from `config.seed` on, several seeds at a time (each run is
+/// independent, so the tables are those of the seeds run one by one); `on_done` hears each seed
+/// as it finishes.
+pub fn sweep(config: &Config, n: usize, on_done: &(dyn Fn(u64) + Sync)) -> Result<SeedSweep> {
     if n == 0 {
         return Err(armcomp_core::Error::Input("seeds: expected at least 1".into()));
     }
     let seeds: Vec<u64> = (0..n as u64).map(|k| config.seed.wrapping_add(k)).collect();
     let tables = seeds
-        .iter()
+        .par_iter()
         .map(|&seed| {
-            on_seed(seed);
-            run(&Config { seed, ..config.clone() })
+            let table = run(&Config { seed, ..config.clone() });
+            on_done(seed);
+            table
         })
         .collect::<Result<Vec<_>>>()?;
     Ok(SeedSweep::new(seeds, tables, |t| claims(t, config)))
