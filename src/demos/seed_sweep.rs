@@ -55,6 +55,10 @@ pub struct SeedSweep {
 impl SeedSweep {
     /// Summarises `tables` (one per seed in `seeds`, all with the same rows); `claims` gives
     /// each claim's verdict on one table.
+    ///
+    /// # Panics
+    /// When `tables` is empty ([`rock_drill::sweep`](super::rock_drill::sweep) refuses zero
+    /// seeds before running any).
     pub fn new(seeds: Vec<u64>, tables: Vec<Table>, claims: impl Fn(&Table) -> Vec<(String, bool)>) -> Self {
         let first = &tables[0];
         let rows = first

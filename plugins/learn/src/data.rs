@@ -185,8 +185,8 @@ impl Standardizer {
 
     /// Standardises `raw` into `out`.
     pub fn apply(&self, raw: &[f64], out: &mut [f64]) {
-        for (((o, r), m), s) in out.iter_mut().zip(raw).zip(&self.mean).zip(&self.scale) {
-            *o = if *s <= 0.0 { 0.0 } else { (r - m) / s };
+        for (j, ((o, r), m)) in out.iter_mut().zip(raw).zip(&self.mean).enumerate() {
+            *o = if self.ignores(j) { 0.0 } else { (r - m) / self.scale[j] };
         }
     }
 

@@ -672,3 +672,75 @@ pub unsafe fn predictor_destroy(predictor: *mut c_void) {
         });
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Mutex;
+
+    use super::*;
+
+    /// The ranges the last fit received.
+    static SEEN: Mutex<Vec<Option<Limits>>> = Mutex::new(Vec::new());
+
+    fn recording_fit(_: &str, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>, String> {
+        *SEEN.lock().unwrap() = data.input_ranges.to_vec();
+        Err("recorded".into())
+    }
+
+    #[test]
+    fn predictor_fit_hands_the_input_ranges_over() {
+        let types = [TypeEntry {
+            name: "recorder",
+            doc: "records its training set",
+            diagnosis_candidate: false,
+            candidate_template: None,
+            constructor: Constructor::Predictor(recording_fit),
+            schema: || "{}".into(),
+        }];
+        let (inputs, targets) = ([0.1, 0.2, 0.3, 0.4, 0.5, 0.6], [1.0, 2.0]);
+        // Three inputs: a range, an unknown one (NaN bounds), a range.
+        let ranges = [-1.0, 1.0, f64::NAN, f64::NAN, 0.0, 0.105];
+        let set = AbiTrainingSet {
+            inputs: inputs.as_ptr(),
+            targets: targets.as_ptr(),
+            n_samples: 2,
+            n_inputs: 3,
+            n_outputs: 1,
+            input_ranges: ranges.as_ptr(),
+            n_input_ranges: 3,
+        };
+        let config = "{}";
+        let config = AbiStr {
+            ptr: config.as_ptr(),
+            len: config.len(),
+        };
+        let mut out = std::ptr::null_mut();
+        // SAFETY: every array of `set` and the config live for the call; `out` is valid.
+        let status = unsafe { predictor_fit(&types, 0, config, &set, &mut out) };
+        assert_eq!(status, STATUS_ERROR);
+        assert_eq!(
+            *SEEN.lock().unwrap(),
+            [
+                Some(Limits {
+                    lower: -1.0,
+                    upper: 1.0
+                }),
+                None,
+                Some(Limits {
+                    lower: 0.0,
+                    upper: 0.105
+                }),
+            ]
+        );
+        // No ranges: an empty slice, whatever the pointer.
+        let none = AbiTrainingSet {
+            input_ranges: std::ptr::null(),
+            n_input_ranges: 0,
+            ..set
+        };
+        // SAFETY: as above.
+        let status = unsafe { predictor_fit(&types, 0, config, &none, &mut out) };
+        assert_eq!(status, STATUS_ERROR);
+        assert!(SEEN.lock().unwrap().is_empty());
+    }
+}
