@@ -227,9 +227,11 @@ impl UrdfDocument {
             {
                 errors.push(format!("{at}: <limit>: lower {lo} is above upper {hi}"));
             }
+            // ROS (urdfdom, pinocchio) ignores `<mimic>` on a fixed joint: it has nothing to move.
             let mimic = j
                 .mimic
                 .as_ref()
+                .filter(|_| moving)
                 .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0)));
             let child_range = |tag: &str| node.children().find(|n| n.has_tag_name(tag)).map(|n| n.range());
             joints.push(UrdfJoint {
@@ -256,9 +258,6 @@ impl UrdfDocument {
                     Some(o) if o.mimic.is_some() || o.kind == UrdfJointType::Fixed => errors.push(format!(
                         "{at}: <mimic joint=\"{target}\">: that joint is fixed or itself a mimic joint"
                     )),
-                    Some(_) if j.kind == UrdfJointType::Fixed => {
-                        errors.push(format!("{at}: a fixed joint cannot mimic another"))
-                    }
                     Some(_) if !(k.is_finite() && off.is_finite()) => {
                         errors.push(format!("{at}: <mimic>: expected finite multiplier and offset"))
                     }
