@@ -329,7 +329,7 @@ fn calibrate_and_evaluate_on_the_command_line() {
     let write = |name: &str, samples: &[Sample]| {
         let set = armcomp_core::measurement::MeasurementSet {
             samples: samples.to_vec(),
-            warnings: vec![],
+            ..Default::default()
         };
         let text = armcomp_core::measurement::write_csv(&set, truth.tree(), truth.file.units);
         dir.file(name, &text)
@@ -381,7 +381,7 @@ fn calibrate_and_evaluate_on_the_command_line() {
     assert!(before["mean_mm"].as_f64().unwrap() > 100.0);
     // Independent check of the statistics: recompute from the errors of the written model.
     let reloaded = Robot::from_path(&model).unwrap();
-    let samples = armcomp_core::measurement::read_csv(&test, reloaded.tree(), reloaded.file.units, reloaded.tool())
+    let samples = armcomp_core::measurement::read_csv(&test, &reloaded.csv_layout())
         .unwrap()
         .samples;
     let errors = position_errors(&reloaded, &samples);

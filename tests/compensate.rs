@@ -216,7 +216,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
             "{header}"
         );
         // The joint columns read back as poses; command the truth with them.
-        let commands = read_csv(&out, truth.tree(), truth.file.units, truth.tool());
+        let commands = read_csv(&out, &armcomp_core::measurement::CsvLayout::strict(truth.tree(), truth.file.units, truth.tool()));
         assert!(commands.is_err(), "commands carry no measured x, y, z");
         let poses = armcomp_core::measurement::parse_poses(
             &text
@@ -225,8 +225,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
                 .collect::<Vec<_>>()
                 .join("\n"),
             &out,
-            truth.tree(),
-            truth.file.units,
+            &truth.csv_layout(),
         )
         .unwrap();
         let errors: Vec<f64> = poses
@@ -326,8 +325,7 @@ fn compensate_cli_reads_pose_targets() {
             .collect::<Vec<_>>()
             .join("\n"),
         &out,
-        model.tree(),
-        model.file.units,
+        &model.csv_layout(),
     )
     .unwrap();
     assert_eq!(poses.len(), goals.len());

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use armcomp_core::measurement::{MeasurementSet, Sample, parse_csv, write_csv};
+use armcomp_core::measurement::{CsvLayout, MeasurementSet, Sample, parse_csv, write_csv};
 use armcomp_core::{AngleUnit, LengthUnit, Robot, Units};
 use nalgebra::Vector3;
 
@@ -14,7 +14,7 @@ fn drill() -> Robot {
 
 fn parse(text: &str) -> Result<MeasurementSet, String> {
     let r = drill();
-    parse_csv(text, Path::new("m.csv"), r.tree(), r.file.units, r.tool()).map_err(|e| e.to_string())
+    parse_csv(text, Path::new("m.csv"), &CsvLayout::strict(r.tree(), r.file.units, r.tool())).map_err(|e| e.to_string())
 }
 
 const HEADER: &str = "j1[deg],j2[deg],j3[mm],j4[deg],j5[deg],j6[deg],j7[mm],x[mm],y[mm],z[mm]";
@@ -36,6 +36,7 @@ fn write_then_read_gives_the_same_samples() {
         })
         .collect();
     let set = MeasurementSet {
+        rows: (0..samples.len()).collect(),
         samples,
         warnings: vec![],
     };
@@ -47,7 +48,7 @@ fn write_then_read_gives_the_same_samples() {
         Units::default(),
     ] {
         let text = write_csv(&set, r.tree(), units);
-        let back = parse_csv(&text, Path::new("m.csv"), r.tree(), Units::default(), r.tool()).unwrap();
+        let back = parse_csv(&text, Path::new("m.csv"), &CsvLayout::strict(r.tree(), Units::default(), r.tool())).unwrap();
         assert_eq!(back.samples.len(), set.samples.len());
         for (a, b) in set.samples.iter().zip(&back.samples) {
             for (x, y) in a.q.iter().zip(&b.q) {

@@ -141,7 +141,7 @@ fn plan_cli_is_deterministic_and_reads_back_as_poses() {
     let b = run("b.csv", "d-optimal");
     assert_eq!(a, b);
     let r = robot("industrial-6dof.toml");
-    let poses = armcomp_core::measurement::parse_poses(&a, "a.csv".as_ref(), r.tree(), r.file.units).unwrap();
+    let poses = armcomp_core::measurement::parse_poses(&a, "a.csv".as_ref(), &r.csv_layout()).unwrap();
     assert_eq!(poses.len(), 15);
     let halton = run("c.csv", "halton");
     assert_ne!(halton, a);

@@ -137,13 +137,22 @@ impl ParameterSpace {
     }
 
     /// Indices of the parameters named by `identify`: group words `base`, `markers`,
-    /// `geometry`, `offsets` (the joint-value offsets of the chain: `θ` of revolute and `d` of
-    /// prismatic joints), `errors` (every error model), `all`, an error model's type name
+    /// `geometry` (of the measured chain: the joints that move a marker), `offsets` (its
+    /// joint-value offsets: `θ` of revolute and `d` of prismatic joints, `offset` of URDF
+    /// joints), `errors` (every error model), `all`, an error model's type name
     /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
     /// Empty means `base, markers, geometry, errors`.
     pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
         let default = ["base", "markers", "geometry", "errors"].map(String::from);
         let words: &[String] = if identify.is_empty() { &default } else { identify };
+        // Geometry words mean the chain the markers hang from: a joint elsewhere (another
+        // limb, a wheel, a sensor mount) cannot move what was measured.
+        let measured = robot.measured_joints();
+        let on_measured_chain = |name: &str| {
+            name.rsplit_once('.')
+                .and_then(|(joint, _)| robot.tree().joint_index(joint))
+                .is_none_or(|j| measured[j])
+        };
         let mut chosen = vec![false; self.params.len()];
         for word in words {
             let word = word.trim();
@@ -153,9 +162,13 @@ impl ParameterSpace {
                     "all" => true,
                     "base" => p.group == ParamGroup::Base,
                     "markers" => matches!(p.group, ParamGroup::Marker(_)),
-                    "geometry" => p.group == ParamGroup::Geometry,
+                    "geometry" => p.group == ParamGroup::Geometry && on_measured_chain(&p.info.name),
                     "errors" => matches!(p.group, ParamGroup::ErrorModel(_)),
-                    "offsets" => p.group == ParamGroup::Geometry && is_joint_offset(robot.tree(), &p.info.name),
+                    "offsets" => {
+                        p.group == ParamGroup::Geometry
+                            && on_measured_chain(&p.info.name)
+                            && is_joint_offset(robot.tree(), &p.info.name)
+                    }
                     w if w.contains('*') => glob_match(w, &p.info.name),
                     w => p.model_type == w || p.info.name == w,
                 };
@@ -229,8 +242,8 @@ fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
         return false;
     };
     match tree.joint_index(joint).map(|j| &tree.joints()[j].motion) {
-        Some(Motion::Revolute(_)) => suffix == "theta",
-        Some(Motion::Prismatic(_)) => suffix == "d",
+        Some(Motion::Revolute(_)) => suffix == "theta" || suffix == "offset",
+        Some(Motion::Prismatic(_)) => suffix == "d" || suffix == "offset",
         _ => false,
     }
 }
@@ -319,6 +332,10 @@ pub struct CalibrationParams {
     /// Whether the parameters' priors regularise the fit; without them every direction the
     /// data cannot determine is fixed.
     pub use_priors: bool,
+    /// Factor on every prior standard deviation of the robot file (chain and error models):
+    /// below 1 holds the parameters closer to their starting values, infinite drops the
+    /// priors. [`choose_prior_scale`] picks it by cross-validation.
+    pub prior_scale: f64,
 }
 
 impl Default for CalibrationParams {
@@ -332,6 +349,7 @@ impl Default for CalibrationParams {
             min_step: 1e-2,
             rank_tolerance: 1e-5,
             use_priors: true,
+            prior_scale: 1.0,
         }
     }
 }
@@ -405,6 +423,13 @@ pub struct ParamResult {
 pub struct CalibrationReport {
     /// Measured positions used.
     pub n_samples: usize,
+    /// The joints that move the measured points, base first: the chain whose geometry
+    /// `geometry` and `offsets` select.
+    pub measured_chain: Vec<String>,
+    /// Whether the measurement frame was first registered in closed form.
+    pub registered: bool,
+    /// The factor applied to the robot file's prior standard deviations (none without priors).
+    pub prior_scale: Option<f64>,
     /// Identifiability of the selected parameters at the start.
     pub identifiability: IdentifiabilityReport,
     /// Selected parameters.
@@ -808,8 +833,12 @@ fn analyse(
         ));
     }
     if !deficiencies.is_empty() {
-        let list: Vec<String> = deficiencies
+        // The largest combinations first: they say most about how the parameters trade off.
+        let mut shown: Vec<&Deficiency> = deficiencies.iter().collect();
+        shown.sort_by_key(|d| std::cmp::Reverse(d.combination.len()));
+        let list: Vec<String> = shown
             .iter()
+            .take(10)
             .map(|d| {
                 let names: Vec<&str> = d.combination.iter().map(|(n, _)| n.as_str()).collect();
                 match &d.fixed {
@@ -818,10 +847,16 @@ fn analyse(
                 }
             })
             .collect();
+        let held = deficiencies.iter().filter(|d| d.fixed.is_none()).count();
+        let more = deficiencies.len().saturating_sub(list.len());
         message.push_str(&format!(
-            "The data cannot determine {} combination(s) of parameters: {}.",
+            "The data cannot determine {} combination(s) of parameters ({} held by priors, {} fixed){}: {}{}.",
             deficiencies.len(),
-            list.join("; ")
+            held,
+            deficiencies.len() - held,
+            if more > 0 { "; the largest" } else { "" },
+            list.join("; "),
+            if more > 0 { format!("; and {more} more (the JSON report lists all)") } else { String::new() }
         ));
     }
     let report = IdentifiabilityReport {
@@ -891,6 +926,10 @@ fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize) -> String
 /// Identifies the parameters chosen by `params.identify` from `samples` (measured positions
 /// in the measurement frame). `observer` sees every iteration (for a progress display).
 ///
+/// The fit is staged so that a poor guess of the measurement frame cannot leak into the chain:
+/// when the whole base frame is identified it is first registered in closed form (the
+/// measured points against the nominal model's), then the measurement frame and markers are
+/// fitted alone, and only then everything selected, each stage starting where the last ended.
 /// Parameters the data cannot determine are reported and held (see the module documentation);
 /// when the iteration limit is reached the best parameters found are kept and the report says
 /// it did not converge.
@@ -909,6 +948,12 @@ pub fn calibrate(
             params.measurement_std
         )));
     }
+    if !(params.prior_scale > 0.0) {
+        return Err(Error::Input(format!(
+            "the prior scale must be positive (or infinite for no priors), got {}",
+            params.prior_scale
+        )));
+    }
     for (i, s) in samples.iter().enumerate() {
         robot
             .tree()
@@ -923,8 +968,12 @@ pub fn calibrate(
         }
     }
     let mut space = ParameterSpace::new(robot);
-    if !params.use_priors {
-        space.params.iter_mut().for_each(|p| p.info.sigma = f64::INFINITY);
+    for p in &mut space.params {
+        p.info.sigma = if params.use_priors {
+            p.info.sigma * params.prior_scale
+        } else {
+            f64::INFINITY
+        };
     }
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem {
@@ -933,127 +982,53 @@ pub fn calibrate(
         samples,
         sigma: params.measurement_std,
     };
-    let theta0 = space.initial();
-    let mut theta = theta0.clone();
-    let (mut d, mut e, pred) = problem.predict(&theta)?;
+    // The priors' centre: the robot's values, the measurement frame as registered.
+    let mut theta0 = space.initial();
+    let (_, _, pred) = problem.predict(&theta0)?;
     let before = stats(samples, &pred);
+    let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
+    let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
+    let (d, e, _) = problem.predict(&theta0)?;
 
     // Identifiability at the start decides what is held.
-    let jac0 = problem.jacobian(&theta, &d, &e, &selected)?;
+    let jac0 = problem.jacobian(&theta0, &d, &e, &selected)?;
     let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
     let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
-    let prior_w: Vec<f64> = free.iter().map(|&k| 1.0 / space.params[k].info.sigma).collect();
-
-    let cost_of = |theta: &[f64], r: &DVector<f64>| -> f64 {
-        let prior: f64 = free
-            .iter()
-            .zip(&prior_w)
-            .map(|(&k, w)| ((theta[k] - theta0[k]) * w).powi(2))
-            .sum();
-        0.5 * (r.norm_squared() + prior)
+    let frames: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&k| matches!(space.params[k].group, ParamGroup::Base | ParamGroup::Marker(_)))
+        .collect();
+    let mut stage = Stage {
+        theta: theta0.clone(),
+        d,
+        e,
+        iterations: 0,
     };
-    let mut r = problem.residuals(&pred);
-    let mut cost = cost_of(&theta, &r);
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    let mut converged = free.is_empty();
-    let mut stop_reason = if converged {
-        "nothing to identify".to_string()
-    } else {
-        format!("iteration limit ({}) reached", params.max_iterations)
+    let mut outcome = StageOutcome {
+        converged: free.is_empty(),
+        stop_reason: "nothing to identify".into(),
     };
-    let mut jac = if fixed.is_empty() && free == selected {
-        Some(jac0)
-    } else {
-        None
-    };
-    while !converged && iterations < params.max_iterations {
-        iterations += 1;
-        let j = match jac.take() {
-            Some(j) => j,
-            None => problem.jacobian(&theta, &d, &e, &free)?,
-        };
-        let mut a = j.transpose() * &j;
-        let mut g = j.transpose() * &r;
-        for (c, (&k, w)) in free.iter().zip(&prior_w).enumerate() {
-            a[(c, c)] += w * w;
-            g[c] += w * w * (theta[k] - theta0[k]);
-        }
-        let floor = 1e-12 * a.diagonal().max().max(1e-300);
-        // Standard deviations (in units of the noise) from the undamped normal matrix, to
-        // judge whether a step still moves anything that matters.
-        let std: Vec<f64> = match a.clone().cholesky() {
-            Some(c) => {
-                let inv = c.inverse();
-                (0..free.len()).map(|i| inv[(i, i)].max(0.0).sqrt()).collect()
-            }
-            None => vec![f64::INFINITY; free.len()],
-        };
-        let mut accepted = false;
-        while lambda <= 1e12 {
-            let mut m = a.clone();
-            for c in 0..free.len() {
-                m[(c, c)] += lambda * a[(c, c)].max(floor);
-            }
-            let Some(chol) = m.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let delta = chol.solve(&(-&g));
-            let mut trial = theta.clone();
-            for (c, &k) in free.iter().enumerate() {
-                let b = &space.params[k].info;
-                trial[k] = (theta[k] + delta[c]).clamp(b.lower, b.upper);
-            }
-            let Ok((d1, e1, pred1)) = problem.predict(&trial) else {
-                lambda *= 4.0;
-                continue;
-            };
-            let r1 = problem.residuals(&pred1);
-            let cost1 = cost_of(&trial, &r1);
-            if cost1.is_finite() && cost1 < cost {
-                let improvement = cost - cost1;
-                let relative = improvement / cost.max(1e-300);
-                let moved = free
-                    .iter()
-                    .zip(&std)
-                    .map(|(&k, sd)| (trial[k] - theta[k]).abs() / sd)
-                    .fold(0.0, f64::max);
-                (theta, d, e, r, cost) = (trial, d1, e1, r1, cost1);
-                lambda = (lambda / 3.0).max(1e-12);
-                accepted = true;
-                if relative < params.tolerance || improvement < params.min_improvement {
-                    converged = true;
-                    stop_reason = format!("the last step improved ½χ² by only {improvement:.2e}");
-                } else if moved < params.min_step {
-                    converged = true;
-                    stop_reason = format!(
-                        "the last step moved no parameter by more than {:.1}% of its standard deviation",
-                        100.0 * moved
-                    );
-                }
-                break;
-            }
-            lambda *= 4.0;
-        }
-        if !accepted {
-            converged = true;
-            stop_reason = "no step lowers the cost further (local minimum)".into();
-        }
-        observer(&IterationInfo {
-            iteration: iterations,
-            max_iterations: params.max_iterations,
-            rms: (r.norm_squared() / samples.len() as f64).sqrt() * params.measurement_std,
-            lambda,
-        });
+    if !frames.is_empty() && frames.len() < free.len() {
+        problem.levenberg_marquardt(&mut stage, &theta0, &frames, params, observer)?;
     }
+    if !free.is_empty() {
+        outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
+    }
+    let Stage {
+        theta,
+        d,
+        e,
+        iterations,
+    } = stage;
 
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
     let pred = to_meas(&d.t_meas_base, &e.world);
+    let r = problem.residuals(&pred);
     let j = problem.jacobian(&theta, &d, &e, &free)?;
     let mut a = j.transpose() * &j;
-    for (c, w) in prior_w.iter().enumerate() {
-        a[(c, c)] += w * w;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
     }
     let dof = (r.len() as f64 - free.len() as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
@@ -1075,6 +1050,7 @@ pub fn calibrate(
             .collect(),
         None => vec![f64::INFINITY; free.len()],
     };
+    let initial = space.initial();
     let params_out = selected
         .iter()
         .map(|&k| {
@@ -1084,7 +1060,7 @@ pub fn calibrate(
                 name: info.name.clone(),
                 quantity: info.quantity,
                 unit: info.quantity.si_unit(),
-                initial: theta0[k],
+                initial: initial[k],
                 value: theta[k],
                 std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
                 fixed: c.is_none(),
@@ -1097,15 +1073,182 @@ pub fn calibrate(
         robot: calibrated,
         report: CalibrationReport {
             n_samples: samples.len(),
+            measured_chain: robot.measured_joint_names(),
+            registered,
+            prior_scale: params.use_priors.then_some(params.prior_scale),
             identifiability,
             params: params_out,
             iterations,
-            converged,
-            stop_reason,
+            converged: outcome.converged,
+            stop_reason: outcome.stop_reason,
             before,
             after: stats(samples, &pred),
         },
     })
+}
+
+/// Where a fit stands: parameters, what they decode to, and the iterations so far.
+struct Stage {
+    theta: Vec<f64>,
+    d: Decoded,
+    e: Evaluation,
+    iterations: usize,
+}
+
+/// How a Levenberg–Marquardt run ended.
+struct StageOutcome {
+    converged: bool,
+    stop_reason: String,
+}
+
+impl Problem<'_> {
+    /// Levenberg–Marquardt over the parameters `free`, from `stage`, with priors centred at
+    /// `theta0`; leaves the best parameters found in `stage`.
+    fn levenberg_marquardt(
+        &self,
+        stage: &mut Stage,
+        theta0: &[f64],
+        free: &[usize],
+        params: &CalibrationParams,
+        observer: &mut dyn FnMut(&IterationInfo),
+    ) -> Result<StageOutcome> {
+        let space = self.space;
+        let prior_w: Vec<f64> = free.iter().map(|&k| 1.0 / space.params[k].info.sigma).collect();
+        let cost_of = |theta: &[f64], r: &DVector<f64>| -> f64 {
+            let prior: f64 = free
+                .iter()
+                .zip(&prior_w)
+                .map(|(&k, w)| ((theta[k] - theta0[k]) * w).powi(2))
+                .sum();
+            0.5 * (r.norm_squared() + prior)
+        };
+        let Stage { theta, d, e, iterations } = stage;
+        let mut r = self.residuals(&to_meas(&d.t_meas_base, &e.world));
+        let mut cost = cost_of(theta, &r);
+        let mut lambda = 1e-3;
+        let mut converged = false;
+        let mut stop_reason = format!("iteration limit ({}) reached", params.max_iterations);
+        let mut steps = 0;
+        while !converged && steps < params.max_iterations {
+            steps += 1;
+            *iterations += 1;
+            let j = self.jacobian(theta, d, e, free)?;
+            let mut a = j.transpose() * &j;
+            let mut g = j.transpose() * &r;
+            for (c, (&k, w)) in free.iter().zip(&prior_w).enumerate() {
+                a[(c, c)] += w * w;
+                g[c] += w * w * (theta[k] - theta0[k]);
+            }
+            let floor = 1e-12 * a.diagonal().max().max(1e-300);
+            // Standard deviations (in units of the noise) from the undamped normal matrix, to
+            // judge whether a step still moves anything that matters.
+            let std: Vec<f64> = match a.clone().cholesky() {
+                Some(c) => {
+                    let inv = c.inverse();
+                    (0..free.len()).map(|i| inv[(i, i)].max(0.0).sqrt()).collect()
+                }
+                None => vec![f64::INFINITY; free.len()],
+            };
+            let mut accepted = false;
+            while lambda <= 1e12 {
+                let mut m = a.clone();
+                for c in 0..free.len() {
+                    m[(c, c)] += lambda * a[(c, c)].max(floor);
+                }
+                let Some(chol) = m.cholesky() else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                let delta = chol.solve(&(-&g));
+                let mut trial = theta.clone();
+                for (c, &k) in free.iter().enumerate() {
+                    let b = &space.params[k].info;
+                    trial[k] = (theta[k] + delta[c]).clamp(b.lower, b.upper);
+                }
+                let Ok((d1, e1, pred1)) = self.predict(&trial) else {
+                    lambda *= 4.0;
+                    continue;
+                };
+                let r1 = self.residuals(&pred1);
+                let cost1 = cost_of(&trial, &r1);
+                if cost1.is_finite() && cost1 < cost {
+                    let improvement = cost - cost1;
+                    let relative = improvement / cost.max(1e-300);
+                    let moved = free
+                        .iter()
+                        .zip(&std)
+                        .map(|(&k, sd)| (trial[k] - theta[k]).abs() / sd)
+                        .fold(0.0, f64::max);
+                    (*theta, *d, *e, r, cost) = (trial, d1, e1, r1, cost1);
+                    lambda = (lambda / 3.0).max(1e-12);
+                    accepted = true;
+                    if relative < params.tolerance || improvement < params.min_improvement {
+                        converged = true;
+                        stop_reason = format!("the last step improved ½χ² by only {improvement:.2e}");
+                    } else if moved < params.min_step {
+                        converged = true;
+                        stop_reason = format!(
+                            "the last step moved no parameter by more than {:.1}% of its standard deviation",
+                            100.0 * moved
+                        );
+                    }
+                    break;
+                }
+                lambda *= 4.0;
+            }
+            if !accepted {
+                converged = true;
+                stop_reason = "no step lowers the cost further (local minimum)".into();
+            }
+            observer(&IterationInfo {
+                iteration: *iterations,
+                max_iterations: params.max_iterations,
+                rms: (r.norm_squared() / self.samples.len() as f64).sqrt() * params.measurement_std,
+                lambda,
+            });
+        }
+        Ok(StageOutcome { converged, stop_reason })
+    }
+}
+
+/// Registers the measurement frame in closed form: the rigid transform that best maps the
+/// model's points `model` (robot base frame) onto the measured ones, by the SVD of their
+/// cross-covariance (Kabsch/Umeyama, no scale). Writes it into the base parameters of `theta`
+/// and returns true, or leaves `theta` alone and returns false when the points do not span a
+/// plane (a rotation is then not determined).
+fn register_base(space: &ParameterSpace, theta: &mut [f64], samples: &[Sample], measured_now: &[Vector3<f64>]) -> bool {
+    // `measured_now` are the model's points seen through the current base frame; map them
+    // back into the base frame.
+    let t_now = space.base_pose(theta);
+    let model: Vec<Vector3<f64>> = measured_now
+        .iter()
+        .map(|p| t_now.inverse_transform_point(&(*p).into()).coords)
+        .collect();
+    let n = samples.len() as f64;
+    let cm = model.iter().sum::<Vector3<f64>>() / n;
+    let cs = samples.iter().map(|s| s.position).sum::<Vector3<f64>>() / n;
+    let mut h = Matrix3::zeros();
+    for (m, s) in model.iter().zip(samples) {
+        h += (m - cm) * (s.position - cs).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return false;
+    };
+    let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
+    sv.sort_by(|a, b| b.total_cmp(a));
+    if !(sv[1] > 1e-9 * sv[0].max(1e-300)) {
+        return false;
+    }
+    let v = v_t.transpose();
+    let d = (v * u.transpose()).determinant().signum();
+    let rotation = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    let rotation = nalgebra::Rotation3::from_matrix_unchecked(rotation);
+    let translation = cs - rotation * cm;
+    let (r, p, y) = rotation.euler_angles();
+    let values = [translation.x, translation.y, translation.z, r, p, y];
+    theta[space.base_offset..space.base_offset + 6].copy_from_slice(&values);
+    true
 }
 
 /// Sensitivity of every marker's measured position at each pose to the parameters `identify`

@@ -21,6 +21,7 @@ pub mod param;
 pub mod perturbation;
 pub mod plan;
 pub mod plugin;
+pub mod prior_choice;
 pub mod residuals;
 pub mod robot;
 pub mod robot_file;

@@ -1,10 +1,15 @@
 //! Measurement CSV files: one row per measured pose.
 //!
 //! Columns (any order; units in brackets, else the robot file's units):
-//! one per joint coordinate named as the joint (`j2[deg]`, `j3[mm]`); optional `point` (the
-//! measured point's name; default: the first marker); `x`, `y`, `z` (`x[mm]`), the position in
-//! the measurement frame; optional orientation `qw, qx, qy, qz`; optional `payload[kg]`,
-//! `temperature[C]`, and joint torques `tau_<joint>[Nm]`.
+//! one per joint coordinate named as the joint (`j2[deg]`, `j3[mm]`), required only for the
+//! joints that move a measured point (the measured chain; the others hold the robot file's
+//! `hold` values); `x`, `y`, `z` (`x[mm]`), the position in the measurement frame, with an
+//! optional `point` (the measured point's name; default: the first marker), or numbered
+//! triples `x1, y1, z1`, `x2, ...` for several points measured at once (the robot file's
+//! markers in order; all three cells of a point left empty when it was not seen); optional
+//! orientation `qw, qx, qy, qz`; optional `payload[kg]`, `temperature[C]`, and joint torques
+//! `tau_<joint>[Nm]`. Other columns (timestamps, marker quality, joints of other limbs) are
+//! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
 use std::path::Path;
 
@@ -38,6 +43,9 @@ pub struct Sample {
 pub struct MeasurementSet {
     /// The samples, in file order.
     pub samples: Vec<Sample>,
+    /// The data row (0-based, header and comments excluded) each sample comes from; several
+    /// samples share a row when it measures several points.
+    pub rows: Vec<usize>,
     /// Non-fatal findings (joint values outside limits, ...), each naming its line.
     pub warnings: Vec<String>,
 }
@@ -47,11 +55,14 @@ pub struct MeasurementSet {
 enum Column {
     Joint { coord: usize, scale: f64 },
     Point,
-    Position { axis: usize, scale: f64 },
+    /// `slot`: which measured point a numbered column (`x2` → 1) is; `None` for plain `x`.
+    Position { slot: Option<usize>, axis: usize, scale: f64 },
     Quat(usize),
     Payload(f64),
     Temperature(f64),
     Torque(usize),
+    /// A column armcomp does not use (a timestamp, marker quality, another limb's joint).
+    Ignored,
 }
 
 /// Splits a column header `x[mm]` into its name and optional unit.
@@ -63,45 +74,67 @@ pub fn split_header(h: &str) -> (&str, Option<&str>) {
     }
 }
 
-/// Reads measurements for `tree`; `units` applies to columns without a unit; `default_point`
-/// is the point measured when there is no `point` column.
-pub fn read_csv(path: &Path, tree: &KinematicTree, units: Units, default_point: usize) -> Result<MeasurementSet> {
+/// What a measurement CSV is read against: the robot's joints and points, and the values of
+/// joints a file may leave out ([`Robot::csv_layout`](crate::Robot::csv_layout) builds it).
+#[derive(Debug, Clone)]
+pub struct CsvLayout<'a> {
+    /// The kinematic tree: joint names, limits, points.
+    pub tree: &'a KinematicTree,
+    /// Units of columns whose header gives none.
+    pub units: Units,
+    /// The measured points: numbered position columns `x1, y1, z1`, `x2, ...` are `points[0]`,
+    /// `points[1]`, ...; plain `x, y, z` without a `point` column measure `points[0]`.
+    pub points: Vec<usize>,
+    /// Per independent coordinate, the value it holds when the file has no column for it
+    /// (rad or m); `None` makes its column required.
+    pub hold: Vec<Option<f64>>,
+}
+
+impl<'a> CsvLayout<'a> {
+    /// A layout in which every joint needs a column and plain `x, y, z` measure `point`.
+    pub fn strict(tree: &'a KinematicTree, units: Units, point: usize) -> Self {
+        CsvLayout {
+            tree,
+            units,
+            points: vec![point],
+            hold: vec![None; tree.nq()],
+        }
+    }
+}
+
+/// Reads measurements (see the module documentation) against `layout`.
+pub fn read_csv(path: &Path, layout: &CsvLayout<'_>) -> Result<MeasurementSet> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
-    parse_csv(&text, path, tree, units, default_point)
+    parse_csv(&text, path, layout)
 }
 
 /// Parses measurement CSV text (see [`read_csv`]); `path` is used in messages.
-pub fn parse_csv(
-    text: &str,
-    path: &Path,
-    tree: &KinematicTree,
-    units: Units,
-    default_point: usize,
-) -> Result<MeasurementSet> {
-    parse_table(text, path, tree, units, default_point, true)
+pub fn parse_csv(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<MeasurementSet> {
+    parse_table(text, path, layout, true)
 }
 
 /// Parses a CSV of joint configurations only (joint columns, same header rules); other
-/// measurement columns, if present, are read and ignored.
-pub fn parse_poses(text: &str, path: &Path, tree: &KinematicTree, units: Units) -> Result<Vec<Vec<f64>>> {
-    Ok(parse_table(text, path, tree, units, 0, false)?
+/// columns, if present, are ignored.
+pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Vec<Vec<f64>>> {
+    Ok(parse_table(text, path, layout, false)?
         .samples
         .into_iter()
         .map(|s| s.q)
         .collect())
 }
 
-fn parse_table(
-    text: &str,
-    path: &Path,
-    tree: &KinematicTree,
-    units: Units,
-    default_point: usize,
-    with_positions: bool,
-) -> Result<MeasurementSet> {
+/// `x3` → `(axis 0, slot 2)`: a numbered position column.
+fn numbered_position(name: &str) -> Option<(usize, usize)> {
+    let axis = ["x", "y", "z"].iter().position(|a| name.starts_with(a))?;
+    let k: usize = name[1..].parse().ok().filter(|k| *k >= 1)?;
+    Some((axis, k - 1))
+}
+
+fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: bool) -> Result<MeasurementSet> {
+    let (tree, units) = (layout.tree, layout.units);
     let err = |line: Option<usize>, msg: String| {
         let at = line.map(|l| format!(":{l}")).unwrap_or_default();
         Error::Input(format!("{}{at}: {msg}", path.display()))
@@ -118,6 +151,7 @@ fn parse_table(
     let names = tree.coordinate_names();
     let mut columns = Vec::new();
     let mut seen: Vec<String> = Vec::new();
+    let mut ignored: Vec<&str> = Vec::new();
     for h in headers.iter() {
         let (name, unit) = split_header(h);
         if seen.iter().any(|s| s == name) {
@@ -147,10 +181,31 @@ fn parse_table(
                 }
             };
             Column::Joint { coord: c, scale }
+        } else if !with_positions {
+            ignored.push(h);
+            Column::Ignored
+        } else if let Some((axis, slot)) = numbered_position(name) {
+            if slot >= layout.points.len() {
+                let measured: Vec<&str> = layout.points.iter().map(|&p| tree.points()[p].name.as_str()).collect();
+                return Err(err(
+                    Some(1),
+                    format!(
+                        "column `{h}`: the robot measures {} point(s) ({}); numbered columns x1, x2, ... are the robot file's `[measurement] markers` in order",
+                        measured.len(),
+                        measured.join(", ")
+                    ),
+                ));
+            }
+            Column::Position {
+                slot: Some(slot),
+                axis,
+                scale: length(unit)?,
+            }
         } else {
             match name {
                 "point" => Column::Point,
                 "x" | "y" | "z" => Column::Position {
+                    slot: None,
                     axis: (name.as_bytes()[0] - b'x') as usize,
                     scale: length(unit)?,
                 },
@@ -177,36 +232,72 @@ fn parse_table(
                     None => return Err(err(Some(1), format!("column `{h}`: `{}` is not a joint", &n[4..]))),
                 },
                 _ => {
-                    return Err(err(
-                        Some(1),
-                        format!(
-                            "unexpected column `{h}`; expected joint columns ({}), x, y, z, and optionally point, qw/qx/qy/qz, payload, temperature, tau_<joint>",
-                            names.join(", ")
-                        ),
-                    ));
+                    ignored.push(h);
+                    Column::Ignored
                 }
             }
         };
         columns.push(col);
     }
     let has = |f: &dyn Fn(&Column) -> bool| columns.iter().any(f);
-    for (c, n) in names.iter().enumerate() {
-        if !has(&|k| matches!(k, Column::Joint { coord, .. } if *coord == c)) {
+    let missing: Vec<String> = names
+        .iter()
+        .enumerate()
+        .filter(|&(c, _)| layout.hold[c].is_none() && !has(&|k| matches!(k, Column::Joint { coord, .. } if *coord == c)))
+        .map(|(c, n)| format!("{n}[{}]", if tree.coordinate_is_prismatic()[c] { "mm" } else { "deg" }))
+        .collect();
+    if !missing.is_empty() {
+        return Err(err(
+            Some(1),
+            format!(
+                "missing column(s) for {} joint(s) that move the measured points: {}",
+                missing.len(),
+                missing.join(", ")
+            ),
+        ));
+    }
+    // Position columns: plain `x, y, z`, or numbered triples, one per measured point.
+    let slots: Vec<Option<usize>> = {
+        let mut s: Vec<Option<usize>> = columns
+            .iter()
+            .filter_map(|c| match c {
+                Column::Position { slot, .. } => Some(*slot),
+                _ => None,
+            })
+            .collect();
+        s.sort();
+        s.dedup();
+        s
+    };
+    if with_positions {
+        if slots.is_empty() {
             return Err(err(
                 Some(1),
-                format!(
-                    "missing column for joint `{n}` (e.g. `{n}[{}]`)",
-                    if tree.coordinate_is_prismatic()[c] { "mm" } else { "deg" }
-                ),
+                "missing columns `x`, `y`, `z` (measured position, e.g. `x[mm]`; or `x1, y1, z1`, ... for several points)".into(),
             ));
         }
-    }
-    for (axis, n) in ["x", "y", "z"].iter().enumerate().filter(|_| with_positions) {
-        if !has(&|k| matches!(k, Column::Position { axis: a, .. } if *a == axis)) {
+        if slots.contains(&None) && slots.len() > 1 {
             return Err(err(
                 Some(1),
-                format!("missing column `{n}` (measured position, e.g. `{n}[mm]`)"),
+                "plain `x, y, z` and numbered `x1, y1, z1` columns cannot be mixed".into(),
             ));
+        }
+        if slots.iter().any(Option::is_some) && has(&|k| matches!(k, Column::Point)) {
+            return Err(err(
+                Some(1),
+                "a `point` column goes with plain `x, y, z`; numbered columns name their point already".into(),
+            ));
+        }
+        for slot in &slots {
+            let suffix = slot.map(|s| (s + 1).to_string()).unwrap_or_default();
+            for (axis, a) in ["x", "y", "z"].iter().enumerate() {
+                if !has(&|k| matches!(k, Column::Position { slot: s, axis: x, .. } if s == slot && *x == axis)) {
+                    return Err(err(
+                        Some(1),
+                        format!("missing column `{a}{suffix}` (measured position, e.g. `{a}{suffix}[mm]`)"),
+                    ));
+                }
+            }
         }
     }
     let nquat = columns.iter().filter(|c| matches!(c, Column::Quat(_))).count();
@@ -216,11 +307,26 @@ fn parse_table(
             "an orientation needs all four columns qw, qx, qy, qz".into(),
         ));
     }
+    if nquat == 4 && slots.len() > 1 {
+        return Err(err(
+            Some(1),
+            "an orientation (qw, qx, qy, qz) goes with one measured point, not several".into(),
+        ));
+    }
     let has_torque = has(&|k| matches!(k, Column::Torque(_)));
 
     let mut set = MeasurementSet::default();
-    let mut lines: Vec<usize> = Vec::new();
-    for record in reader.records() {
+    if !ignored.is_empty() {
+        set.warnings.push(format!(
+            "{}: column(s) {} ignored (not a joint of the robot or a measurement column)",
+            path.display(),
+            ignored.iter().map(|c| format!("`{c}`")).collect::<Vec<_>>().join(", ")
+        ));
+    }
+    // Joints outside their limits: (rows, first line, worst value) per coordinate.
+    let mut outside: Vec<(usize, usize, f64)> = vec![(0, 0, 0.0); names.len()];
+    let mut rows_without_point = 0;
+    for (row, record) in reader.records().enumerate() {
         let record = record.map_err(|e| {
             err(
                 e.position().map(|p| p.line() as usize),
@@ -239,8 +345,8 @@ fn parse_table(
             ));
         }
         let mut s = Sample {
-            q: vec![0.0; names.len()],
-            point: default_point,
+            q: layout.hold.iter().map(|h| h.unwrap_or(0.0)).collect(),
+            point: layout.points[0],
             position: Vector3::zeros(),
             orientation: None,
             payload: None,
@@ -248,15 +354,26 @@ fn parse_table(
             torque: has_torque.then(|| vec![0.0; names.len()]),
         };
         let mut quat = [0.0; 4];
+        // Per slot, the position and how many of its cells were empty.
+        let mut positions = vec![(Vector3::zeros(), 0usize); slots.len()];
         for (field, (col, head)) in record.iter().zip(columns.iter().zip(headers.iter())) {
-            if let Column::Point = col {
-                s.point = tree.point_index(field).ok_or_else(|| {
-                    err(
-                        Some(line),
-                        format!("column `point`: `{field}` is not a point of the robot"),
-                    )
-                })?;
-                continue;
+            match col {
+                Column::Ignored => continue,
+                Column::Point => {
+                    s.point = tree.point_index(field).ok_or_else(|| {
+                        err(
+                            Some(line),
+                            format!("column `point`: `{field}` is not a point of the robot"),
+                        )
+                    })?;
+                    continue;
+                }
+                Column::Position { slot: slot @ Some(_), .. } if field.is_empty() => {
+                    let k = slots.iter().position(|s| s == slot).unwrap_or(0);
+                    positions[k].1 += 1;
+                    continue;
+                }
+                _ => {}
             }
             let v: f64 = field
                 .parse()
@@ -269,7 +386,10 @@ fn parse_table(
             }
             match *col {
                 Column::Joint { coord, scale } => s.q[coord] = v * scale,
-                Column::Position { axis, scale } => s.position[axis] = v * scale,
+                Column::Position { slot, axis, scale } => {
+                    let k = slots.iter().position(|s| *s == slot).unwrap_or(0);
+                    positions[k].0[axis] = v * scale;
+                }
                 Column::Quat(k) => quat[k] = v,
                 Column::Payload(scale) => s.payload = Some(v * scale),
                 Column::Temperature(offset) => s.temperature = Some(v + offset),
@@ -278,7 +398,7 @@ fn parse_table(
                         t[c] = v;
                     }
                 }
-                Column::Point => {}
+                Column::Point | Column::Ignored => {}
             }
         }
         if nquat == 4 {
@@ -291,25 +411,66 @@ fn parse_table(
             }
             s.orientation = Some(UnitQuaternion::from_quaternion(q));
         }
-        if let Some(k) = set.samples.iter().position(|o| with_positions && *o == s) {
-            return Err(err(
-                Some(line),
-                format!("this row repeats line {} exactly (a copied row?)", lines[k]),
-            ));
-        }
         for (c, lim) in tree.coordinate_limits().iter().enumerate() {
             if let Some(l) = lim
                 && (s.q[c] < l.lower - 1e-9 || s.q[c] > l.upper + 1e-9)
             {
-                set.warnings.push(format!(
-                    "{}:{line}: joint `{}` is outside its limits",
-                    path.display(),
-                    names[c]
-                ));
+                let o = &mut outside[c];
+                if o.0 == 0 {
+                    o.1 = line;
+                }
+                o.0 += 1;
+                let beyond = (l.lower - s.q[c]).max(s.q[c] - l.upper);
+                o.2 = o.2.max(beyond);
             }
         }
-        lines.push(line);
-        set.samples.push(s);
+        if !with_positions {
+            set.samples.push(s);
+            set.rows.push(row);
+            continue;
+        }
+        let before = set.samples.len();
+        for (k, slot) in slots.iter().enumerate() {
+            let (position, empty) = positions[k];
+            match (slot, empty) {
+                (Some(_), 3) => continue, // the point was not seen in this row
+                (Some(i), 1 | 2) => {
+                    return Err(err(
+                        Some(line),
+                        format!("point {}: some of x{0}, y{0}, z{0} are empty; give all three or none", i + 1),
+                    ));
+                }
+                _ => {}
+            }
+            let mut sample = s.clone();
+            if let Some(i) = slot {
+                sample.point = layout.points[*i];
+            }
+            sample.position = position;
+            set.samples.push(sample);
+            set.rows.push(row);
+        }
+        if set.samples.len() == before {
+            rows_without_point += 1;
+        }
+    }
+    for (c, (rows, first, worst)) in outside.iter().enumerate().filter(|(_, o)| o.0 > 0) {
+        let (value, unit) = if tree.coordinate_is_prismatic()[c] {
+            (worst * 1e3, "mm")
+        } else {
+            (worst.to_degrees(), "deg")
+        };
+        set.warnings.push(format!(
+            "{}:{first}: joint `{}` is outside its limits in {rows} row(s) (first on this line; at most {value:.3} {unit} beyond)",
+            path.display(),
+            names[c]
+        ));
+    }
+    if rows_without_point > 0 {
+        set.warnings.push(format!(
+            "{}: {rows_without_point} row(s) measure no point (every position cell empty) and were skipped",
+            path.display()
+        ));
     }
     if set.samples.is_empty() {
         return Err(err(None, "no measurements (only a header)".into()));
@@ -318,6 +479,83 @@ fn parse_table(
         check_magnitudes(&set, &columns, &headers, tree, path)?;
     }
     Ok(set)
+}
+
+/// Which data rows of a measurement file to use (0-based, header excluded): comma-separated
+/// `even`, `odd`, a row `N`, or a half-open range `A..B`, `A..`, `..B`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RowSelection(Vec<RowRange>);
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RowRange {
+    Even,
+    Odd,
+    Span(usize, Option<usize>),
+}
+
+impl std::str::FromStr for RowSelection {
+    type Err = String;
+
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        let bad = |item: &str| {
+            format!("row selection `{item}`: expected `even`, `odd`, a row number or a range `A..B`, `A..`, `..B` (rows 0-based)")
+        };
+        let number = |t: &str, item: &str| t.trim().parse::<usize>().map_err(|_| bad(item));
+        let items = text
+            .split(',')
+            .map(|item| {
+                let t = item.trim();
+                Ok(match t {
+                    "even" => RowRange::Even,
+                    "odd" => RowRange::Odd,
+                    _ => match t.split_once("..") {
+                        Some((a, b)) => {
+                            let start = if a.trim().is_empty() { 0 } else { number(a, item)? };
+                            let end = if b.trim().is_empty() { None } else { Some(number(b, item)?) };
+                            if end.is_some_and(|e| e <= start) {
+                                return Err(format!("row selection `{item}`: the range is empty"));
+                            }
+                            RowRange::Span(start, end)
+                        }
+                        None => {
+                            let n = number(t, item)?;
+                            RowRange::Span(n, Some(n + 1))
+                        }
+                    },
+                })
+            })
+            .collect::<std::result::Result<Vec<_>, String>>()?;
+        Ok(RowSelection(items))
+    }
+}
+
+impl RowSelection {
+    /// Whether data row `row` is selected.
+    pub fn contains(&self, row: usize) -> bool {
+        self.0.iter().any(|r| match *r {
+            RowRange::Even => row % 2 == 0,
+            RowRange::Odd => row % 2 == 1,
+            RowRange::Span(a, b) => row >= a && b.is_none_or(|b| row < b),
+        })
+    }
+}
+
+impl MeasurementSet {
+    /// The samples of the selected rows, and their rows.
+    pub fn select_rows(&self, selection: &RowSelection) -> MeasurementSet {
+        let (samples, rows) = self
+            .samples
+            .iter()
+            .zip(&self.rows)
+            .filter(|(_, r)| selection.contains(**r))
+            .map(|(s, r)| (s.clone(), *r))
+            .unzip();
+        MeasurementSet {
+            samples,
+            rows,
+            warnings: self.warnings.clone(),
+        }
+    }
 }
 
 /// Catches unit mistakes that the numbers give away: millimetres declared as metres, degrees

@@ -8,6 +8,7 @@ use crate::collision::{BodyShape, CollisionGeometry, Fixture};
 use crate::error::{Error, Issue, Issues, Result};
 use crate::geom::xyz_rpy;
 use crate::mass::{BeamRigidity, MassModel, Payload};
+use crate::measurement::CsvLayout;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
@@ -43,6 +44,8 @@ pub struct Robot {
     error_values: Vec<Vec<f64>>,
     t_meas_base: Isometry3<f64>,
     markers: Vec<usize>,
+    /// Per coordinate, the value the robot file says it held while measuring (rad or m).
+    hold: Vec<Option<f64>>,
     /// Where a payload given per measurement hangs: body and centre of mass in it (m).
     payload_site: (usize, Vector3<f64>),
     collision: CollisionGeometry,
@@ -313,6 +316,25 @@ impl Robot {
             ),
             None => (Isometry3::identity(), Vec::new()),
         };
+        let names = base_tree.coordinate_names();
+        let mut hold = vec![None; names.len()];
+        for (name, v) in file.measurement.iter().flat_map(|m| &m.hold) {
+            let field = format!("measurement.hold.{name}");
+            match names.iter().position(|n| n == name) {
+                Some(c) if v.is_finite() => {
+                    hold[c] = Some(if base_tree.coordinate_is_prismatic()[c] {
+                        units.len(*v)
+                    } else {
+                        units.ang(*v)
+                    })
+                }
+                Some(_) => issues.push(field, "expected a finite number"),
+                None => issues.push(
+                    field,
+                    format!("`{name}` is not an independent joint (expected one of: {})", names.join(", ")),
+                ),
+            }
+        }
         let mut markers = Vec::new();
         for (i, name) in marker_names.iter().enumerate() {
             match points.iter().position(|p| &p.name == name) {
@@ -347,6 +369,7 @@ impl Robot {
             error_values: Vec::new(),
             t_meas_base,
             markers,
+            hold,
             payload_site,
             collision,
             warnings,
@@ -442,6 +465,61 @@ impl Robot {
     /// Indices of the points the tracker measures.
     pub fn markers(&self) -> &[usize] {
         &self.markers
+    }
+
+    /// Per tree joint, whether it is on the path from the base to a marker.
+    pub fn measured_joints(&self) -> Vec<bool> {
+        let mut on = vec![false; self.tree.joints().len()];
+        for &m in &self.markers {
+            self.tree.support(self.tree.points()[m].body).iter().for_each(|&j| on[j] = true);
+        }
+        on
+    }
+
+    /// Names of the moving joints on the path from the base to a marker, in tree order.
+    pub fn measured_joint_names(&self) -> Vec<String> {
+        let on = self.measured_joints();
+        self.tree
+            .joints()
+            .iter()
+            .zip(on)
+            .filter(|(j, on)| *on && j.motion != crate::tree::Motion::Fixed)
+            .map(|(j, _)| j.name.clone())
+            .collect()
+    }
+
+    /// Per independent coordinate, whether it moves a marker: the measured chain, whose
+    /// joints a measurement file must give.
+    pub fn measured_coordinates(&self) -> Vec<bool> {
+        let bodies: Vec<usize> = self.markers.iter().map(|&m| self.tree.points()[m].body).collect();
+        self.tree.coordinates_moving(&bodies)
+    }
+
+    /// How measurement files of this robot are read: numbered position columns are its
+    /// markers; a coordinate of the measured chain needs a column unless the file says what it
+    /// held, every other one holds that value, 0, or the middle of its limits when 0 is outside.
+    pub fn csv_layout(&self) -> CsvLayout<'_> {
+        let measured = self.measured_coordinates();
+        let hold = self
+            .hold
+            .iter()
+            .zip(self.tree.coordinate_limits())
+            .zip(measured)
+            .map(|((held, limits), measured)| match (held, measured) {
+                (Some(v), _) => Some(*v),
+                (None, true) => None,
+                (None, false) => Some(match limits {
+                    Some(l) if !(l.lower..=l.upper).contains(&0.0) => 0.5 * (l.lower + l.upper),
+                    _ => 0.0,
+                }),
+            })
+            .collect();
+        CsvLayout {
+            tree: &self.tree,
+            units: self.file.units,
+            points: if self.markers.is_empty() { vec![self.tool] } else { self.markers.clone() },
+            hold,
+        }
     }
     /// Guess of the robot base pose in the measurement frame.
     pub fn t_meas_base(&self) -> Isometry3<f64> {

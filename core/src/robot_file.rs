@@ -2,6 +2,7 @@
 //! line and the field.
 
 use std::borrow::Cow;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use schemars::{JsonSchema, Schema, SchemaGenerator, json_schema};
@@ -207,9 +208,15 @@ pub struct MeasurementSpec {
     /// Guess of the robot base orientation in the tracker frame, roll-pitch-yaw (angle unit).
     #[serde(default)]
     pub base_rpy: [f64; 3],
-    /// The points the tracker measures (default: the tool).
+    /// The points the tracker measures (default: the tool). Numbered position columns of a
+    /// measurement file (`x1, y1, z1`, `x2, ...`) are these points in this order.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub markers: Vec<String>,
+    /// Values of joints that held still while measuring (length or angle unit by the joint's
+    /// type), used when a measurement file has no column for them. A joint that moves no
+    /// marker and is not named here holds 0, or the middle of its limits if 0 is outside them.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub hold: BTreeMap<String, f64>,
 }
 
 macro_rules! plugin_placeholder {

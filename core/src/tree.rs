@@ -293,6 +293,21 @@ impl KinematicTree {
     pub fn support(&self, body: usize) -> &[usize] {
         &self.support[body]
     }
+    /// Per independent coordinate, whether it moves any of `bodies` (directly, or through a
+    /// mimic joint on their path): the coordinates a measurement of points on them depends on.
+    pub fn coordinates_moving(&self, bodies: &[usize]) -> Vec<bool> {
+        let mut moving = vec![false; self.nq()];
+        for &b in bodies {
+            for &j in &self.support[b] {
+                match &self.joints[j].coordinate {
+                    Coordinate::Independent(i) => moving[*i] = true,
+                    Coordinate::Mimic(c) => c.terms.iter().for_each(|(i, _)| moving[*i] = true),
+                    Coordinate::None => {}
+                }
+            }
+        }
+        moving
+    }
     /// Index of a body by name.
     pub fn body_index(&self, name: &str) -> Option<usize> {
         self.bodies.iter().position(|b| b.name == name)

@@ -2,6 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
+use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::param::Quantity;
 
@@ -15,6 +16,10 @@ pub struct Args {
     /// Measurement CSV to identify from.
     #[arg(long)]
     data: PathBuf,
+    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
+    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
+    #[arg(long)]
+    rows: Option<armcomp_core::measurement::RowSelection>,
     /// Where to write the identified model: the robot file with identified values (TOML, or
     /// JSON for a .json extension), written atomically.
     #[arg(long)]
@@ -30,6 +35,11 @@ pub struct Args {
     /// Most Levenberg–Marquardt iterations.
     #[arg(long, default_value_t = 100)]
     max_iterations: usize,
+    /// How strongly the robot file's priors hold the parameters: a factor on their standard
+    /// deviations (1 as written, 0.1 ten times tighter), `none`, or `auto` (chosen by 5-fold
+    /// cross-validation on the given data alone).
+    #[arg(long, default_value = "1")]
+    prior: PriorArg,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -38,12 +48,23 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     check_not_input(&args.out, &[&args.robot, &args.data])?;
     let robot = armcomp::load_robot(&args.robot)?;
-    let data = read_measurements(&robot, &args.data)?;
-    let params = CalibrationParams {
+    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let mut params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm * 1e-3,
         max_iterations: args.max_iterations,
         ..CalibrationParams::default()
+    };
+    let choice = match args.prior {
+        PriorArg::Scale(s) => {
+            params.prior_scale = s;
+            None
+        }
+        PriorArg::Auto => {
+            let choice = choose_prior_scale(&robot, &data.samples, &params, &DEFAULT_GRID, 5, 0)?;
+            params.prior_scale = choice.scale;
+            Some(choice)
+        }
     };
     let bar = indicatif::ProgressBar::new(params.max_iterations as u64);
     bar.set_style(
@@ -60,8 +81,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     write_atomic(&args.out, text.as_bytes())?;
     let report = &calibration.report;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(report)?);
+        let mut value = serde_json::to_value(report)?;
+        value["prior_choice"] = serde_json::to_value(&choice)?;
+        println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
+        if let Some(c) = &choice {
+            let scores: Vec<String> = c
+                .scores
+                .iter()
+                .map(|s| format!("{} → {:.3}", scale_text(s.scale), s.held_out_rms_mm))
+                .collect();
+            println!(
+                "prior scale chosen by {}-fold cross-validation on these data: {} (held-out RMS in mm: {})",
+                c.folds,
+                scale_text(c.scale),
+                scores.join(", ")
+            );
+        }
         print_report(report);
         println!("wrote {}", args.out.display());
     }
@@ -76,6 +112,34 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     })
 }
 
+/// `--prior`: a factor on the prior standard deviations, or `auto`.
+#[derive(Debug, Clone, Copy)]
+enum PriorArg {
+    Scale(f64),
+    Auto,
+}
+
+impl std::str::FromStr for PriorArg {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "auto" => Ok(PriorArg::Auto),
+            "none" => Ok(PriorArg::Scale(f64::INFINITY)),
+            t => match t.parse::<f64>() {
+                Ok(v) if v > 0.0 => Ok(PriorArg::Scale(v)),
+                _ => Err(format!(
+                    "expected `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
+                )),
+            },
+        }
+    }
+}
+
+fn scale_text(s: f64) -> String {
+    if s.is_finite() { format!("{s}") } else { "none".into() }
+}
+
 /// A value in the unit people read it in: mm for lengths, degrees for angles, SI otherwise.
 fn display(q: Quantity, v: f64) -> (f64, &'static str) {
     match q {
@@ -87,6 +151,14 @@ fn display(q: Quantity, v: f64) -> (f64, &'static str) {
 
 fn print_report(r: &CalibrationReport) {
     let id = &r.identifiability;
+    println!(
+        "measured chain: {} moving joint(s) from the base to the markers: {}",
+        r.measured_chain.len(),
+        r.measured_chain.join(", ")
+    );
+    if r.registered {
+        println!("measurement frame registered in closed form before the fit");
+    }
     println!(
         "{} measured positions, {} parameters selected, rank {} of {}, condition number {:.3e} ({:.3e} with priors and fixes)",
         r.n_samples, id.n_params, id.rank, id.n_params, id.condition_number, id.condition_number_free

@@ -28,6 +28,10 @@ pub struct Args {
     /// Measurement CSV.
     #[arg(long)]
     data: PathBuf,
+    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
+    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
+    #[arg(long)]
+    rows: Option<armcomp_core::measurement::RowSelection>,
     /// Where to write the improved robot file (found effects added, calibrated on all the
     /// data), written atomically; never over an input.
     #[arg(long)]
@@ -74,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         armcomp_sdk::load_library(lib).map_err(|m| anyhow::anyhow!("--library {}: {m}", lib.display()))?;
     }
     let robot = armcomp::load_robot(&args.robot)?;
-    let data = read_measurements(&robot, &args.data)?;
+    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let params = DiagnoseParams {
         folds: args.folds,
         seed: args.seed,

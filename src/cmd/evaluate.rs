@@ -18,6 +18,10 @@ pub struct Args {
     /// Measurement CSV to compare the model with (held-out data).
     #[arg(long)]
     data: PathBuf,
+    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
+    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
+    #[arg(long)]
+    rows: Option<armcomp_core::measurement::RowSelection>,
     /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}}.
     #[arg(long)]
     json: bool,
@@ -51,7 +55,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         check_not_input(out, &[&args.model, &args.data])?;
     }
     let robot = armcomp::load_robot(&args.model)?;
-    let data = read_measurements(&robot, &args.data)?;
+    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let errors = position_errors(&robot, &data.samples);
     let stats = ErrorStats::from_errors(&errors);
     if let Some(out) = &args.residuals {

@@ -17,6 +17,10 @@ pub struct Args {
     /// Measurement CSV of one point to learn the model's residual from.
     #[arg(long)]
     data: PathBuf,
+    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
+    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
+    #[arg(long)]
+    rows: Option<armcomp_core::measurement::RowSelection>,
     /// Where to write the model with the fitted predictor (written atomically).
     #[arg(long)]
     out: PathBuf,
@@ -31,7 +35,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             args.model.display()
         );
     };
-    let data = read_measurements(&robot, &args.data)?;
+    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let start = Instant::now();
     let fitted = fit_residual_predictor(&robot, spec, &data.samples)?;
     let seconds = start.elapsed().as_secs_f64();

@@ -20,13 +20,15 @@ pub mod validate;
 use std::path::Path;
 
 use armcomp_core::Robot;
-use armcomp_core::measurement::{MeasurementSet, read_csv};
+use armcomp_core::measurement::{MeasurementSet, RowSelection, read_csv};
 
-/// Reads a measurement CSV for `robot` (default point: its first marker) and prints the
-/// reader's warnings.
-pub fn read_measurements(robot: &Robot, path: &Path) -> anyhow::Result<MeasurementSet> {
-    let default_point = robot.markers().first().copied().unwrap_or(robot.tool());
-    let set = read_csv(path, robot.tree(), robot.file.units, default_point)?;
+/// Reads a measurement CSV for `robot` (its markers, hold values and measured chain), keeps
+/// the selected rows, and prints the reader's warnings.
+pub fn read_measurements(robot: &Robot, path: &Path, rows: Option<&RowSelection>) -> anyhow::Result<MeasurementSet> {
+    let mut set = read_csv(path, &robot.csv_layout())?;
+    if let Some(rows) = rows {
+        set = set.select_rows(rows);
+    }
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }

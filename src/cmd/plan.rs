@@ -88,7 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 bail!("--method trajectory needs --trajectory FILE (joint configurations in task order)");
             };
             let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-            let trajectory = parse_poses(&text, path, robot.tree(), robot.file.units)?;
+            let trajectory = parse_poses(&text, path, &robot.csv_layout())?;
             let pool = pool(args.pool.unwrap_or(2000))?;
             let chosen = trajectory_similar(
                 &robot,

@@ -42,7 +42,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let poses = match &args.poses {
         Some(p) => {
             let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
-            parse_poses(&text, p, truth.tree(), truth.file.units)?
+            parse_poses(&text, p, &truth.csv_layout())?
         }
         None => configurations(truth.tree(), Sampler::parse(&args.sampler)?, args.n, args.seed)?,
     };

@@ -2,12 +2,20 @@
 //!
 //! Every URDF joint becomes a tree joint (fixed joints too, so every link is a body that points
 //! and links can name); a link's frame is the URDF link frame. Each joint's origin is
-//! identifiable: `x, y, z` (m) and a small rotation `rx, ry, rz` (rad) applied after the
-//! origin's roll-pitch-yaw, about the origin frame's own axes, rather than roll-pitch-yaw
-//! themselves, which lose a degree of freedom at ±90° pitch (common in ROS URDFs). A moving
-//! joint's axis is identifiable as two tilts `axis_u, axis_v` (rad) about fixed directions
-//! perpendicular to the nominal axis. Identified values are written back as per-joint
-//! `joints` overrides of origin and axis, in the robot file's units.
+//! identifiable as a translation and a small rotation applied after the origin's
+//! roll-pitch-yaw, in the origin frame, rather than roll-pitch-yaw themselves, which lose a
+//! degree of freedom at ±90° pitch (common in ROS URDFs). The bases are aligned with a moving
+//! joint's axis `a` and two fixed directions `u, v` perpendicular to it, so that the joint's
+//! value offset is one parameter, `offset` (what calibrating joint offsets identifies):
+//! - fixed joint: translation `x, y, z` (m), rotation `rx, ry, rz` (rad);
+//! - revolute: translation `x, y, z`, rotation `rot_u, rot_v` and `offset` (rad, about `a`);
+//! - prismatic: translation `t_u, t_v` and `offset` (m, along `a`), rotation `rx, ry, rz`.
+//!
+//! A joint's axis is not a parameter of its own: tilting it is the same as rotating the
+//! joint's origin and undoing that rotation in the next joint's origin (`R·Rot(a, q) =
+//! Rot(R·a, q)·R`), which every joint on a measured chain has, so axis parameters would only
+//! add directions the data cannot tell apart. Identified values are written back as per-joint
+//! `joints` overrides of the origin, in the robot file's units.
 //!
 //! The joint vector `q` holds the moving joints that mimic no other, in the order the URDF file
 //! lists them.
@@ -69,11 +77,13 @@ struct CompiledJoint {
     /// Parent body index.
     parent: usize,
     child: String,
-    /// Origin rotation before the identified small rotation.
+    /// Origin translation (m) and rotation before the identified changes.
+    xyz: Vector3<f64>,
     rotation: UnitQuaternion<f64>,
     axis: Unit<Vector3<f64>>,
-    /// The directions the axis tilts about.
-    tilt: [Vector3<f64>; 2],
+    /// Two directions perpendicular to the axis and each other, the basis of the identified
+    /// rotation (revolute) or translation (prismatic) across the axis.
+    across: [Vector3<f64>; 2],
     limits: Option<Limits>,
     /// `(placement index of the followed joint, multiplier, offset)`.
     mimic: Option<(usize, f64, f64)>,
@@ -116,7 +126,7 @@ impl KinematicsSpec for UrdfSpec {
 }
 
 /// Two unit directions perpendicular to `axis` and to each other, chosen deterministically.
-fn tilt_basis(axis: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
+fn across_basis(axis: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
     let a = axis.into_inner();
     let least = if a.x.abs() <= a.y.abs() && a.x.abs() <= a.z.abs() {
         Vector3::x()
@@ -183,27 +193,27 @@ impl UrdfChain {
             let rpy = o.and_then(|o| o.rpy).map_or(j.rpy, |v| units.ang3(v));
             let axis = o.and_then(|o| o.axis).unwrap_or(j.axis);
             first_param[f] = params.len();
-            for (k, name) in ["x", "y", "z"].iter().enumerate() {
+            let mut push = |name: &str, quantity, nominal| {
                 params.push(ParamInfo::new(
                     format!("{}.{name}", j.name),
-                    Quantity::Length,
-                    xyz[k],
-                    sigma(Quantity::Length),
-                ));
+                    quantity,
+                    nominal,
+                    sigma(quantity),
+                ))
+            };
+            let (l, a) = (Quantity::Length, Quantity::Angle);
+            if j.kind == UrdfJointType::Prismatic {
+                ["t_u", "t_v", "offset"].iter().for_each(|n| push(n, l, 0.0));
+            } else {
+                ["x", "y", "z"].iter().zip(xyz).for_each(|(n, v)| push(n, l, v));
             }
-            let mut angles = vec!["rx", "ry", "rz"];
-            if j.kind != UrdfJointType::Fixed {
-                angles.extend(["axis_u", "axis_v"]);
+            match j.kind {
+                UrdfJointType::Revolute | UrdfJointType::Continuous => {
+                    ["rot_u", "rot_v", "offset"].iter().for_each(|n| push(n, a, 0.0))
+                }
+                _ => ["rx", "ry", "rz"].iter().for_each(|n| push(n, a, 0.0)),
             }
-            for name in angles {
-                params.push(ParamInfo::new(
-                    format!("{}.{name}", j.name),
-                    Quantity::Angle,
-                    0.0,
-                    sigma(Quantity::Angle),
-                ));
-            }
-            geometry.push((rpy, axis));
+            geometry.push((xyz, rpy, axis));
         }
 
         // Joints in placement order; bodies are numbered the same way (body p + 1 is the child
@@ -219,7 +229,7 @@ impl UrdfChain {
             } else {
                 joints.iter().position(|c| c.child == j.parent).map_or(0, |p| p + 1)
             };
-            let (rpy, axis) = geometry[f];
+            let (xyz, rpy, axis) = geometry[f];
             let axis = Unit::new_normalize(Vector3::from(axis));
             let moving = j.kind != UrdfJointType::Fixed;
             let mimic = j.mimic.as_ref().map(|(target, k, off)| {
@@ -236,8 +246,9 @@ impl UrdfChain {
                 prismatic: j.kind == UrdfJointType::Prismatic,
                 parent,
                 child: j.child.clone(),
+                xyz: Vector3::from(xyz),
                 rotation: UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
-                tilt: tilt_basis(&axis),
+                across: across_basis(&axis),
                 axis,
                 limits: j.limits.map(|[lower, upper]| Limits { lower, upper }),
                 mimic,
@@ -269,21 +280,25 @@ impl UrdfChain {
         })
     }
 
-    /// Origin and axis of joint `j` (placement order) for its parameter values `v`.
-    fn joint_frame(&self, j: &CompiledJoint, v: &[f64]) -> (Isometry3<f64>, Unit<Vector3<f64>>) {
-        let rotation = j.rotation * UnitQuaternion::from_scaled_axis(Vector3::new(v[3], v[4], v[5]));
-        let origin = Isometry3::from_parts(Translation3::new(v[0], v[1], v[2]), rotation);
-        let axis = if j.moving {
-            UnitQuaternion::from_scaled_axis(j.tilt[0] * v[6] + j.tilt[1] * v[7]) * j.axis
-        } else {
-            j.axis
+    /// Origin of joint `j` (placement order) for its six parameter values `v` (see the module
+    /// documentation for their order).
+    fn origin(&self, j: &CompiledJoint, v: &[f64]) -> Isometry3<f64> {
+        let [u, w] = j.across;
+        let a = j.axis.into_inner();
+        let (translation, small) = match (j.moving, j.prismatic) {
+            (false, _) => (Vector3::new(v[0], v[1], v[2]), Vector3::new(v[3], v[4], v[5])),
+            (true, true) => (
+                j.xyz + j.rotation * (u * v[0] + w * v[1] + a * v[2]),
+                Vector3::new(v[3], v[4], v[5]),
+            ),
+            (true, false) => (Vector3::new(v[0], v[1], v[2]), u * v[3] + w * v[4] + a * v[5]),
         };
-        (origin, axis)
+        let rotation = j.rotation * UnitQuaternion::from_scaled_axis(small);
+        Isometry3::from_parts(Translation3::from(translation), rotation)
     }
 
     fn joint_values<'v>(&self, j: &CompiledJoint, values: &'v [f64]) -> &'v [f64] {
-        let n = if j.moving { 8 } else { 6 };
-        &values[j.first_param..j.first_param + n]
+        &values[j.first_param..j.first_param + 6]
     }
 }
 
@@ -304,11 +319,11 @@ impl Chain for UrdfChain {
         let mut coordinate = vec![0; self.joints.len()];
         let mut next = 0;
         for (p, j) in self.joints.iter().enumerate() {
-            let (placement, axis) = self.joint_frame(j, self.joint_values(j, values));
+            let placement = self.origin(j, self.joint_values(j, values));
             let motion = match (j.moving, j.prismatic) {
                 (false, _) => Motion::Fixed,
-                (true, true) => Motion::Prismatic(axis),
-                (true, false) => Motion::Revolute(axis),
+                (true, true) => Motion::Prismatic(j.axis),
+                (true, false) => Motion::Revolute(j.axis),
             };
             match j.mimic {
                 Some((target, k, offset)) => {
@@ -346,14 +361,14 @@ impl Chain for UrdfChain {
                 joints.extend(self.spec.joints.iter().find(|o| o.name == j.name).cloned());
                 continue;
             }
-            let (origin, axis) = self.joint_frame(j, v);
+            let origin = self.origin(j, v);
             let (r, pi, y) = origin.rotation.euler_angles();
             let t = origin.translation.vector;
             joints.push(UrdfJointOverride {
                 name: j.name.clone(),
                 xyz: Some([u.len_out(t.x), u.len_out(t.y), u.len_out(t.z)]),
                 rpy: Some([u.ang_out(r), u.ang_out(pi), u.ang_out(y)]),
-                axis: j.moving.then(|| [axis.x, axis.y, axis.z]),
+                axis: self.spec.joints.iter().find(|o| o.name == j.name).and_then(|o| o.axis),
             });
         }
         Box::new(UrdfSpec {
