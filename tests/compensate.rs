@@ -216,7 +216,10 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
             "{header}"
         );
         // The joint columns read back as poses; command the truth with them.
-        let commands = read_csv(&out, &armcomp_core::measurement::CsvLayout::strict(truth.tree(), truth.file.units, truth.tool()));
+        let commands = read_csv(
+            &out,
+            &armcomp_core::measurement::CsvLayout::strict(truth.tree(), truth.file.units, truth.tool()),
+        );
         assert!(commands.is_err(), "commands carry no measured x, y, z");
         let poses = armcomp_core::measurement::parse_poses(
             &text
@@ -369,4 +372,50 @@ fn compensate_reports_bad_targets_with_line_and_column() {
     let (code, _, err) = compensate_cli("robots/rock-drill.toml", &bad, &bad, &[]);
     assert_ne!(code, 0);
     assert!(err.contains("refusing to overwrite an input"), "{err}");
+}
+
+/// A rock-drill file with a second marker, a nest 80 mm beside the drill bit on the feed.
+fn with_two_markers(name: &str) -> armcomp_core::Robot {
+    let text = std::fs::read_to_string(root().join("robots").join(name))
+        .unwrap()
+        .replacen(
+            "[measurement]",
+            "[[points]]\nname = \"nest\"\nlink = \"feed\"\nxyz = [0.0, 80.0, 0.0]\n\n[measurement]",
+            1,
+        )
+        .replacen("markers = [\"tool\"]", "markers = [\"tool\", \"nest\"]", 1);
+    crate::common::robot_from_toml(&text)
+}
+
+#[test]
+fn a_residual_predictor_learns_several_points_and_compensates_the_tool() {
+    let truth = with_two_markers("rock-drill-truth.toml");
+    let model = with_two_markers("rock-drill-deflection.toml");
+    assert_eq!(model.markers().len(), 2);
+    let data = noiseless_data(&truth, 41);
+    let (train, test) = data.samples.split_at(160);
+    let predictor = fit_residual_predictor(&model, &quick_gp(), train).unwrap();
+    assert_eq!(predictor.n_inputs(), model.tree().nq() + 3);
+    let mut file = model.to_file();
+    file.fitted_predictor = Some(predictor);
+    let learned = model.rebuild(file).unwrap();
+    for &point in model.markers() {
+        let of_point: Vec<_> = test.iter().filter(|s| s.point == point).cloned().collect();
+        assert!(of_point.len() > 20);
+        let before = ErrorStats::from_errors(&armcomp_core::evaluate::model_errors(&model, &of_point));
+        let after = ErrorStats::from_errors(&position_errors(&learned, &of_point));
+        assert!(
+            after.rms_mm < 0.5 * before.rms_mm,
+            "point {point}: {} -> {} mm",
+            before.rms_mm,
+            after.rms_mm
+        );
+    }
+    // The tool's residual is predicted at its own position on the feed.
+    let mut comp = Compensator::for_model(&learned, CompensationOptions::default()).unwrap();
+    let q0 = mid_range(&learned);
+    for t in targets(&truth, 3, 42) {
+        let c = comp.compensate(&t, &q0, CompensationMode::Exact).unwrap();
+        assert!(c.mismatch < 1e-6, "{}", c.mismatch);
+    }
 }

@@ -18,4 +18,5 @@ mod plan;
 mod robot_files;
 mod runtime_plugins;
 mod simulate;
+mod talos;
 mod urdf;

@@ -316,7 +316,7 @@ pub struct CalibrationParams {
     pub identify: Vec<String>,
     /// Standard deviation of the tracker noise per axis (m); weighs data against priors.
     pub measurement_std: f64,
-    /// Most Levenberg–Marquardt iterations.
+    /// Most Levenberg–Marquardt iterations, over all stages of the fit.
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this fraction.
     pub tolerance: f64,
@@ -856,7 +856,11 @@ fn analyse(
             deficiencies.len() - held,
             if more > 0 { "; the largest" } else { "" },
             list.join("; "),
-            if more > 0 { format!("; and {more} more (the JSON report lists all)") } else { String::new() }
+            if more > 0 {
+                format!("; and {more} more (the JSON report lists all)")
+            } else {
+                String::new()
+            }
         ));
     }
     let report = IdentifiabilityReport {
@@ -1122,15 +1126,18 @@ impl Problem<'_> {
                 .sum();
             0.5 * (r.norm_squared() + prior)
         };
-        let Stage { theta, d, e, iterations } = stage;
+        let Stage {
+            theta,
+            d,
+            e,
+            iterations,
+        } = stage;
         let mut r = self.residuals(&to_meas(&d.t_meas_base, &e.world));
         let mut cost = cost_of(theta, &r);
         let mut lambda = 1e-3;
         let mut converged = false;
         let mut stop_reason = format!("iteration limit ({}) reached", params.max_iterations);
-        let mut steps = 0;
-        while !converged && steps < params.max_iterations {
-            steps += 1;
+        while !converged && *iterations < params.max_iterations {
             *iterations += 1;
             let j = self.jacobian(theta, d, e, free)?;
             let mut a = j.transpose() * &j;

@@ -18,6 +18,7 @@
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
+use crate::evaluate::predictor_input_into;
 use crate::ik::{IkError, IkOptions, IkReport, IkTarget, IkWorkspace, LinearOffset, Start, solve_from};
 use crate::plugin::FittedPredictor;
 use crate::robot::Robot;
@@ -99,7 +100,10 @@ pub struct Compensator<'a> {
     /// The residual linearised at the current command (base frame).
     offset: LinearOffset,
     out: [f64; 3],
-    /// Row-major `3 × nq` derivative of the residual (measurement frame).
+    /// What the predictor takes: the command, then the tool's position for a predictor
+    /// fitted on several points ([`predictor_input_into`]).
+    input: Vec<f64>,
+    /// Row-major `3 × inputs` derivative of the residual (measurement frame).
     derivative: Vec<f64>,
     scratch: Vec<f64>,
 }
@@ -112,11 +116,12 @@ impl<'a> Compensator<'a> {
         predictor: Option<&'a dyn FittedPredictor>,
         options: CompensationOptions,
     ) -> Result<Self> {
+        let nq = robot.tree().nq();
+        let n_inputs = predictor.map_or(nq, |p| p.n_inputs());
         if let Some(p) = predictor {
-            let nq = robot.tree().nq();
-            if p.n_inputs() != nq || p.n_outputs() != 3 {
+            if !(p.n_inputs() == nq || p.n_inputs() == nq + 3) || p.n_outputs() != 3 {
                 return Err(Error::Input(format!(
-                    "the fitted predictor takes {} inputs and gives {} outputs; compensating `{}` needs {nq} joint values in and a position residual (3) out",
+                    "the fitted predictor takes {} inputs and gives {} outputs; compensating `{}` needs {nq} joint values (and the point's position, 3) in and a position residual (3) out",
                     p.n_inputs(),
                     p.n_outputs(),
                     robot.file.name
@@ -131,7 +136,12 @@ impl<'a> Compensator<'a> {
             ik: IkWorkspace::new(robot),
             offset: LinearOffset::zeros(robot.tree().nq()),
             out: [0.0; 3],
-            derivative: vec![0.0; 3 * robot.tree().nq()],
+            input: {
+                let mut input = Vec::with_capacity(n_inputs);
+                predictor_input_into(robot, n_inputs, &vec![0.0; nq], robot.tool(), &mut input);
+                input
+            },
+            derivative: vec![0.0; 3 * n_inputs],
             scratch: Vec::new(),
         })
     }
@@ -241,7 +251,9 @@ impl<'a> Compensator<'a> {
     /// frame), for predictors that have one.
     pub fn residual_std(&mut self) -> Option<Vector3<f64>> {
         let p = self.predictor?;
-        p.predict_std_into(self.ik.q(), &mut self.out, &mut self.scratch)
+        let nq = self.ik.q().len();
+        self.input[..nq].copy_from_slice(self.ik.q());
+        p.predict_std_into(&self.input, &mut self.out, &mut self.scratch)
             .then(|| Vector3::from(self.out))
     }
 
@@ -252,22 +264,23 @@ impl<'a> Compensator<'a> {
     /// as Newton's while predicting only the value. Paper mode holds the residual constant.
     fn linearise(&mut self, predictor: &dyn FittedPredictor, mode: CompensationMode, first: bool) -> Vector3<f64> {
         let q = self.ik.q();
+        let nq = q.len();
+        self.input[..nq].copy_from_slice(q);
         let rotation: Matrix3<f64> = self.base_from_meas.to_rotation_matrix().into_inner();
         if first {
             let derivative = mode == CompensationMode::Exact
-                && predictor.predict_jacobian_into(q, &mut self.out, &mut self.derivative, &mut self.scratch);
+                && predictor.predict_jacobian_into(&self.input, &mut self.out, &mut self.derivative, &mut self.scratch);
             if !derivative {
                 self.derivative.fill(0.0);
-                predictor.predict_into(q, &mut self.out, &mut self.scratch);
+                predictor.predict_into(&self.input, &mut self.out, &mut self.scratch);
             }
-            let nq = q.len();
-            let d = &self.derivative;
+            let (d, ni) = (&self.derivative, self.input.len());
             for c in 0..nq {
-                let column = rotation * Vector3::new(d[c], d[nq + c], d[2 * nq + c]);
+                let column = rotation * Vector3::new(d[c], d[ni + c], d[2 * ni + c]);
                 self.offset.jacobian.set_column(c, &column);
             }
         } else {
-            predictor.predict_into(q, &mut self.out, &mut self.scratch);
+            predictor.predict_into(&self.input, &mut self.out, &mut self.scratch);
         }
         self.offset.value = rotation * Vector3::from(self.out);
         self.offset.q_ref.copy_from_slice(q);

@@ -75,13 +75,25 @@ impl ErrorStats {
 pub fn position_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut errors = model_errors(robot, samples);
     if let Some(p) = robot.file.fitted_predictor.as_deref() {
-        let (mut out, mut scratch) = ([0.0; 3], Vec::new());
+        let (mut out, mut scratch, mut input) = ([0.0; 3], Vec::new(), Vec::new());
         for (e, s) in errors.iter_mut().zip(samples) {
-            p.predict_into(&s.q, &mut out, &mut scratch);
+            predictor_input_into(robot, p.n_inputs(), &s.q, s.point, &mut input);
+            p.predict_into(&input, &mut out, &mut scratch);
             *e -= Vector3::from(out);
         }
     }
     errors
+}
+
+/// Writes into `input` what a residual predictor with `n_inputs` inputs takes at joint values
+/// `q` for point `point` of `robot`: the joint values, followed, for a predictor fitted on
+/// several points (`n_inputs` = nq + 3), by the point's position in its body's frame (m).
+pub fn predictor_input_into(robot: &Robot, n_inputs: usize, q: &[f64], point: usize, input: &mut Vec<f64>) {
+    input.clear();
+    input.extend_from_slice(q);
+    if n_inputs == q.len() + 3 {
+        input.extend(robot.tree().points()[point].local.translation.vector.iter());
+    }
 }
 
 /// Measured minus modelled position of each sample (m, measurement frame) through the physical
@@ -95,8 +107,9 @@ pub fn model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
 }
 
 /// Fits `spec` on what the physical model of `robot` leaves on `samples`: joint values in,
-/// the position residual (m, measurement frame) out. Every sample must be of the same point,
-/// since the predictor sees joint values only.
+/// the position residual (m, measurement frame) out. When the samples measure several points,
+/// each point's position in its body's frame (m) is three more inputs, so one predictor
+/// learns how the residual varies across the points (see [`predictor_input_into`]).
 pub fn fit_residual_predictor(
     robot: &Robot,
     spec: &dyn PredictorSpec,
@@ -105,14 +118,20 @@ pub fn fit_residual_predictor(
     let Some(first) = samples.first() else {
         return Err(Error::Input("no measurements to learn the residual from".into()));
     };
-    if let Some(s) = samples.iter().find(|s| s.point != first.point) {
-        let names = robot.tree().points();
-        return Err(Error::Input(format!(
-            "the residual predictor sees joint values only, so its data must measure one point; found `{}` and `{}`",
-            names[first.point].name, names[s.point].name
-        )));
+    let nq = robot.tree().nq();
+    let n_inputs = if samples.iter().any(|s| s.point != first.point) {
+        nq + 3
+    } else {
+        nq
+    };
+    let mut inputs = Vec::with_capacity(samples.len() * n_inputs);
+    let mut input = Vec::new();
+    for s in samples {
+        predictor_input_into(robot, n_inputs, &s.q, s.point, &mut input);
+        inputs.extend_from_slice(&input);
     }
-    let inputs: Vec<f64> = samples.iter().flat_map(|s| s.q.iter().copied()).collect();
+    let mut ranges = robot.tree().coordinate_limits().to_vec();
+    ranges.resize(n_inputs, None);
     let targets: Vec<f64> = model_errors(robot, samples)
         .iter()
         .flat_map(|e| e.iter().copied())
@@ -120,8 +139,8 @@ pub fn fit_residual_predictor(
     spec.fit(&TrainingSet {
         inputs: &inputs,
         targets: &targets,
-        n_inputs: robot.tree().nq(),
+        n_inputs,
         n_outputs: 3,
-        input_ranges: robot.tree().coordinate_limits(),
+        input_ranges: &ranges,
     })
 }

@@ -53,10 +53,17 @@ pub struct MeasurementSet {
 /// What a column holds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Column {
-    Joint { coord: usize, scale: f64 },
+    Joint {
+        coord: usize,
+        scale: f64,
+    },
     Point,
     /// `slot`: which measured point a numbered column (`x2` → 1) is; `None` for plain `x`.
-    Position { slot: Option<usize>, axis: usize, scale: f64 },
+    Position {
+        slot: Option<usize>,
+        axis: usize,
+        scale: f64,
+    },
     Quat(usize),
     Payload(f64),
     Temperature(f64),
@@ -243,7 +250,9 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     let missing: Vec<String> = names
         .iter()
         .enumerate()
-        .filter(|&(c, _)| layout.hold[c].is_none() && !has(&|k| matches!(k, Column::Joint { coord, .. } if *coord == c)))
+        .filter(|&(c, _)| {
+            layout.hold[c].is_none() && !has(&|k| matches!(k, Column::Joint { coord, .. } if *coord == c))
+        })
         .map(|(c, n)| format!("{n}[{}]", if tree.coordinate_is_prismatic()[c] { "mm" } else { "deg" }))
         .collect();
     if !missing.is_empty() {
@@ -368,7 +377,9 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     })?;
                     continue;
                 }
-                Column::Position { slot: slot @ Some(_), .. } if field.is_empty() => {
+                Column::Position {
+                    slot: slot @ Some(_), ..
+                } if field.is_empty() => {
                     let k = slots.iter().position(|s| s == slot).unwrap_or(0);
                     positions[k].1 += 1;
                     continue;
@@ -437,7 +448,10 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 (Some(i), 1 | 2) => {
                     return Err(err(
                         Some(line),
-                        format!("point {}: some of x{0}, y{0}, z{0} are empty; give all three or none", i + 1),
+                        format!(
+                            "point {}: some of x{0}, y{0}, z{0} are empty; give all three or none",
+                            i + 1
+                        ),
                     ));
                 }
                 _ => {}
@@ -498,7 +512,9 @@ impl std::str::FromStr for RowSelection {
 
     fn from_str(text: &str) -> std::result::Result<Self, String> {
         let bad = |item: &str| {
-            format!("row selection `{item}`: expected `even`, `odd`, a row number or a range `A..B`, `A..`, `..B` (rows 0-based)")
+            format!(
+                "row selection `{item}`: expected `even`, `odd`, a row number or a range `A..B`, `A..`, `..B` (rows 0-based)"
+            )
         };
         let number = |t: &str, item: &str| t.trim().parse::<usize>().map_err(|_| bad(item));
         let items = text
@@ -511,7 +527,11 @@ impl std::str::FromStr for RowSelection {
                     _ => match t.split_once("..") {
                         Some((a, b)) => {
                             let start = if a.trim().is_empty() { 0 } else { number(a, item)? };
-                            let end = if b.trim().is_empty() { None } else { Some(number(b, item)?) };
+                            let end = if b.trim().is_empty() {
+                                None
+                            } else {
+                                Some(number(b, item)?)
+                            };
                             if end.is_some_and(|e| e <= start) {
                                 return Err(format!("row selection `{item}`: the range is empty"));
                             }

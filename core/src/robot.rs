@@ -331,7 +331,10 @@ impl Robot {
                 Some(_) => issues.push(field, "expected a finite number"),
                 None => issues.push(
                     field,
-                    format!("`{name}` is not an independent joint (expected one of: {})", names.join(", ")),
+                    format!(
+                        "`{name}` is not an independent joint (expected one of: {})",
+                        names.join(", ")
+                    ),
                 ),
             }
         }
@@ -471,7 +474,10 @@ impl Robot {
     pub fn measured_joints(&self) -> Vec<bool> {
         let mut on = vec![false; self.tree.joints().len()];
         for &m in &self.markers {
-            self.tree.support(self.tree.points()[m].body).iter().for_each(|&j| on[j] = true);
+            self.tree
+                .support(self.tree.points()[m].body)
+                .iter()
+                .for_each(|&j| on[j] = true);
         }
         on
     }
@@ -517,7 +523,11 @@ impl Robot {
         CsvLayout {
             tree: &self.tree,
             units: self.file.units,
-            points: if self.markers.is_empty() { vec![self.tool] } else { self.markers.clone() },
+            points: if self.markers.is_empty() {
+                vec![self.tool]
+            } else {
+                self.markers.clone()
+            },
             hold,
         }
     }

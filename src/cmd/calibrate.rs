@@ -2,9 +2,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
-use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 use armcomp_core::io::{check_not_input, write_atomic};
 use armcomp_core::param::Quantity;
+use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 
 use super::read_measurements;
 

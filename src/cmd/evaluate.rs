@@ -61,20 +61,45 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(out) = &args.residuals {
         write_atomic(out, residuals_csv(&robot, &data.samples, &errors).as_bytes())?;
     }
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&stats)?);
+    // Per measured point, when there are several.
+    let mut points: Vec<usize> = data.samples.iter().map(|s| s.point).collect();
+    points.sort_unstable();
+    points.dedup();
+    let per_point: Vec<(String, ErrorStats)> = if points.len() > 1 {
+        points
+            .iter()
+            .map(|&p| {
+                let e: Vec<_> = errors
+                    .iter()
+                    .zip(&data.samples)
+                    .filter(|(_, s)| s.point == p)
+                    .map(|(e, _)| *e)
+                    .collect();
+                (robot.tree().points()[p].name.clone(), ErrorStats::from_errors(&e))
+            })
+            .collect()
     } else {
-        println!(
-            "n {}  mean {:.4} mm  std {:.4} mm  RMS {:.4} mm  max {:.4} mm  mean |x| {:.4} |y| {:.4} |z| {:.4} mm",
-            stats.n,
-            stats.mean_mm,
-            stats.std_mm,
-            stats.rms_mm,
-            stats.max_mm,
-            stats.mean_abs_mm.x,
-            stats.mean_abs_mm.y,
-            stats.mean_abs_mm.z
-        );
+        Vec::new()
+    };
+    if args.json {
+        let mut value = serde_json::to_value(&stats)?;
+        if !per_point.is_empty() {
+            value["per_point"] =
+                serde_json::to_value(per_point.iter().cloned().collect::<std::collections::BTreeMap<_, _>>())?;
+        }
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!("{}", stats_line(&stats));
+        for (name, s) in &per_point {
+            println!("  point {name}: {}", stats_line(s));
+        }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+fn stats_line(s: &ErrorStats) -> String {
+    format!(
+        "n {}  mean {:.4} mm  std {:.4} mm  RMS {:.4} mm  max {:.4} mm  mean |x| {:.4} |y| {:.4} |z| {:.4} mm",
+        s.n, s.mean_mm, s.std_mm, s.rms_mm, s.max_mm, s.mean_abs_mm.x, s.mean_abs_mm.y, s.mean_abs_mm.z
+    )
 }

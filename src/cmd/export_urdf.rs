@@ -1,31 +1,98 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::bail;
+use armcomp_core::evaluate::position_errors;
 use armcomp_core::io::{check_not_input, write_atomic};
+
+use super::read_measurements;
 
 #[derive(clap::Args)]
 pub struct Args {
     /// Robot or model file (TOML, JSON) whose kinematics is `type = "urdf"`; its identified
-    /// joint origins and axes are written out.
+    /// joint origins are written out.
     #[arg(long)]
     model: PathBuf,
-    /// Output URDF (written atomically; lengths in m, angles in rad). The model's URDF with
-    /// every joint's origin and axis replaced and everything else kept.
+    /// Output URDF (written atomically; lengths in m, angles in rad): the model's URDF with the
+    /// origin and axis of every identified joint replaced and every other byte kept.
     #[arg(long)]
     out: PathBuf,
+    /// Export the rigid geometry of a model whose error models or fitted predictor URDF cannot
+    /// express, dropping them; needs `--data` to state how far that moves the measured points.
+    #[arg(long, requires = "data")]
+    rigid_only: bool,
+    /// Measurement CSV whose poses measure what `--rigid-only` drops.
+    #[arg(long)]
+    data: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    check_not_input(&args.out, &[&args.model])?;
+    let inputs: Vec<&std::path::Path> = [Some(&args.model), args.data.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_not_input(&args.out, &inputs)?;
     let robot = armcomp::load_robot(&args.model)?;
-    let (source, text) = armcomp_urdf::calibrated_urdf(&robot)?;
-    check_not_input(&args.out, &[&source])?;
-    write_atomic(&args.out, text.as_bytes())?;
+    let dropped: Vec<String> = robot
+        .file
+        .error_models
+        .iter()
+        .map(|m| {
+            serde_json::to_value(m)
+                .ok()
+                .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
+                .unwrap_or_default()
+        })
+        .chain(
+            robot
+                .file
+                .fitted_predictor
+                .is_some()
+                .then(|| "the fitted residual predictor".to_string()),
+        )
+        .collect();
+    if !dropped.is_empty() && !args.rigid_only {
+        bail!(
+            "{}: URDF cannot express {}; the exported URDF would not be this model. Pass --rigid-only --data <measurements.csv> to export the rigid geometry anyway and see how far the dropped models move the measured points",
+            args.model.display(),
+            dropped.join(", ")
+        );
+    }
+    let urdf = armcomp_urdf::calibrated_urdf(&robot)?;
+    check_not_input(&args.out, &[&urdf.source])?;
+    let deviation = match (&args.data, dropped.is_empty()) {
+        (Some(data), false) => {
+            let set = read_measurements(&robot, data, None)?;
+            let mut rigid_file = robot.to_file();
+            rigid_file.error_models.clear();
+            rigid_file.fitted_predictor = None;
+            rigid_file.predictor = None;
+            let rigid = robot.rebuild(rigid_file)?;
+            let full = position_errors(&robot, &set.samples);
+            let without = position_errors(&rigid, &set.samples);
+            let max = full
+                .iter()
+                .zip(&without)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max);
+            Some((max, set.samples.len()))
+        }
+        _ => None,
+    };
+    write_atomic(&args.out, urdf.text.as_bytes())?;
     eprintln!(
-        "wrote {} ({} joints of {} with identified origins and axes)",
+        "wrote {} ({} identified joint(s) of {} rewritten, every other byte kept)",
         args.out.display(),
-        robot.tree().joints().len(),
-        source.display()
+        urdf.identified.len(),
+        urdf.source.display()
     );
+    if let Some((max, n)) = deviation {
+        eprintln!(
+            "warning: dropped {}; over the {n} measured positions of the data they move the points by up to {:.3} mm, which the exported URDF does not have",
+            dropped.join(", "),
+            max * 1e3
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -14,7 +14,7 @@ pub struct Args {
     /// The model (e.g. written by `armcomp calibrate`) whose `[predictor]` table says what to fit.
     #[arg(long)]
     model: PathBuf,
-    /// Measurement CSV of one point to learn the model's residual from.
+    /// Measurement CSV to learn the model's residual from (one or several points).
     #[arg(long)]
     data: PathBuf,
     /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,

@@ -1,8 +1,8 @@
-//! Writing a calibrated URDF: the robot's URDF with every joint's `<origin>` and `<axis>`
-//! replaced by the identified geometry and everything else (links, inertials, meshes,
-//! transmissions, comments) kept as written, so ROS and MoveIt load it under the same names.
-//! The URDF parameters are URDF's own origin and axis, so every identified joint is
-//! expressible without adding frames.
+//! Writing a calibrated URDF: the robot's URDF with the `<origin>` and `<axis>` of every joint
+//! the model overrides replaced by the identified geometry, and everything else (other joints,
+//! links, inertials, meshes, transmissions, comments) kept byte for byte, so ROS and MoveIt load
+//! it under the same names. The URDF parameters are URDF's own origin and axis, so every
+//! identified joint is expressible without adding frames.
 
 use std::path::{Path, PathBuf};
 
@@ -11,9 +11,20 @@ use armcomp_core::{Error, KinematicTree, Motion, Result, Robot};
 use crate::chain::UrdfSpec;
 use crate::document::{UrdfDocument, UrdfJointType};
 
-/// The URDF text of `robot` at its current chain parameters, and the URDF file it was
-/// rewritten from; the robot's kinematics must be `urdf`.
-pub fn calibrated_urdf(robot: &Robot) -> Result<(PathBuf, String)> {
+/// A calibrated URDF and what it was made from.
+#[derive(Debug, Clone)]
+pub struct CalibratedUrdf {
+    /// The URDF file it was rewritten from.
+    pub source: PathBuf,
+    /// The calibrated URDF text.
+    pub text: String,
+    /// The joints whose origin (and axis) were rewritten.
+    pub identified: Vec<String>,
+}
+
+/// The URDF text of `robot` at its current chain parameters; the robot's kinematics must be
+/// `urdf`.
+pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
     // The spec is a trait object; its serialised form says which plugin it is.
     let mut value = serde_json::to_value(&robot.file.kinematics)
         .map_err(|e| Error::Input(format!("cannot read the kinematics description: {e}")))?;
@@ -35,13 +46,20 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<(PathBuf, String)> {
     let dir = robot.source.as_deref().and_then(Path::parent).unwrap_or(Path::new("."));
     let path = dir.join(&spec.path);
     let doc = UrdfDocument::read(&path).map_err(|e| Error::Input(e.join("\n")))?;
-    Ok((path, rewrite(&doc, robot.tree())))
+    let identified: Vec<String> = spec.joints.iter().map(|o| o.name.clone()).collect();
+    let names: Vec<&str> = identified.iter().map(String::as_str).collect();
+    Ok(CalibratedUrdf {
+        text: rewrite(&doc, robot.tree(), &names),
+        source: path,
+        identified,
+    })
 }
 
-/// `doc`'s text with the origins and axes of the joints of `tree` (matched by name).
-pub fn rewrite(doc: &UrdfDocument, tree: &KinematicTree) -> String {
+/// `doc`'s text with the origins and axes of the joints named `joints` taken from `tree`
+/// (matched by name); every other byte as it was.
+pub fn rewrite(doc: &UrdfDocument, tree: &KinematicTree, joints: &[&str]) -> String {
     let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();
-    for j in &doc.joints {
+    for j in doc.joints.iter().filter(|j| joints.contains(&j.name.as_str())) {
         let Some(t) = tree.joint_index(&j.name).map(|k| &tree.joints()[k]) else {
             continue;
         };

@@ -11,7 +11,7 @@ mod mesh;
 pub use bare::{robot_file_for_urdf, robot_from_urdf};
 pub use chain::{UrdfChain, UrdfJointOverride, UrdfSpec};
 pub use document::{UrdfDocument, UrdfJoint, UrdfJointType, UrdfLink};
-pub use export::{calibrated_urdf, rewrite};
+pub use export::{CalibratedUrdf, calibrated_urdf, rewrite};
 
 use armcomp_core::{PluginInfo, Role};
 
