@@ -19,3 +19,4 @@ mod robot_files;
 mod runtime_plugins;
 mod simulate;
 mod urdf;
+mod urdf_corpus;
