@@ -100,7 +100,8 @@ fn corpus_link_poses_equal_pinocchio() {
 
 #[test]
 fn corpus_warnings_are_one_line_per_kind() {
-    // Meshes are not vendored: each file's `package://` collision meshes make one line.
+    // Meshes are not vendored: each file's `package://` collision meshes make one line (with
+    // no ROS package of these robots installed in ROS_PACKAGE_PATH).
     for (file, lines) in [
         ("ur5_robot.urdf", 1),
         ("panda.urdf", 1),
