@@ -20,3 +20,4 @@ mod runtime_plugins;
 mod simulate;
 mod talos;
 mod urdf;
+mod urdf_corpus;

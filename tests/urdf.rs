@@ -428,11 +428,6 @@ fn bad_urdf_files_are_clear_errors() {
             vec!["joint `j`", "<origin xyz>", "got \"\""],
         ),
         (
-            "mimic-nowhere",
-            one_joint(&ok_joint("<mimic joint=\"ghost\"/>")),
-            vec!["joint `j`", "<mimic joint=\"ghost\">", "no joint of that name"],
-        ),
-        (
             "missing-mesh",
             "<robot name=\"r\"><link name=\"base\">\n<collision><geometry><mesh filename=\"meshes/none.stl\"/></geometry></collision></link></robot>".into(),
             vec![":1: link `base`", "none.stl", "does not exist"],

@@ -33,6 +33,22 @@ impl Issue {
             line: None,
         }
     }
+
+    /// `file:line: path: message`, leaving out the line when unknown and the path when empty
+    /// (an issue of the whole file, or one whose message names its element itself).
+    pub fn in_file(&self, file: &std::path::Path) -> String {
+        let line = self.line.map(|l| format!(":{l}")).unwrap_or_default();
+        format!("{}{line}: {}", file.display(), self.in_model())
+    }
+
+    /// `path: message`, or the message alone when the path is empty.
+    fn in_model(&self) -> String {
+        if self.path.is_empty() {
+            self.message.clone()
+        } else {
+            format!("{}: {}", self.path, self.message)
+        }
+    }
 }
 
 /// A list of [`Issue`]s collected while checking a file.
@@ -70,7 +86,7 @@ pub enum Error {
         issues: Vec<Issue>,
     },
     /// A model could not be built from its description (no file context).
-    #[error("invalid model: {}", .0.iter().map(|i| format!("{}: {}", i.path, i.message)).collect::<Vec<_>>().join("; "))]
+    #[error("invalid model: {}", .0.iter().map(Issue::in_model).collect::<Vec<_>>().join("; "))]
     InvalidModel(Vec<Issue>),
     /// Wrong number of values, e.g. joint values for a robot with another joint count.
     #[error("{what}: expected {expected} values, got {got}")]
@@ -88,15 +104,41 @@ pub enum Error {
 }
 
 fn render_issues(file: &std::path::Path, issues: &[Issue]) -> String {
-    issues
-        .iter()
-        .map(|i| match i.line {
-            Some(l) => format!("{}:{}: {}: {}", file.display(), l, i.path, i.message),
-            None => format!("{}: {}: {}", file.display(), i.path, i.message),
-        })
-        .collect::<Vec<_>>()
-        .join("\n")
+    issues.iter().map(|i| i.in_file(file)).collect::<Vec<_>>().join("\n")
 }
 
 /// Result with the core's [`Error`].
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn issues_name_file_line_and_field_once() {
+        let issue = |path: &str, line| Issue {
+            path: path.into(),
+            message: "expected a number".into(),
+            line,
+        };
+        let err = Error::InvalidFile {
+            file: PathBuf::from("arm.toml"),
+            issues: vec![
+                issue("links[0].mass", Some(4)),
+                issue("", Some(7)),
+                issue("", None),
+                issue("units", None),
+            ],
+        };
+        assert_eq!(
+            err.to_string(),
+            "arm.toml:4: links[0].mass: expected a number\narm.toml:7: expected a number\n\
+             arm.toml: expected a number\narm.toml: units: expected a number"
+        );
+        let model = Error::InvalidModel(vec![issue("j1", None), issue("", None)]);
+        assert_eq!(
+            model.to_string(),
+            "invalid model: j1: expected a number; expected a number"
+        );
+    }
+}

@@ -11,8 +11,11 @@ use crate::document::UrdfDocument;
 /// The robot file a bare URDF stands for: SI units, the URDF's kinematics and inertials, one
 /// point at the origin of every link (named as the link), and the tool at the last link the
 /// file lists that carries no joint (an end link).
-pub fn robot_file_for_urdf(path: &Path) -> Result<RobotFile, Vec<String>> {
-    let doc = UrdfDocument::read(path)?;
+pub fn robot_file_for_urdf(path: &Path) -> armcomp_core::Result<RobotFile> {
+    let doc = UrdfDocument::load(path).map_err(|issues| armcomp_core::Error::InvalidFile {
+        file: path.to_path_buf(),
+        issues,
+    })?;
     let points = doc
         .links
         .iter()
@@ -55,11 +58,7 @@ pub fn robot_file_for_urdf(path: &Path) -> Result<RobotFile, Vec<String>> {
 
 /// Builds the robot of a bare URDF; problems name the URDF file, line and element.
 pub fn robot_from_urdf(path: &Path) -> armcomp_core::Result<Robot> {
-    let invalid = |messages: Vec<String>| armcomp_core::Error::InvalidFile {
-        file: path.to_path_buf(),
-        issues: messages.into_iter().map(|m| armcomp_core::Issue::new("", m)).collect(),
-    };
-    let file = robot_file_for_urdf(path).map_err(invalid)?;
+    let file = robot_file_for_urdf(path)?;
     let dir = path.parent().unwrap_or(Path::new("."));
     let mut robot = Robot::build(file, dir).map_err(|issues| armcomp_core::Error::InvalidFile {
         file: path.to_path_buf(),

@@ -1,9 +1,18 @@
 //! Reading a URDF file: the XML checked element by element (so every problem names the joint or
 //! link and its line), the values read with `urdf-rs`, and the tree's topology resolved.
+//!
+//! Every file ROS reads (urdfdom, and pinocchio on it) is read here too: elements that carry no
+//! kinematics (`<gazebo>`, `<transmission>`, `<ros2_control>`, sensors, visuals, materials, any
+//! unknown tag) are ignored; joints of type `floating` and `planar` are read as fixed at their
+//! origin (their neutral pose: a calibrated arm does not move them); a `<mimic>` on a fixed
+//! joint is ignored, as ROS does, and one that names no moving joint is ignored so that the joint
+//! moves on its own, as pinocchio reads it; a mimic of a mimic joint follows the joint at the end
+//! of the chain. What was ignored or skipped is reported as warnings, one line per kind.
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
+use armcomp_core::Issue;
 use armcomp_core::shape::Shape;
 use nalgebra::Isometry3;
 
@@ -18,7 +27,7 @@ pub enum UrdfJointType {
     Continuous,
     /// Translation within limits.
     Prismatic,
-    /// No motion.
+    /// No motion; also `floating` and `planar` joints, held at their origin.
     Fixed,
 }
 
@@ -43,7 +52,7 @@ pub struct UrdfJoint {
     pub axis: [f64; 3],
     /// `[lower, upper]` (rad or m) when the file gives finite limits.
     pub limits: Option<[f64; 2]>,
-    /// `(followed joint, multiplier, offset)`.
+    /// `(followed joint, multiplier, offset)`; the followed joint moves and mimics none.
     pub mimic: Option<(String, f64, f64)>,
     /// Byte range of the whole element, and of its `<origin>` and `<axis>` children.
     pub range: Range<usize>,
@@ -81,7 +90,7 @@ pub struct UrdfDocument {
     pub links: Vec<UrdfLink>,
     /// Joints in file order.
     pub joints: Vec<UrdfJoint>,
-    /// What was skipped (meshes that cannot be found or read).
+    /// What was ignored or skipped (meshes that cannot be found or read), one line per kind.
     pub warnings: Vec<String>,
 }
 
@@ -89,22 +98,31 @@ impl UrdfDocument {
     /// Reads and checks a URDF file. Every problem is one message naming the file, the line and
     /// the element.
     pub fn read(path: &Path) -> Result<UrdfDocument, Vec<String>> {
-        let text = std::fs::read_to_string(path).map_err(|e| vec![format!("{}: cannot read: {e}", path.display())])?;
+        UrdfDocument::load(path).map_err(|issues| in_file(path, &issues))
+    }
+
+    /// Reads and checks a URDF file. Every problem names its line (when it has one) and its
+    /// element, but not the file: an [`armcomp_core::Error::InvalidFile`] of `path` holds them.
+    pub fn load(path: &Path) -> Result<UrdfDocument, Vec<Issue>> {
+        let text = std::fs::read_to_string(path).map_err(|e| vec![Issue::new("", format!("cannot read: {e}"))])?;
         UrdfDocument::parse(path, text)
     }
 
-    /// Checks and reads URDF `text`; `path` names it in messages and resolves mesh files.
-    pub fn parse(path: &Path, text: String) -> Result<UrdfDocument, Vec<String>> {
+    /// Checks and reads URDF `text`; `path` names it in warnings and resolves mesh files.
+    pub fn parse(path: &Path, text: String) -> Result<UrdfDocument, Vec<Issue>> {
         let file = path.display().to_string();
-        let xml = roxmltree::Document::parse(&text).map_err(|e| vec![format!("{file}: malformed XML: {e}")])?;
+        let xml = roxmltree::Document::parse(&text)
+            .map_err(|e| vec![at_line(e.pos().row as usize, format!("malformed XML: {e}"))])?;
         let mut errors = Vec::new();
         let line_of = |n: roxmltree::Node<'_, '_>| xml.text_pos_at(n.range().start).row as usize;
         let robot_el = xml.root_element();
         if !robot_el.has_tag_name("robot") {
-            return Err(vec![format!(
-                "{file}:{}: expected a <robot> element at the top, found <{}>",
+            return Err(vec![at_line(
                 line_of(robot_el),
-                robot_el.tag_name().name()
+                format!(
+                    "expected a <robot> element at the top, found <{}>",
+                    robot_el.tag_name().name()
+                ),
             )]);
         }
         // Element-level checks with lines; urdf-rs reports neither line nor element.
@@ -117,53 +135,62 @@ impl UrdfDocument {
             }
             let line = line_of(el);
             let Some(name) = el.attribute("name").filter(|n| !n.trim().is_empty()) else {
-                errors.push(format!("{file}:{line}: <{what}> without a `name`"));
+                errors.push(at_line(line, format!("<{what}> without a `name`")));
                 continue;
             };
-            let at = format!("{file}:{line}: {what} `{name}`");
+            let at = format!("{what} `{name}`");
+            let mut found = Vec::new();
             if what == "joint" {
-                check_joint(el, &at, &mut errors);
+                check_joint(el, &at, &mut found);
                 joint_nodes.push(el);
             } else {
                 for sub in el.children().filter(|n| n.is_element()) {
                     let tag = sub.tag_name().name();
                     for o in sub.children().filter(|n| n.has_tag_name("origin")) {
-                        check_origin(o, &format!("{at}: <{tag}>"), &mut errors);
+                        check_origin(o, &format!("{at}: <{tag}>"), &mut found);
                     }
                     if tag == "inertial" {
-                        check_numbers(sub, "mass", "value", 1, &format!("{at}: <inertial>"), &mut errors);
+                        check_numbers(sub, "mass", "value", 1, &format!("{at}: <inertial>"), &mut found);
                     }
                 }
                 link_nodes.push(el);
             }
+            errors.extend(found.into_iter().map(|m| at_line(line, m)));
         }
         if !errors.is_empty() {
             return Err(errors);
         }
-        let robot = urdf_rs::read_from_string(&text).map_err(|e| vec![format!("{file}: not a valid URDF: {e}")])?;
+        let robot = urdf_rs::read_from_string(&for_urdf_rs(&text, robot_el))
+            .map_err(|e| vec![Issue::new("", format!("not a valid URDF: {e}"))])?;
         if robot.links.len() != link_nodes.len() || robot.joints.len() != joint_nodes.len() {
-            return Err(vec![format!(
-                "{file}: the URDF reader saw {} links and {} joints where the XML has {} and {}",
-                robot.links.len(),
-                robot.joints.len(),
-                link_nodes.len(),
-                joint_nodes.len()
+            return Err(vec![Issue::new(
+                "",
+                format!(
+                    "the URDF reader saw {} links and {} joints where the XML has {} and {}",
+                    robot.links.len(),
+                    robot.joints.len(),
+                    link_nodes.len(),
+                    joint_nodes.len()
+                ),
             )]);
         }
 
         let dir = path.parent().unwrap_or(Path::new("."));
-        let mut warnings = Vec::new();
+        let mut warnings = Tally::default();
         let mut links = Vec::new();
         for (l, node) in robot.links.iter().zip(&link_nodes) {
             let line = line_of(*node);
-            let at = format!("{file}:{line}: link `{}`", l.name);
+            let at = format!("link `{}`", l.name);
             if links.iter().any(|k: &UrdfLink| k.name == l.name) {
-                errors.push(format!("{at}: a link of this name is defined twice"));
+                errors.push(at_line(line, format!("{at}: a link of this name is defined twice")));
             }
             let inertial = node.children().any(|n| n.has_tag_name("inertial")).then(|| {
                 let m = l.inertial.mass.value;
                 if !(m.is_finite() && m >= 0.0) {
-                    errors.push(format!("{at}: <inertial>: expected a mass of zero or more kg, got {m}"));
+                    errors.push(at_line(
+                        line,
+                        format!("{at}: <inertial>: expected a mass of zero or more kg, got {m}"),
+                    ));
                 }
                 (m, l.inertial.origin.xyz.0)
             });
@@ -171,14 +198,14 @@ impl UrdfDocument {
             for c in &l.collision {
                 let origin = armcomp_core::geom::xyz_rpy(c.origin.xyz.0, c.origin.rpy.0);
                 match collision_shape(&c.geometry, dir) {
-                    Ok(MeshOutcome::Shape(pose, shape, note)) => {
-                        if let Some(n) = note {
-                            warnings.push(format!("{at}: {n}"));
+                    Ok(MeshOutcome::Shape(pose, shape)) => {
+                        if matches!(c.geometry, urdf_rs::Geometry::Mesh { .. }) {
+                            warnings.add(MESH_BOXED, String::new(), line, &at);
                         }
                         collisions.push((origin * pose, shape));
                     }
-                    Ok(MeshOutcome::Skipped(why)) => warnings.push(format!("{at}: collision mesh skipped: {why}")),
-                    Err(e) => errors.push(format!("{at}: <collision>: {e}")),
+                    Ok(MeshOutcome::Skipped(why)) => warnings.add(MESH_SKIPPED, why, line, &at),
+                    Err(e) => errors.push(at_line(line, format!("{at}: <collision>: {e}"))),
                 }
             }
             links.push(UrdfLink {
@@ -192,31 +219,38 @@ impl UrdfDocument {
         let mut joints = Vec::new();
         for (j, node) in robot.joints.iter().zip(&joint_nodes) {
             let line = line_of(*node);
-            let at = format!("{file}:{line}: joint `{}`", j.name);
+            let at = format!("joint `{}`", j.name);
             if joints.iter().any(|k: &UrdfJoint| k.name == j.name) {
-                errors.push(format!("{at}: a joint of this name is defined twice"));
+                errors.push(at_line(line, format!("{at}: a joint of this name is defined twice")));
             }
             let kind = match j.joint_type {
                 urdf_rs::JointType::Revolute => UrdfJointType::Revolute,
                 urdf_rs::JointType::Continuous => UrdfJointType::Continuous,
                 urdf_rs::JointType::Prismatic => UrdfJointType::Prismatic,
                 urdf_rs::JointType::Fixed => UrdfJointType::Fixed,
-                ref other => {
-                    errors.push(format!(
-                        "{at}: type `{other:?}` is not supported; expected revolute, continuous, prismatic or fixed"
-                    ));
-                    continue;
+                urdf_rs::JointType::Floating | urdf_rs::JointType::Planar => {
+                    let why = "type `floating` or `planar`, read as fixed: only revolute, continuous and prismatic joints move";
+                    warnings.add(HELD_AT_ORIGIN, why.into(), line, &at);
+                    UrdfJointType::Fixed
                 }
+                // Refused by `check_joint` before urdf-rs read the file.
+                urdf_rs::JointType::Spherical => continue,
             };
             for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
                 if !links.iter().any(|l| &l.name == link) {
-                    errors.push(format!("{at}: its {role} link `{link}` is not defined in the file"));
+                    errors.push(at_line(
+                        line,
+                        format!("{at}: its {role} link `{link}` is not defined in the file"),
+                    ));
                 }
             }
             let moving = kind != UrdfJointType::Fixed;
             let axis = j.axis.xyz.0;
             if moving && axis.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-12 {
-                errors.push(format!("{at}: <axis xyz>: expected a non-zero direction"));
+                errors.push(at_line(
+                    line,
+                    format!("{at}: <axis xyz>: expected a non-zero direction"),
+                ));
             }
             let has_limit = node.children().any(|n| n.has_tag_name("limit"));
             let limits = (has_limit && matches!(kind, UrdfJointType::Revolute | UrdfJointType::Prismatic))
@@ -225,7 +259,7 @@ impl UrdfDocument {
             if let Some([lo, hi]) = limits
                 && lo > hi
             {
-                errors.push(format!("{at}: <limit>: lower {lo} is above upper {hi}"));
+                errors.push(at_line(line, format!("{at}: <limit>: lower {lo} is above upper {hi}")));
             }
             // ROS (urdfdom, pinocchio) ignores `<mimic>` on a fixed joint: it has nothing to move.
             let mimic = j
@@ -250,24 +284,15 @@ impl UrdfDocument {
                 axis_range: child_range("axis"),
             });
         }
+        resolve_mimics(&mut joints, &mut warnings, &mut errors);
         for j in &joints {
-            let at = format!("{file}:{}: joint `{}`", j.line, j.name);
-            if let Some((target, k, off)) = &j.mimic {
-                match joints.iter().find(|o| &o.name == target) {
-                    None => errors.push(format!("{at}: <mimic joint=\"{target}\">: no joint of that name")),
-                    Some(o) if o.mimic.is_some() || o.kind == UrdfJointType::Fixed => errors.push(format!(
-                        "{at}: <mimic joint=\"{target}\">: that joint is fixed or itself a mimic joint"
-                    )),
-                    Some(_) if !(k.is_finite() && off.is_finite()) => {
-                        errors.push(format!("{at}: <mimic>: expected finite multiplier and offset"))
-                    }
-                    Some(_) => {}
-                }
-            }
             if let Some(other) = joints.iter().find(|o| o.child == j.child && o.name != j.name) {
-                errors.push(format!(
-                    "{at}: link `{}` is also the child of joint `{}` (line {}): a closed kinematic loop, which URDF cannot describe",
-                    j.child, other.name, other.line
+                errors.push(at_line(
+                    j.line,
+                    format!(
+                        "joint `{}`: link `{}` is also the child of joint `{}` (line {}): a closed kinematic loop, which URDF cannot describe",
+                        j.name, j.child, other.name, other.line
+                    ),
                 ));
             }
         }
@@ -279,19 +304,23 @@ impl UrdfDocument {
         let root = match roots.as_slice() {
             [one] => one.to_string(),
             [] if links.is_empty() => {
-                errors.push(format!("{file}: the robot has no <link>"));
+                errors.push(Issue::new("", "the robot has no <link>"));
                 String::new()
             }
             [] => {
-                errors.push(format!(
-                    "{file}: every link is the child of a joint, so the joints form a closed loop; a URDF robot is a tree with one root link"
+                errors.push(Issue::new(
+                    "",
+                    "every link is the child of a joint, so the joints form a closed loop; a URDF robot is a tree with one root link",
                 ));
                 String::new()
             }
             many => {
-                errors.push(format!(
-                    "{file}: several links are the child of no joint ({}); a URDF robot is a tree with one root link",
-                    many.join(", ")
+                errors.push(Issue::new(
+                    "",
+                    format!(
+                        "several links are the child of no joint ({}); a URDF robot is a tree with one root link",
+                        many.join(", ")
+                    ),
                 ));
                 String::new()
             }
@@ -299,21 +328,27 @@ impl UrdfDocument {
         if !errors.is_empty() {
             return Err(errors);
         }
-        Ok(UrdfDocument {
+        let doc = UrdfDocument {
             path: path.to_path_buf(),
             name: robot.name,
             root,
             links,
             joints,
-            warnings,
+            warnings: warnings.lines(&file),
             text,
-        })
+        };
+        doc.placement()?;
+        Ok(doc)
     }
 
     /// The joints in an order where each joint's parent link, and the joint it mimics, come
     /// first: file order wherever the file allows it. Fails on joints unreachable from the root
     /// (a loop) or mimicking a joint below themselves.
     pub fn placement_order(&self) -> Result<Vec<usize>, Vec<String>> {
+        self.placement().map_err(|issues| in_file(&self.path, &issues))
+    }
+
+    fn placement(&self) -> Result<Vec<usize>, Vec<Issue>> {
         let mut placed_links = vec![self.root.as_str()];
         let mut placed = vec![false; self.joints.len()];
         let mut order = Vec::with_capacity(self.joints.len());
@@ -332,13 +367,12 @@ impl UrdfDocument {
                     .enumerate()
                     .filter(|(i, _)| !placed[*i])
                     .map(|(_, j)| {
-                        format!(
-                            "{}:{}: joint `{}`: not reachable from the root link `{}` (its parent link `{}` hangs in a closed loop, or it mimics a joint below itself)",
-                            self.path.display(),
+                        at_line(
                             j.line,
-                            j.name,
-                            self.root,
-                            j.parent
+                            format!(
+                                "joint `{}`: not reachable from the root link `{}` (its parent link `{}` hangs in a closed loop, or it mimics a joint below itself)",
+                                j.name, self.root, j.parent
+                            ),
                         )
                     })
                     .collect());
@@ -348,6 +382,156 @@ impl UrdfDocument {
             order.push(i);
         }
         Ok(order)
+    }
+}
+
+/// Points every `<mimic>` at the joint that moves on its own at the end of its chain, composing
+/// multipliers and offsets (`a = k·b + o`, `b = k'·c + o'` gives `a = k·k'·c + k·o' + o`). A
+/// chain that ends on no moving joint (a missing name, a fixed joint, a loop) loses its mimic:
+/// urdfdom accepts such a file, and pinocchio's reader moves every mimic joint on its own.
+fn resolve_mimics(joints: &mut [UrdfJoint], warnings: &mut Tally, errors: &mut Vec<Issue>) {
+    let follows: Vec<Option<(String, f64, f64)>> = joints.iter().map(|j| j.mimic.clone()).collect();
+    let moves: Vec<bool> = joints.iter().map(|j| j.kind != UrdfJointType::Fixed).collect();
+    let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+    for (i, j) in joints.iter_mut().enumerate() {
+        let Some((mut target, mut k, mut offset)) = follows[i].clone() else {
+            continue;
+        };
+        let mut seen = vec![i];
+        j.mimic = loop {
+            match names.iter().position(|n| *n == target) {
+                Some(t) if moves[t] && !seen.contains(&t) => match &follows[t] {
+                    None => break Some((target, k, offset)),
+                    Some((next, k_next, offset_next)) => {
+                        offset += k * offset_next;
+                        k *= k_next;
+                        target = next.clone();
+                        seen.push(t);
+                    }
+                },
+                _ => break None,
+            }
+        };
+        let at = format!("joint `{}`", j.name);
+        match &j.mimic {
+            None => warnings.add(
+                MIMIC_IGNORED,
+                "naming no moving joint: such joints move on their own, as pinocchio reads them".into(),
+                j.line,
+                &at,
+            ),
+            Some((_, k, offset)) if !(k.is_finite() && offset.is_finite()) => errors.push(at_line(
+                j.line,
+                format!("{at}: <mimic>: expected finite multiplier and offset"),
+            )),
+            Some(_) => {}
+        }
+    }
+}
+
+/// The text given to `urdf-rs`: the file with everything but `<link>` and `<joint>` elements,
+/// and the links' `<visual>`s, blanked out (lines kept). armcomp uses none of it, and urdf-rs reads
+/// visuals and materials more strictly than urdfdom (a `<texture/>` without `filename`, as some
+/// published URDFs have, fails the whole file). An `<axis>` without `xyz`, which urdfdom reads
+/// as (1, 0, 0), is blanked too: urdf-rs refuses it, and an absent axis is (1, 0, 0) there.
+/// Lines and byte ranges in messages and calibrated copies refer to the original text.
+fn for_urdf_rs(text: &str, robot: roxmltree::Node<'_, '_>) -> String {
+    let mut bytes = text.as_bytes().to_vec();
+    let mut blank = |n: roxmltree::Node<'_, '_>| {
+        for b in &mut bytes[n.range()] {
+            if *b != b'\n' {
+                *b = b' ';
+            }
+        }
+    };
+    for el in robot.children().filter(|n| n.is_element()) {
+        let unused = |n: &roxmltree::Node<'_, '_>| match el.tag_name().name() {
+            "link" => n.has_tag_name("visual"),
+            "joint" => n.has_tag_name("axis") && n.attribute("xyz").is_none(),
+            _ => false,
+        };
+        if el.has_tag_name("link") || el.has_tag_name("joint") {
+            el.children().filter(unused).for_each(&mut blank);
+        } else {
+            blank(el);
+        }
+    }
+    // Whole elements became ASCII spaces, so the bytes are still UTF-8.
+    String::from_utf8_lossy(&bytes).into_owned()
+}
+
+/// Problems as messages that name the file.
+fn in_file(path: &Path, issues: &[Issue]) -> Vec<String> {
+    issues.iter().map(|i| i.in_file(path)).collect()
+}
+
+/// A problem at a line of the file; the message names the element.
+fn at_line(line: usize, message: String) -> Issue {
+    Issue {
+        path: String::new(),
+        message,
+        line: Some(line),
+    }
+}
+
+/// A kind of warning: what happened to one element, and to several.
+type Kind = (&'static str, &'static str);
+const MESH_SKIPPED: Kind = ("collision mesh skipped", "collision meshes skipped");
+const MESH_BOXED: Kind = (
+    "collision mesh approximated by its bounding box",
+    "collision meshes approximated by their bounding boxes",
+);
+const HELD_AT_ORIGIN: Kind = ("held at its origin", "joints held at their origins");
+const MIMIC_IGNORED: Kind = ("<mimic> ignored", "<mimic> elements ignored");
+
+/// Warnings counted by kind and reason, each with its first element: a humanoid whose meshes are
+/// not on disk gives one line, not one per link.
+#[derive(Default)]
+struct Tally(Vec<Counted>);
+
+struct Counted {
+    kind: Kind,
+    why: String,
+    count: usize,
+    line: usize,
+    element: String,
+}
+
+impl Tally {
+    fn add(&mut self, kind: Kind, why: String, line: usize, element: &str) {
+        match self.0.iter_mut().find(|c| c.kind == kind && c.why == why) {
+            Some(c) => c.count += 1,
+            None => self.0.push(Counted {
+                kind,
+                why,
+                count: 1,
+                line,
+                element: element.to_string(),
+            }),
+        }
+    }
+
+    /// One line per kind: `file:line: element: what (why)` for a single element, else
+    /// `file: n what (why); first: element at line l`.
+    fn lines(self, file: &str) -> Vec<String> {
+        self.0
+            .into_iter()
+            .map(|c| {
+                let why = if c.why.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", c.why)
+                };
+                if c.count == 1 {
+                    format!("{file}:{}: {}: {}{why}", c.line, c.element, c.kind.0)
+                } else {
+                    format!(
+                        "{file}: {} {}{why}; first: {} at line {}",
+                        c.count, c.kind.1, c.element, c.line
+                    )
+                }
+            })
+            .collect()
     }
 }
 
@@ -380,19 +564,18 @@ fn collision_shape(g: &urdf_rs::Geometry, dir: &Path) -> Result<MeshOutcome, Str
             return mesh_bounding_box(filename, scale, dir);
         }
     };
-    Ok(MeshOutcome::Shape(Isometry3::identity(), shape, None))
+    Ok(MeshOutcome::Shape(Isometry3::identity(), shape))
 }
+
+/// The joint types urdfdom reads (not `spherical`, which urdf-rs knows).
+const JOINT_TYPES: &str = "expected revolute, continuous, prismatic, fixed, floating or planar";
 
 /// Checks a joint element: type, origin, parent, child, axis, limit and mimic attributes.
 fn check_joint(el: roxmltree::Node<'_, '_>, at: &str, errors: &mut Vec<String>) {
     match el.attribute("type") {
-        Some("revolute" | "continuous" | "prismatic" | "fixed") => {}
-        Some(t @ ("floating" | "planar" | "spherical")) => errors.push(format!(
-            "{at}: type `{t}` is not supported; expected revolute, continuous, prismatic or fixed"
-        )),
-        Some(t) => errors.push(format!(
-            "{at}: unknown joint type `{t}`; expected revolute, continuous, prismatic or fixed"
-        )),
+        Some("revolute" | "continuous" | "prismatic" | "fixed" | "floating" | "planar") => {}
+        Some("spherical") => errors.push(format!("{at}: type `spherical` is not supported; {JOINT_TYPES}")),
+        Some(t) => errors.push(format!("{at}: unknown joint type `{t}`; {JOINT_TYPES}")),
         None => errors.push(format!("{at}: missing `type`")),
     }
     for role in ["parent", "child"] {

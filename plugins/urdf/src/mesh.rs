@@ -5,6 +5,7 @@
 //! `ROS_PACKAGE_PATH`; when it is not there the mesh is skipped with a warning, so a bare URDF
 //! loads without its package. A plain path that does not exist is an error. STL meshes are read
 //! and replaced by their axis-aligned bounding box; other formats are skipped with a warning.
+//! Reasons for skipping leave out the mesh's name, so that the reader can count them by kind.
 
 use std::path::{Path, PathBuf};
 
@@ -14,8 +15,8 @@ use nalgebra::{Isometry3, Vector3};
 /// What became of a collision geometry.
 #[derive(Debug, Clone)]
 pub enum MeshOutcome {
-    /// A shape with its frame in the collision frame, and a note for the user.
-    Shape(Isometry3<f64>, Shape, Option<String>),
+    /// A shape with its frame in the collision frame.
+    Shape(Isometry3<f64>, Shape),
     /// Nothing usable, with the reason.
     Skipped(String),
 }
@@ -28,7 +29,7 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
             None => {
                 let package = rest.split('/').next().unwrap_or(rest);
                 return Ok(MeshOutcome::Skipped(format!(
-                    "`{filename}`: package `{package}` not found above the URDF or in ROS_PACKAGE_PATH"
+                    "package `{package}` not found above the URDF or in ROS_PACKAGE_PATH"
                 )));
             }
         },
@@ -46,14 +47,13 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case("stl"));
     if !is_stl {
-        return Ok(MeshOutcome::Skipped(format!(
-            "`{}`: only STL meshes are read (as their bounding box)",
-            path.display()
-        )));
+        return Ok(MeshOutcome::Skipped(
+            "not an STL file, and only STL meshes are read (as their bounding box)".into(),
+        ));
     }
     let mesh = match std::fs::File::open(&path).and_then(|mut f| stl_io::read_stl(&mut f)) {
         Ok(m) => m,
-        Err(e) => return Ok(MeshOutcome::Skipped(format!("`{}`: cannot read: {e}", path.display()))),
+        Err(e) => return Ok(MeshOutcome::Skipped(format!("cannot read `{}`: {e}", path.display()))),
     };
     let mut lo = Vector3::repeat(f64::INFINITY);
     let mut hi = Vector3::repeat(f64::NEG_INFINITY);
@@ -64,19 +64,12 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
     }
     let size = hi - lo;
     if !(size.iter().all(|s| s.is_finite() && *s > 0.0)) {
-        return Ok(MeshOutcome::Skipped(format!(
-            "`{}`: the mesh has no volume (empty or flat)",
-            path.display()
-        )));
+        return Ok(MeshOutcome::Skipped("the mesh has no volume (empty or flat)".into()));
     }
     let centre = (lo + hi) / 2.0;
     Ok(MeshOutcome::Shape(
         Isometry3::translation(centre.x, centre.y, centre.z),
         Shape::Box([size.x, size.y, size.z]),
-        Some(format!(
-            "collision mesh `{}` approximated by its bounding box",
-            path.display()
-        )),
     ))
 }
 
