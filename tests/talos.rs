@@ -42,16 +42,25 @@ fn the_measured_chain_is_the_torso_and_left_arm() {
     assert_eq!(chain.len(), 9, "{chain:?}");
     assert_eq!(chain[0], "torso_1_joint");
     assert_eq!(chain[8], "arm_left_7_joint");
-    // Everything else holds still at 0 (every held joint of this URDF has 0 within its limits).
+    // Everything else holds still: at 0, or mid-range where 0 is outside the limits (the
+    // knees).
     let measured = r.measured_coordinates();
     assert!(r.tree().nq() > 30);
+    let limits = r.tree().coordinate_limits();
+    let mut mid_range = 0;
     for s in &set.samples {
-        for (c, v) in s.q.iter().enumerate() {
-            if !measured[c] {
-                assert_eq!(*v, 0.0, "{}", r.tree().coordinate_names()[c]);
-            }
+        for (c, v) in s.q.iter().enumerate().filter(|(c, _)| !measured[*c]) {
+            let expected = match limits[c] {
+                Some(l) if l.lower > 0.0 || l.upper < 0.0 => {
+                    mid_range += 1;
+                    0.5 * (l.lower + l.upper)
+                }
+                _ => 0.0,
+            };
+            assert_eq!(*v, expected, "{}", r.tree().coordinate_names()[c]);
         }
     }
+    assert!(mid_range > 0);
     // The timestamp column is ignored with one notice.
     assert_eq!(set.warnings.len(), 1, "{:?}", set.warnings);
     assert!(set.warnings[0].contains("`t`"), "{:?}", set.warnings);
