@@ -3,7 +3,9 @@
 //! URDFs from ROS packages name meshes as `package://<package>/<path>`. The package is looked
 //! for in the folders above the URDF (a package's `urdf/` folder sits in the package) and in
 //! `ROS_PACKAGE_PATH`; when it is not there the mesh is skipped with a warning, so a bare URDF
-//! loads without its package. A plain path that does not exist is an error. STL meshes are read
+//! loads without its package. A plain path that does not exist (a mesh folder not copied, an
+//! absolute path from another machine) is skipped the same way, as urdfdom and pinocchio
+//! load such files. STL meshes are read
 //! and replaced by their axis-aligned bounding box; other formats are skipped with a warning.
 //! Reasons for skipping leave out the mesh's name, so that the reader can count them by kind.
 
@@ -37,7 +39,9 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
             let p = Path::new(filename.strip_prefix("file://").unwrap_or(filename));
             let p = if p.is_absolute() { p.to_path_buf() } else { dir.join(p) };
             if !p.is_file() {
-                return Err(format!("mesh file `{}` does not exist", p.display()));
+                return Ok(MeshOutcome::Skipped(
+                    "mesh file not found (a path relative to the URDF's folder, or absolute)".into(),
+                ));
             }
             p
         }
