@@ -952,7 +952,7 @@ pub fn calibrate(
             params.measurement_std
         )));
     }
-    if !(params.prior_scale > 0.0) {
+    if params.prior_scale.is_nan() || params.prior_scale <= 0.0 {
         return Err(Error::Input(format!(
             "the prior scale must be positive (or infinite for no priors), got {}",
             params.prior_scale
@@ -1244,7 +1244,7 @@ fn register_base(space: &ParameterSpace, theta: &mut [f64], samples: &[Sample], 
     };
     let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
     sv.sort_by(|a, b| b.total_cmp(a));
-    if !(sv[1] > 1e-9 * sv[0].max(1e-300)) {
+    if sv[1].is_nan() || sv[1] <= 1e-9 * sv[0].max(1e-300) {
         return false;
     }
     let v = v_t.transpose();
