@@ -60,13 +60,19 @@ pub fn describe_residuals(robot: &Robot, samples: &[Sample], residuals: &[Vector
         residuals.iter().map(|r| r.norm()).collect(),
     ];
     let tree = robot.tree();
+    // Only the measured chain: another limb's joints hold still, and its loads change only as
+    // the chain carries it around, which the chain's own variables already say.
+    let (measured_coordinates, measured_joints) = (robot.measured_coordinates(), robot.measured_joints());
     let mut variables: Vec<(String, &'static str, Vec<f64>)> = Vec::new();
     for (i, name) in tree.coordinate_names().iter().enumerate() {
+        if !measured_coordinates[i] {
+            continue;
+        }
         let unit = if tree.coordinate_is_prismatic()[i] { "m" } else { "rad" };
         variables.push((format!("joint {name}"), unit, samples.iter().map(|s| s.q[i]).collect()));
     }
     let loads = gravity_loads(robot, samples);
-    for (j, joint) in tree.joints().iter().enumerate() {
+    for (j, joint) in tree.joints().iter().enumerate().filter(|(j, _)| measured_joints[*j]) {
         let unit = match joint.motion {
             Motion::Revolute(_) => "N m",
             Motion::Prismatic(_) => "N",
