@@ -69,10 +69,32 @@ fn pointer_to_path(pointer: &str) -> String {
     out
 }
 
+/// What checking a file found.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Validation {
+    /// Problems: the file is valid when there are none.
+    pub problems: Vec<Diagnostic>,
+    /// What could not be checked: run-time plugin libraries the user did not allow to load
+    /// (their configs are checked against the libraries' schemas only when they load).
+    pub not_loaded: Vec<Diagnostic>,
+}
+
 /// Checks one robot file (a bare URDF is read and built): syntax and types, then the JSON Schema, then semantics (limits
 /// ordered, positive lengths and stiffnesses, links and points that exist, known units).
 /// Returns every problem found; an empty list means the file is valid.
 pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
+    check_file(path, schema).problems
+}
+
+/// [`validate_file`], with the plugin libraries that were not loaded apart from the problems.
+pub fn check_file(path: &Path, schema: &Value) -> Validation {
+    let (not_loaded, problems) = diagnose_file(path, schema)
+        .into_iter()
+        .partition(|d| d.message.starts_with(armcomp_sdk::NOT_ALLOWED));
+    Validation { problems, not_loaded }
+}
+
+fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     if crate::load::is_urdf(path) {
         return match armcomp_urdf::robot_from_urdf(path) {
             Ok(_) => Vec::new(),

@@ -66,10 +66,7 @@ pub fn split_header(h: &str) -> (&str, Option<&str>) {
 /// Reads measurements for `tree`; `units` applies to columns without a unit; `default_point`
 /// is the point measured when there is no `point` column.
 pub fn read_csv(path: &Path, tree: &KinematicTree, units: Units, default_point: usize) -> Result<MeasurementSet> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let text = crate::io::read_text(path)?;
     parse_csv(&text, path, tree, units, default_point)
 }
 
@@ -219,7 +216,6 @@ fn parse_table(
     let has_torque = has(&|k| matches!(k, Column::Torque(_)));
 
     let mut set = MeasurementSet::default();
-    let mut lines: Vec<usize> = Vec::new();
     for record in reader.records() {
         let record = record.map_err(|e| {
             err(
@@ -291,12 +287,6 @@ fn parse_table(
             }
             s.orientation = Some(UnitQuaternion::from_quaternion(q));
         }
-        if let Some(k) = set.samples.iter().position(|o| with_positions && *o == s) {
-            return Err(err(
-                Some(line),
-                format!("this row repeats line {} exactly (a copied row?)", lines[k]),
-            ));
-        }
         for (c, lim) in tree.coordinate_limits().iter().enumerate() {
             if let Some(l) = lim
                 && (s.q[c] < l.lower - 1e-9 || s.q[c] > l.upper + 1e-9)
@@ -308,7 +298,6 @@ fn parse_table(
                 ));
             }
         }
-        lines.push(line);
         set.samples.push(s);
     }
     if set.samples.is_empty() {

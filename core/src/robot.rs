@@ -47,6 +47,8 @@ pub struct Robot {
     payload_site: (usize, Vector3<f64>),
     collision: CollisionGeometry,
     warnings: Vec<String>,
+    /// Files read to build it besides `source` (URDF, meshes, plugin libraries).
+    reads: Vec<PathBuf>,
 }
 
 /// Conditions of one evaluation that error models may depend on besides the joint values.
@@ -84,8 +86,12 @@ pub struct RobotWorkspace {
 impl Robot {
     /// Reads, checks and builds a robot file; every problem names the file, line and field.
     pub fn from_path(path: &Path) -> Result<Robot> {
-        let (file, src) = RobotFile::read(path)?;
-        Robot::from_source(file, &src)
+        // Parsing may load libraries too (a fitted run-time predictor).
+        let (read, files) = crate::io::recording_reads(|| RobotFile::read(path));
+        let (file, src) = read?;
+        let mut robot = Robot::from_source(file, &src)?;
+        robot.reads.extend(files);
+        Ok(robot)
     }
 
     /// Checks and builds a parsed robot file, mapping problems to lines of `src`.
@@ -96,8 +102,16 @@ impl Robot {
         Ok(robot)
     }
 
-    /// Checks and builds a robot description; `base_dir` resolves relative paths in it.
+    /// Checks and builds a robot description; `base_dir` resolves relative paths in it. The
+    /// files read meanwhile on this thread are the robot's [`inputs`](Robot::inputs).
     pub fn build(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
+        let (built, files) = crate::io::recording_reads(|| Robot::build_unrecorded(file, base_dir));
+        let mut robot = built?;
+        robot.reads = files;
+        Ok(robot)
+    }
+
+    fn build_unrecorded(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
         let mut issues = Issues::default();
         let units = file.units;
         let ctx = BuildContext {
@@ -350,6 +364,7 @@ impl Robot {
             payload_site,
             collision,
             warnings,
+            reads: Vec::new(),
         };
         robot.tree = robot
             .tree_for(&robot.chain_values)
@@ -408,7 +423,24 @@ impl Robot {
     pub fn rebuild(&self, file: RobotFile) -> Result<Robot> {
         let mut robot = Robot::build(file, &self.base_dir()).map_err(Error::InvalidModel)?;
         robot.source = self.source.clone();
+        for f in &self.reads {
+            if !robot.reads.contains(f) {
+                robot.reads.push(f.clone());
+            }
+        }
         Ok(robot)
+    }
+
+    /// Every file this robot was read from: its source, and the files that names (URDF,
+    /// meshes, plugin libraries). Outputs must never replace one of them.
+    pub fn inputs(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = self.source.iter().cloned().collect();
+        for f in &self.reads {
+            if !files.contains(f) {
+                files.push(f.clone());
+            }
+        }
+        files
     }
 
     /// The compiled kinematic convention.

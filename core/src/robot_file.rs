@@ -266,10 +266,7 @@ pub struct SourceFile {
 impl SourceFile {
     /// Reads a file; the format follows the extension (`.json` is JSON, anything else TOML).
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let text = crate::io::read_text(path)?;
         let format = match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("json") => Format::Json,
             _ => Format::Toml,

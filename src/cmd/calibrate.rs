@@ -2,10 +2,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::param::Quantity;
 
-use super::read_measurements;
+use super::{check_output, read_measurements};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -36,9 +36,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    check_not_input(&args.out, &[&args.robot, &args.data])?;
     let robot = armcomp::load_robot(&args.robot)?;
     let data = read_measurements(&robot, &args.data)?;
+    check_output(&args.out, &robot, &[&args.data])?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm * 1e-3,

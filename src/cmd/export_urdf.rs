@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -16,10 +16,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    check_not_input(&args.out, &[&args.model])?;
     let robot = armcomp::load_robot(&args.model)?;
     let (source, text) = armcomp_urdf::calibrated_urdf(&robot)?;
-    check_not_input(&args.out, &[&source])?;
+    super::check_output(&args.out, &robot, &[&source])?;
     write_atomic(&args.out, text.as_bytes())?;
     eprintln!(
         "wrote {} ({} joints of {} with identified origins and axes)",

@@ -89,7 +89,7 @@ impl UrdfDocument {
     /// Reads and checks a URDF file. Every problem is one message naming the file, the line and
     /// the element.
     pub fn read(path: &Path) -> Result<UrdfDocument, Vec<String>> {
-        let text = std::fs::read_to_string(path).map_err(|e| vec![format!("{}: cannot read: {e}", path.display())])?;
+        let text = armcomp_core::io::read_text(path).map_err(|e| vec![e.to_string()])?;
         UrdfDocument::parse(path, text)
     }
 
