@@ -114,6 +114,15 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
         Ok(f) => f,
         Err(e) => return from_error(path, e),
     };
+    // Semantic checks first: they name non-finite numbers plainly, where the schema (which
+    // sees them as null) would print the whole plugin table.
+    let built = match Robot::from_source(file, &src) {
+        Ok(_) => Vec::new(),
+        Err(e) => from_error(path, e),
+    };
+    if built.iter().any(|d| !d.message.starts_with(armcomp_sdk::NOT_ALLOWED)) {
+        return built;
+    }
     let validator = match jsonschema::validator_for(schema) {
         Ok(v) => v,
         Err(e) => {
@@ -137,11 +146,7 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
             }
         })
         .collect();
-    if out.is_empty()
-        && let Err(e) = Robot::from_source(file, &src)
-    {
-        out.extend(from_error(path, e));
-    }
+    out.extend(built);
     out
 }
 

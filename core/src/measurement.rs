@@ -267,6 +267,12 @@ fn parse_table(
                 Column::Joint { coord, scale } => s.q[coord] = v * scale,
                 Column::Position { axis, scale } => s.position[axis] = v * scale,
                 Column::Quat(k) => quat[k] = v,
+                Column::Payload(_) if v < 0.0 => {
+                    return Err(err(
+                        Some(line),
+                        format!("column `{head}`: expected a mass of zero or more, got {field}"),
+                    ));
+                }
                 Column::Payload(scale) => s.payload = Some(v * scale),
                 Column::Temperature(offset) => s.temperature = Some(v + offset),
                 Column::Torque(c) => {
