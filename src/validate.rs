@@ -43,12 +43,17 @@ fn from_error(file: &Path, e: Error) -> Vec<Diagnostic> {
                 message: i.message,
             })
             .collect(),
-        other => vec![Diagnostic {
-            file: file.to_path_buf(),
-            line: None,
-            path: String::new(),
-            message: other.to_string(),
-        }],
+        other => {
+            let message = other.to_string();
+            // The diagnostic names the file already.
+            let prefix = format!("{}: ", file.display());
+            vec![Diagnostic {
+                file: file.to_path_buf(),
+                line: None,
+                path: String::new(),
+                message: message.strip_prefix(&prefix).map_or(message.clone(), str::to_string),
+            }]
+        }
     }
 }
 

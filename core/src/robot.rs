@@ -140,7 +140,7 @@ impl Robot {
             if !point_names.insert(p.name.as_str()) {
                 issues.push(format!("{path}.name"), format!("point `{}` is defined twice", p.name));
             }
-            if let Err(m) = check_column_name(&p.name) {
+            if let Err(m) = check_column_name(&p.name, false) {
                 issues.push(
                     format!("{path}.name"),
                     format!("point name `{}` {m}", p.name.escape_debug()),
@@ -713,8 +713,9 @@ impl Robot {
 /// Names that measurement CSV files use for their own columns.
 const RESERVED_COLUMNS: [&str; 10] = ["point", "x", "y", "z", "qw", "qx", "qy", "qz", "payload", "temperature"];
 
-/// Why `name` cannot be a joint's or point's name in CSV files and `--q name=value` lists.
-fn check_column_name(name: &str) -> std::result::Result<(), String> {
+/// Why `name` cannot be written in CSV files (and `--q name=value` lists): as a value, or with
+/// `header`, as a column of its own (a joint's).
+fn check_column_name(name: &str, header: bool) -> std::result::Result<(), String> {
     if name.is_empty() {
         return Err("is empty".into());
     }
@@ -727,7 +728,7 @@ fn check_column_name(name: &str) -> std::result::Result<(), String> {
             c.escape_debug()
         ));
     }
-    if RESERVED_COLUMNS.contains(&name) || name.starts_with("tau_") {
+    if header && (RESERVED_COLUMNS.contains(&name) || name.starts_with("tau_")) {
         return Err("is the name of a measurement CSV column (point, x, y, z, qw, qx, qy, qz, payload, temperature, tau_<joint>)".into());
     }
     Ok(())
@@ -739,7 +740,7 @@ fn check_joint_names(file: &RobotFile, tree: &KinematicTree, issues: &mut Issues
     let listed = serde_json::to_value(&file.kinematics).ok();
     let entries = listed.as_ref().and_then(|v| v.get("joints")).and_then(|j| j.as_array());
     for joint in tree.joints() {
-        if let Err(m) = check_column_name(&joint.name) {
+        if let Err(m) = check_column_name(&joint.name, true) {
             let path = entries
                 .and_then(|e| {
                     e.iter()
