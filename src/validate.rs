@@ -84,8 +84,9 @@ pub struct Validation {
     pub not_loaded: Vec<Diagnostic>,
 }
 
-/// Checks one robot file (a bare URDF is read and built): syntax and types, then the JSON Schema, then semantics (limits
-/// ordered, positive lengths and stiffnesses, links and points that exist, known units).
+/// Checks one robot file (a bare URDF is read and built): syntax and types, then semantics
+/// (limits ordered, positive lengths and stiffnesses, links and points that exist, known
+/// units), then the JSON Schema.
 /// Returns every problem found; an empty list means the file is valid.
 pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     check_file(path, schema).problems
@@ -110,14 +111,23 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
         Ok(s) => s,
         Err(e) => return from_error(path, e),
     };
-    let json = match src.parse::<Value>() {
-        Ok(v) => v,
-        Err(e) => return from_error(path, e),
-    };
     // Typed parse first: serde names the field and says what it expected in plain words.
     let file: RobotFile = match src.parse() {
         Ok(f) => f,
         Err(e) => return from_error(path, e),
+    };
+    // The schema sees the file as parsed (defaults filled in): the text is not parsed twice,
+    // which for big files is most of the time validation takes.
+    let json = match serde_json::to_value(&file) {
+        Ok(v) => v,
+        Err(e) => {
+            return vec![Diagnostic {
+                file: path.to_path_buf(),
+                line: None,
+                path: String::new(),
+                message: format!("cannot be checked against the schema: {e}"),
+            }];
+        }
     };
     // Semantic checks first: they name non-finite numbers plainly, where the schema (which
     // sees them as null) would print the whole plugin table.

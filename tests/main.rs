@@ -15,6 +15,7 @@ mod fk;
 mod jacobian;
 mod malformed;
 mod measurement;
+mod mutated_inputs;
 mod plan;
 mod robot_files;
 mod runtime_plugins;
