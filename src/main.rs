@@ -66,6 +66,11 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // A run stopped by Ctrl-C or `kill` leaves no hidden temporary beside its outputs.
+    let _ = ctrlc::set_handler(|| {
+        armcomp_core::io::remove_pending_temporaries();
+        std::process::exit(130);
+    });
     if let Err(e) = configure(cli.allow_plugins) {
         eprintln!("error: {e:#}");
         return ExitCode::FAILURE;

@@ -11,6 +11,7 @@ use std::cell::RefCell;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use crate::error::{Error, Result};
 
@@ -166,6 +167,43 @@ fn describe_bytes(bytes: u64) -> String {
     }
 }
 
+/// Temporaries of writes in progress, for [`remove_pending_temporaries`].
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A temporary listed in [`PENDING`] while it lives.
+struct Pending(PathBuf);
+
+impl Pending {
+    fn new(path: &Path) -> Self {
+        PENDING
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push(path.to_path_buf());
+        Pending(path.to_path_buf())
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        PENDING
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .retain(|p| *p != self.0);
+    }
+}
+
+/// Removes the temporaries of writes still in progress (a file or a staged report folder), so
+/// that a process stopped by a signal leaves none behind; the targets are untouched.
+pub fn remove_pending_temporaries() {
+    for p in PENDING.lock().unwrap_or_else(PoisonError::into_inner).drain(..) {
+        let _ = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+    }
+}
+
 /// The folder a target lives in (`.` for a bare file name).
 fn folder_of(path: &Path) -> &Path {
     match path.parent() {
@@ -304,6 +342,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     }
     let existing = existing_target(path)?;
     let mut tmp = temporary_in(path, existing.as_ref()).map_err(io)?;
+    let _pending = Pending::new(tmp.path());
     if let Some(m) = &existing {
         keep_owner(tmp.as_file(), m).map_err(|m| Error::Input(format!("{}: {m}", path.display())))?;
     }
@@ -376,6 +415,7 @@ pub fn write_folder_atomic(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()
             .map_err(io)
     };
     let staged = hidden("new.")?;
+    let _pending = Pending::new(staged.path());
     for (file, bytes) in files {
         let mut f = std::fs::File::create_new(staged.path().join(file)).map_err(io)?;
         f.write_all(bytes).map_err(io)?;
