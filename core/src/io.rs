@@ -160,7 +160,7 @@ pub fn read_text(path: &Path) -> Result<String> {
 }
 
 fn describe_bytes(bytes: u64) -> String {
-    if bytes >= 1 << 20 && bytes % (1 << 20) == 0 {
+    if bytes >= 1 << 20 && bytes.is_multiple_of(1 << 20) {
         format!("{} MB", bytes >> 20)
     } else {
         format!("{bytes} bytes")
@@ -472,7 +472,7 @@ mod tests {
             assert_eq!(std::fs::metadata(&p).unwrap().permissions().mode() & 0o777, 0o640);
         }
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
-        assert!(check_output(&p, &[p.clone()]).is_err());
+        assert!(check_output(&p, std::slice::from_ref(&p)).is_err());
         assert!(check_output(&p, &[]).is_ok());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "the probe is gone");
     }
