@@ -250,7 +250,7 @@ pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
     let existing = existing_target(out)?;
     if let Some(i) = inputs.iter().find(|i| same_file(out, i)) {
         return Err(refuse(format!(
-            "refusing to overwrite `{}`, a file this run reads; choose another output",
+            "refusing to overwrite an input: this run reads `{}`; choose another output",
             i.display()
         )));
     }
@@ -420,13 +420,6 @@ pub fn write_folder_atomic(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()
         let mut f = std::fs::File::create_new(staged.path().join(file)).map_err(io)?;
         f.write_all(bytes).map_err(io)?;
         f.sync_all().map_err(io)?;
-    }
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        // A temporary folder is private (0700); a report is a folder like any other.
-        let mode = 0o777 & !0o022;
-        std::fs::set_permissions(staged.path(), std::fs::Permissions::from_mode(mode)).map_err(io)?;
     }
     if std::fs::symlink_metadata(dir).is_err() {
         std::fs::rename(staged.path(), dir).map_err(io)?;

@@ -37,8 +37,8 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
-    let data = read_measurements(&robot, &args.data)?;
     check_output(&args.out, &robot, &[&args.data])?;
+    let data = read_measurements(&robot, &args.data)?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm * 1e-3,

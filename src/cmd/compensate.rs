@@ -166,8 +166,8 @@ fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<Target>> {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
     let units = robot.file.units;
-    let targets = read_targets(&args.targets, units)?;
     super::check_output(&args.out, &robot, &[&args.targets])?;
+    let targets = read_targets(&args.targets, units)?;
     let mode = match args.mode {
         Mode::Paper => CompensationMode::Paper,
         Mode::Exact => CompensationMode::Exact,

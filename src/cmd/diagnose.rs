@@ -70,13 +70,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         armcomp_sdk::load_library(lib).map_err(|m| anyhow::anyhow!("--library {}: {m}", lib.display()))?;
     }
     let robot = armcomp::load_robot(&args.robot)?;
-    let data = read_measurements(&robot, &args.data)?;
     if let Some(out) = &args.out {
         check_output(out, &robot, &[&args.data])?;
     }
     if let Some(dir) = &args.report {
         armcomp::diagnosis_report::check(dir, &inputs(&robot, &[&args.data]))?;
     }
+    let data = read_measurements(&robot, &args.data)?;
     let params = DiagnoseParams {
         folds: args.folds,
         seed: args.seed,

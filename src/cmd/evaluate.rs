@@ -48,10 +48,10 @@ fn residuals_csv(robot: &Robot, samples: &[Sample], errors: &[Vector3<f64>]) -> 
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
-    let data = read_measurements(&robot, &args.data)?;
     if let Some(out) = &args.residuals {
         check_output(out, &robot, &[&args.data])?;
     }
+    let data = read_measurements(&robot, &args.data)?;
     let errors = position_errors(&robot, &data.samples);
     let stats = ErrorStats::from_errors(&errors);
     if let Some(out) = &args.residuals {

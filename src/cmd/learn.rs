@@ -30,8 +30,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             args.model.display()
         );
     };
-    let data = read_measurements(&robot, &args.data)?;
     check_output(&args.out, &robot, &[&args.data])?;
+    let data = read_measurements(&robot, &args.data)?;
     let start = Instant::now();
     let fitted = fit_residual_predictor(&robot, spec, &data.samples)?;
     let seconds = start.elapsed().as_secs_f64();

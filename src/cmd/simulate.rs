@@ -33,6 +33,8 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let truth = armcomp::load_robot(&args.robot)?;
+    let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
+    super::check_output(&args.out, &truth, &poses_file)?;
     let poses = match &args.poses {
         Some(p) => {
             let text = armcomp_core::io::read_text(p)?;
@@ -40,8 +42,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => configurations(truth.tree(), Sampler::parse(&args.sampler)?, args.n, args.seed)?,
     };
-    let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
-    super::check_output(&args.out, &truth, &poses_file)?;
     // Noise draws use a stream of their own so that the same poses get the same noise
     // whether they were sampled or read from a file.
     let params = SimulateParams {

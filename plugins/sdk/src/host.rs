@@ -141,6 +141,13 @@ pub enum Origin<'a> {
     CommandLine,
 }
 
+fn not_allowed(library: &Path) -> String {
+    format!(
+        "{NOT_ALLOWED}: loading {} would run its code; pass --allow-plugins to allow it, or list its folder in `plugin_dirs` of the user config",
+        library.display()
+    )
+}
+
 /// Whether the policy lets the library at `canonical` load.
 fn permit(canonical: &Path, origin: Origin<'_>) -> std::result::Result<(), String> {
     let policy = POLICY.read().unwrap_or_else(PoisonError::into_inner);
@@ -151,10 +158,7 @@ fn permit(canonical: &Path, origin: Origin<'_>) -> std::result::Result<(), Strin
         return Ok(());
     }
     if !policy.allow {
-        return Err(format!(
-            "{NOT_ALLOWED}: loading {} would run its code; pass --allow-plugins to allow it, or list its folder in `plugin_dirs` of the user config",
-            canonical.display()
-        ));
+        return Err(not_allowed(canonical));
     }
     if let Origin::File(folder) = origin {
         let folder = if folder.as_os_str().is_empty() {
@@ -202,9 +206,15 @@ impl PluginLibrary {
     /// at `origin` load. The message of an error says what is wrong with the file; the caller
     /// adds which field named it.
     pub fn load(path: &Path, origin: Origin<'_>) -> std::result::Result<&'static PluginLibrary, String> {
-        let canonical = path
-            .canonicalize()
-            .map_err(|e| format!("cannot open plugin library {}: {e}", path.display()))?;
+        let canonical = match path.canonicalize() {
+            Ok(c) => c,
+            // Without permission, a missing library is refused as any other: nothing is
+            // probed on the user's behalf.
+            Err(_) if !POLICY.read().unwrap_or_else(PoisonError::into_inner).allow => {
+                return Err(not_allowed(path));
+            }
+            Err(e) => return Err(format!("cannot open plugin library {}: {e}", path.display())),
+        };
         permit(&canonical, origin)?;
         if let Origin::CommandLine = origin {
             lock(&NAMED).push(canonical.clone());
