@@ -539,11 +539,16 @@ impl JsonScanner<'_> {
                 self.string()?;
             }
             _ => {
+                let start = self.at;
                 while self
                     .peek()
                     .is_some_and(|b| !b.is_ascii_whitespace() && !b",}]".contains(&b))
                 {
                     self.at += 1;
+                }
+                // Not a value where one belongs: the text is not JSON, stop.
+                if self.at == start {
+                    return None;
                 }
             }
         }
@@ -737,5 +742,8 @@ mod tests {
         assert_eq!(s.line_of_path("kinematics.joints[0].name"), Some(6));
         assert_eq!(s.line_of_path("kinematics.joints[1].limits[1]"), Some(9));
         assert_eq!(s.line_of_path("kinematics.joints[1].nothing"), Some(7));
+        // Text that is not JSON ends the search instead of looping.
+        assert_eq!(json_span_of_path("[}", "a[0]"), None);
+        assert_eq!(json_span_of_path("{\"a\": [1, }", "a[1]"), Some(10));
     }
 }
