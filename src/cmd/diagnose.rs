@@ -70,11 +70,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         armcomp_sdk::load_library(lib).map_err(|m| anyhow::anyhow!("--library {}: {m}", lib.display()))?;
     }
     let robot = armcomp::load_robot(&args.robot)?;
+    let libraries: Vec<PathBuf> = args
+        .libraries
+        .iter()
+        .map(|l| armcomp_sdk::host::platform_library_path(l))
+        .collect();
+    let read: Vec<&std::path::Path> = std::iter::once(args.data.as_path())
+        .chain(libraries.iter().map(PathBuf::as_path))
+        .collect();
     if let Some(out) = &args.out {
-        check_output(out, &robot, &[&args.data])?;
+        check_output(out, &robot, &read)?;
     }
     if let Some(dir) = &args.report {
-        armcomp::diagnosis_report::check(dir, &inputs(&robot, &[&args.data]))?;
+        armcomp::diagnosis_report::check(dir, &inputs(&robot, &read))?;
     }
     let data = read_measurements(&robot, &args.data)?;
     let params = DiagnoseParams {
