@@ -316,10 +316,15 @@ fn keep_owner(file: &std::fs::File, target: &std::fs::Metadata) -> std::result::
         let mine = file.metadata().map_err(|e| e.to_string())?;
         if (mine.uid(), mine.gid()) != (target.uid(), target.gid()) {
             std::os::unix::fs::fchown(file, Some(target.uid()), Some(target.gid())).map_err(|_| {
-                format!(
-                    "is owned by another user (uid {}); replacing it would change its owner, so choose another output",
-                    target.uid()
-                )
+                let whose = if mine.uid() != target.uid() {
+                    format!("is owned by another user (uid {})", target.uid())
+                } else {
+                    format!(
+                        "belongs to a group this user cannot give files to (gid {})",
+                        target.gid()
+                    )
+                };
+                format!("{whose}; replacing it would change that, so choose another output")
             })?;
         }
     }
@@ -501,6 +506,23 @@ mod tests {
         );
         assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
         assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_replaced_file_keeps_its_owner() {
+        use std::os::unix::fs::MetadataExt;
+        let dir = scratch("armcomp-io-owner");
+        let p = dir.path().join("theirs.txt");
+        std::fs::write(&p, "old").unwrap();
+        // Only a privileged user can hand a file to someone else; others cannot set this up.
+        if std::os::unix::fs::chown(&p, Some(4242), Some(4242)).is_ok() {
+            check_output(&p, &[]).unwrap();
+            write_atomic(&p, b"new").unwrap();
+            let m = std::fs::metadata(&p).unwrap();
+            assert_eq!((m.uid(), m.gid()), (4242, 4242));
+            assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        }
     }
 
     #[test]
