@@ -6,24 +6,34 @@ use std::path::Path;
 
 use armcomp_core::diagnose::DiagnosisReport;
 use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::{check_report_folder, write_folder_atomic};
 use plotters::prelude::*;
 
-/// Writes `index.html`, `report.json`, `heldout_rms.svg` and `residuals.svg` into `dir`
-/// (created if needed), each atomically and never over one of `inputs`.
-pub fn write(dir: &Path, report: &DiagnosisReport, inputs: &[&Path]) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+/// Whether a file belongs in a diagnosis report folder.
+fn is_report_file(name: &str) -> bool {
+    matches!(name, "index.html" | "report.json") || name.ends_with(".svg")
+}
+
+/// Checks, before the diagnosis runs, that `dir` may receive the report (see
+/// [`check_report_folder`]): absent, or an earlier report holding none of `inputs`.
+pub fn check(dir: &Path, inputs: &[std::path::PathBuf]) -> anyhow::Result<()> {
+    Ok(check_report_folder(dir, &is_report_file, inputs)?)
+}
+
+/// Writes the folder `dir` with `index.html`, `report.json`, `heldout_rms.svg` and
+/// `residuals.svg`, whole: into a temporary folder, then moved into place.
+pub fn write(dir: &Path, report: &DiagnosisReport) -> anyhow::Result<()> {
     let files = [
         ("heldout_rms.svg", rms_plot(report)?),
         ("residuals.svg", histogram(report)?),
         ("report.json", serde_json::to_string_pretty(report)?),
         ("index.html", html(report)),
     ];
-    for (name, text) in files {
-        let path = dir.join(name);
-        check_not_input(&path, inputs)?;
-        write_atomic(&path, text.as_bytes())?;
-    }
+    let files: Vec<(String, Vec<u8>)> = files
+        .into_iter()
+        .map(|(n, t)| (n.to_string(), t.into_bytes()))
+        .collect();
+    write_folder_atomic(dir, &files)?;
     Ok(())
 }
 

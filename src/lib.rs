@@ -3,6 +3,7 @@
 //! (schema first, then semantics), reporting every problem with file, line and field.
 
 pub mod agile_justin;
+pub mod config;
 pub mod demos;
 pub mod diagnosis_report;
 pub mod load;
@@ -11,5 +12,5 @@ pub mod validate;
 
 pub use load::load_robot;
 pub use registry::{plugins, robot_schema, schema_text};
-pub use validate::{Diagnostic, validate_file};
+pub use validate::{Diagnostic, Validation, check_file, validate_file};
 pub mod twins;

@@ -12,6 +12,24 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Let robot files load the run-time plugin libraries they name inside their own folder,
+    /// and `--library` load the libraries it names. Loading a library runs its code: allow it
+    /// only for files you trust. Libraries in the user config's `plugin_dirs` load without it.
+    #[arg(long, global = true)]
+    allow_plugins: bool,
+}
+
+/// Applies the user config and `--allow-plugins` to this process.
+fn configure(allow_plugins: bool) -> anyhow::Result<()> {
+    let config = armcomp::config::load()?;
+    if let Some(mb) = config.max_input_mb {
+        armcomp_core::io::set_max_input_bytes(mb.saturating_mul(1 << 20));
+    }
+    armcomp_sdk::set_policy(armcomp_sdk::PluginPolicy {
+        allow: allow_plugins,
+        trusted_dirs: config.plugin_dirs,
+    });
+    Ok(())
 }
 
 #[derive(Subcommand)]
@@ -48,6 +66,15 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // A run stopped by Ctrl-C or `kill` leaves no hidden temporary beside its outputs.
+    let _ = ctrlc::set_handler(|| {
+        armcomp_core::io::remove_pending_temporaries();
+        std::process::exit(130);
+    });
+    if let Err(e) = configure(cli.allow_plugins) {
+        eprintln!("error: {e:#}");
+        return ExitCode::FAILURE;
+    }
     let result = match cli.command {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Fk(a) => cmd::fk::run(a),

@@ -43,12 +43,17 @@ fn from_error(file: &Path, e: Error) -> Vec<Diagnostic> {
                 message: i.message,
             })
             .collect(),
-        other => vec![Diagnostic {
-            file: file.to_path_buf(),
-            line: None,
-            path: String::new(),
-            message: other.to_string(),
-        }],
+        other => {
+            let message = other.to_string();
+            // The diagnostic names the file already.
+            let prefix = format!("{}: ", file.display());
+            vec![Diagnostic {
+                file: file.to_path_buf(),
+                line: None,
+                path: String::new(),
+                message: message.strip_prefix(&prefix).map_or(message.clone(), str::to_string),
+            }]
+        }
     }
 }
 
@@ -69,10 +74,33 @@ fn pointer_to_path(pointer: &str) -> String {
     out
 }
 
-/// Checks one robot file (a bare URDF is read and built): syntax and types, then the JSON Schema, then semantics (limits
-/// ordered, positive lengths and stiffnesses, links and points that exist, known units).
+/// What checking a file found.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Validation {
+    /// Problems: the file is valid when there are none.
+    pub problems: Vec<Diagnostic>,
+    /// What could not be checked: run-time plugin libraries the user did not allow to load
+    /// (their configs are checked against the libraries' schemas only when they load).
+    pub not_loaded: Vec<Diagnostic>,
+}
+
+/// Checks one robot file (a bare URDF is read and built): syntax and types, then semantics
+/// (limits ordered, positive lengths and stiffnesses, links and points that exist, known
+/// units), then the JSON Schema.
 /// Returns every problem found; an empty list means the file is valid.
 pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
+    check_file(path, schema).problems
+}
+
+/// [`validate_file`], with the plugin libraries that were not loaded apart from the problems.
+pub fn check_file(path: &Path, schema: &Value) -> Validation {
+    let (not_loaded, problems) = diagnose_file(path, schema)
+        .into_iter()
+        .partition(|d| d.message.starts_with(armcomp_sdk::NOT_ALLOWED));
+    Validation { problems, not_loaded }
+}
+
+fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     if crate::load::is_urdf(path) {
         return match armcomp_urdf::robot_from_urdf(path) {
             Ok(_) => Vec::new(),
@@ -83,15 +111,33 @@ pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
         Ok(s) => s,
         Err(e) => return from_error(path, e),
     };
-    let json = match src.parse::<Value>() {
-        Ok(v) => v,
-        Err(e) => return from_error(path, e),
-    };
     // Typed parse first: serde names the field and says what it expected in plain words.
     let file: RobotFile = match src.parse() {
         Ok(f) => f,
         Err(e) => return from_error(path, e),
     };
+    // The schema sees the file as parsed (defaults filled in): the text is not parsed twice,
+    // which for big files is most of the time validation takes.
+    let json = match serde_json::to_value(&file) {
+        Ok(v) => v,
+        Err(e) => {
+            return vec![Diagnostic {
+                file: path.to_path_buf(),
+                line: None,
+                path: String::new(),
+                message: format!("cannot be checked against the schema: {e}"),
+            }];
+        }
+    };
+    // Semantic checks first: they name non-finite numbers plainly, where the schema (which
+    // sees them as null) would print the whole plugin table.
+    let built = match Robot::from_source(file, &src) {
+        Ok(_) => Vec::new(),
+        Err(e) => from_error(path, e),
+    };
+    if built.iter().any(|d| !d.message.starts_with(armcomp_sdk::NOT_ALLOWED)) {
+        return built;
+    }
     let validator = match jsonschema::validator_for(schema) {
         Ok(v) => v,
         Err(e) => {
@@ -115,11 +161,7 @@ pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
             }
         })
         .collect();
-    if out.is_empty()
-        && let Err(e) = Robot::from_source(file, &src)
-    {
-        out.extend(from_error(path, e));
-    }
+    out.extend(built);
     out
 }
 

@@ -1,6 +1,7 @@
 //! Integration tests of whole workflows through the library and the CLI (one test binary).
 
 mod agile_justin;
+mod bad_inputs;
 mod calibrate;
 mod cli;
 mod collision;
@@ -14,6 +15,7 @@ mod fk;
 mod jacobian;
 mod malformed;
 mod measurement;
+mod mutated_inputs;
 mod plan;
 mod robot_files;
 mod runtime_plugins;

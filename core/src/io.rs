@@ -1,48 +1,446 @@
-//! Writing outputs safely: atomically, and never over an input.
+//! Reading inputs and writing outputs safely.
+//!
+//! Inputs are read whole, from regular files only (a FIFO would block, a device never ends) and
+//! up to a size cap, and each read is recorded so that a robot knows every file it came from.
+//! Outputs are checked before any work (folder exists, target is a regular file the user may
+//! write, not a file the run read) and written through an unpredictable temporary created
+//! exclusively beside the target, then renamed over it; report folders are written whole into a
+//! temporary folder and moved into place.
 
-use std::io::Write;
-use std::path::Path;
+use std::cell::RefCell;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use crate::error::{Error, Result};
 
-/// Writes `bytes` to `path` atomically: a temporary file in the same folder, then a rename, so
-/// a reader never sees half a file and a failed write leaves any old file intact.
+/// The input size cap when none is configured: 256 MiB.
+pub const DEFAULT_MAX_INPUT_BYTES: u64 = 256 << 20;
+
+static MAX_INPUT_BYTES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_INPUT_BYTES);
+
+/// Sets the largest input file (bytes) any read of this process accepts.
+pub fn set_max_input_bytes(bytes: u64) {
+    MAX_INPUT_BYTES.store(bytes, Ordering::Relaxed);
+}
+
+/// The largest input file (bytes) reads accept.
+pub fn max_input_bytes() -> u64 {
+    MAX_INPUT_BYTES.load(Ordering::Relaxed)
+}
+
+thread_local! {
+    /// One list per open [`recording_reads`] on this thread, innermost last.
+    static RECORDINGS: RefCell<Vec<Vec<PathBuf>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Pops the recording it opened even if the recorded closure panics.
+struct RecordingGuard;
+
+impl Drop for RecordingGuard {
+    fn drop(&mut self) {
+        RECORDINGS.with(|r| r.borrow_mut().pop());
+    }
+}
+
+/// Runs `f` and returns, with its value, every file read through this module (and every file
+/// reported by [`note_read`]) on this thread meanwhile. Recordings nest: an outer one sees the
+/// files of the inner ones too.
+pub fn recording_reads<T>(f: impl FnOnce() -> T) -> (T, Vec<PathBuf>) {
+    RECORDINGS.with(|r| r.borrow_mut().push(Vec::new()));
+    let guard = RecordingGuard;
+    let value = f();
+    let files = RECORDINGS.with(|r| r.borrow_mut().last_mut().map(std::mem::take).unwrap_or_default());
+    drop(guard);
+    RECORDINGS.with(|r| {
+        if let Some(outer) = r.borrow_mut().last_mut() {
+            outer.extend(files.iter().cloned());
+        }
+    });
+    (value, files)
+}
+
+/// Records that the run read `path` (for readers outside this module, e.g. plugin libraries).
+pub fn note_read(path: &Path) {
+    RECORDINGS.with(|r| {
+        if let Some(files) = r.borrow_mut().last_mut()
+            && !files.iter().any(|f| f == path)
+        {
+            files.push(path.to_path_buf());
+        }
+    });
+}
+
+/// What a file system entry is, for messages (`a FIFO`, `a folder`, ...).
+fn kind_of(t: std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if t.is_dir() {
+        "a folder"
+    } else if t.is_symlink() {
+        "a symbolic link"
+    } else if t.is_file() {
+        "a regular file"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Checks that `path` (symbolic links followed) is an existing regular file; the message says
+/// what it is instead, without the path.
+pub fn check_input_file(path: &Path) -> std::result::Result<(), String> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(()),
+        Ok(m) => Err(format!(
+            "is {}, not a regular file; armcomp reads inputs from regular files only",
+            kind_of(m.file_type())
+        )),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(if path.symlink_metadata().is_ok() {
+            "is a symbolic link to nothing".to_string()
+        } else {
+            "does not exist".to_string()
+        }),
+        Err(e) => Err(format!("cannot read: {e}")),
+    }
+}
+
+/// Reads a whole input file: a regular file of at most [`max_input_bytes`]; recorded for
+/// [`recording_reads`].
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    let input = |message: String| Error::Input(format!("{}: {message}", path.display()));
+    check_input_file(path).map_err(input)?;
+    let limit = max_input_bytes();
+    let file = std::fs::File::open(path).map_err(|e| input(format!("cannot read: {e}")))?;
+    let mut bytes = Vec::new();
+    // One byte past the cap tells a file at the cap from a larger one without reading it all.
+    file.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| input(format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > limit {
+        return Err(input(format!(
+            "larger than the input limit of {}; raise `max_input_mb` in the user config if it is meant to be this big",
+            describe_bytes(limit)
+        )));
+    }
+    note_read(path);
+    Ok(bytes)
+}
+
+/// Reads a whole input file as UTF-8 text (see [`read_bytes`]); a leading byte-order mark is
+/// dropped.
+pub fn read_text(path: &Path) -> Result<String> {
+    let bytes = read_bytes(path)?;
+    let mut text = String::from_utf8(bytes).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..at].iter().filter(|b| **b == b'\n').count() + 1;
+        Error::Input(format!(
+            "{}:{line}: not UTF-8 text (byte {at} cannot be decoded)",
+            path.display()
+        ))
+    })?;
+    if text.starts_with('\u{feff}') {
+        text.drain(..'\u{feff}'.len_utf8());
+    }
+    Ok(text)
+}
+
+fn describe_bytes(bytes: u64) -> String {
+    if bytes >= 1 << 20 && bytes.is_multiple_of(1 << 20) {
+        format!("{} MB", bytes >> 20)
+    } else {
+        format!("{bytes} bytes")
+    }
+}
+
+/// Temporaries of writes in progress, for [`remove_pending_temporaries`].
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A temporary listed in [`PENDING`] while it lives.
+struct Pending(PathBuf);
+
+impl Pending {
+    fn new(path: &Path) -> Self {
+        PENDING
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .push(path.to_path_buf());
+        Pending(path.to_path_buf())
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        PENDING
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .retain(|p| *p != self.0);
+    }
+}
+
+/// Removes the temporaries of writes still in progress (a file or a staged report folder), so
+/// that a process stopped by a signal leaves none behind; the targets are untouched.
+pub fn remove_pending_temporaries() {
+    for p in PENDING.lock().unwrap_or_else(PoisonError::into_inner).drain(..) {
+        let _ = if p.is_dir() {
+            std::fs::remove_dir_all(&p)
+        } else {
+            std::fs::remove_file(&p)
+        };
+    }
+}
+
+/// The folder a target lives in (`.` for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+/// Whether two paths name the same file (same device and inode on Unix, else the same
+/// canonical path); paths that cannot be inspected are not the same.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+            (Ok(x), Ok(y)) => x == y,
+            _ => false,
+        }
+    }
+}
+
+/// Checks, before any work, that `out` may be written as an output: its folder exists and the
+/// user may create files there; it is absent or a regular file (not a symbolic link, FIFO,
+/// device or folder) that is not read-only, that the user owns or could give back to its owner
+/// and that is none of `inputs`.
+pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
+    let refuse = |message: String| Error::Input(format!("{}: {message}", out.display()));
+    if out.file_name().is_none() {
+        return Err(refuse("not a file name".into()));
+    }
+    let dir = folder_of(out);
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => return Err(refuse(format!("`{}` is not a folder", dir.display()))),
+        Err(_) => return Err(refuse(format!("the folder `{}` does not exist", dir.display()))),
+    }
+    let existing = existing_target(out)?;
+    if let Some(i) = inputs.iter().find(|i| same_file(out, i)) {
+        return Err(refuse(format!(
+            "refusing to overwrite an input: this run reads `{}`; choose another output",
+            i.display()
+        )));
+    }
+    // A probe created the way the real temporary will be: the folder must take new files, and
+    // a target owned by someone else must be able to keep its owner.
+    let probe = temporary_in(out, existing.as_ref()).map_err(|e| refuse(e.to_string()))?;
+    if let Some(m) = &existing {
+        keep_owner(probe.as_file(), m).map_err(refuse)?;
+    }
+    Ok(())
+}
+
+/// The metadata of an existing output target, refusing anything but a writable regular file.
+fn existing_target(out: &Path) -> Result<Option<std::fs::Metadata>> {
+    let refuse = |message: String| Error::Input(format!("{}: {message}", out.display()));
+    let m = match std::fs::symlink_metadata(out) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(refuse(format!("cannot inspect: {e}"))),
+    };
+    if !m.file_type().is_file() {
+        return Err(refuse(format!(
+            "is {}; armcomp replaces only regular files, so choose another output",
+            kind_of(m.file_type())
+        )));
+    }
+    if m.permissions().readonly() {
+        return Err(refuse("is read-only; armcomp does not replace it".into()));
+    }
+    // Opening for writing (without truncating) asks the system whether this user may write it.
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(out)
+        .map_err(|e| refuse(format!("is not writable: {e}")))?;
+    Ok(Some(m))
+}
+
+/// A new, unpredictable, exclusively created file beside `out`, with the target's permissions
+/// (or the default ones for new files).
+fn temporary_in(out: &Path, existing: Option<&std::fs::Metadata>) -> std::io::Result<tempfile::NamedTempFile> {
+    let name = out.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
+    let prefix = format!(".{name}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // The creation mode goes through the umask, as for any new file.
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let tmp = builder.tempfile_in(folder_of(out))?;
+    if let Some(m) = existing {
+        tmp.as_file().set_permissions(m.permissions())?;
+    }
+    Ok(tmp)
+}
+
+/// Gives `file` the owner of `target`, or says why the owner would change.
+fn keep_owner(file: &std::fs::File, target: &std::fs::Metadata) -> std::result::Result<(), String> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let mine = file.metadata().map_err(|e| e.to_string())?;
+        if (mine.uid(), mine.gid()) != (target.uid(), target.gid()) {
+            std::os::unix::fs::fchown(file, Some(target.uid()), Some(target.gid())).map_err(|_| {
+                let whose = if mine.uid() != target.uid() {
+                    format!("is owned by another user (uid {})", target.uid())
+                } else {
+                    format!(
+                        "belongs to a group this user cannot give files to (gid {})",
+                        target.gid()
+                    )
+                };
+                format!("{whose}; replacing it would change that, so choose another output")
+            })?;
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = (file, target);
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically: an unpredictable temporary created exclusively in the
+/// same folder, synced, then renamed over the target, so a reader never sees half a file and a
+/// failed write leaves any old file intact. The target must be absent or a writable regular
+/// file; a replaced file keeps its permissions and owner.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     let io = |e: std::io::Error| Error::Io {
         path: path.to_path_buf(),
         message: e.to_string(),
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Input(format!("{}: not a file name", path.display())))?;
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    if path.file_name().is_none() {
+        return Err(Error::Input(format!("{}: not a file name", path.display())));
     }
-    result.map_err(io)
+    let existing = existing_target(path)?;
+    let mut tmp = temporary_in(path, existing.as_ref()).map_err(io)?;
+    let _pending = Pending::new(tmp.path());
+    if let Some(m) = &existing {
+        keep_owner(tmp.as_file(), m).map_err(|m| Error::Input(format!("{}: {m}", path.display())))?;
+    }
+    tmp.write_all(bytes).map_err(io)?;
+    tmp.as_file().sync_all().map_err(io)?;
+    // Dropping the temporary on any failure above removes it.
+    tmp.persist(path).map_err(|e| io(e.error))?;
+    Ok(())
 }
 
-/// Refuses an output path that names one of the inputs.
-pub fn check_not_input(out: &Path, inputs: &[&Path]) -> Result<()> {
-    let canon = |p: &Path| std::fs::canonicalize(p).ok();
-    if let Some(o) = canon(out)
-        && inputs.iter().any(|i| canon(i).as_ref() == Some(&o))
-    {
-        return Err(Error::Input(format!(
-            "{}: refusing to overwrite an input file; choose another output",
-            out.display()
+/// Checks, before any work, that `dir` may receive a report: its parent folder exists; it is
+/// absent, or a folder (not a link) holding only files a report writes (`is_report_file`), and
+/// none of `inputs` lies in it.
+pub fn check_report_folder(dir: &Path, is_report_file: &dyn Fn(&str) -> bool, inputs: &[PathBuf]) -> Result<()> {
+    let refuse = |message: String| Error::Input(format!("{}: {message}", dir.display()));
+    if dir.file_name().is_none() {
+        return Err(refuse("not a folder name; name the report's own folder".into()));
+    }
+    let parent = folder_of(dir);
+    if !parent.is_dir() {
+        return Err(refuse(format!("the folder `{}` does not exist", parent.display())));
+    }
+    let m = match std::fs::symlink_metadata(dir) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(refuse(format!("cannot inspect: {e}"))),
+    };
+    if !m.is_dir() {
+        return Err(refuse(format!(
+            "is {}; a report is written as a folder of its own",
+            kind_of(m.file_type())
         )));
     }
+    let canonical = std::fs::canonicalize(dir).map_err(|e| refuse(e.to_string()))?;
+    if let Some(i) = inputs
+        .iter()
+        .find(|i| std::fs::canonicalize(i).is_ok_and(|c| c.starts_with(&canonical)))
+    {
+        return Err(refuse(format!(
+            "holds `{}`, a file this run reads; the report replaces the folder, so choose another",
+            i.display()
+        )));
+    }
+    for entry in std::fs::read_dir(dir).map_err(|e| refuse(e.to_string()))? {
+        let entry = entry.map_err(|e| refuse(e.to_string()))?;
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let regular = entry.file_type().is_ok_and(|t| t.is_file());
+        if !regular || !is_report_file(&name) {
+            return Err(refuse(format!(
+                "holds `{name}`, which is not part of a report; the report replaces the folder, so give a new or empty one"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Writes `files` (name, content) as the folder `dir`: into a temporary folder beside it, then
+/// moved into place, replacing an earlier report folder, so `dir` never mixes two reports.
+pub fn write_folder_atomic(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
+    let io = |e: std::io::Error| Error::Io {
+        path: dir.to_path_buf(),
+        message: e.to_string(),
+    };
+    let parent = folder_of(dir);
+    let name = dir.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
+    let hidden = |what: &str| {
+        tempfile::Builder::new()
+            .prefix(&format!(".{name}.{what}"))
+            .tempdir_in(parent)
+            .map_err(io)
+    };
+    let staged = hidden("new.")?;
+    let _pending = Pending::new(staged.path());
+    for (file, bytes) in files {
+        let mut f = std::fs::File::create_new(staged.path().join(file)).map_err(io)?;
+        f.write_all(bytes).map_err(io)?;
+        f.sync_all().map_err(io)?;
+    }
+    if std::fs::symlink_metadata(dir).is_err() {
+        std::fs::rename(staged.path(), dir).map_err(io)?;
+        let _ = staged.keep();
+        return Ok(());
+    }
+    // The old report moves onto an empty placeholder (rename replaces an empty folder), the new
+    // one takes its place, and the old one is removed with the placeholder.
+    let old = hidden("old.")?;
+    std::fs::rename(dir, old.path()).map_err(io)?;
+    if let Err(e) = std::fs::rename(staged.path(), dir) {
+        let _ = std::fs::rename(old.path(), dir);
+        let _ = old.keep();
+        return Err(io(e));
+    }
+    let _ = staged.keep();
     Ok(())
 }
 
@@ -50,16 +448,131 @@ pub fn check_not_input(out: &Path, inputs: &[&Path]) -> Result<()> {
 mod tests {
     use super::*;
 
+    fn scratch(tag: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(tag).tempdir().unwrap()
+    }
+
     #[test]
-    fn atomic_write_replaces_content_and_leaves_no_temp() {
-        let dir = std::env::temp_dir().join(format!("armcomp-io-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("out.txt");
+    fn atomic_write_replaces_content_keeps_mode_and_leaves_no_temp() {
+        let dir = scratch("armcomp-io");
+        let p = dir.path().join("out.txt");
         write_atomic(&p, b"one").unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o640)).unwrap();
+        }
         write_atomic(&p, b"two").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"two");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
-        assert!(check_not_input(&p, &[&p]).is_err());
-        std::fs::remove_dir_all(&dir).unwrap();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            assert_eq!(std::fs::metadata(&p).unwrap().permissions().mode() & 0o777, 0o640);
+        }
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        assert!(check_output(&p, std::slice::from_ref(&p)).is_err());
+        assert!(check_output(&p, &[]).is_ok());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "the probe is gone");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn links_fifos_and_read_only_files_are_never_replaced() {
+        let dir = scratch("armcomp-io-links");
+        let victim = dir.path().join("victim.txt");
+        std::fs::write(&victim, "keep").unwrap();
+        let link = dir.path().join("link.txt");
+        std::os::unix::fs::symlink(&victim, &link).unwrap();
+        let e = write_atomic(&link, b"x").unwrap_err().to_string();
+        assert!(e.contains("a symbolic link"), "{e}");
+        assert!(check_output(&link, &[]).is_err());
+        let ro = dir.path().join("ro.txt");
+        std::fs::write(&ro, "keep").unwrap();
+        let mut perms = std::fs::metadata(&ro).unwrap().permissions();
+        perms.set_readonly(true);
+        std::fs::set_permissions(&ro, perms).unwrap();
+        assert!(write_atomic(&ro, b"x").unwrap_err().to_string().contains("read-only"));
+        assert!(
+            check_output(Path::new("/dev/null"), &[])
+                .unwrap_err()
+                .to_string()
+                .contains("character device")
+        );
+        assert!(
+            check_output(&dir.path().join("no/such/out.txt"), &[])
+                .unwrap_err()
+                .to_string()
+                .contains("does not exist")
+        );
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+        assert_eq!(std::fs::read_to_string(&ro).unwrap(), "keep");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_replaced_file_keeps_its_owner() {
+        use std::os::unix::fs::MetadataExt;
+        let dir = scratch("armcomp-io-owner");
+        let p = dir.path().join("theirs.txt");
+        std::fs::write(&p, "old").unwrap();
+        // Only a privileged user can hand a file to someone else; others cannot set this up.
+        if std::os::unix::fs::chown(&p, Some(4242), Some(4242)).is_ok() {
+            check_output(&p, &[]).unwrap();
+            write_atomic(&p, b"new").unwrap();
+            let m = std::fs::metadata(&p).unwrap();
+            assert_eq!((m.uid(), m.gid()), (4242, 4242));
+            assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        }
+    }
+
+    #[test]
+    fn reads_are_capped_recorded_and_regular_only() {
+        let dir = scratch("armcomp-io-read");
+        let p = dir.path().join("in.txt");
+        std::fs::write(&p, "\u{feff}abc").unwrap();
+        let (text, read) = recording_reads(|| read_text(&p).unwrap());
+        assert_eq!(text, "abc", "the byte-order mark is dropped");
+        assert_eq!(read, vec![p.clone()]);
+        assert!(read_text(dir.path()).unwrap_err().to_string().contains("a folder"));
+        #[cfg(unix)]
+        assert!(
+            read_text(Path::new("/dev/zero"))
+                .unwrap_err()
+                .to_string()
+                .contains("character device")
+        );
+    }
+
+    #[test]
+    fn report_folders_are_replaced_whole_and_other_files_protected() {
+        let dir = scratch("armcomp-io-report");
+        let report = dir.path().join("report");
+        let svg = |n: &str| n.ends_with(".svg") || n == "index.html";
+        check_report_folder(&report, &svg, &[]).unwrap();
+        write_folder_atomic(
+            &report,
+            &[("a.svg".into(), b"1".to_vec()), ("index.html".into(), b"1".to_vec())],
+        )
+        .unwrap();
+        check_report_folder(&report, &svg, &[]).unwrap();
+        write_folder_atomic(&report, &[("index.html".into(), b"2".to_vec())]).unwrap();
+        let names: Vec<_> = std::fs::read_dir(&report)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["index.html"], "the old report's plots are gone with it");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temporary folder left"
+        );
+        std::fs::write(report.join("notes.txt"), "mine").unwrap();
+        let e = check_report_folder(&report, &svg, &[]).unwrap_err().to_string();
+        assert!(e.contains("notes.txt"), "{e}");
+        let input = report.join("index.html");
+        let e = check_report_folder(&report, &|_| true, &[input])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("a file this run reads"), "{e}");
     }
 }

@@ -82,6 +82,39 @@ impl Section {
         }
     }
 
+    /// The dimension that no real section can have with the others (a wall that fills the tube,
+    /// flanges taller than the beam, a web wider than it), with what was expected.
+    pub fn impossible(&self) -> Option<(&'static str, String)> {
+        match *self {
+            Section::Tube { outer_diameter, wall } if 2.0 * wall >= outer_diameter => Some((
+                "wall",
+                format!(
+                    "a wall of {wall} fills a tube of outer diameter {outer_diameter}; expected less than half the diameter ({}), or a `solid_round` section",
+                    outer_diameter / 2.0
+                ),
+            )),
+            Section::RectTube { width, height, wall } if 2.0 * wall >= width.min(height) => Some((
+                "wall",
+                format!(
+                    "a wall of {wall} fills a {width} × {height} tube; expected less than half the smaller side ({}), or a `rectangle` section",
+                    width.min(height) / 2.0
+                ),
+            )),
+            Section::IBeam { height, flange, .. } if 2.0 * flange >= height => Some((
+                "flange",
+                format!(
+                    "two flanges of {flange} fill a beam of height {height}; expected less than half the height ({})",
+                    height / 2.0
+                ),
+            )),
+            Section::IBeam { width, web, .. } if web > width => Some((
+                "web",
+                format!("a web of {web} is wider than the flanges ({width}); expected at most the width"),
+            )),
+            _ => None,
+        }
+    }
+
     /// Area, second moments and torsion constant, with lengths scaled to metres by `to_m`.
     /// Closed forms: circles exact; rectangle torsion after Roark; thin-walled rectangular tube
     /// torsion after Bredt; I-beam torsion as an open thin-walled section.

@@ -111,10 +111,7 @@ impl<'a> CsvLayout<'a> {
 
 /// Reads measurements (see the module documentation) against `layout`.
 pub fn read_csv(path: &Path, layout: &CsvLayout<'_>) -> Result<MeasurementSet> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let text = crate::io::read_text(path)?;
     parse_csv(&text, path, layout)
 }
 
@@ -402,6 +399,12 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     positions[k].0[axis] = v * scale;
                 }
                 Column::Quat(k) => quat[k] = v,
+                Column::Payload(_) if v < 0.0 => {
+                    return Err(err(
+                        Some(line),
+                        format!("column `{head}`: expected a mass of zero or more, got {field}"),
+                    ));
+                }
                 Column::Payload(scale) => s.payload = Some(v * scale),
                 Column::Temperature(offset) => s.temperature = Some(v + offset),
                 Column::Torque(c) => {

@@ -50,6 +50,8 @@ pub struct Robot {
     payload_site: (usize, Vector3<f64>),
     collision: CollisionGeometry,
     warnings: Vec<String>,
+    /// Files read to build it besides `source` (URDF, meshes, plugin libraries).
+    reads: Vec<PathBuf>,
 }
 
 /// Conditions of one evaluation that error models may depend on besides the joint values.
@@ -87,8 +89,12 @@ pub struct RobotWorkspace {
 impl Robot {
     /// Reads, checks and builds a robot file; every problem names the file, line and field.
     pub fn from_path(path: &Path) -> Result<Robot> {
-        let (file, src) = RobotFile::read(path)?;
-        Robot::from_source(file, &src)
+        // Parsing may load libraries too (a fitted run-time predictor).
+        let (read, files) = crate::io::recording_reads(|| RobotFile::read(path));
+        let (file, src) = read?;
+        let mut robot = Robot::from_source(file, &src)?;
+        robot.reads.extend(files);
+        Ok(robot)
     }
 
     /// Checks and builds a parsed robot file, mapping problems to lines of `src`.
@@ -99,8 +105,16 @@ impl Robot {
         Ok(robot)
     }
 
-    /// Checks and builds a robot description; `base_dir` resolves relative paths in it.
+    /// Checks and builds a robot description; `base_dir` resolves relative paths in it. The
+    /// files read meanwhile on this thread are the robot's [`inputs`](Robot::inputs).
     pub fn build(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
+        let (built, files) = crate::io::recording_reads(|| Robot::build_unrecorded(file, base_dir));
+        let mut robot = built?;
+        robot.reads = files;
+        Ok(robot)
+    }
+
+    fn build_unrecorded(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
         let mut issues = Issues::default();
         let units = file.units;
         let ctx = BuildContext {
@@ -119,12 +133,21 @@ impl Robot {
         }
         let gravity = Vector3::from(file.gravity);
 
+        check_joint_names(&file, &base_tree, &mut issues);
+
         // Points.
         let mut points = Vec::new();
+        let mut point_names = std::collections::HashSet::new();
         for (i, p) in file.points.iter().enumerate() {
             let path = format!("points[{i}]");
-            if points.iter().any(|q: &ResolvedPoint| q.name == p.name) {
+            if !point_names.insert(p.name.as_str()) {
                 issues.push(format!("{path}.name"), format!("point `{}` is defined twice", p.name));
+            }
+            if let Err(m) = check_column_name(&p.name, false) {
+                issues.push(
+                    format!("{path}.name"),
+                    format!("point name `{}` {m}", p.name.escape_debug()),
+                );
             }
             if p.xyz.iter().chain(p.rpy.iter()).any(|v| !v.is_finite()) {
                 issues.push(format!("{path}.xyz"), "expected finite numbers");
@@ -181,6 +204,16 @@ impl Robot {
         }
         for (i, l) in file.links.iter().enumerate() {
             let path = format!("links[{i}]");
+            if let Some(k) = file.links[..i].iter().position(|o| o.name == l.name) {
+                issues.push(
+                    format!("{path}.name"),
+                    format!(
+                        "link `{}` is described twice (also links[{k}]); merge the two entries",
+                        l.name
+                    ),
+                );
+                continue;
+            }
             let Some(body) = base_tree.body_index(&l.name) else {
                 issues.push(
                     format!("{path}.name"),
@@ -338,9 +371,15 @@ impl Robot {
                 ),
             }
         }
+        let point_index: std::collections::HashMap<&str, usize> = points
+            .iter()
+            .enumerate()
+            .rev()
+            .map(|(k, p)| (p.name.as_str(), k))
+            .collect();
         let mut markers = Vec::new();
         for (i, name) in marker_names.iter().enumerate() {
-            match points.iter().position(|p| &p.name == name) {
+            match point_index.get(name.as_str()).copied() {
                 Some(k) => markers.push(k),
                 None => issues.push(
                     format!("measurement.markers[{i}]"),
@@ -376,6 +415,7 @@ impl Robot {
             payload_site,
             collision,
             warnings,
+            reads: Vec::new(),
         };
         robot.tree = robot
             .tree_for(&robot.chain_values)
@@ -397,6 +437,23 @@ impl Robot {
             match spec.build(&mctx) {
                 Ok(m) => models.push(m),
                 Err(e) => issues.0.extend(e.0),
+            }
+        }
+        // A model listed twice would give two parameters of one name, which calibration and
+        // model files cannot tell apart.
+        let mut owners = std::collections::HashMap::new();
+        for (i, m) in models.iter().enumerate() {
+            for p in m.params() {
+                if let Some(k) = owners.insert(p.name.as_str(), i).filter(|k| *k != i) {
+                    issues.push(
+                        format!("error_models[{i}]"),
+                        format!(
+                            "its parameter `{}` is also a parameter of error_models[{k}]; is the model listed twice?",
+                            p.name
+                        ),
+                    );
+                    break;
+                }
             }
         }
         if !issues.is_empty() {
@@ -434,7 +491,24 @@ impl Robot {
     pub fn rebuild(&self, file: RobotFile) -> Result<Robot> {
         let mut robot = Robot::build(file, &self.base_dir()).map_err(Error::InvalidModel)?;
         robot.source = self.source.clone();
+        for f in &self.reads {
+            if !robot.reads.contains(f) {
+                robot.reads.push(f.clone());
+            }
+        }
         Ok(robot)
+    }
+
+    /// Every file this robot was read from: its source, and the files that names (URDF,
+    /// meshes, plugin libraries). Outputs must never replace one of them.
+    pub fn inputs(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = self.source.iter().cloned().collect();
+        for f in &self.reads {
+            if !files.contains(f) {
+                files.push(f.clone());
+            }
+        }
+        files
     }
 
     /// The compiled kinematic convention.
@@ -724,6 +798,48 @@ impl Robot {
     }
 }
 
+/// Names that measurement CSV files use for their own columns.
+const RESERVED_COLUMNS: [&str; 10] = ["point", "x", "y", "z", "qw", "qx", "qy", "qz", "payload", "temperature"];
+
+/// Why `name` cannot be written in CSV files (and `--q name=value` lists): as a value, or with
+/// `header`, as a column of its own (a joint's).
+fn check_column_name(name: &str, header: bool) -> std::result::Result<(), String> {
+    if name.is_empty() {
+        return Err("is empty".into());
+    }
+    if name.trim() != name {
+        return Err("begins or ends with white space".into());
+    }
+    if let Some(c) = name.chars().find(|c| c.is_control() || ",\"'[]=#".contains(*c)) {
+        return Err(format!(
+            "contains `{}`; names appear in CSV headers and `--q name=value` lists, so use letters, digits, `_`, `-` or `.`",
+            c.escape_debug()
+        ));
+    }
+    if header && (RESERVED_COLUMNS.contains(&name) || name.starts_with("tau_")) {
+        return Err("is the name of a measurement CSV column (point, x, y, z, qw, qx, qy, qz, payload, temperature, tau_<joint>)".into());
+    }
+    Ok(())
+}
+
+/// Joint names must be usable as CSV columns; issues point at the joint's entry when the
+/// kinematics lists joints by name, else at the kinematics.
+fn check_joint_names(file: &RobotFile, tree: &KinematicTree, issues: &mut Issues) {
+    let listed = serde_json::to_value(&file.kinematics).ok();
+    let entries = listed.as_ref().and_then(|v| v.get("joints")).and_then(|j| j.as_array());
+    for joint in tree.joints() {
+        if let Err(m) = check_column_name(&joint.name, true) {
+            let path = entries
+                .and_then(|e| {
+                    e.iter()
+                        .position(|j| j.get("name").and_then(|n| n.as_str()) == Some(&joint.name))
+                })
+                .map_or_else(|| "kinematics".to_string(), |i| format!("kinematics.joints[{i}].name"));
+            issues.push(path, format!("joint name `{}` {m}", joint.name.escape_debug()));
+        }
+    }
+}
+
 fn body_names(tree: &KinematicTree) -> String {
     tree.bodies()
         .iter()
@@ -842,6 +958,10 @@ fn beam_rigidity(b: &BeamSpec, to_m: f64, path: &str, issues: &mut Issues) -> Op
             let g = b.shear_modulus.unwrap_or(e / 2.6);
             ok &= positive("shear_modulus", g, "modulus in Pa");
             if !ok {
+                return None;
+            }
+            if let Some((field, message)) = section.impossible() {
+                issues.push(format!("{path}.section.{field}"), message);
                 return None;
             }
             let s = section.properties(to_m);

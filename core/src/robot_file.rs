@@ -273,10 +273,7 @@ pub struct SourceFile {
 impl SourceFile {
     /// Reads a file; the format follows the extension (`.json` is JSON, anything else TOML).
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let text = crate::io::read_text(path)?;
         let format = match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("json") => Format::Json,
             _ => Format::Toml,
@@ -301,7 +298,7 @@ impl SourceFile {
     pub fn line_of_path(&self, path: &str) -> Option<usize> {
         match self.format {
             Format::Toml => toml_span_of_path(&self.text, path).map(|o| self.line_of_offset(o)),
-            Format::Json => None,
+            Format::Json => json_span_of_path(&self.text, path).map(|o| self.line_of_offset(o)),
         }
     }
 
@@ -343,9 +340,20 @@ impl SourceFile {
     fn toml_error(&self, e: &toml::de::Error, path: String) -> Error {
         let line = e.span().map(|s| self.line_of_offset(s.start));
         let line = line.or_else(|| self.line_of_path(&path));
-        let message = e.message().trim().to_string();
-        // Plugin specs are buffered by typetag, so serde's path and span stop at the plugin's
-        // table; an unknown key is still findable by its name below that line.
+        let mut message = e.message().trim().to_string();
+        // toml says which key only by its span.
+        if message == "duplicate key"
+            && let Some(key) = e.span().and_then(|s| self.text.get(s))
+        {
+            message = format!("duplicate key `{}`", key.trim());
+        }
+        // Plugin specs are read behind typetag, so serde's path and span stop at the plugin's
+        // table; a value of the wrong type is still findable when it is the only one below.
+        let (path, line) = match unexpected_value(&message).and_then(|v| toml_find_value(&self.text, &path, v)) {
+            Some((p, offset)) => (p, Some(self.line_of_offset(offset))),
+            None => (path, line),
+        };
+        // An unknown key is findable by its name below the plugin's line.
         let line = match (line, backticked_after(&message, "unknown field ")) {
             (Some(from), Some(key)) => self.line_of_key(key, from).or(Some(from)),
             (line, _) => line,
@@ -434,6 +442,127 @@ fn segments(path: &str) -> Vec<Seg<'_>> {
     out
 }
 
+/// Byte offset of the deepest element of `path` that exists in a JSON text: the key of an
+/// object member, the start of an array element.
+fn json_span_of_path(text: &str, path: &str) -> Option<usize> {
+    let target = segments(path);
+    let mut scanner = JsonScanner {
+        bytes: text.as_bytes(),
+        at: 0,
+        best: None,
+    };
+    scanner.value(Some(&target));
+    scanner.best
+}
+
+/// Walks JSON text (already known to parse) to find where a path is written.
+struct JsonScanner<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    best: Option<usize>,
+}
+
+impl JsonScanner<'_> {
+    fn peek(&self) -> Option<u8> {
+        self.bytes.get(self.at).copied()
+    }
+
+    fn skip_space(&mut self) {
+        while self.peek().is_some_and(|b| b.is_ascii_whitespace()) {
+            self.at += 1;
+        }
+    }
+
+    /// Skips a string starting at its opening quote and returns its raw content.
+    fn string(&mut self) -> Option<&[u8]> {
+        self.at += 1;
+        let start = self.at;
+        loop {
+            match self.peek()? {
+                b'\\' => self.at += 2,
+                b'"' => break,
+                _ => self.at += 1,
+            }
+        }
+        self.at += 1;
+        self.bytes.get(start..self.at - 1)
+    }
+
+    /// Skips one value; `rest` is what remains of the target path inside it, if it is on it.
+    fn value(&mut self, rest: Option<&[Seg<'_>]>) -> Option<()> {
+        self.skip_space();
+        match self.peek()? {
+            b'{' => {
+                self.at += 1;
+                loop {
+                    self.skip_space();
+                    match self.peek()? {
+                        b'}' => break,
+                        b',' => self.at += 1,
+                        _ => {
+                            let key_at = self.at;
+                            let key = self.string()?;
+                            let inner = match rest {
+                                Some([Seg::Key(k), tail @ ..]) if k.as_bytes() == key => {
+                                    self.best = Some(key_at);
+                                    Some(tail)
+                                }
+                                _ => None,
+                            };
+                            self.skip_space();
+                            self.at += 1; // the colon
+                            self.value(inner)?;
+                        }
+                    }
+                }
+                self.at += 1;
+            }
+            b'[' => {
+                self.at += 1;
+                let mut index = 0;
+                loop {
+                    self.skip_space();
+                    match self.peek()? {
+                        b']' => break,
+                        b',' => {
+                            self.at += 1;
+                            index += 1;
+                        }
+                        _ => {
+                            let inner = match rest {
+                                Some([Seg::Index(i), tail @ ..]) if *i == index => {
+                                    self.best = Some(self.at);
+                                    Some(tail)
+                                }
+                                _ => None,
+                            };
+                            self.value(inner)?;
+                        }
+                    }
+                }
+                self.at += 1;
+            }
+            b'"' => {
+                self.string()?;
+            }
+            _ => {
+                let start = self.at;
+                while self
+                    .peek()
+                    .is_some_and(|b| !b.is_ascii_whitespace() && !b",}]".contains(&b))
+                {
+                    self.at += 1;
+                }
+                // Not a value where one belongs: the text is not JSON, stop.
+                if self.at == start {
+                    return None;
+                }
+            }
+        }
+        Some(())
+    }
+}
+
 /// A position inside a parsed TOML document.
 #[derive(Clone, Copy)]
 enum Node<'a> {
@@ -459,6 +588,84 @@ fn child<'a>(node: Node<'a>, seg: &Seg<'_>) -> Option<(Option<usize>, Node<'a>)>
             _ => None,
         },
         _ => None,
+    }
+}
+
+/// What serde says it found in "invalid type: string \"x\", expected f64" messages.
+fn unexpected_value(message: &str) -> Option<&str> {
+    let rest = message
+        .strip_prefix("invalid type: ")
+        .or_else(|| message.strip_prefix("invalid value: "))?;
+    Some(rest.split(", expected").next().unwrap_or(rest))
+}
+
+/// The path and offset of the one value under `path` that serde would describe as `found`
+/// (`string "x"`, ``integer `3` ``, `sequence`, ...), if exactly one is.
+fn toml_find_value(text: &str, path: &str, found: &str) -> Option<(String, usize)> {
+    let doc = toml_edit::Document::parse(text).ok()?;
+    let mut node = Node::Item(doc.as_item());
+    for seg in segments(path) {
+        node = child(node, &seg)?.1;
+    }
+    let mut hits = Vec::new();
+    collect_values(node, path.to_string(), None, found, &mut hits);
+    match hits.as_slice() {
+        [one] => Some(one.clone()),
+        _ => None,
+    }
+}
+
+/// Every value under `node` whose serde description is `found`, with its path and offset.
+fn collect_values(node: Node<'_>, path: String, at: Option<usize>, found: &str, hits: &mut Vec<(String, usize)>) {
+    use toml_edit::{Item, Value};
+    let key = |k: &str| {
+        if path.is_empty() {
+            k.to_string()
+        } else {
+            format!("{path}.{k}")
+        }
+    };
+    let start = |s: Option<std::ops::Range<usize>>| s.map(|r| r.start);
+    let value = match node {
+        Node::Item(Item::Table(t)) | Node::Table(t) => {
+            for (k, item) in t.iter() {
+                let at = t.key(k).and_then(|k| start(k.span()));
+                collect_values(Node::Item(item), key(k), at, found, hits);
+            }
+            return;
+        }
+        Node::Item(Item::ArrayOfTables(a)) => {
+            for (i, t) in a.iter().enumerate() {
+                collect_values(Node::Table(t), format!("{path}[{i}]"), start(t.span()), found, hits);
+            }
+            return;
+        }
+        Node::Item(Item::Value(v)) | Node::Value(v) => v,
+        Node::Item(Item::None) => return,
+    };
+    let description = match value {
+        Value::String(s) => format!("string {:?}", s.value()),
+        Value::Integer(i) => format!("integer `{}`", i.value()),
+        Value::Boolean(b) => format!("boolean `{}`", b.value()),
+        Value::Float(_) | Value::Datetime(_) => String::new(),
+        Value::Array(a) => {
+            for (i, v) in a.iter().enumerate() {
+                collect_values(Node::Value(v), format!("{path}[{i}]"), start(v.span()), found, hits);
+            }
+            "sequence".into()
+        }
+        Value::InlineTable(t) => {
+            for (k, v) in t.iter() {
+                let at = t.key(k).and_then(|k| start(k.span()));
+                collect_values(Node::Value(v), key(k), at, found, hits);
+            }
+            "map".into()
+        }
+    };
+    if description == found
+        && let Some(at) = at.or_else(|| start(value.span()))
+    {
+        hits.push((path, at));
     }
 }
 
@@ -528,5 +735,22 @@ mod tests {
         assert_eq!(s.line_of_path("kinematics.joints[0].name"), Some(7));
         assert_eq!(s.line_of_path("points[0].link.x"), Some(15));
         assert_eq!(s.line_of_path("points[0].nothing"), Some(13));
+    }
+
+    #[test]
+    fn finds_lines_of_json_paths() {
+        let s = SourceFile {
+            path: "t.json".into(),
+            text: "{\n  \"name\": \"x\",\n  \"kinematics\": {\n    \"type\": \"mdh\",\n    \"joints\": [\n      {\"name\": \"a\\\"b\"},\n      {\n        \"name\": \"b\",\n        \"limits\": [1, 2]\n      }\n    ]\n  }\n}\n".into(),
+            format: Format::Json,
+        };
+        assert_eq!(s.line_of_path("name"), Some(2));
+        assert_eq!(s.line_of_path("kinematics.type"), Some(4));
+        assert_eq!(s.line_of_path("kinematics.joints[0].name"), Some(6));
+        assert_eq!(s.line_of_path("kinematics.joints[1].limits[1]"), Some(9));
+        assert_eq!(s.line_of_path("kinematics.joints[1].nothing"), Some(7));
+        // Text that is not JSON ends the search instead of looping.
+        assert_eq!(json_span_of_path("[}", "a[0]"), None);
+        assert_eq!(json_span_of_path("{\"a\": [1, }", "a[1]"), Some(10));
     }
 }

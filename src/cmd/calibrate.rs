@@ -2,11 +2,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::param::Quantity;
 use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 
-use super::read_measurements;
+use super::{check_output, read_measurements};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -46,8 +46,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    check_not_input(&args.out, &[&args.robot, &args.data])?;
     let robot = armcomp::load_robot(&args.robot)?;
+    check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let mut params = CalibrationParams {
         identify: args.identify.clone(),

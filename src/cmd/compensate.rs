@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use armcomp_core::Units;
 use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
 use armcomp_core::ik::IkTarget;
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{joint_header, joint_row, split_header};
 use armcomp_core::units::LengthUnit;
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
@@ -58,7 +58,7 @@ struct Target {
 /// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
 /// numbers, erroring with file, line and column.
 fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<Target>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let text = armcomp_core::io::read_text(path)?;
     let mut lines = text
         .lines()
         .enumerate()
@@ -164,9 +164,9 @@ fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<Target>> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    check_not_input(&args.out, &[&args.model, &args.targets])?;
     let robot = armcomp::load_robot(&args.model)?;
     let units = robot.file.units;
+    super::check_output(&args.out, &robot, &[&args.targets])?;
     let targets = read_targets(&args.targets, units)?;
     let mode = match args.mode {
         Mode::Paper => CompensationMode::Paper,

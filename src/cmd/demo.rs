@@ -119,6 +119,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.seeds.is_some() && args.twin != "rock-drill" {
         bail!("--seeds runs the rock-drill demo only, not `{}`", args.twin);
     }
+    if let (Some(dir), None) = (&args.report, args.seeds) {
+        armcomp::demos::report::check(dir)?;
+    }
     match args.twin.as_str() {
         "rock-drill" => {
             if !args.json {

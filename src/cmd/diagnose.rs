@@ -5,10 +5,10 @@ use armcomp_core::PredictorSpec;
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, RankedCandidate, diagnose};
 use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::residuals::ResidualDescription;
 
-use super::read_measurements;
+use super::{check_output, inputs, read_measurements};
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum Predictor {
@@ -70,14 +70,24 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let inputs = [args.robot.as_path(), args.data.as_path()];
-    if let Some(out) = &args.out {
-        check_not_input(out, &inputs)?;
-    }
     for lib in &args.libraries {
         armcomp_sdk::load_library(lib).map_err(|m| anyhow::anyhow!("--library {}: {m}", lib.display()))?;
     }
     let robot = armcomp::load_robot(&args.robot)?;
+    let libraries: Vec<PathBuf> = args
+        .libraries
+        .iter()
+        .map(|l| armcomp_sdk::host::platform_library_path(l))
+        .collect();
+    let read: Vec<&std::path::Path> = std::iter::once(args.data.as_path())
+        .chain(libraries.iter().map(PathBuf::as_path))
+        .collect();
+    if let Some(out) = &args.out {
+        check_output(out, &robot, &read)?;
+    }
+    if let Some(dir) = &args.report {
+        armcomp::diagnosis_report::check(dir, &inputs(&robot, &read))?;
+    }
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let params = DiagnoseParams {
         folds: args.folds,
@@ -112,7 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         write_atomic(out, text.as_bytes())?;
     }
     if let Some(dir) = &args.report {
-        armcomp::diagnosis_report::write(dir, report, &inputs)?;
+        armcomp::diagnosis_report::write(dir, report)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(report)?);

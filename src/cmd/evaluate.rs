@@ -4,11 +4,11 @@ use std::process::ExitCode;
 
 use armcomp_core::Robot;
 use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{Sample, joint_header, joint_row};
 use nalgebra::Vector3;
 
-use super::read_measurements;
+use super::{check_output, read_measurements};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -51,10 +51,10 @@ fn residuals_csv(robot: &Robot, samples: &[Sample], errors: &[Vector3<f64>]) -> 
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    if let Some(out) = &args.residuals {
-        check_not_input(out, &[&args.model, &args.data])?;
-    }
     let robot = armcomp::load_robot(&args.model)?;
+    if let Some(out) = &args.residuals {
+        check_output(out, &robot, &[&args.data])?;
+    }
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let errors = position_errors(&robot, &data.samples);
     let stats = ErrorStats::from_errors(&errors);

@@ -3,7 +3,7 @@ use std::process::ExitCode;
 
 use anyhow::bail;
 use armcomp_core::evaluate::position_errors;
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 
 use super::read_measurements;
 
@@ -27,12 +27,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let inputs: Vec<&std::path::Path> = [Some(&args.model), args.data.as_ref()]
-        .into_iter()
-        .flatten()
-        .map(|p| p.as_path())
-        .collect();
-    check_not_input(&args.out, &inputs)?;
     let robot = armcomp::load_robot(&args.model)?;
     let dropped: Vec<String> = robot
         .file
@@ -60,7 +54,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     let urdf = armcomp_urdf::calibrated_urdf(&robot)?;
-    check_not_input(&args.out, &[&urdf.source])?;
+    let data: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
+    super::check_output(&args.out, &robot, &[&[urdf.source.as_path()], data.as_slice()].concat())?;
     let deviation = match (&args.data, dropped.is_empty()) {
         (Some(data), false) => {
             let set = read_measurements(&robot, data, None)?;

@@ -5,9 +5,9 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use armcomp_core::RobotFile;
 use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, model_errors, position_errors};
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 
-use super::read_measurements;
+use super::{check_output, read_measurements};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -27,7 +27,6 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    check_not_input(&args.out, &[&args.model, &args.data])?;
     let robot = armcomp::load_robot(&args.model)?;
     let Some(spec) = robot.file.predictor.as_deref() else {
         bail!(
@@ -35,6 +34,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             args.model.display()
         );
     };
+    check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let start = Instant::now();
     let fitted = fit_residual_predictor(&robot, spec, &data.samples)?;

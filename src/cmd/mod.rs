@@ -17,10 +17,32 @@ pub mod schema;
 pub mod simulate;
 pub mod validate;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use armcomp_core::Robot;
 use armcomp_core::measurement::{MeasurementSet, RowSelection, read_csv};
+
+/// Checks, before the computation, that `out` may be written and replaces none of the files
+/// the run reads: `robot`'s (its file, URDF, meshes, libraries) and `others`.
+pub fn check_output(out: &Path, robot: &Robot, others: &[&Path]) -> anyhow::Result<()> {
+    Ok(armcomp_core::io::check_output(out, &inputs(robot, others))?)
+}
+
+/// Every file the run reads: `robot`'s and `others`.
+pub fn inputs(robot: &Robot, others: &[&Path]) -> Vec<PathBuf> {
+    let mut files = robot.inputs();
+    files.extend(others.iter().map(|p| p.to_path_buf()));
+    files
+}
+
+/// A count of at least one (`--n`): an empty output is never what was asked for.
+pub fn at_least_one(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("expected at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(e.to_string()),
+    }
+}
 
 /// Reads a measurement CSV for `robot` (its markers, hold values and measured chain), keeps
 /// the selected rows, and prints the reader's warnings.

@@ -2,9 +2,9 @@ use std::cell::RefCell;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use armcomp_core::collision::CollisionModel;
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{parse_poses, write_poses};
 use armcomp_core::plan::{Space, d_optimal, spread, trajectory_similar};
 use armcomp_core::sampling::Sampler;
@@ -15,7 +15,7 @@ pub struct Args {
     #[arg(long)]
     robot: PathBuf,
     /// Number of poses (for `trajectory`: trajectory points × neighbours instead).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = super::at_least_one)]
     n: usize,
     /// sobol, halton, random, grid (even sets), d-optimal (best subset of a pool for
     /// calibration) or trajectory (pool poses nearest to a task trajectory).
@@ -53,12 +53,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let mut inputs = vec![args.robot.as_path()];
-    if let Some(t) = &args.trajectory {
-        inputs.push(t.as_path());
-    }
-    check_not_input(&args.out, &inputs)?;
     let robot = armcomp::load_robot(&args.robot)?;
+    let trajectory_file: Vec<&std::path::Path> = args.trajectory.iter().map(|p| p.as_path()).collect();
+    super::check_output(&args.out, &robot, &trajectory_file)?;
     let space = match args.space.as_str() {
         "joint" => Space::Joint,
         "cartesian" => Space::Cartesian,
@@ -87,7 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let Some(path) = &args.trajectory else {
                 bail!("--method trajectory needs --trajectory FILE (joint configurations in task order)");
             };
-            let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+            let text = armcomp_core::io::read_text(path)?;
             let trajectory = parse_poses(&text, path, &robot.csv_layout())?;
             let pool = pool(args.pool.unwrap_or(2000))?;
             let chosen = trajectory_similar(

@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::io::write_atomic;
+use armcomp_core::io::{check_output, write_atomic};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -13,7 +13,10 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let text = armcomp::schema_text();
     match args.out {
-        Some(p) => write_atomic(&p, text.as_bytes())?,
+        Some(p) => {
+            check_output(&p, &[])?;
+            write_atomic(&p, text.as_bytes())?
+        }
         None => print!("{text}"),
     }
     Ok(ExitCode::SUCCESS)

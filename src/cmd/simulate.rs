@@ -1,8 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
-use armcomp_core::io::{check_not_input, write_atomic};
+use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{parse_poses, write_csv};
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
@@ -13,7 +12,7 @@ pub struct Args {
     #[arg(long)]
     robot: PathBuf,
     /// Number of poses to draw inside the joint limits (ignored with --poses).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = super::at_least_one)]
     n: usize,
     /// How to draw poses: sobol, halton, random or grid.
     #[arg(long, default_value = "sobol")]
@@ -33,15 +32,12 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let mut inputs = vec![args.robot.as_path()];
-    if let Some(p) = &args.poses {
-        inputs.push(p.as_path());
-    }
-    check_not_input(&args.out, &inputs)?;
     let truth = armcomp::load_robot(&args.robot)?;
+    let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
+    super::check_output(&args.out, &truth, &poses_file)?;
     let poses = match &args.poses {
         Some(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| format!("{}: cannot read", p.display()))?;
+            let text = armcomp_core::io::read_text(p)?;
             parse_poses(&text, p, &truth.csv_layout())?
         }
         None => configurations(truth.tree(), Sampler::parse(&args.sampler)?, args.n, args.seed)?,

@@ -15,7 +15,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let schema = armcomp::robot_schema();
     let mut all = Vec::new();
     for f in &args.files {
-        let problems = armcomp::validate_file(f, &schema);
+        let armcomp::Validation { problems, not_loaded } = armcomp::check_file(f, &schema);
+        // Not a problem of the file: the user has not allowed its code to run.
+        for n in &not_loaded {
+            eprintln!(
+                "note: {n}; its plugin was not loaded, so its config was not checked against the library's schema"
+            );
+        }
         if !args.json {
             if problems.is_empty() {
                 println!("{}: ok", f.display());

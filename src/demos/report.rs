@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Result;
-use armcomp_core::io::write_atomic;
+use armcomp_core::io::{check_report_folder, write_folder_atomic};
 
 use super::{PaperMetric, Table, plots};
 
@@ -26,13 +26,21 @@ fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
-/// Writes `index.html` and the plots of every table into `dir` (created when missing) and
-/// returns the page's path.
+/// Whether a file belongs in a demo report folder.
+fn is_report_file(name: &str) -> bool {
+    name == "index.html" || name.ends_with(".svg")
+}
+
+/// Checks, before the demo runs, that `dir` may receive the report: absent, or an earlier
+/// report folder (see [`check_report_folder`]).
+pub fn check(dir: &Path) -> Result<()> {
+    check_report_folder(dir, &is_report_file, &[])
+}
+
+/// Writes the folder `dir` with `index.html` and the plots of every table, whole (into a
+/// temporary folder, then moved into place), and returns the page's path.
 pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).map_err(|e| armcomp_core::Error::Io {
-        path: dir.to_path_buf(),
-        message: e.to_string(),
-    })?;
+    let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut html = String::from(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>armcomp demo</title>\
          <style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}\
@@ -98,7 +106,7 @@ pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
                 path: path.clone(),
                 message,
             })?;
-            write_atomic(&path, svg.as_bytes())?;
+            files.push((name.clone(), svg.into_bytes()));
             let _ = writeln!(
                 html,
                 "<figure><img src=\"{name}\" alt=\"{caption}\"><figcaption>{caption}</figcaption></figure>"
@@ -106,7 +114,7 @@ pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
         }
     }
     html.push_str("</body></html>\n");
-    let page = dir.join("index.html");
-    write_atomic(&page, html.as_bytes())?;
-    Ok(page)
+    files.push(("index.html".into(), html.into_bytes()));
+    write_folder_atomic(dir, &files)?;
+    Ok(dir.join("index.html"))
 }

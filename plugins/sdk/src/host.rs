@@ -10,6 +10,10 @@
 //! config = { length = 600.0, mass_per_length = 0.8 }
 //! ```
 //!
+//! Loading a library runs its code, so nothing loads unless the user allows it (see
+//! [`PluginPolicy`]): `--allow-plugins` lets a robot file load libraries inside its own folder,
+//! and folders the user trusts load from anywhere.
+//!
 //! Libraries are loaded once per canonical path and never unloaded, so handles and the type
 //! names they registered stay valid for the life of the process. Loading checks the ABI
 //! version first, then every symbol; each type's config is validated against the JSON Schema
@@ -19,7 +23,7 @@
 use std::collections::BTreeMap;
 use std::os::raw::c_void;
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, MutexGuard, PoisonError};
+use std::sync::{Mutex, MutexGuard, PoisonError, RwLock};
 
 use armcomp_core::{
     CandidateFn, CandidateScope, CandidateTemplate, Error, ErrorModel, ErrorModelSpec, FittedPredictor, Issue, Issues,
@@ -90,6 +94,92 @@ impl std::fmt::Debug for PluginLibrary {
 
 static LIBRARIES: Mutex<BTreeMap<PathBuf, &'static PluginLibrary>> = Mutex::new(BTreeMap::new());
 
+/// Which plugin libraries this process may load. Loading runs a library's code, so by default
+/// none loads.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct PluginPolicy {
+    /// The user allows the libraries of this run (`--allow-plugins`): those a robot file names
+    /// inside its own folder (predictor libraries: inside the working folder), and those named
+    /// on the command line.
+    pub allow: bool,
+    /// Folders whose libraries load from any robot file, allowed or not (`plugin_dirs` of the
+    /// user config).
+    pub trusted_dirs: Vec<PathBuf>,
+}
+
+static POLICY: RwLock<PluginPolicy> = RwLock::new(PluginPolicy {
+    allow: false,
+    trusted_dirs: Vec::new(),
+});
+
+/// Libraries allowed on the command line in this process (canonical paths).
+static NAMED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// How messages about libraries refused by the policy begin.
+pub const NOT_ALLOWED: &str = "run-time plugins are not allowed";
+
+/// Sets which libraries this process may load; trusted folders that exist are kept by their
+/// canonical paths, so links cannot widen them.
+pub fn set_policy(policy: PluginPolicy) {
+    let trusted_dirs = policy
+        .trusted_dirs
+        .iter()
+        .filter_map(|d| d.canonicalize().ok())
+        .collect();
+    *POLICY.write().unwrap_or_else(PoisonError::into_inner) = PluginPolicy {
+        allow: policy.allow,
+        trusted_dirs,
+    };
+}
+
+/// Where a library was named, which bounds where it may be.
+#[derive(Debug, Clone, Copy)]
+pub enum Origin<'a> {
+    /// By a file whose libraries must lie in this folder (or a trusted one).
+    File(&'a Path),
+    /// On the command line.
+    CommandLine,
+}
+
+fn not_allowed(library: &Path) -> String {
+    format!(
+        "{NOT_ALLOWED}: loading {} would run its code; pass --allow-plugins to allow it, or list its folder in `plugin_dirs` of the user config",
+        library.display()
+    )
+}
+
+/// Whether the policy lets the library at `canonical` load.
+fn permit(canonical: &Path, origin: Origin<'_>) -> std::result::Result<(), String> {
+    let policy = POLICY.read().unwrap_or_else(PoisonError::into_inner);
+    // A library the user named on the command line may then be named by any file (diagnosis
+    // candidates name it by its absolute path).
+    let named = lock(&NAMED).iter().any(|p| p == canonical);
+    if named || policy.trusted_dirs.iter().any(|d| canonical.starts_with(d)) {
+        return Ok(());
+    }
+    if !policy.allow {
+        return Err(not_allowed(canonical));
+    }
+    if let Origin::File(folder) = origin {
+        let folder = if folder.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            folder
+        };
+        let folder = folder
+            .canonicalize()
+            .map_err(|e| format!("cannot resolve the folder {}: {e}", folder.display()))?;
+        if !canonical.starts_with(&folder) {
+            return Err(format!(
+                "{} lies outside {}; a file may load libraries from its own folder only, unless their folder is listed in `plugin_dirs` of the user config",
+                canonical.display(),
+                folder.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     // A panic while holding the lock cannot leave the data half-written: it is only inserted
     // into or read, so the data is still good.
@@ -112,10 +202,26 @@ unsafe fn owned(s: AbiStr) -> String {
 impl PluginLibrary {
     /// Loads a library (once per canonical path). The message of an error says what is wrong
     /// with the file; the caller adds which field named it.
-    pub fn load(path: &Path) -> std::result::Result<&'static PluginLibrary, String> {
-        let canonical = path
-            .canonicalize()
-            .map_err(|e| format!("cannot open plugin library {}: {e}", path.display()))?;
+    /// Loads a library (once per canonical path) if the [`PluginPolicy`] lets a library named
+    /// at `origin` load. The message of an error says what is wrong with the file; the caller
+    /// adds which field named it.
+    pub fn load(path: &Path, origin: Origin<'_>) -> std::result::Result<&'static PluginLibrary, String> {
+        let canonical = match path.canonicalize() {
+            Ok(c) => c,
+            // Without permission, a missing library is refused as any other: nothing is
+            // probed on the user's behalf.
+            Err(_) if !POLICY.read().unwrap_or_else(PoisonError::into_inner).allow => {
+                return Err(not_allowed(path));
+            }
+            Err(e) => return Err(format!("cannot open plugin library {}: {e}", path.display())),
+        };
+        permit(&canonical, origin)?;
+        if let Origin::CommandLine = origin {
+            lock(&NAMED).push(canonical.clone());
+        }
+        armcomp_core::io::check_input_file(&canonical)
+            .map_err(|m| format!("plugin library {} {m}", canonical.display()))?;
+        armcomp_core::io::note_read(&canonical);
         let mut libraries = lock(&LIBRARIES);
         if let Some(lib) = libraries.get(&canonical) {
             return Ok(lib);
@@ -360,7 +466,8 @@ type ConfigObject = serde_json::Map<String, Value>;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PluginErrorModelSpec {
-    /// The shared library: a path relative to the robot file (or absolute). Without an
+    /// The shared library: a path relative to the robot file, inside its folder unless the
+    /// library's folder is trusted (`plugin_dirs` of the user config). Without an
     /// extension the platform's naming applies: `cable_sag` is `libcable_sag.so` on Linux,
     /// `libcable_sag.dylib` on macOS, `cable_sag.dll` on Windows.
     pub library: String,
@@ -452,7 +559,8 @@ impl ErrorModelSpec for PluginErrorModelSpec {
     fn build(&self, ctx: &ModelContext<'_>) -> std::result::Result<Box<dyn ErrorModel>, Issues> {
         let path = ctx.build.path;
         let file = platform_library_path(&ctx.build.base_dir.join(&self.library));
-        let lib = PluginLibrary::load(&file).map_err(|m| one_issue(format!("{path}.library"), m))?;
+        let lib = PluginLibrary::load(&file, Origin::File(ctx.build.base_dir))
+            .map_err(|m| one_issue(format!("{path}.library"), m))?;
         let ty = lib
             .find(&self.model, Role::ErrorModel)
             .map_err(|m| one_issue(format!("{path}.model"), m))?;
@@ -764,8 +872,9 @@ impl Drop for PluginErrorModel {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PluginPredictorSpec {
-    /// The shared library, absolute or relative to the working directory (predictor specs are
-    /// fitted without the robot file's folder); platform naming as for error models.
+    /// The shared library, relative to the working directory (predictor specs are fitted
+    /// without the robot file's folder) and inside it unless the library's folder is trusted;
+    /// platform naming as for error models.
     pub library: String,
     /// The predictor type the library exports.
     pub model: String,
@@ -778,8 +887,11 @@ pub struct PluginPredictorSpec {
 #[typetag::serde(name = "plugin")]
 impl PredictorSpec for PluginPredictorSpec {
     fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
-        let lib = PluginLibrary::load(&platform_library_path(Path::new(&self.library)))
-            .map_err(|m| Error::InvalidModel(vec![Issue::new("predictor.library", m)]))?;
+        let lib = PluginLibrary::load(
+            &platform_library_path(Path::new(&self.library)),
+            Origin::File(Path::new(".")),
+        )
+        .map_err(|m| Error::InvalidModel(vec![Issue::new("predictor.library", m)]))?;
         let ty = lib
             .find(&self.model, Role::Predictor)
             .map_err(|m| Error::InvalidModel(vec![Issue::new("predictor.model", m)]))?;
@@ -893,7 +1005,7 @@ impl PluginPredictor {
     }
 
     fn load(record: PredictorRecord) -> std::result::Result<Self, String> {
-        let lib = PluginLibrary::load(Path::new(&record.library))?;
+        let lib = PluginLibrary::load(Path::new(&record.library), Origin::File(Path::new(".")))?;
         let ty = lib.find(&record.model, Role::Predictor)?;
         let json = record.fitted.to_string();
         let mut handle = std::ptr::null_mut();
@@ -1027,7 +1139,7 @@ impl Drop for PluginPredictor {
     }
 }
 
-/// Loads a library to list its types (`armcomp plugins --library`).
+/// Loads a library named on the command line to list its types (`armcomp plugins --library`).
 pub fn load_library(path: &Path) -> std::result::Result<Vec<PluginInfo>, String> {
-    Ok(PluginLibrary::load(&platform_library_path(path))?.plugins())
+    Ok(PluginLibrary::load(&platform_library_path(path), Origin::CommandLine)?.plugins())
 }

@@ -30,7 +30,8 @@ pub mod host;
 
 #[cfg(feature = "host")]
 pub use host::{
-    PluginErrorModel, PluginErrorModelSpec, PluginPredictor, PluginPredictorSpec, load_library, loaded_plugins, plugins,
+    NOT_ALLOWED, PluginErrorModel, PluginErrorModelSpec, PluginPolicy, PluginPredictor, PluginPredictorSpec,
+    load_library, loaded_plugins, plugins, set_policy,
 };
 
 /// Exports error models and predictors through the C ABI of [`abi`]. Call it once, at the root

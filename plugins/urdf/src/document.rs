@@ -104,7 +104,15 @@ impl UrdfDocument {
     /// Reads and checks a URDF file. Every problem names its line (when it has one) and its
     /// element, but not the file: an [`armcomp_core::Error::InvalidFile`] of `path` holds them.
     pub fn load(path: &Path) -> Result<UrdfDocument, Vec<Issue>> {
-        let text = std::fs::read_to_string(path).map_err(|e| vec![Issue::new("", format!("cannot read: {e}"))])?;
+        let text = armcomp_core::io::read_text(path).map_err(|e| {
+            // The message names the file already; the issue is reported within it.
+            let message = e.to_string();
+            let own = format!("{}: ", path.display());
+            vec![Issue::new(
+                "",
+                message.strip_prefix(&own).unwrap_or(&message).to_string(),
+            )]
+        })?;
         UrdfDocument::parse(path, text)
     }
 

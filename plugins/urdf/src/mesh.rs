@@ -38,11 +38,12 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
         None => {
             let p = Path::new(filename.strip_prefix("file://").unwrap_or(filename));
             let p = if p.is_absolute() { p.to_path_buf() } else { dir.join(p) };
-            if !p.is_file() {
+            if !p.exists() {
                 return Ok(MeshOutcome::Skipped(
                     "mesh file not found (a path relative to the URDF's folder, or absolute)".into(),
                 ));
             }
+            armcomp_core::io::check_input_file(&p).map_err(|m| format!("mesh file `{}` {m}", p.display()))?;
             p
         }
     };
@@ -55,7 +56,8 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
             "not an STL file, and only STL meshes are read (as their bounding box)".into(),
         ));
     }
-    let mesh = match std::fs::File::open(&path).and_then(|mut f| stl_io::read_stl(&mut f)) {
+    let bytes = armcomp_core::io::read_bytes(&path).map_err(|e| e.to_string())?;
+    let mesh = match stl_io::read_stl(&mut std::io::Cursor::new(bytes)) {
         Ok(m) => m,
         Err(e) => return Ok(MeshOutcome::Skipped(format!("cannot read `{}`: {e}", path.display()))),
     };
