@@ -28,13 +28,24 @@ pub struct PayloadMassErrorSpec {
     pub compliance: BTreeMap<String, f64>,
 }
 
+/// Where a payload mass error hangs.
+#[derive(Debug, Clone, Copy)]
+enum Site {
+    /// At a tree point (index).
+    Point(usize),
+    /// At the declared payload.
+    Payload,
+}
+
 /// The built payload-mass-error model.
 #[derive(Debug, Clone)]
 pub struct PayloadMassErrorModel {
     spec: PayloadMassErrorSpec,
-    /// Body and position in its frame of the extra mass.
+    /// Where the extra mass hangs: a point of the tree being evaluated, or the declared
+    /// payload of the mass model being evaluated (either may move during calibration).
+    site: Site,
+    /// The body it hangs on.
     body: usize,
-    local: Vector3<f64>,
     compliance: Vec<(usize, f64)>,
     params: Vec<ParamInfo>,
 }
@@ -51,13 +62,11 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
         }
         let compliance = resolve_joint_table(ctx, "compliance", &self.compliance, &mut issues, check_compliance);
         let at = match (&self.point, &ctx.mass.payload) {
-            (Some(name), _) => tree
-                .point_index(name)
-                .map(|p| (tree.points()[p].body, tree.points()[p].local.translation.vector)),
-            (None, Some(p)) => Some((p.body, p.com)),
+            (Some(name), _) => tree.point_index(name).map(|p| (tree.points()[p].body, Site::Point(p))),
+            (None, Some(p)) => Some((p.body, Site::Payload)),
             (None, None) => tree
                 .point_index("tool")
-                .map(|p| (tree.points()[p].body, tree.points()[p].local.translation.vector)),
+                .map(|p| (tree.points()[p].body, Site::Point(p))),
         };
         if at.is_none() {
             issues.push(
@@ -69,7 +78,7 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
                 ),
             );
         }
-        let Some((body, local)) = at.filter(|_| issues.is_empty()) else {
+        let Some((body, site)) = at.filter(|_| issues.is_empty()) else {
             return Err(issues);
         };
         let compliance = compliance
@@ -78,8 +87,8 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
             .collect();
         Ok(Box::new(PayloadMassErrorModel {
             spec: self.clone(),
+            site,
             body,
-            local,
             compliance,
             params: vec![ParamInfo::new(
                 "payload_mass_error.mass",
@@ -98,7 +107,11 @@ impl ErrorModel for PayloadMassErrorModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         let f = state.gravity * values[0];
-        let p = state.frames.body[self.body].transform_point(&self.local.into()).coords;
+        let local = match self.site {
+            Site::Point(p) => state.tree.points()[p].local.translation.vector,
+            Site::Payload => state.mass.payload.as_ref().map_or_else(Vector3::zeros, |p| p.com),
+        };
+        let p = state.frames.body[self.body].transform_point(&local.into()).coords;
         for &(j, c) in &self.compliance {
             let frame = &state.frames.joint_frame[j];
             let load = match state.tree.joints()[j].motion {
