@@ -594,7 +594,8 @@ fn the_written_model_file_is_the_fit_for_every_robot_kind() {
         file.fitted_predictor = Some(fitted);
         r.rebuild(file).unwrap()
     };
-    let cases: Vec<(&str, Robot, Vec<(&str, f64)>)> = vec![
+    type Case<'a> = (&'a str, Robot, Vec<(&'a str, f64)>);
+    let cases: Vec<Case> = vec![
         (
             "mdh",
             robot("industrial-6dof.toml"),

@@ -465,7 +465,7 @@ pub const FAR_ABOVE_NOISE: f64 = 10.0;
 impl CalibrationReport {
     /// Whether the fit ended far above the noise the data declares (see [`FAR_ABOVE_NOISE`]).
     pub fn far_above_noise(&self) -> bool {
-        !(self.rms_over_noise <= FAR_ABOVE_NOISE)
+        self.rms_over_noise.is_nan() || self.rms_over_noise > FAR_ABOVE_NOISE
     }
 }
 
@@ -982,7 +982,7 @@ pub fn calibrate(
                 .into(),
         ));
     }
-    if !(params.prior_scale > 0.0) {
+    if params.prior_scale.is_nan() || params.prior_scale <= 0.0 {
         return Err(Error::Input(format!(
             "the prior scale must be positive (or infinite for no priors), got {}",
             params.prior_scale
@@ -1221,11 +1221,9 @@ impl Problem<'_> {
                 })
                 .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) });
             let gradient_ok = gradient <= params.min_step;
-            if let Some(step) = &small_step {
-                if gradient_ok {
-                    converged = true;
-                    break format!("{step}, and the gradient is {gradient:.1e} per standard deviation");
-                }
+            if let Some(step) = small_step.as_ref().filter(|_| gradient_ok) {
+                converged = true;
+                break format!("{step}, and the gradient is {gradient:.1e} per standard deviation");
             }
             if *iterations >= params.max_iterations {
                 break format!(
@@ -1342,7 +1340,7 @@ fn rigid_fit(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Option<(Rotat
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
     sv.sort_by(|a, b| b.total_cmp(a));
-    if !(sv[1] > 1e-9 * sv[0].max(1e-300)) {
+    if sv[1].is_nan() || sv[1] <= 1e-9 * sv[0].max(1e-300) {
         return None;
     }
     let v = v_t.transpose();

@@ -553,7 +553,7 @@ impl RowSelection {
     /// Whether data row `row` is selected.
     pub fn contains(&self, row: usize) -> bool {
         self.0.iter().any(|r| match *r {
-            RowRange::Even => row % 2 == 0,
+            RowRange::Even => row.is_multiple_of(2),
             RowRange::Odd => row % 2 == 1,
             RowRange::Span(a, b) => row >= a && b.is_none_or(|b| row < b),
         })

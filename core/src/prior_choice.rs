@@ -54,7 +54,7 @@ pub fn choose_prior_scale(
     folds: usize,
     seed: u64,
 ) -> Result<PriorChoice> {
-    if grid.is_empty() || grid.iter().any(|s| !(*s > 0.0)) {
+    if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
         return Err(Error::Input("the prior scales to try must be positive".into()));
     }
     let splits = kfold(samples, folds, seed)?;

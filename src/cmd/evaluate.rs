@@ -82,7 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Vec::new()
     };
     if args.json {
-        let mut value = serde_json::to_value(&stats)?;
+        let mut value = serde_json::to_value(stats)?;
         if !per_point.is_empty() {
             value["per_point"] =
                 serde_json::to_value(per_point.iter().cloned().collect::<std::collections::BTreeMap<_, _>>())?;
