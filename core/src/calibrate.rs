@@ -422,6 +422,10 @@ pub struct ParamResult {
     pub std: f64,
     /// Whether it was held at its start value because the data cannot determine it.
     pub fixed: bool,
+    /// Whether the fit left it on one of its physical bounds (a compliance at 0, ...): the
+    /// data pushed it as far as it may go, so its value says more about the model than about
+    /// the robot.
+    pub at_bound: bool,
 }
 
 /// What calibration did and how well it fits.
@@ -1107,6 +1111,7 @@ pub fn calibrate(
                 value: theta[k],
                 std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
                 fixed: c.is_none(),
+                at_bound: c.is_some() && (theta[k] <= info.lower || theta[k] >= info.upper),
             }
         })
         .collect();
