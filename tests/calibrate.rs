@@ -810,3 +810,49 @@ fn calibrate_exit_codes_for_nonsense_inputs() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("empty entry"));
 }
+
+/// What the robot file's `fixed` names keeps its file value through calibration, even where
+/// the data would move it; an entry that names nothing is an error naming the field.
+#[test]
+fn parameters_the_robot_file_fixes_are_not_refitted() {
+    let base = robot("industrial-6dof.toml");
+    let mut file = base.to_file();
+    let known = serde_json::json!({"type": "joint_compliance", "compliance": {"j2": 8e-6, "j3": 0.0}});
+    file.error_models.push(serde_json::from_value(known).unwrap());
+    let nominal = base.rebuild(file).unwrap();
+    // The truth's j2 compliance differs from the file's: a free fit would move it.
+    let (truth, _) = truth_of(&nominal, &[("joint_compliance.j2", 4e-6), ("j2.a", 1e-3)]);
+    let data = measure(&truth, 80, 8);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let free = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap();
+    let (c, sd) = value(&free.report, "joint_compliance.j2");
+    assert!((c - 12e-6).abs() < 3.0 * sd.max(1e-7), "free fit {c} ± {sd}");
+
+    let mut file = nominal.to_file();
+    file.fixed = vec!["joint_compliance.j2".into(), "j2.d".into()];
+    let held = nominal.rebuild(file).unwrap();
+    let cal = calibrate(&held, &data, &params, &mut |_| {}).unwrap();
+    let names: Vec<&str> = cal.report.params.iter().map(|p| p.name.as_str()).collect();
+    assert!(
+        !names.contains(&"joint_compliance.j2") && !names.contains(&"j2.d"),
+        "{names:?}"
+    );
+    assert!(names.contains(&"joint_compliance.j3") && names.contains(&"j2.a"));
+    let space = ParameterSpace::new(&cal.robot);
+    let theta = space.initial();
+    assert_eq!(theta[space.index("joint_compliance.j2").unwrap()], 8e-6);
+    assert_eq!(
+        theta[space.index("j2.d").unwrap()],
+        ParameterSpace::new(&held).initial()[space.index("j2.d").unwrap()]
+    );
+    // Kept in the model file, so a second calibration holds it too.
+    assert_eq!(cal.robot.file.fixed, ["joint_compliance.j2", "j2.d"]);
+
+    let mut file = nominal.to_file();
+    file.fixed = vec!["joint_compliance.j9".into()];
+    let err = format!("{:?}", nominal.rebuild(file).unwrap_err());
+    assert!(err.contains("fixed[0]") && err.contains("joint_compliance.j9"), "{err}");
+}

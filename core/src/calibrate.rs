@@ -99,24 +99,34 @@ impl ParameterSpace {
         }
         let base_offset = params.len();
         let (xyz, rpy) = base_xyz_rpy(&robot.t_meas_base());
-        for (k, name) in BASE_NAMES.iter().enumerate() {
+        let mut setup = setup_param_names(robot).into_iter();
+        for k in 0..BASE_NAMES.len() {
             let (quantity, value) = if k < 3 {
                 (Quantity::Length, xyz[k])
             } else {
                 (Quantity::Angle, rpy[k - 3])
             };
             params.push(CalibrationParam {
-                info: ParamInfo::new(format!("base.{name}"), quantity, value, f64::INFINITY),
+                info: ParamInfo::new(
+                    setup.next().expect("one name per base parameter"),
+                    quantity,
+                    value,
+                    f64::INFINITY,
+                ),
                 group: ParamGroup::Base,
                 model_type: String::new(),
             });
         }
         let marker_offset = params.len();
-        for (i, &m) in robot.markers().iter().enumerate() {
-            let name = &robot.tree().points()[m].name;
-            for axis in ["x", "y", "z"] {
+        for i in 0..robot.markers().len() {
+            for _ in 0..3 {
                 params.push(CalibrationParam {
-                    info: ParamInfo::new(format!("marker.{name}.{axis}"), Quantity::Length, 0.0, f64::INFINITY),
+                    info: ParamInfo::new(
+                        setup.next().expect("three names per marker"),
+                        Quantity::Length,
+                        0.0,
+                        f64::INFINITY,
+                    ),
                     group: ParamGroup::Marker(i),
                     model_type: String::new(),
                 });
@@ -141,7 +151,8 @@ impl ParameterSpace {
     /// joint-value offsets: `θ` of revolute and `d` of prismatic joints, `offset` of URDF
     /// joints), `errors` (every error model), `all`, an error model's type name
     /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
-    /// Empty means `base, markers, geometry, errors`.
+    /// Empty means `base, markers, geometry, errors`. What the robot file's `fixed` names is
+    /// left out.
     pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
         let default = ["base", "markers", "geometry", "errors"].map(String::from);
         let words: &[String] = if identify.is_empty() { &default } else { identify };
@@ -192,7 +203,11 @@ impl ParameterSpace {
                 )));
             }
         }
-        Ok((0..self.params.len()).filter(|&k| chosen[k]).collect())
+        // What the robot file fixes is known: never refitted, whatever the words select.
+        let fixed = &robot.file.fixed;
+        Ok((0..self.params.len())
+            .filter(|&k| chosen[k] && !fixed.iter().any(|f| name_matches(f, &self.params[k].info.name)))
+            .collect())
     }
 
     /// Decodes a full parameter vector into what forward kinematics needs.
@@ -235,6 +250,17 @@ impl ParameterSpace {
     }
 }
 
+/// Names of the measurement-setup parameters of `robot`, in [`ParameterSpace`] order: the base
+/// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`).
+pub(crate) fn setup_param_names(robot: &Robot) -> Vec<String> {
+    let base = BASE_NAMES.iter().map(|n| format!("base.{n}"));
+    let markers = robot.markers().iter().flat_map(|&m| {
+        let name = &robot.tree().points()[m].name;
+        ["x", "y", "z"].map(|a| format!("marker.{name}.{a}"))
+    });
+    base.chain(markers).collect()
+}
+
 /// The `type` of error model `i` as written in the robot file.
 fn model_type_name(robot: &Robot, i: usize) -> String {
     serde_json::to_value(&robot.file.error_models[i])
@@ -255,7 +281,13 @@ fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
     }
 }
 
-/// `*` matches any run of characters; everything else matches itself.
+/// Whether parameter `name` is `pattern`, or matches it when it has `*` wildcards.
+pub(crate) fn name_matches(pattern: &str, name: &str) -> bool {
+    pattern == name || (pattern.contains('*') && glob_match(pattern, name))
+}
+
+/// `*` matches any run of characters (`pattern` has at least one); everything else matches
+/// itself.
 fn glob_match(pattern: &str, name: &str) -> bool {
     let parts: Vec<&str> = pattern.split('*').collect();
     let (first, last) = (parts[0], parts[parts.len() - 1]);

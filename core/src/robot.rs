@@ -398,6 +398,25 @@ impl Robot {
                 Err(e) => issues.0.extend(e.0),
             }
         }
+        // Every entry of `fixed` must name a parameter calibration knows.
+        let names: Vec<String> = robot
+            .chain_params()
+            .iter()
+            .chain(models.iter().flat_map(|m| m.params()))
+            .map(|p| p.name.clone())
+            .chain(crate::calibrate::setup_param_names(&robot))
+            .collect();
+        for (i, pattern) in robot.file.fixed.iter().enumerate() {
+            if !names.iter().any(|n| crate::calibrate::name_matches(pattern, n)) {
+                issues.push(
+                    format!("fixed[{i}]"),
+                    format!(
+                        "`{pattern}` matches no parameter of this robot; names are like {}",
+                        names.iter().take(4).cloned().collect::<Vec<_>>().join(", ")
+                    ),
+                );
+            }
+        }
         if !issues.is_empty() {
             return Err(issues.0);
         }
@@ -739,6 +758,7 @@ impl Robot {
             measurement: self.file.measurement.clone(),
             fixtures: self.file.fixtures.clone(),
             collision: self.file.collision.clone(),
+            fixed: self.file.fixed.clone(),
         };
         // Predictor specs are not clonable trait objects; round-trip through JSON keeps them.
         if let Some(p) = &self.file.predictor {
