@@ -856,3 +856,72 @@ fn parameters_the_robot_file_fixes_are_not_refitted() {
     let err = format!("{:?}", nominal.rebuild(file).unwrap_err());
     assert!(err.contains("fixed[0]") && err.contains("joint_compliance.j9"), "{err}");
 }
+
+/// Payloads declared wrong by a factor, measured carrying 0 to 20 kg: the payload mass error's
+/// scale recovers the factor and its offset never makes a declared payload negative, on fresh
+/// seeds.
+#[test]
+fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
+    use armcomp_core::robot::Conditions;
+    use rand_distr::Distribution;
+    let base = robot("industrial-6dof.toml");
+    let mut file = base.to_file();
+    let compliance = serde_json::json!({"j2": 2e-5, "j3": 3e-5});
+    for spec in [
+        serde_json::json!({"type": "joint_compliance", "compliance": compliance}),
+        serde_json::json!({"type": "payload_mass_error", "compliance": compliance}),
+    ] {
+        file.error_models.push(serde_json::from_value(spec).unwrap());
+    }
+    let nominal = base.rebuild(file).unwrap();
+    let params = CalibrationParams {
+        identify: vec!["base".into(), "markers".into(), "payload_mass_error".into()],
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    // Relative scale errors: the payloads weigh (1 + scale) times what is declared.
+    for (seed, scale, extra) in [(61, -0.2, 0.0), (62, 0.15, 0.4), (63, -0.4, 0.0)] {
+        let (truth, _) = truth_of(
+            &nominal,
+            &[("payload_mass_error.scale", scale), ("payload_mass_error.mass", extra)],
+        );
+        let poses = configurations(truth.tree(), Sampler::Sobol, 160, seed).unwrap();
+        let normal = rand_distr::Normal::new(0.0, NOISE).unwrap();
+        let mut rng = <rand::rngs::StdRng as rand::SeedableRng>::seed_from_u64(seed);
+        let mut ws = truth.workspace();
+        let point = truth.markers()[0];
+        let data: Vec<Sample> = poses
+            .into_iter()
+            .enumerate()
+            .map(|(i, q)| {
+                let payload = Some([0.0, 5.0, 10.0, 20.0][i % 4]);
+                let conditions = Conditions {
+                    payload,
+                    temperature: None,
+                };
+                let exact = truth.measured_position(&q, point, conditions, &mut ws);
+                Sample {
+                    q,
+                    point,
+                    position: exact + nalgebra::Vector3::from_fn(|_, _| normal.sample(&mut rng)),
+                    orientation: None,
+                    payload,
+                    temperature: None,
+                    torque: None,
+                }
+            })
+            .collect();
+        let cal = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap();
+        let (s, s_sd) = value(&cal.report, "payload_mass_error.scale");
+        let (m, m_sd) = value(&cal.report, "payload_mass_error.mass");
+        assert!(
+            (s - scale).abs() < 4.0 * s_sd && s_sd < 0.02,
+            "seed {seed}: scale {s} ± {s_sd}, truth {scale}"
+        );
+        assert!(m >= 0.0, "seed {seed}: a payload declared as 0 kg would weigh {m} kg");
+        assert!(
+            (m - extra).abs() < 4.0 * m_sd.max(1e-3),
+            "seed {seed}: offset {m} ± {m_sd}, truth {extra}"
+        );
+    }
+}

@@ -1,6 +1,12 @@
-//! Payload mass error: the payload weighs `Δm` more than the file says. Its extra weight bends
-//! the joints it hangs from through their compliances: `dq_i = c_i · τ_i(Δm g)`, `τ_i` the
-//! torque of the extra weight about joint `i` (force along it for prismatic joints).
+//! Payload mass error: the payload weighs `(1 + s)·m + Δm` where the file or the measurement
+//! declares `m`: a relative scale error `s` for declared masses wrong by a factor (a scale
+//! calibrated wrongly, a gripper's share), an offset `Δm` for a constant error (an unlisted
+//! adapter). Both enter linearly, like `transmission_scale`. The extra weight `s·m + Δm` bends the joints it hangs from through their compliances:
+//! `dq_i = c_i · τ_i`, `τ_i` its torque about joint `i` (force along it for prismatic joints).
+//!
+//! Bounds keep the identified values physical: `s ≥ −1`, and `Δm ≥ −m_file` (the file's
+//! payload, 0 without one), so a payload declared as the file's, or as nothing, never comes
+//! out with a negative mass.
 
 use std::collections::BTreeMap;
 
@@ -15,17 +21,25 @@ use crate::common::{check_finite, name_list, resolve_joint_table};
 use crate::joint_compliance::check_compliance;
 
 /// Payload mass error as written in the robot file.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PayloadMassErrorSpec {
     /// Extra mass (kg; negative when the payload is lighter than declared).
     #[serde(default)]
     pub mass: f64,
+    /// Relative error of the declared payload mass: it weighs `1 + scale` times what is
+    /// declared (plus `mass`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub scale: f64,
     /// Where the extra mass hangs (default: the declared payload, or the point `tool`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
     /// Joint compliances (rad/(N m), m/N for prismatic joints) through which it acts.
     pub compliance: BTreeMap<String, f64>,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// Where a payload mass error hangs.
@@ -57,6 +71,13 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
         let tree = ctx.tree;
         let mut issues = Issues::default();
         check_finite(&mut issues, &format!("{path}.mass"), self.mass);
+        if !(self.scale.is_finite() && self.scale >= -1.0) {
+            issues.push(
+                format!("{path}.scale"),
+                format!("expected a relative error of -1 or more, got {}", self.scale),
+            );
+        }
+        let declared = ctx.mass.payload.as_ref().map_or(0.0, |p| p.mass);
         if self.compliance.is_empty() {
             issues.push(format!("{path}.compliance"), "expected at least one joint compliance");
         }
@@ -90,12 +111,17 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
             site,
             body,
             compliance,
-            params: vec![ParamInfo::new(
-                "payload_mass_error.mass",
-                Quantity::Mass,
-                self.mass,
-                f64::INFINITY,
-            )],
+            params: vec![
+                ParamInfo::new("payload_mass_error.mass", Quantity::Mass, self.mass, f64::INFINITY)
+                    .with_bounds(-declared, f64::INFINITY),
+                ParamInfo::new(
+                    "payload_mass_error.scale",
+                    Quantity::Dimensionless,
+                    self.scale,
+                    f64::INFINITY,
+                )
+                .with_bounds(-1.0, f64::INFINITY),
+            ],
         }))
     }
 }
@@ -106,7 +132,8 @@ impl ErrorModel for PayloadMassErrorModel {
     }
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
-        let f = state.gravity * values[0];
+        let declared = state.mass.payload.as_ref().map_or(0.0, |p| p.mass);
+        let f = state.gravity * (values[0] + values[1] * declared);
         let local = match self.site {
             Site::Point(p) => state.tree.points()[p].local.translation.vector,
             Site::Payload => state.mass.payload.as_ref().map_or_else(Vector3::zeros, |p| p.com),
@@ -126,6 +153,7 @@ impl ErrorModel for PayloadMassErrorModel {
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
         let mut spec = self.spec.clone();
         spec.mass = values[0];
+        spec.scale = values[1];
         Box::new(spec)
     }
 }
