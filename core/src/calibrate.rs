@@ -432,6 +432,10 @@ pub struct IdentifiabilityReport {
     pub condition_number_free: f64,
     /// The combinations it cannot determine.
     pub deficiencies: Vec<Deficiency>,
+    /// Parameters the data barely determine (their standard deviation with the data is still
+    /// above half their prior's), kept within [`PRIOR_BOX`] prior standard deviations of
+    /// their start.
+    pub held_by_priors: Vec<String>,
     /// Plain-language summary of any problem (empty when fully identifiable).
     pub message: String,
 }
@@ -799,6 +803,43 @@ fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
     (theta.to_vec(), h)
 }
 
+/// How many prior standard deviations a parameter the data barely determine may move.
+pub const PRIOR_BOX: f64 = 3.0;
+
+/// The parameters of `free` with a prior that the data barely determine: with the data their
+/// standard deviation (linearised at the start, `jac` holding the columns of `selected`) is
+/// still above half their prior's, so the data adds less than three times the prior's
+/// information. A model error can push such a parameter far along a direction the data hardly
+/// sees (a prismatic joint's length against a marker); its prior then bounds it.
+fn barely_seen(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], free: &[usize]) -> Vec<usize> {
+    let cols: Vec<usize> = free
+        .iter()
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
+        .collect();
+    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    let Some(chol) = a.cholesky() else {
+        return Vec::new();
+    };
+    let inv = chol.inverse();
+    free.iter()
+        .enumerate()
+        .filter(|&(c, &k)| {
+            let sigma = space.params[k].info.sigma;
+            sigma.is_finite() && inv[(c, c)].sqrt() > 0.5 * sigma
+        })
+        .map(|(_, &k)| k)
+        .collect()
+}
+
 /// Finds the directions the data cannot determine and decides what to fix (see the module
 /// documentation). `jac` holds the columns of `free`.
 fn analyse(
@@ -929,6 +970,7 @@ fn analyse(
         condition_number,
         condition_number_free: f64::NAN,
         deficiencies,
+        held_by_priors: Vec::new(),
         message,
     };
     (report, fixed.iter().map(|&c| free[c]).collect())
@@ -1073,6 +1115,27 @@ pub fn calibrate(
     let jac0 = problem.jacobian(&theta0, &d, &e, &selected)?;
     let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
     let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let held = barely_seen(&space, &jac0, &selected, &free);
+    let mut held_space = space.clone();
+    for &k in &held {
+        let info = &mut held_space.params[k].info;
+        info.lower = info.lower.max(theta0[k] - PRIOR_BOX * info.sigma);
+        info.upper = info.upper.min(theta0[k] + PRIOR_BOX * info.sigma);
+    }
+    if !held.is_empty() {
+        identifiability.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
+        let sep = if identifiability.message.is_empty() { "" } else { " " };
+        identifiability.message.push_str(&format!(
+            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
+             of their start: {}.",
+            held.len(),
+            identifiability.held_by_priors.join(", ")
+        ));
+    }
+    let problem = Problem {
+        space: &held_space,
+        ..problem
+    };
     let frames: Vec<usize> = free
         .iter()
         .copied()
@@ -1133,7 +1196,8 @@ pub fn calibrate(
     let params_out = selected
         .iter()
         .map(|&k| {
-            let info = &space.params[k].info;
+            // The bounds the fit kept, the prior's box included.
+            let info = &held_space.params[k].info;
             let c = free.iter().position(|&f| f == k);
             ParamResult {
                 name: info.name.clone(),
