@@ -727,3 +727,36 @@ fn swing_link_torsion_is_exactly_a_lateral_compliance_of_j2_on_the_rock_drill() 
     }
     assert!(largest > 1e-5, "the torsion moves the tool by only {largest} m");
 }
+
+/// One hidden effect, ten fresh seeds: whatever the diagnosis names, its calibration on all the
+/// data moved it. No named effect has every identified value at zero (a compliance on its bound,
+/// an offset never moved): a cut that came from elsewhere is never credited to it.
+#[test]
+fn a_zero_valued_second_effect_is_never_named() {
+    let nominal = robot("industrial-6dof.toml");
+    let truth = with_effects(
+        &nominal,
+        &[json!({"type": "joint_compliance", "compliance": {"j2": 8e-6}})],
+    );
+    let noise = 0.02e-3;
+    for seed in 101..111 {
+        let samples = measure(&truth, 60, noise, seed, Campaign::default());
+        let r = run(&nominal, &samples, noise, 2);
+        let first = r.steps.first().unwrap_or_else(|| panic!("seed {seed}: nothing named"));
+        assert_eq!(
+            (first.effect.as_str(), first.location.as_str()),
+            ("joint_compliance", "j2"),
+            "seed {seed}"
+        );
+        for s in &r.steps {
+            assert!(
+                s.params.values().any(|v| v.value != 0.0),
+                "seed {seed}: named {} with every value at zero: {}",
+                s.label,
+                s.summary
+            );
+            let entry = s.ranking.iter().find(|c| c.label == s.label).unwrap();
+            assert!(!entry.at_neutral, "seed {seed}: {}", s.label);
+        }
+    }
+}

@@ -16,7 +16,7 @@
 //! bounds, priors, parameter fixing and a best-so-far result on non-convergence together, and
 //! the available crates pull in another nalgebra version.
 
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, SymmetricEigen, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, SymmetricEigen, Vector3, Vector6};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -99,24 +99,34 @@ impl ParameterSpace {
         }
         let base_offset = params.len();
         let (xyz, rpy) = base_xyz_rpy(&robot.t_meas_base());
-        for (k, name) in BASE_NAMES.iter().enumerate() {
+        let mut setup = setup_param_names(robot).into_iter();
+        for k in 0..BASE_NAMES.len() {
             let (quantity, value) = if k < 3 {
                 (Quantity::Length, xyz[k])
             } else {
                 (Quantity::Angle, rpy[k - 3])
             };
             params.push(CalibrationParam {
-                info: ParamInfo::new(format!("base.{name}"), quantity, value, f64::INFINITY),
+                info: ParamInfo::new(
+                    setup.next().expect("one name per base parameter"),
+                    quantity,
+                    value,
+                    f64::INFINITY,
+                ),
                 group: ParamGroup::Base,
                 model_type: String::new(),
             });
         }
         let marker_offset = params.len();
-        for (i, &m) in robot.markers().iter().enumerate() {
-            let name = &robot.tree().points()[m].name;
-            for axis in ["x", "y", "z"] {
+        for i in 0..robot.markers().len() {
+            for _ in 0..3 {
                 params.push(CalibrationParam {
-                    info: ParamInfo::new(format!("marker.{name}.{axis}"), Quantity::Length, 0.0, f64::INFINITY),
+                    info: ParamInfo::new(
+                        setup.next().expect("three names per marker"),
+                        Quantity::Length,
+                        0.0,
+                        f64::INFINITY,
+                    ),
                     group: ParamGroup::Marker(i),
                     model_type: String::new(),
                 });
@@ -141,7 +151,8 @@ impl ParameterSpace {
     /// joint-value offsets: `θ` of revolute and `d` of prismatic joints, `offset` of URDF
     /// joints), `errors` (every error model), `all`, an error model's type name
     /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
-    /// Empty means `base, markers, geometry, errors`.
+    /// Empty means `base, markers, geometry, errors`. What the robot file's `fixed` names is
+    /// left out.
     pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
         let default = ["base", "markers", "geometry", "errors"].map(String::from);
         let words: &[String] = if identify.is_empty() { &default } else { identify };
@@ -192,12 +203,15 @@ impl ParameterSpace {
                 )));
             }
         }
-        Ok((0..self.params.len()).filter(|&k| chosen[k]).collect())
+        // What the robot file fixes is known: never refitted, whatever the words select.
+        let fixed = &robot.file.fixed;
+        Ok((0..self.params.len())
+            .filter(|&k| chosen[k] && !fixed.iter().any(|f| name_matches(f, &self.params[k].info.name)))
+            .collect())
     }
 
     /// Decodes a full parameter vector into what forward kinematics needs.
     fn decode(&self, robot: &Robot, theta: &[f64]) -> Result<Decoded> {
-        let tree = robot.tree_for(&theta[..self.n_chain])?;
         let errors = self
             .error_offsets
             .iter()
@@ -205,27 +219,46 @@ impl ParameterSpace {
             .map(|(&o, v)| theta[o..o + v.len()].to_vec())
             .collect();
         Ok(Decoded {
-            tree,
+            tree: self.tree(robot, theta)?,
             errors,
             t_meas_base: self.base_pose(theta),
-            marker_delta: self.marker_deltas(robot, theta),
         })
+    }
+
+    /// The tree of the chain parameters of `theta` with the markers moved by their offsets:
+    /// error models see the points where the model file will put them (a payload hanging at a
+    /// marker, a point on a bending link).
+    fn tree(&self, robot: &Robot, theta: &[f64]) -> Result<KinematicTree> {
+        let mut tree = robot.tree_for(&theta[..self.n_chain])?;
+        for (i, &m) in robot.markers().iter().enumerate() {
+            let o = self.marker_offset + 3 * i;
+            let delta = Vector3::new(theta[o], theta[o + 1], theta[o + 2]);
+            if delta != Vector3::zeros() {
+                let point = &tree.points()[m];
+                let mut local = point.local;
+                // Offsets are in the body's convention frame, as the file's coordinates.
+                local.translation.vector += tree.bodies()[point.body].convention_frame.rotation * delta;
+                tree.set_point_local(m, local);
+            }
+        }
+        Ok(tree)
     }
 
     fn base_pose(&self, theta: &[f64]) -> Isometry3<f64> {
         let b = &theta[self.base_offset..self.base_offset + 6];
         xyz_rpy([b[0], b[1], b[2]], [b[3], b[4], b[5]])
     }
+}
 
-    /// Offset of each tree point (m, in its body's convention frame); zero for non-markers.
-    fn marker_deltas(&self, robot: &Robot, theta: &[f64]) -> Vec<Vector3<f64>> {
-        let mut out = vec![Vector3::zeros(); robot.tree().points().len()];
-        for (i, &m) in robot.markers().iter().enumerate() {
-            let o = self.marker_offset + 3 * i;
-            out[m] = Vector3::new(theta[o], theta[o + 1], theta[o + 2]);
-        }
-        out
-    }
+/// Names of the measurement-setup parameters of `robot`, in [`ParameterSpace`] order: the base
+/// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`).
+pub(crate) fn setup_param_names(robot: &Robot) -> Vec<String> {
+    let base = BASE_NAMES.iter().map(|n| format!("base.{n}"));
+    let markers = robot.markers().iter().flat_map(|&m| {
+        let name = &robot.tree().points()[m].name;
+        ["x", "y", "z"].map(|a| format!("marker.{name}.{a}"))
+    });
+    base.chain(markers).collect()
 }
 
 /// The `type` of error model `i` as written in the robot file.
@@ -248,7 +281,13 @@ fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
     }
 }
 
-/// `*` matches any run of characters; everything else matches itself.
+/// Whether parameter `name` is `pattern`, or matches it when it has `*` wildcards.
+pub(crate) fn name_matches(pattern: &str, name: &str) -> bool {
+    pattern == name || (pattern.contains('*') && glob_match(pattern, name))
+}
+
+/// `*` matches any run of characters (`pattern` has at least one); everything else matches
+/// itself.
 fn glob_match(pattern: &str, name: &str) -> bool {
     let parts: Vec<&str> = pattern.split('*').collect();
     let (first, last) = (parts[0], parts[parts.len() - 1]);
@@ -277,7 +316,6 @@ struct Decoded {
     tree: KinematicTree,
     errors: Vec<Vec<f64>>,
     t_meas_base: Isometry3<f64>,
-    marker_delta: Vec<Vector3<f64>>,
 }
 
 /// Per-sample intermediate results: the point in the robot base frame and the rotation that
@@ -299,7 +337,7 @@ fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample], ws: &mut RobotWorksp
                 .rotation
                 .to_rotation_matrix()
                 .into_inner();
-        world.push(ws.frames.point[s.point].translation.vector + rot * d.marker_delta[s.point]);
+        world.push(ws.frames.point[s.point].translation.vector);
         marker_rot.push(rot);
     }
     Evaluation { world, marker_rot }
@@ -394,6 +432,10 @@ pub struct IdentifiabilityReport {
     pub condition_number_free: f64,
     /// The combinations it cannot determine.
     pub deficiencies: Vec<Deficiency>,
+    /// Parameters the data barely determine (their standard deviation with the data is still
+    /// above half their prior's), kept within [`PRIOR_BOX`] prior standard deviations of
+    /// their start.
+    pub held_by_priors: Vec<String>,
     /// Plain-language summary of any problem (empty when fully identifiable).
     pub message: String,
 }
@@ -416,6 +458,10 @@ pub struct ParamResult {
     pub std: f64,
     /// Whether it was held at its start value because the data cannot determine it.
     pub fixed: bool,
+    /// Whether the fit left it on one of its physical bounds (a compliance at 0, ...): the
+    /// data pushed it as far as it may go, so its value says more about the model than about
+    /// the robot.
+    pub at_bound: bool,
 }
 
 /// What calibration did and how well it fits.
@@ -444,6 +490,23 @@ pub struct CalibrationReport {
     pub before: ErrorStats,
     /// Residuals on the calibration data after.
     pub after: ErrorStats,
+    /// The 3-D RMS after, over what the declared noise alone gives (`√3 σ`); above
+    /// [`FAR_ABOVE_NOISE`] the model or the data is wrong, not just noisy.
+    pub rms_over_noise: f64,
+    /// What the fit suggests is wrong when it ends far above the noise, most likely first.
+    pub warnings: Vec<String>,
+}
+
+/// How many times the RMS its declared noise gives (`√3 σ` in 3-D) a fit's residual may reach
+/// before the report calls it far above the noise: noise mis-declared by a factor of a few
+/// stays below it; wrong units, wrong points or a missing effect of that size do not.
+pub const FAR_ABOVE_NOISE: f64 = 10.0;
+
+impl CalibrationReport {
+    /// Whether the fit ended far above the noise the data declares (see [`FAR_ABOVE_NOISE`]).
+    pub fn far_above_noise(&self) -> bool {
+        self.rms_over_noise.is_nan() || self.rms_over_noise > FAR_ABOVE_NOISE
+    }
 }
 
 /// An identified robot and the report of how it was identified.
@@ -512,7 +575,7 @@ impl Problem<'_> {
                     ParamGroup::Geometry => {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
-                        let tree = self.robot.tree_for(&t[..space.n_chain])?;
+                        let tree = space.tree(self.robot, &t)?;
                         if self.robot.error_models().is_empty() {
                             geometry_plan(&d.tree, tree, h)
                         } else {
@@ -740,6 +803,43 @@ fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
     (theta.to_vec(), h)
 }
 
+/// How many prior standard deviations a parameter the data barely determine may move.
+pub const PRIOR_BOX: f64 = 3.0;
+
+/// The parameters of `free` with a prior that the data barely determine: with the data their
+/// standard deviation (linearised at the start, `jac` holding the columns of `selected`) is
+/// still above half their prior's, so the data adds less than three times the prior's
+/// information. A model error can push such a parameter far along a direction the data hardly
+/// sees (a prismatic joint's length against a marker); its prior then bounds it.
+fn barely_seen(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], free: &[usize]) -> Vec<usize> {
+    let cols: Vec<usize> = free
+        .iter()
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
+        .collect();
+    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    let Some(chol) = a.cholesky() else {
+        return Vec::new();
+    };
+    let inv = chol.inverse();
+    free.iter()
+        .enumerate()
+        .filter(|&(c, &k)| {
+            let sigma = space.params[k].info.sigma;
+            sigma.is_finite() && inv[(c, c)].sqrt() > 0.5 * sigma
+        })
+        .map(|(_, &k)| k)
+        .collect()
+}
+
 /// Finds the directions the data cannot determine and decides what to fix (see the module
 /// documentation). `jac` holds the columns of `free`.
 fn analyse(
@@ -870,6 +970,7 @@ fn analyse(
         condition_number,
         condition_number_free: f64::NAN,
         deficiencies,
+        held_by_priors: Vec::new(),
         message,
     };
     (report, fixed.iter().map(|&c| free[c]).collect())
@@ -952,6 +1053,13 @@ pub fn calibrate(
             params.measurement_std
         )));
     }
+    if params.identify.iter().any(|w| w.trim().is_empty()) {
+        return Err(Error::Input(
+            "--identify has an empty entry; name what to identify (base, markers, geometry, offsets, errors, all, \
+             an error model type or a parameter pattern such as `j2.*`)"
+                .into(),
+        ));
+    }
     if params.prior_scale.is_nan() || params.prior_scale <= 0.0 {
         return Err(Error::Input(format!(
             "the prior scale must be positive (or infinite for no priors), got {}",
@@ -989,6 +1097,15 @@ pub fn calibrate(
     // The priors' centre: the robot's values, the measurement frame as registered.
     let mut theta0 = space.initial();
     let (_, _, pred) = problem.predict(&theta0)?;
+    // A model whose residuals overflow cannot be fitted; say which value to look at.
+    if let Some(i) = (0..samples.len()).find(|&i| !(pred[i] - samples[i].position).norm_squared().is_finite()) {
+        return Err(Error::Input(format!(
+            "the robot model puts sample {}'s point at {:?} m, too far for a finite residual; a value in the robot \
+             file is out of range",
+            i + 1,
+            pred[i].as_slice()
+        )));
+    }
     let before = stats(samples, &pred);
     let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
     let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
@@ -998,6 +1115,27 @@ pub fn calibrate(
     let jac0 = problem.jacobian(&theta0, &d, &e, &selected)?;
     let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
     let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let held = barely_seen(&space, &jac0, &selected, &free);
+    let mut held_space = space.clone();
+    for &k in &held {
+        let info = &mut held_space.params[k].info;
+        info.lower = info.lower.max(theta0[k] - PRIOR_BOX * info.sigma);
+        info.upper = info.upper.min(theta0[k] + PRIOR_BOX * info.sigma);
+    }
+    if !held.is_empty() {
+        identifiability.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
+        let sep = if identifiability.message.is_empty() { "" } else { " " };
+        identifiability.message.push_str(&format!(
+            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
+             of their start: {}.",
+            held.len(),
+            identifiability.held_by_priors.join(", ")
+        ));
+    }
+    let problem = Problem {
+        space: &held_space,
+        ..problem
+    };
     let frames: Vec<usize> = free
         .iter()
         .copied()
@@ -1058,7 +1196,8 @@ pub fn calibrate(
     let params_out = selected
         .iter()
         .map(|&k| {
-            let info = &space.params[k].info;
+            // The bounds the fit kept, the prior's box included.
+            let info = &held_space.params[k].info;
             let c = free.iter().position(|&f| f == k);
             ParamResult {
                 name: info.name.clone(),
@@ -1068,10 +1207,18 @@ pub fn calibrate(
                 value: theta[k],
                 std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
                 fixed: c.is_none(),
+                at_bound: c.is_some() && (theta[k] <= info.lower || theta[k] >= info.upper),
             }
         })
         .collect();
 
+    let after = stats(samples, &pred);
+    let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
+    let warnings = if rms_over_noise <= FAR_ABOVE_NOISE {
+        Vec::new()
+    } else {
+        far_above_noise_causes(&problem, &theta0, &after, rms_over_noise)?
+    };
     let calibrated = apply(robot, &space, &theta)?;
     Ok(Calibration {
         robot: calibrated,
@@ -1086,7 +1233,9 @@ pub fn calibrate(
             converged: outcome.converged,
             stop_reason: outcome.stop_reason,
             before,
-            after: stats(samples, &pred),
+            after,
+            rms_over_noise,
+            warnings,
         },
     })
 }
@@ -1136,9 +1285,10 @@ impl Problem<'_> {
         let mut cost = cost_of(theta, &r);
         let mut lambda = 1e-3;
         let mut converged = false;
-        let mut stop_reason = format!("iteration limit ({}) reached", params.max_iterations);
-        while !converged && *iterations < params.max_iterations {
-            *iterations += 1;
+        // Why the last accepted step was small, when it was: the step test. Convergence needs
+        // it and the gradient test at the point the step reached.
+        let mut small_step: Option<String> = None;
+        let stop_reason = loop {
             let j = self.jacobian(theta, d, e, free)?;
             let mut a = j.transpose() * &j;
             let mut g = j.transpose() * &r;
@@ -1156,6 +1306,33 @@ impl Problem<'_> {
                 }
                 None => vec![f64::INFINITY; free.len()],
             };
+            // The gradient test: how much ½χ² changes, to first order, when a parameter moves
+            // by one standard deviation (its curvature alone where the matrix is singular). A
+            // stationary point has none; a damped crawl far from one does.
+            let gradient = g
+                .iter()
+                .enumerate()
+                .map(|(c, gc)| {
+                    let sd = if std[c].is_finite() {
+                        std[c]
+                    } else {
+                        1.0 / a[(c, c)].max(floor).sqrt()
+                    };
+                    (gc * sd).abs()
+                })
+                .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) });
+            let gradient_ok = gradient <= params.min_step;
+            if let Some(step) = small_step.as_ref().filter(|_| gradient_ok) {
+                converged = true;
+                break format!("{step}, and the gradient is {gradient:.1e} per standard deviation");
+            }
+            if *iterations >= params.max_iterations {
+                break format!(
+                    "iteration limit ({}) reached; the gradient is {gradient:.1e} per standard deviation",
+                    params.max_iterations
+                );
+            }
+            *iterations += 1;
             let mut accepted = false;
             while lambda <= 1e12 {
                 let mut m = a.clone();
@@ -1189,23 +1366,19 @@ impl Problem<'_> {
                     (*theta, *d, *e, r, cost) = (trial, d1, e1, r1, cost1);
                     lambda = (lambda / 3.0).max(1e-12);
                     accepted = true;
-                    if relative < params.tolerance || improvement < params.min_improvement {
-                        converged = true;
-                        stop_reason = format!("the last step improved ½χ² by only {improvement:.2e}");
+                    small_step = if relative < params.tolerance || improvement < params.min_improvement {
+                        Some(format!("the last step improved ½χ² by only {improvement:.2e}"))
                     } else if moved < params.min_step {
-                        converged = true;
-                        stop_reason = format!(
+                        Some(format!(
                             "the last step moved no parameter by more than {:.1}% of its standard deviation",
                             100.0 * moved
-                        );
-                    }
+                        ))
+                    } else {
+                        None
+                    };
                     break;
                 }
                 lambda *= 4.0;
-            }
-            if !accepted {
-                converged = true;
-                stop_reason = "no step lowers the cost further (local minimum)".into();
             }
             observer(&IterationInfo {
                 iteration: *iterations,
@@ -1213,16 +1386,28 @@ impl Problem<'_> {
                 rms: (r.norm_squared() / self.samples.len() as f64).sqrt() * params.measurement_std,
                 lambda,
             });
-        }
+            if !accepted {
+                // No step lowers the cost: a minimum if the gradient vanishes there, otherwise
+                // the model cannot be evaluated or differentiated near here.
+                converged = gradient_ok && cost.is_finite();
+                break if converged {
+                    format!("no step lowers the cost further; the gradient is {gradient:.1e} per standard deviation")
+                } else {
+                    format!(
+                        "no step lowers the cost, but the gradient is {gradient:.1e} per standard deviation \
+                         (cost {cost:.3e}): not a minimum"
+                    )
+                };
+            }
+        };
         Ok(StageOutcome { converged, stop_reason })
     }
 }
 
 /// Registers the measurement frame in closed form: the rigid transform that best maps the
-/// model's points `model` (robot base frame) onto the measured ones, by the SVD of their
-/// cross-covariance (Kabsch/Umeyama, no scale). Writes it into the base parameters of `theta`
-/// and returns true, or leaves `theta` alone and returns false when the points do not span a
-/// plane (a rotation is then not determined).
+/// model's points (robot base frame) onto the measured ones (see [`rigid_fit`]). Writes it
+/// into the base parameters of `theta` and returns true, or leaves `theta` alone and returns
+/// false when the points do not span a plane (a rotation is then not determined).
 fn register_base(space: &ParameterSpace, theta: &mut [f64], samples: &[Sample], measured_now: &[Vector3<f64>]) -> bool {
     // `measured_now` are the model's points seen through the current base frame; map them
     // back into the base frame.
@@ -1231,31 +1416,143 @@ fn register_base(space: &ParameterSpace, theta: &mut [f64], samples: &[Sample], 
         .iter()
         .map(|p| t_now.inverse_transform_point(&(*p).into()).coords)
         .collect();
-    let n = samples.len() as f64;
-    let cm = model.iter().sum::<Vector3<f64>>() / n;
-    let cs = samples.iter().map(|s| s.position).sum::<Vector3<f64>>() / n;
-    let mut h = Matrix3::zeros();
-    for (m, s) in model.iter().zip(samples) {
-        h += (m - cm) * (s.position - cs).transpose();
-    }
-    let svd = h.svd(true, true);
-    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+    let measured: Vec<Vector3<f64>> = samples.iter().map(|s| s.position).collect();
+    let Some((rotation, v)) = rigid_fit(&model, &measured) else {
         return false;
     };
+    let (r, p, y) = rotation.euler_angles();
+    let values = [v.x, v.y, v.z, r, p, y];
+    theta[space.base_offset..space.base_offset + 6].copy_from_slice(&values);
+    true
+}
+
+/// The rigid transform (rotation, then translation) that best maps `model` onto `measured` in
+/// least squares, by the SVD of their cross-covariance (Kabsch/Umeyama, no scale); none when
+/// the points do not span a plane.
+fn rigid_fit(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Option<(Rotation3<f64>, Vector3<f64>)> {
+    let n = model.len() as f64;
+    let cm = model.iter().sum::<Vector3<f64>>() / n;
+    let cs = measured.iter().sum::<Vector3<f64>>() / n;
+    let mut h = Matrix3::zeros();
+    for (m, s) in model.iter().zip(measured) {
+        h += (m - cm) * (s - cs).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
     let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
     sv.sort_by(|a, b| b.total_cmp(a));
     if sv[1].is_nan() || sv[1] <= 1e-9 * sv[0].max(1e-300) {
-        return false;
+        return None;
     }
     let v = v_t.transpose();
     let d = (v * u.transpose()).determinant().signum();
     let rotation = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    let rotation = nalgebra::Rotation3::from_matrix_unchecked(rotation);
-    let translation = cs - rotation * cm;
-    let (r, p, y) = rotation.euler_angles();
-    let values = [translation.x, translation.y, translation.z, r, p, y];
-    theta[space.base_offset..space.base_offset + 6].copy_from_slice(&values);
-    true
+    let rotation = Rotation3::from_matrix_unchecked(rotation);
+    Some((rotation, cs - rotation * cm))
+}
+
+/// RMS (m) of `measured` against `model` after the best rigid registration; infinite when
+/// none is determined.
+fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> f64 {
+    let Some((rotation, translation)) = rigid_fit(model, measured) else {
+        return f64::INFINITY;
+    };
+    let sum: f64 = model
+        .iter()
+        .zip(measured)
+        .map(|(m, s)| (rotation * m + translation - s).norm_squared())
+        .sum();
+    (sum / model.len() as f64).sqrt()
+}
+
+/// The likely causes of a fit that ends `ratio` times above its noise, as messages with the
+/// fix. Unit mistakes give themselves away: the starting model registered rigidly onto the
+/// measured points fits far better once the positions or the revolute joint values are read
+/// in the other unit. Otherwise the general causes are listed.
+fn far_above_noise_causes(
+    problem: &Problem<'_>,
+    theta0: &[f64],
+    after: &ErrorStats,
+    ratio: f64,
+) -> Result<Vec<String>> {
+    let noise_mm = problem.sigma * 1e3;
+    let mut out = vec![format!(
+        "the fit's RMS ({:.4} mm) is {ratio:.0} times what the declared noise ({noise_mm} mm per axis) gives \
+         (√3·σ = {:.4} mm)",
+        after.rms_mm,
+        3f64.sqrt() * noise_mm
+    )];
+    let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
+        let p = Problem { samples, ..*problem };
+        Ok(p.predict(theta0)?.1.world)
+    };
+    let measured: Vec<Vector3<f64>> = problem.samples.iter().map(|s| s.position).collect();
+    let model = model_points(problem.samples)?;
+    let as_declared = registered_rms(&model, &measured);
+    let revolute: Vec<bool> = problem
+        .robot
+        .tree()
+        .coordinate_is_prismatic()
+        .iter()
+        .map(|p| !p)
+        .collect();
+    let rescaled_angles = |f: f64| -> Result<f64> {
+        let samples: Vec<Sample> = problem
+            .samples
+            .iter()
+            .map(|s| {
+                let mut s = s.clone();
+                s.q.iter_mut()
+                    .zip(&revolute)
+                    .filter(|(_, r)| **r)
+                    .for_each(|(q, _)| *q *= f);
+                s
+            })
+            .collect();
+        Ok(registered_rms(&model_points(&samples)?, &measured))
+    };
+    let deg = 180.0 / std::f64::consts::PI;
+    let scaled = |f: f64| registered_rms(&model, &measured.iter().map(|p| p * f).collect::<Vec<_>>());
+    let hypotheses = [
+        (
+            scaled(1e3),
+            "the positions look like metres declared as millimetres: read 1000 times larger they fit",
+            "declare the position columns in metres (`x[m]`, `y[m]`, `z[m]`)",
+        ),
+        (
+            scaled(1e-3),
+            "the positions look like millimetres declared as metres: read 1000 times smaller they fit",
+            "declare the position columns in millimetres (`x[mm]`, `y[mm]`, `z[mm]`)",
+        ),
+        (
+            rescaled_angles(deg)?,
+            "the revolute joint values look like radians declared as degrees: read as radians they fit",
+            "declare the joint columns in radians (`j1[rad]`, ...)",
+        ),
+        (
+            rescaled_angles(1.0 / deg)?,
+            "the revolute joint values look like degrees declared as radians: read as degrees they fit",
+            "declare the joint columns in degrees (`j1[deg]`, ...)",
+        ),
+    ];
+    let best = hypotheses
+        .iter()
+        .filter(|(rms, _, _)| *rms < 0.1 * as_declared)
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    match best {
+        Some((rms, what, fix)) => out.push(format!(
+            "{what} (the starting model registered onto them leaves {:.3} mm instead of {:.3} mm); {fix}",
+            rms * 1e3,
+            as_declared * 1e3
+        )),
+        None => out.push(
+            "likely causes: wrong units in the data or the robot file, measurements of another point than the \
+             markers (or rows mixed up), the noise declared too small, or an effect the model lacks (try \
+             `armcomp diagnose`)"
+                .into(),
+        ),
+    }
+    Ok(out)
 }
 
 /// Sensitivity of every marker's measured position at each pose to the parameters `identify`

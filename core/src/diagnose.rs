@@ -18,7 +18,11 @@
 //!   is within what the choice of folds moves a score by on a hundred poses, so it is not
 //!   evidence of a missing effect;
 //! - and the held-out Gaussian log-likelihood gain `n·ln(SSE₀/SSE₁)` exceeds the BIC penalty
-//!   `k·ln n`, so that a candidate with many parameters needs a proportionally larger gain.
+//!   `k·ln n`, so that a candidate with many parameters needs a proportionally larger gain;
+//! - and its calibrations moved it: a candidate left at its neutral value (within
+//!   [`NEUTRAL_Z`] standard deviations), on a bound or fixed in most folds did nothing itself,
+//!   whatever its fit gained (a re-calibration that escaped a local minimum, say), so it is
+//!   never named.
 //!
 //! Some effects are indistinguishable from tool positions on a given robot: on the rock drill,
 //! torsion of the short swing link turns the boom's pivot about the swing's axis in proportion
@@ -42,7 +46,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, calibrate};
+use crate::calibrate::{CalibrationParams, ParamResult, calibrate};
 use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
@@ -56,6 +60,10 @@ use crate::split::{Split, kfold, subset};
 /// Paired z-score of the held-out squared errors below which a candidate counts as explaining
 /// the data as well as the accepted one (about 95 % two-sided).
 pub const TIE_Z: f64 = 2.0;
+
+/// A candidate's parameter within this many standard deviations of its neutral value counts
+/// as not identified away from it.
+pub const NEUTRAL_Z: f64 = 2.0;
 
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
@@ -103,6 +111,11 @@ pub struct RankedCandidate {
     pub heldout_bic: f64,
     /// Share of the held-out RMS before the round that it removes (negative when worse).
     pub share_removed: f64,
+    /// Whether its calibrations left it where it started (every parameter within
+    /// [`NEUTRAL_Z`] standard deviations of its neutral value, on a bound, or fixed) in most
+    /// folds: the effect itself did nothing, so whatever its fit gained came from elsewhere
+    /// (another minimum, other parameters) and it cannot be named.
+    pub at_neutral: bool,
     /// Whether it passes the acceptance rule (see the module documentation).
     pub earns_parameters: bool,
     /// Whether the data cannot tell it from the best candidate of the round (paired z-score of
@@ -428,12 +441,15 @@ struct Heldout {
     errors: Vec<Vector3<f64>>,
     /// Per fold, the parameters its calibration could not determine and fixed.
     fixed: Vec<Vec<String>>,
+    /// Per fold, every identified parameter as the calibration reported it.
+    params: Vec<Vec<ParamResult>>,
 }
 
 /// Calibrates `model` on each fold's training poses and scores it on the poses held out.
 fn heldout(model: &Robot, samples: &[Sample], splits: &[Split], calibration: &CalibrationParams) -> Result<Heldout> {
     let mut errors = vec![Vector3::zeros(); samples.len()];
     let mut fixed = Vec::with_capacity(splits.len());
+    let mut params = Vec::with_capacity(splits.len());
     for split in splits {
         let fit = calibrate(model, &subset(samples, &split.train), calibration, &mut |_| {})?;
         fixed.push(
@@ -451,8 +467,9 @@ fn heldout(model: &Robot, samples: &[Sample], splits: &[Split], calibration: &Ca
         {
             errors[i] = e;
         }
+        params.push(fit.report.params);
     }
-    Ok(Heldout { errors, fixed })
+    Ok(Heldout { errors, fixed, params })
 }
 
 /// Held-out BIC of `k` determined parameters over the scalar residuals of `errors` (in mm).
@@ -490,6 +507,7 @@ fn score(
         // Candidates that could not be evaluated go last.
         heldout_bic: f64::INFINITY,
         share_removed: 0.0,
+        at_neutral: false,
         earns_parameters: false,
         indistinguishable_from_best: false,
         error: None,
@@ -521,8 +539,19 @@ fn score(
             out.n_params = n_params;
             out.identified_params = k;
             out.share_removed = 1.0 - (sse1 / sse0).sqrt();
-            out.earns_parameters =
-                out.share_removed >= params.min_rms_reduction && n * (sse0 / sse1).ln() > k as f64 * n.ln();
+            let neutral_folds = evaluation
+                .params
+                .iter()
+                .filter(|fold| {
+                    fold.iter()
+                        .filter(|p| names.contains(&p.name))
+                        .all(|p| p.fixed || p.at_bound || (p.value - p.initial).abs() <= NEUTRAL_Z * p.std)
+                })
+                .count();
+            out.at_neutral = 2 * neutral_folds > evaluation.params.len();
+            out.earns_parameters = !out.at_neutral
+                && out.share_removed >= params.min_rms_reduction
+                && n * (sse0 / sse1).ln() > k as f64 * n.ln();
             out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
             out.heldout_bic = bic(&evaluation.errors, k);
             out.evaluation = Some(evaluation);

@@ -131,7 +131,7 @@ pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
                 q: &s.q,
                 tree,
                 frames: &ws.rigid,
-                mass: robot.mass_under(conditions, &mut ws.mass),
+                mass: robot.mass_under(conditions, tree, &mut ws.mass),
                 gravity: robot.gravity(),
                 temperature: conditions.temperature,
             };

@@ -46,8 +46,9 @@ pub struct Robot {
     markers: Vec<usize>,
     /// Per coordinate, the value the robot file says it held while measuring (rad or m).
     hold: Vec<Option<f64>>,
-    /// Where a payload given per measurement hangs: body and centre of mass in it (m).
-    payload_site: (usize, Vector3<f64>),
+    /// The point a payload hangs at (the file's payload point, else the tool); a payload given
+    /// per measurement without one hangs at the base origin.
+    payload_point: Option<usize>,
     collision: CollisionGeometry,
     warnings: Vec<String>,
     /// Files read to build it besides `source` (URDF, meshes, plugin libraries).
@@ -310,15 +311,7 @@ impl Robot {
         let warnings = chain.warnings().to_vec();
 
         // Payload; without one, a payload given per measurement hangs at the tool.
-        let mut payload_site = (0, Vector3::zeros());
-        if let Some(t) = tool {
-            payload_site = (
-                points[t].body,
-                (base_tree.bodies()[points[t].body].convention_frame * points[t].local)
-                    .translation
-                    .vector,
-            );
-        }
+        let mut payload_point = tool;
         if let Some(p) = &file.payload {
             if !(p.mass.is_finite() && p.mass >= 0.0) {
                 issues.push(
@@ -335,7 +328,7 @@ impl Robot {
                         body: q.body,
                         com: local.translation.vector,
                     });
-                    payload_site = (q.body, local.translation.vector);
+                    payload_point = points.iter().position(|r| r.name == name);
                 }
                 None => issues.push("payload.point", format!("point `{name}` does not exist")),
             }
@@ -412,7 +405,7 @@ impl Robot {
             t_meas_base,
             markers,
             hold,
-            payload_site,
+            payload_point,
             collision,
             warnings,
             reads: Vec::new(),
@@ -420,6 +413,12 @@ impl Robot {
         robot.tree = robot
             .tree_for(&robot.chain_values)
             .map_err(|e| vec![Issue::new("kinematics", e.to_string())])?;
+        // The payload's centre of mass is its point's pose in the tree (bit for bit, so that
+        // `mass_under` sees it unmoved).
+        let site = robot.payload_site(&robot.tree);
+        if let Some(p) = robot.mass.payload.as_mut() {
+            p.com = site.1;
+        }
 
         // Error models see the finished tree and mass model.
         let mut models = Vec::new();
@@ -454,6 +453,25 @@ impl Robot {
                     );
                     break;
                 }
+            }
+        }
+        // Every entry of `fixed` must name a parameter calibration knows.
+        let names: Vec<String> = robot
+            .chain_params()
+            .iter()
+            .chain(models.iter().flat_map(|m| m.params()))
+            .map(|p| p.name.clone())
+            .chain(crate::calibrate::setup_param_names(&robot))
+            .collect();
+        for (i, pattern) in robot.file.fixed.iter().enumerate() {
+            if !names.iter().any(|n| crate::calibrate::name_matches(pattern, n)) {
+                issues.push(
+                    format!("fixed[{i}]"),
+                    format!(
+                        "`{pattern}` matches no parameter of this robot; names are like {}",
+                        names.iter().take(4).cloned().collect::<Vec<_>>().join(", ")
+                    ),
+                );
             }
         }
         if !issues.is_empty() {
@@ -677,7 +695,7 @@ impl Robot {
             return;
         }
         ws.perturbation.clear();
-        let mass = self.mass_under(conditions, &mut ws.mass);
+        let mass = self.mass_under(conditions, tree, &mut ws.mass);
         let state = StaticState {
             q,
             tree,
@@ -692,19 +710,46 @@ impl Robot {
         tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
     }
 
-    /// The mass model under `conditions`: the robot's own, or, when they carry a payload, a copy
-    /// in `scratch` with that payload mass at the payload's site.
-    pub fn mass_under<'a>(&'a self, conditions: Conditions, scratch: &'a mut MassModel) -> &'a MassModel {
-        match conditions.payload {
-            Some(m) => {
-                scratch.clone_from(&self.mass);
-                let (body, com) = self.payload_site;
-                let site = scratch.payload.get_or_insert(Payload { mass: 0.0, body, com });
-                site.mass = m;
-                scratch
-            }
-            None => &self.mass,
+    /// The mass model under `conditions` with the points of `tree`: the robot's own, or a copy
+    /// in `scratch` when they carry a payload (that mass at the payload's site) or when `tree`
+    /// moves the payload's point (calibration moving a marker the payload hangs at, or the
+    /// convention frame the point is given in), so that a fit sees the payload where its
+    /// model file will put it.
+    pub fn mass_under<'a>(
+        &'a self,
+        conditions: Conditions,
+        tree: &KinematicTree,
+        scratch: &'a mut MassModel,
+    ) -> &'a MassModel {
+        if self.mass_is_own(conditions, tree) {
+            return &self.mass;
         }
+        scratch.clone_from(&self.mass);
+        let (body, com) = self.payload_site(tree);
+        let site = scratch.payload.get_or_insert(Payload { mass: 0.0, body, com });
+        site.com = com;
+        if let Some(m) = conditions.payload {
+            site.mass = m;
+        }
+        scratch
+    }
+
+    /// Whether [`mass_under`](Robot::mass_under) is the robot's own mass model.
+    fn mass_is_own(&self, conditions: Conditions, tree: &KinematicTree) -> bool {
+        conditions.payload.is_none()
+            && self
+                .mass
+                .payload
+                .as_ref()
+                .is_none_or(|p| p.com == self.payload_site(tree).1)
+    }
+
+    /// Body and position in it (m) where a payload hangs, with the points of `tree`.
+    fn payload_site(&self, tree: &KinematicTree) -> (usize, Vector3<f64>) {
+        self.payload_point.map_or((0, Vector3::zeros()), |p| {
+            let point = &tree.points()[p];
+            (point.body, point.local.translation.vector)
+        })
     }
 
     /// Adds the deformation of error model `model` alone, with parameter `values`, to `out`,
@@ -725,10 +770,10 @@ impl Robot {
             q: &sample.q,
             tree,
             frames: &ws.rigid,
-            mass: if conditions.payload.is_some() {
-                &ws.mass
-            } else {
+            mass: if self.mass_is_own(conditions, tree) {
                 &self.mass
+            } else {
+                &ws.mass
             },
             gravity: self.gravity,
             temperature: conditions.temperature,
@@ -787,6 +832,7 @@ impl Robot {
             measurement: self.file.measurement.clone(),
             fixtures: self.file.fixtures.clone(),
             collision: self.file.collision.clone(),
+            fixed: self.file.fixed.clone(),
         };
         // Predictor specs are not clonable trait objects; round-trip through JSON keeps them.
         if let Some(p) = &self.file.predictor {

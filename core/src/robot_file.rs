@@ -76,6 +76,11 @@ pub struct RobotFile {
     /// Collision-checking settings.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub collision: Option<CollisionSpec>,
+    /// Parameters known well enough that calibration and diagnosis keep them at the values
+    /// this file gives: names as calibration reports them, `*` matching any run of characters
+    /// (`joint_compliance.j5`, `j2.*`, `base.*`, `marker.tool.z`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fixed: Vec<String>,
 }
 
 /// Mass properties and beam section of one link.

@@ -261,6 +261,11 @@ impl KinematicTree {
         Ok(self.points.len() - 1)
     }
 
+    /// Moves point `point` to `local` (its pose in its body frame).
+    pub fn set_point_local(&mut self, point: usize, local: Isometry3<f64>) {
+        self.points[point].local = local;
+    }
+
     /// Joints in topological order.
     pub fn joints(&self) -> &[Joint] {
         &self.joints

@@ -101,14 +101,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         print_report(report);
         println!("wrote {}", args.out.display());
     }
-    Ok(if report.converged {
-        ExitCode::SUCCESS
-    } else {
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !report.converged {
         eprintln!(
             "warning: calibration did not converge ({}); the best parameters found were written",
             report.stop_reason
         );
+    }
+    // Far above the noise says more than not converged: the data or the model is wrong.
+    Ok(if report.far_above_noise() {
+        eprintln!(
+            "warning: the fit ends far above the declared noise; the model was written, but check the data and the model"
+        );
+        ExitCode::from(3)
+    } else if !report.converged {
         ExitCode::from(2)
+    } else {
+        ExitCode::SUCCESS
     })
 }
 

@@ -138,6 +138,6 @@ pub(crate) fn payload_mass_error(robot: &Robot) -> Vec<Candidate> {
     }
     global(
         "payload mass error",
-        json!({ "type": "payload_mass_error", "mass": 0.0, "compliance": compliance }),
+        json!({ "type": "payload_mass_error", "mass": 0.0, "scale": 0.0, "compliance": compliance }),
     )
 }

@@ -53,6 +53,7 @@ pub fn robot_file_for_urdf(path: &Path) -> armcomp_core::Result<RobotFile> {
         measurement: None,
         fixtures: Vec::new(),
         collision: None,
+        fixed: Vec::new(),
     })
 }
 
