@@ -71,13 +71,14 @@ fn bench(c: &mut Criterion) {
         .expect("calibration")
         .report;
     eprintln!(
-        "{} parameters, {} poses: {} iterations, converged {}, RMS {:.4} → {:.4} mm",
+        "{} parameters, {} poses: {} iterations, converged {}, RMS {:.4} → {:.4} mm ({})",
         report.params.len(),
         data.len(),
         report.iterations,
         report.converged,
         report.before.rms_mm,
-        report.after.rms_mm
+        report.after.rms_mm,
+        report.stop_reason
     );
     let mut group = c.benchmark_group("calibration");
     group.sample_size(10).measurement_time(Duration::from_secs(20));

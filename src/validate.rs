@@ -120,14 +120,7 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     // which for big files is most of the time validation takes.
     let json = match serde_json::to_value(&file) {
         Ok(v) => v,
-        Err(e) => {
-            return vec![Diagnostic {
-                file: path.to_path_buf(),
-                line: None,
-                path: String::new(),
-                message: format!("cannot be checked against the schema: {e}"),
-            }];
-        }
+        Err(e) => return whole_file(path, format!("cannot be checked against the schema: {e}")),
     };
     // Semantic checks first: they name non-finite numbers plainly, where the schema (which
     // sees them as null) would print the whole plugin table.
@@ -140,14 +133,7 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     }
     let validator = match jsonschema::validator_for(schema) {
         Ok(v) => v,
-        Err(e) => {
-            return vec![Diagnostic {
-                file: path.to_path_buf(),
-                line: None,
-                path: String::new(),
-                message: format!("internal error: the robot schema does not compile: {e}"),
-            }];
-        }
+        Err(e) => return whole_file(path, format!("internal error: the robot schema does not compile: {e}")),
     };
     let mut out: Vec<Diagnostic> = validator
         .iter_errors(&json)
@@ -178,4 +164,14 @@ mod tests {
         assert_eq!(pointer_to_path(""), "");
         assert_eq!(pointer_to_path("/a~1b/0"), "a/b[0]");
     }
+}
+
+/// One problem with the file as a whole (no line, no field).
+fn whole_file(path: &Path, message: String) -> Vec<Diagnostic> {
+    vec![Diagnostic {
+        file: path.to_path_buf(),
+        line: None,
+        path: String::new(),
+        message,
+    }]
 }
