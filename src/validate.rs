@@ -151,6 +151,16 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     out
 }
 
+/// One problem with the file as a whole (no line, no field).
+fn whole_file(path: &Path, message: String) -> Vec<Diagnostic> {
+    vec![Diagnostic {
+        file: path.to_path_buf(),
+        line: None,
+        path: String::new(),
+        message,
+    }]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,14 +174,4 @@ mod tests {
         assert_eq!(pointer_to_path(""), "");
         assert_eq!(pointer_to_path("/a~1b/0"), "a/b[0]");
     }
-}
-
-/// One problem with the file as a whole (no line, no field).
-fn whole_file(path: &Path, message: String) -> Vec<Diagnostic> {
-    vec![Diagnostic {
-        file: path.to_path_buf(),
-        line: None,
-        path: String::new(),
-        message,
-    }]
 }
