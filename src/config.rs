@@ -26,6 +26,20 @@ pub struct UserConfig {
     pub max_input_mb: Option<u64>,
 }
 
+/// Applies the user config to this process (input size cap, trusted plugin folders) with
+/// `allow_plugins` as the user's permission to load the libraries robot files name.
+pub fn apply(allow_plugins: bool) -> Result<()> {
+    let config = load()?;
+    if let Some(mb) = config.max_input_mb {
+        armcomp_core::io::set_max_input_bytes(mb.saturating_mul(1 << 20));
+    }
+    armcomp_sdk::set_policy(armcomp_sdk::PluginPolicy {
+        allow: allow_plugins,
+        trusted_dirs: config.plugin_dirs,
+    });
+    Ok(())
+}
+
 /// Where the user config is looked for, if anywhere.
 pub fn config_path() -> Option<PathBuf> {
     if let Some(p) = std::env::var_os("ARMCOMP_CONFIG") {

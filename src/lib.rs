@@ -7,10 +7,11 @@ pub mod config;
 pub mod demos;
 pub mod diagnosis_report;
 pub mod load;
+pub mod ops;
 pub mod registry;
 pub mod validate;
 
-pub use load::load_robot;
+pub use load::{load_robot, read_robot};
 pub use registry::{plugins, robot_schema, schema_text};
 pub use validate::{Diagnostic, Validation, check_file, validate_file};
 pub mod twins;

@@ -13,13 +13,18 @@ pub fn is_urdf(path: &Path) -> bool {
 
 /// Reads and builds the robot at `path`: a bare `.urdf` (SI units, a point at every link's
 /// origin, see [`armcomp_urdf::robot_file_for_urdf`]) or a robot file. What was skipped while
-/// reading (meshes that cannot be found) is printed to stderr as warnings.
-pub fn load_robot(path: &Path) -> Result<Robot> {
-    let robot = if is_urdf(path) {
-        armcomp_urdf::robot_from_urdf(path)?
+/// reading (meshes that cannot be found) is in [`Robot::warnings`].
+pub fn read_robot(path: &Path) -> Result<Robot> {
+    if is_urdf(path) {
+        armcomp_urdf::robot_from_urdf(path)
     } else {
-        Robot::from_path(path)?
-    };
+        Robot::from_path(path)
+    }
+}
+
+/// [`read_robot`], printing its warnings to stderr.
+pub fn load_robot(path: &Path) -> Result<Robot> {
+    let robot = read_robot(path)?;
     for w in robot.warnings() {
         eprintln!("warning: {w}");
     }

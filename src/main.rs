@@ -19,19 +19,6 @@ struct Cli {
     allow_plugins: bool,
 }
 
-/// Applies the user config and `--allow-plugins` to this process.
-fn configure(allow_plugins: bool) -> anyhow::Result<()> {
-    let config = armcomp::config::load()?;
-    if let Some(mb) = config.max_input_mb {
-        armcomp_core::io::set_max_input_bytes(mb.saturating_mul(1 << 20));
-    }
-    armcomp_sdk::set_policy(armcomp_sdk::PluginPolicy {
-        allow: allow_plugins,
-        trusted_dirs: config.plugin_dirs,
-    });
-    Ok(())
-}
-
 #[derive(Subcommand)]
 enum Command {
     /// Run the main job on a built-in twin (default: rock-drill).
@@ -71,7 +58,7 @@ fn main() -> ExitCode {
         armcomp_core::io::remove_pending_temporaries();
         std::process::exit(130);
     });
-    if let Err(e) = configure(cli.allow_plugins) {
+    if let Err(e) = armcomp::config::apply(cli.allow_plugins) {
         eprintln!("error: {e:#}");
         return ExitCode::FAILURE;
     }

@@ -1289,6 +1289,7 @@ impl Problem<'_> {
         // it and the gradient test at the point the step reached.
         let mut small_step: Option<String> = None;
         let stop_reason = loop {
+            crate::interrupt::check()?;
             let j = self.jacobian(theta, d, e, free)?;
             let mut a = j.transpose() * &j;
             let mut g = j.transpose() * &r;

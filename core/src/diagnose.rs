@@ -267,6 +267,8 @@ pub fn diagnose(
             .par_iter()
             .map(|o| score(&model, given, o, samples, &splits, &current, params))
             .collect();
+        // A stopped calibration fails its candidate; the round is not worth ranking.
+        crate::interrupt::check()?;
         ranking.sort_by(|a, b| {
             a.heldout_bic
                 .total_cmp(&b.heldout_bic)

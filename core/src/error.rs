@@ -101,6 +101,9 @@ pub enum Error {
     /// Anything else a caller gave that cannot be used, with the reason.
     #[error("{0}")]
     Input(String),
+    /// Stopped on request (see [`crate::interrupt`]) before the result was complete.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 fn render_issues(file: &std::path::Path, issues: &[Issue]) -> String {

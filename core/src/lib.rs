@@ -4,6 +4,7 @@
 //! The model/workspace split follows Pinocchio: [`KinematicTree`] is immutable, all buffers
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
 
+pub mod batch;
 pub mod calibrate;
 pub mod candidate;
 pub mod collision;
@@ -14,6 +15,7 @@ pub mod evaluate;
 pub mod geom;
 pub mod gravity;
 pub mod ik;
+pub mod interrupt;
 pub mod io;
 pub mod mass;
 pub mod measurement;

@@ -1,10 +1,10 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, calibrate};
+use armcomp::ops::calibrate::Prior;
+use armcomp_core::calibrate::{CalibrationParams, CalibrationReport};
 use armcomp_core::io::write_atomic;
 use armcomp_core::param::Quantity;
-use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 
 use super::{check_output, read_measurements};
 
@@ -39,7 +39,7 @@ pub struct Args {
     /// deviations (1 as written, 0.1 ten times tighter), `none`, or `auto` (chosen by 5-fold
     /// cross-validation on the given data alone).
     #[arg(long, default_value = "1")]
-    prior: PriorArg,
+    prior: Prior,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -49,41 +49,29 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
-    let mut params = CalibrationParams {
+    let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm * 1e-3,
         max_iterations: args.max_iterations,
         ..CalibrationParams::default()
-    };
-    let choice = match args.prior {
-        PriorArg::Scale(s) => {
-            params.prior_scale = s;
-            None
-        }
-        PriorArg::Auto => {
-            let choice = choose_prior_scale(&robot, &data.samples, &params, &DEFAULT_GRID, 5, 0)?;
-            params.prior_scale = choice.scale;
-            Some(choice)
-        }
     };
     let bar = indicatif::ProgressBar::new(params.max_iterations as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} iterations  {msg}")
             .expect("the template is valid"),
     );
-    let result = calibrate(&robot, &data.samples, &params, &mut |it| {
+    let result = armcomp::ops::calibrate::run(&robot, &data.samples, params, args.prior, &mut |it| {
         bar.set_position(it.iteration as u64);
         bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
     });
     bar.finish_and_clear();
-    let calibration = result?;
+    let run = result?;
+    let (calibration, choice) = (&run.calibration, &run.prior_choice);
     let text = calibration.robot.to_file().to_text_for(&args.out)?;
     write_atomic(&args.out, text.as_bytes())?;
     let report = &calibration.report;
     if args.json {
-        let mut value = serde_json::to_value(report)?;
-        value["prior_choice"] = serde_json::to_value(&choice)?;
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        println!("{}", serde_json::to_string_pretty(&run.to_json())?);
     } else {
         if let Some(c) = &choice {
             let scores: Vec<String> = c
@@ -121,30 +109,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::SUCCESS
     })
-}
-
-/// `--prior`: a factor on the prior standard deviations, or `auto`.
-#[derive(Debug, Clone, Copy)]
-enum PriorArg {
-    Scale(f64),
-    Auto,
-}
-
-impl std::str::FromStr for PriorArg {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s.trim() {
-            "auto" => Ok(PriorArg::Auto),
-            "none" => Ok(PriorArg::Scale(f64::INFINITY)),
-            t => match t.parse::<f64>() {
-                Ok(v) if v > 0.0 => Ok(PriorArg::Scale(v)),
-                _ => Err(format!(
-                    "expected `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
-                )),
-            },
-        }
-    }
 }
 
 fn scale_text(s: f64) -> String {

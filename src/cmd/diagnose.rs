@@ -1,9 +1,9 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::PredictorSpec;
+use armcomp::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
-use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, RankedCandidate, diagnose};
+use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, RankedCandidate};
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::io::write_atomic;
 use armcomp_core::residuals::ResidualDescription;
@@ -100,20 +100,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         min_rms_reduction: args.min_reduction_percent / 100.0,
         max_steps: args.max_steps,
     };
-    let gp = armcomp_learn::GpSpec {
-        seed: args.seed,
-        ..Default::default()
-    };
-    let ridge = armcomp_learn::RidgeSpec::default();
-    let predictor: Option<(&str, &dyn PredictorSpec)> = match args.predictor {
-        Predictor::Gp => Some(("gp", &gp)),
-        Predictor::Ridge => Some(("ridge", &ridge)),
-        Predictor::None => None,
+    let learnable_by = match args.predictor {
+        Predictor::Gp => LearnableBy::Gp,
+        Predictor::Ridge => LearnableBy::Ridge,
+        Predictor::None => LearnableBy::None,
     };
     let spinner = indicatif::ProgressBar::new_spinner();
     spinner.set_message("diagnosing (k-fold calibration of every candidate effect)");
     spinner.enable_steady_tick(std::time::Duration::from_millis(200));
-    let result = diagnose(&robot, &data.samples, &armcomp::plugins(), predictor, &params);
+    let result = armcomp::ops::diagnose::run(&robot, &data.samples, &params, learnable_by);
     spinner.finish_and_clear();
     let diagnosis = result?;
     let report = &diagnosis.report;

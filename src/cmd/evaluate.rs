@@ -1,12 +1,8 @@
-use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::Robot;
-use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::io::write_atomic;
-use armcomp_core::measurement::{Sample, joint_header, joint_row};
-use nalgebra::Vector3;
 
 use super::{check_output, read_measurements};
 
@@ -32,65 +28,21 @@ pub struct Args {
     residuals: Option<PathBuf>,
 }
 
-/// The residuals CSV: one row per sample, in file order.
-fn residuals_csv(robot: &Robot, samples: &[Sample], errors: &[Vector3<f64>]) -> String {
-    let units = robot.file.units;
-    let lu = units.length.symbol();
-    let mut out = format!(
-        "sample,point,{},x_err[{lu}],y_err[{lu}],z_err[{lu}],err[{lu}]\n",
-        joint_header(robot.tree(), units).join(",")
-    );
-    for (i, (s, e)) in samples.iter().zip(errors).enumerate() {
-        let point = &robot.tree().points()[s.point].name;
-        let joints = joint_row(&s.q, robot.tree(), units).join(",");
-        let [x, y, z, d] = [e.x, e.y, e.z, e.norm()].map(|v| units.len_out(v));
-        // Writing to a String cannot fail.
-        let _ = writeln!(out, "{},{point},{joints},{x},{y},{z},{d}", i + 1);
-    }
-    out
-}
-
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
     if let Some(out) = &args.residuals {
         check_output(out, &robot, &[&args.data])?;
     }
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
-    let errors = position_errors(&robot, &data.samples);
-    let stats = ErrorStats::from_errors(&errors);
+    let report = armcomp::ops::evaluate::run(&robot, &data.samples);
     if let Some(out) = &args.residuals {
-        write_atomic(out, residuals_csv(&robot, &data.samples, &errors).as_bytes())?;
+        write_atomic(out, report.residuals_csv(&robot, &data.samples).as_bytes())?;
     }
-    // Per measured point, when there are several.
-    let mut points: Vec<usize> = data.samples.iter().map(|s| s.point).collect();
-    points.sort_unstable();
-    points.dedup();
-    let per_point: Vec<(String, ErrorStats)> = if points.len() > 1 {
-        points
-            .iter()
-            .map(|&p| {
-                let e: Vec<_> = errors
-                    .iter()
-                    .zip(&data.samples)
-                    .filter(|(_, s)| s.point == p)
-                    .map(|(e, _)| *e)
-                    .collect();
-                (robot.tree().points()[p].name.clone(), ErrorStats::from_errors(&e))
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
     if args.json {
-        let mut value = serde_json::to_value(stats)?;
-        if !per_point.is_empty() {
-            value["per_point"] =
-                serde_json::to_value(per_point.iter().cloned().collect::<std::collections::BTreeMap<_, _>>())?;
-        }
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        println!("{}", serde_json::to_string_pretty(&report.to_json())?);
     } else {
-        println!("{}", stats_line(&stats));
-        for (name, s) in &per_point {
+        println!("{}", stats_line(&report.stats));
+        for (name, s) in &report.per_point {
             println!("  point {name}: {}", stats_line(s));
         }
     }

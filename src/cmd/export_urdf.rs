@@ -2,7 +2,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use armcomp_core::evaluate::position_errors;
 use armcomp_core::io::write_atomic;
 
 use super::read_measurements;
@@ -28,24 +27,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
-    let dropped: Vec<String> = robot
-        .file
-        .error_models
-        .iter()
-        .map(|m| {
-            serde_json::to_value(m)
-                .ok()
-                .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
-                .unwrap_or_default()
-        })
-        .chain(
-            robot
-                .file
-                .fitted_predictor
-                .is_some()
-                .then(|| "the fitted residual predictor".to_string()),
-        )
-        .collect();
+    let dropped = armcomp::ops::export_urdf::inexpressible(&robot);
     if !dropped.is_empty() && !args.rigid_only {
         bail!(
             "{}: URDF cannot express {}; the exported URDF would not be this model. Pass --rigid-only --data <measurements.csv> to export the rigid geometry anyway and see how far the dropped models move the measured points",
@@ -59,18 +41,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let deviation = match (&args.data, dropped.is_empty()) {
         (Some(data), false) => {
             let set = read_measurements(&robot, data, None)?;
-            let mut rigid_file = robot.to_file();
-            rigid_file.error_models.clear();
-            rigid_file.fitted_predictor = None;
-            rigid_file.predictor = None;
-            let rigid = robot.rebuild(rigid_file)?;
-            let full = position_errors(&robot, &set.samples);
-            let without = position_errors(&rigid, &set.samples);
-            let max = full
-                .iter()
-                .zip(&without)
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, f64::max);
+            let max = armcomp::ops::export_urdf::rigid_deviation(&robot, &set.samples)?;
             Some((max, set.samples.len()))
         }
         _ => None,

@@ -1,10 +1,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::{Context, bail};
 use armcomp_core::RobotFile;
-use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, model_errors, position_errors};
 use armcomp_core::io::write_atomic;
 
 use super::{check_output, read_measurements};
@@ -28,26 +26,19 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
-    let Some(spec) = robot.file.predictor.as_deref() else {
+    if robot.file.predictor.is_none() {
         bail!(
             "{}: no [predictor] table; add one (e.g. `[predictor]` with `type = \"gp\"`) to say what to fit",
             args.model.display()
         );
-    };
+    }
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
-    let start = Instant::now();
-    let fitted = fit_residual_predictor(&robot, spec, &data.samples)?;
-    let seconds = start.elapsed().as_secs_f64();
-    let before = ErrorStats::from_errors(&model_errors(&robot, &data.samples));
     // The written file is the model's own text re-read, so everything in it is kept.
-    let (mut file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
-    file.fitted_predictor = Some(fitted);
-    let text = file.to_text_for(&args.out)?;
-    let written = armcomp_core::Robot::build(file, &robot.base_dir())
-        .map_err(|issues| anyhow::anyhow!("the fitted model does not build: {issues:?}"))?;
-    let after = ErrorStats::from_errors(&position_errors(&written, &data.samples));
-    write_atomic(&args.out, text.as_bytes())?;
+    let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
+    let run = armcomp::ops::learn::run(&robot, file, &data.samples)?;
+    let (seconds, before, after) = (run.seconds, run.before, run.after);
+    write_atomic(&args.out, run.robot.file.to_text_for(&args.out)?.as_bytes())?;
     println!(
         "fitted in {seconds:.2} s on {} measurements; training error: mean {:.4} mm (model alone) -> {:.4} mm (with the predictor)",
         data.samples.len(),

@@ -1,13 +1,10 @@
-use std::cell::RefCell;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use armcomp_core::collision::CollisionModel;
+use armcomp::ops::plan::{PlanParams, PlanRun};
 use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{parse_poses, write_poses};
-use armcomp_core::plan::{Space, d_optimal, spread, trajectory_similar};
-use armcomp_core::sampling::Sampler;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -56,63 +53,29 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     let trajectory_file: Vec<&std::path::Path> = args.trajectory.iter().map(|p| p.as_path()).collect();
     super::check_output(&args.out, &robot, &trajectory_file)?;
-    let space = match args.space.as_str() {
-        "joint" => Space::Joint,
-        "cartesian" => Space::Cartesian,
-        other => bail!("unknown --space `{other}`; expected joint or cartesian"),
-    };
-    // Poses in collision (self-collision or fixtures) are never planned.
-    let collision = CollisionModel::new(&robot);
-    let collision_ws = RefCell::new(collision.workspace());
-    let accept = |q: &[f64]| !collision.collides(q, &mut collision_ws.borrow_mut());
-    let pool_sampler = Sampler::parse(&args.pool_sampler)?;
-    let pool = |n: usize| spread(&robot, space, pool_sampler, n, args.seed, &accept);
-    let (poses, note) = match args.method.as_str() {
-        "d-optimal" => {
-            let pool = pool(args.pool.unwrap_or(10 * args.n))?;
-            let (chosen, log_det) = d_optimal(&robot, &pool.poses, args.n.min(pool.poses.len()), &args.identify)?;
-            (
-                chosen.iter().map(|&i| pool.poses[i].clone()).collect::<Vec<_>>(),
-                format!(
-                    "picked from a pool of {} ({} unreachable); log det of the scaled information {log_det:.2}",
-                    pool.poses.len(),
-                    pool.unreachable
-                ),
-            )
-        }
-        "trajectory" => {
-            let Some(path) = &args.trajectory else {
-                bail!("--method trajectory needs --trajectory FILE (joint configurations in task order)");
-            };
+    let trajectory = match &args.trajectory {
+        Some(path) => {
             let text = armcomp_core::io::read_text(path)?;
-            let trajectory = parse_poses(&text, path, &robot.csv_layout())?;
-            let pool = pool(args.pool.unwrap_or(2000))?;
-            let chosen = trajectory_similar(
-                &robot,
-                &trajectory,
-                &pool.tool_positions,
-                args.trajectory_points,
-                args.per_point,
-            )?;
-            (
-                chosen.iter().map(|&i| pool.poses[i].clone()).collect(),
-                format!(
-                    "{} trajectory points × {} nearest of a pool of {}",
-                    args.trajectory_points,
-                    args.per_point,
-                    pool.poses.len()
-                ),
-            )
+            Some(parse_poses(&text, path, &robot.csv_layout())?)
         }
-        sampler => {
-            let plan = spread(&robot, space, Sampler::parse(sampler)?, args.n, args.seed, &accept)?;
-            let note = format!(
-                "{} unreachable and {} colliding candidates skipped",
-                plan.unreachable, plan.rejected
-            );
-            (plan.poses, note)
+        None if args.method == "trajectory" => {
+            bail!("--method trajectory needs --trajectory FILE (joint configurations in task order)")
         }
+        None => None,
     };
+    let params = PlanParams {
+        n: args.n,
+        method: args.method.clone(),
+        space: args.space.clone(),
+        pool: args.pool,
+        pool_sampler: args.pool_sampler.clone(),
+        identify: args.identify.clone(),
+        trajectory,
+        trajectory_points: args.trajectory_points,
+        per_point: args.per_point,
+        seed: args.seed,
+    };
+    let PlanRun { poses, note } = armcomp::ops::plan::run(&robot, &params)?;
     if poses.len() < args.n && args.method != "trajectory" {
         eprintln!("warning: only {} of {} poses could be planned", poses.len(), args.n);
     }

@@ -3,8 +3,6 @@ use std::process::ExitCode;
 
 use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{parse_poses, write_csv};
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -40,15 +38,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let text = armcomp_core::io::read_text(p)?;
             parse_poses(&text, p, &truth.csv_layout())?
         }
-        None => configurations(truth.tree(), Sampler::parse(&args.sampler)?, args.n, args.seed)?,
+        None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
-    // Noise draws use a stream of their own so that the same poses get the same noise
-    // whether they were sampled or read from a file.
-    let params = SimulateParams {
-        noise_std: args.noise_mm * 1e-3,
-        seed: args.seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
-    };
-    let set = simulate(&truth, &poses, params)?;
+    let set = armcomp::ops::simulate::run(&truth, &poses, args.noise_mm, args.seed)?;
     write_atomic(&args.out, write_csv(&set, truth.tree(), truth.file.units).as_bytes())?;
     eprintln!(
         "wrote {} measurements of {} poses to {} (noise {} mm per axis, seed {})",

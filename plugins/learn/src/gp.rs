@@ -537,6 +537,7 @@ impl GpSpec {
         let bar = progress((starts.len() * self.max_iterations) as u64, "gp");
         let mut best: Option<(Vec<f64>, f64)> = None;
         for start in &starts {
+            armcomp_core::interrupt::check()?;
             let (theta, value) = lbfgs::minimize(
                 start,
                 self.max_iterations,

@@ -51,6 +51,7 @@ impl PredictorSpec for MlpSpec {
         let data = NetData::new(&samples, self.training.validation_fraction, &mut rng);
         let mut params = net.init(&mut rng);
         train(&net, &mut params, &data, &self.training, &mut rng);
+        armcomp_core::interrupt::check()?;
         Ok(Box::new(data.fitted(net, params)?))
     }
 }

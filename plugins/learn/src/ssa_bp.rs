@@ -75,6 +75,7 @@ impl PredictorSpec for SsaBpSpec {
         })?;
         let mut params = report.best;
         train(&net, &mut params, &data, &self.refine, &mut rng);
+        armcomp_core::interrupt::check()?;
         Ok(Box::new(data.fitted(net, params)?))
     }
 }

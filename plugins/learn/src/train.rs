@@ -200,6 +200,10 @@ fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, 
     let bar = progress(tp.max_epochs as u64, "adam");
     let mut step = 0;
     for _ in 0..tp.max_epochs {
+        // A stopped run ends here; the fit that called it returns the interruption.
+        if armcomp_core::interrupt::requested() {
+            break;
+        }
         order.shuffle(rng);
         for batch in order.chunks(tp.batch_size) {
             grad.fill(0.0);
@@ -246,6 +250,9 @@ fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &T
     let mut stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
     let bar = progress(tp.max_epochs as u64, "lm");
     'iterations: for _ in 0..tp.max_epochs {
+        if armcomp_core::interrupt::requested() {
+            break;
+        }
         // Jacobian of the residuals `output − target` by one back-propagation per output.
         for (r, &i) in data.train.iter().enumerate() {
             let (x, y) = data.row(i);

@@ -1,0 +1,80 @@
+//! `calibrate`: the prior choice around [`armcomp_core::calibrate::calibrate`] and its JSON report.
+
+use armcomp_core::Robot;
+use armcomp_core::calibrate::{Calibration, CalibrationParams, IterationInfo, calibrate};
+use armcomp_core::measurement::Sample;
+use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
+
+/// How strongly the robot file's priors hold the parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Prior {
+    /// A factor on their standard deviations (infinite: no priors).
+    Scale(f64),
+    /// Chosen by 5-fold cross-validation on the calibration data alone.
+    Auto,
+}
+
+impl std::str::FromStr for Prior {
+    type Err = String;
+
+    /// `auto`, `none` or a positive factor.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.trim() {
+            "auto" => Ok(Prior::Auto),
+            "none" => Ok(Prior::Scale(f64::INFINITY)),
+            t => match t.parse::<f64>() {
+                Ok(v) if v > 0.0 => Ok(Prior::Scale(v)),
+                _ => Err(format!(
+                    "expected `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
+                )),
+            },
+        }
+    }
+}
+
+/// A calibration and, for [`Prior::Auto`], the cross-validation that chose its prior scale.
+#[derive(Debug)]
+pub struct CalibrationRun {
+    /// The identified robot and its report.
+    pub calibration: Calibration,
+    /// The prior choice, when it was made from the data.
+    pub prior_choice: Option<PriorChoice>,
+}
+
+impl CalibrationRun {
+    /// The report as `armcomp calibrate --json` prints it: the calibration report with a
+    /// `prior_choice` entry.
+    pub fn to_json(&self) -> serde_json::Value {
+        // Both serialise plain numbers, strings and lists: they cannot fail.
+        let mut value = serde_json::to_value(&self.calibration.report).expect("the report serialises");
+        value["prior_choice"] = serde_json::to_value(&self.prior_choice).expect("the prior choice serialises");
+        value
+    }
+}
+
+/// Calibrates `robot` on `samples` with `params`, its prior scale set by `prior`; `observer`
+/// sees every iteration of the final fit.
+pub fn run(
+    robot: &Robot,
+    samples: &[Sample],
+    mut params: CalibrationParams,
+    prior: Prior,
+    observer: &mut dyn FnMut(&IterationInfo),
+) -> armcomp_core::Result<CalibrationRun> {
+    let prior_choice = match prior {
+        Prior::Scale(s) => {
+            params.prior_scale = s;
+            None
+        }
+        Prior::Auto => {
+            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0)?;
+            params.prior_scale = choice.scale;
+            Some(choice)
+        }
+    };
+    let calibration = calibrate(robot, samples, &params, observer)?;
+    Ok(CalibrationRun {
+        calibration,
+        prior_choice,
+    })
+}

@@ -1,0 +1,241 @@
+//! `compensate`: joint commands that put the tool on targets, through a model and its
+//! predictor, and the targets CSV they are read from.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use anyhow::{Context, bail};
+use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::ik::IkTarget;
+use armcomp_core::measurement::{joint_header, joint_row, split_header};
+use armcomp_core::units::LengthUnit;
+use armcomp_core::{Robot, Units};
+use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
+
+/// The frame targets are given in and corrected targets are returned in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Frame {
+    /// The tracker's, as in measurement files.
+    Measurement,
+    /// The robot base.
+    Base,
+}
+
+/// One target: a position (m) and optionally the tool orientation to keep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Target {
+    /// Position (m).
+    pub position: Vector3<f64>,
+    /// Tool orientation, same frame as the position.
+    pub orientation: Option<UnitQuaternion<f64>>,
+}
+
+/// Joint commands for a batch of targets.
+#[derive(Debug, Clone)]
+pub struct CompensationRun {
+    /// Per target, the joint command (SI, one value per independent joint).
+    pub q: Vec<Vec<f64>>,
+    /// Per target, where the model without its predictor puts the tool at the command: the
+    /// target to hand a controller that knows only the rigid model (m, in the targets' frame).
+    pub corrected: Vec<Vector3<f64>>,
+    /// Per target, the predictor's standard deviation (m, measurement frame), when it gives one.
+    pub std: Vec<Option<Vector3<f64>>>,
+    /// Exact-mode targets (index, miss in m) where the model with its residual still misses.
+    pub unconverged: Vec<(usize, f64)>,
+    /// Whether the model's fitted predictor took part.
+    pub has_predictor: bool,
+}
+
+/// The solver settings every caller uses.
+pub fn options() -> CompensationOptions {
+    CompensationOptions::default()
+}
+
+/// Compensates `targets` in order (each from the middle of the joint ranges); an error names
+/// the target through `describe(index)`. Stops between targets on an interrupt request.
+pub fn run(
+    robot: &Robot,
+    targets: &[Target],
+    mode: CompensationMode,
+    frame: Frame,
+    describe: &dyn Fn(usize) -> String,
+) -> anyhow::Result<CompensationRun> {
+    let options = options();
+    let mut comp = Compensator::for_model(robot, options)?;
+    let t_meas_base = robot.t_meas_base();
+    let to_base = match frame {
+        Frame::Measurement => t_meas_base.inverse(),
+        Frame::Base => Isometry3::identity(),
+    };
+    let q0 = mid_range(robot);
+    let mut run = CompensationRun {
+        q: Vec::with_capacity(targets.len()),
+        corrected: Vec::with_capacity(targets.len()),
+        std: Vec::with_capacity(targets.len()),
+        unconverged: Vec::new(),
+        has_predictor: comp.has_predictor(),
+    };
+    for (i, t) in targets.iter().enumerate() {
+        armcomp_core::interrupt::check()?;
+        let position = to_base.transform_point(&Point3::from(t.position)).coords;
+        let target = match t.orientation {
+            Some(r) => IkTarget::Pose(Isometry3::from_parts(position.into(), to_base.rotation * r)),
+            None => IkTarget::Position(position),
+        };
+        let c = comp
+            .compensate_target(&target, &q0, mode)
+            .with_context(|| describe(i))?;
+        if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
+            run.unconverged.push((i, c.mismatch));
+        }
+        run.corrected.push(match frame {
+            Frame::Measurement => t_meas_base.transform_point(&Point3::from(c.corrected_target)).coords,
+            Frame::Base => c.corrected_target,
+        });
+        run.q.push(comp.q().to_vec());
+        run.std.push(comp.residual_std());
+    }
+    Ok(run)
+}
+
+impl CompensationRun {
+    /// The output CSV of `armcomp compensate`: joint commands and corrected targets in the
+    /// model's units, with the predictor's standard deviations when every target has one.
+    pub fn to_csv(&self, robot: &Robot) -> String {
+        let units = robot.file.units;
+        let lu = units.length.symbol();
+        let mut out = joint_header(robot.tree(), units).join(",");
+        // Writing to a String cannot fail.
+        let _ = write!(out, ",x_cmd[{lu}],y_cmd[{lu}],z_cmd[{lu}]");
+        let with_std = self.std.iter().all(Option::is_some);
+        if with_std {
+            let _ = write!(out, ",std_x[{lu}],std_y[{lu}],std_z[{lu}]");
+        }
+        out.push('\n');
+        for ((q, corrected), std) in self.q.iter().zip(&self.corrected).zip(&self.std) {
+            let mut row = joint_row(q, robot.tree(), units);
+            row.extend(corrected.iter().map(|v| units.len_out(*v).to_string()));
+            out.push_str(&row.join(","));
+            if let (true, Some(s)) = (with_std, std) {
+                for v in s.iter() {
+                    let _ = write!(out, ",{}", units.len_out(*v));
+                }
+            }
+            out.push('\n');
+        }
+        out
+    }
+}
+
+/// The tool orientation `[qw, qx, qy, qz]`: a unit quaternion, with the same tolerance as
+/// measurement files (rounded quaternions are renormalised).
+pub fn orientation(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
+    let q = Quaternion::new(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
+    if (q.norm() - 1.0).abs() > 1e-3 {
+        return Err(format!("orientation quaternion has norm {:.6}, expected 1", q.norm()));
+    }
+    Ok(UnitQuaternion::from_quaternion(q))
+}
+
+/// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
+/// numbers, erroring with file, line and column.
+pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Target)>> {
+    let text = armcomp_core::io::read_text(path)?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
+    let Some((header_line, header)) = lines.next() else {
+        bail!("{}: empty; expected a header `x[mm],y[mm],z[mm]`", path.display());
+    };
+    // Columns 0..3 are x, y, z (with their scale to m), 3..7 are qw, qx, qy, qz (scale 1).
+    let mut columns: [Option<(usize, f64)>; 7] = [None; 7];
+    let mut n_columns = 0;
+    for (c, h) in header.split(',').enumerate() {
+        n_columns += 1;
+        let (name, unit) = split_header(h);
+        let Some(slot) = ["x", "y", "z", "qw", "qx", "qy", "qz"].iter().position(|n| *n == name) else {
+            bail!(
+                "{}:{header_line}: column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`, and optionally qw, qx, qy, qz",
+                path.display(),
+                c + 1
+            );
+        };
+        let scale = match (slot, unit) {
+            (0..3, None) => units.length.to_si(),
+            (0..3, Some(u)) => LengthUnit::parse(u).map(LengthUnit::to_si).with_context(|| {
+                format!(
+                    "{}:{header_line}: column {}: unknown length unit `{u}` (expected m, cm, mm or in)",
+                    path.display(),
+                    c + 1
+                )
+            })?,
+            (_, None) => 1.0,
+            (_, Some(u)) => bail!(
+                "{}:{header_line}: column {}: a quaternion component has no unit, found `[{u}]`",
+                path.display(),
+                c + 1
+            ),
+        };
+        if columns[slot].replace((c, scale)).is_some() {
+            bail!("{}:{header_line}: column `{name}` appears twice", path.display());
+        }
+    }
+    if columns[..3].iter().any(Option::is_none) {
+        bail!("{}:{header_line}: expected the columns x, y and z", path.display());
+    }
+    let with_orientation = match columns[3..].iter().filter(|c| c.is_some()).count() {
+        0 => false,
+        4 => true,
+        _ => bail!(
+            "{}:{header_line}: an orientation needs all four columns qw, qx, qy, qz",
+            path.display()
+        ),
+    };
+    let mut targets = Vec::new();
+    for (line, row) in lines {
+        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
+        if cells.len() != n_columns {
+            bail!(
+                "{}:{line}: {} values, the header has {n_columns}",
+                path.display(),
+                cells.len()
+            );
+        }
+        let mut values = [0.0; 7];
+        for (value, &(c, scale)) in values
+            .iter_mut()
+            .zip(&columns)
+            .filter_map(|(v, c)| c.as_ref().map(|c| (v, c)))
+        {
+            let v: f64 = cells[c].parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| {
+                format!(
+                    "{}:{line}: column {}: `{}` is not a finite number",
+                    path.display(),
+                    c + 1,
+                    cells[c]
+                )
+            })?;
+            *value = v * scale;
+        }
+        let orientation = if with_orientation {
+            let q = orientation([values[3], values[4], values[5], values[6]])
+                .map_err(|m| anyhow::anyhow!("{}:{line}: {m}", path.display()))?;
+            Some(q)
+        } else {
+            None
+        };
+        targets.push((
+            line,
+            Target {
+                position: Vector3::new(values[0], values[1], values[2]),
+                orientation,
+            },
+        ));
+    }
+    if targets.is_empty() {
+        bail!("{}: no targets", path.display());
+    }
+    Ok(targets)
+}

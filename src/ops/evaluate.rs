@@ -1,0 +1,79 @@
+//! `evaluate`: position errors of a model on measurements, overall and per measured point.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+use armcomp_core::Robot;
+use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::measurement::{Sample, joint_header, joint_row};
+use nalgebra::Vector3;
+
+/// How far a model is from measurements.
+#[derive(Debug, Clone)]
+pub struct EvaluationReport {
+    /// Over every sample.
+    pub stats: ErrorStats,
+    /// Per measured point by name, when the samples measure several.
+    pub per_point: BTreeMap<String, ErrorStats>,
+    /// Measured minus modelled position of every sample, measurement frame (m).
+    pub errors: Vec<Vector3<f64>>,
+}
+
+/// Evaluates `robot` (with its fitted predictor) on `samples`.
+pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
+    let errors = position_errors(robot, samples);
+    let stats = ErrorStats::from_errors(&errors);
+    let mut points: Vec<usize> = samples.iter().map(|s| s.point).collect();
+    points.sort_unstable();
+    points.dedup();
+    let per_point = if points.len() > 1 {
+        points
+            .iter()
+            .map(|&p| {
+                let e: Vec<_> = errors
+                    .iter()
+                    .zip(samples)
+                    .filter(|(_, s)| s.point == p)
+                    .map(|(e, _)| *e)
+                    .collect();
+                (robot.tree().points()[p].name.clone(), ErrorStats::from_errors(&e))
+            })
+            .collect()
+    } else {
+        BTreeMap::new()
+    };
+    EvaluationReport {
+        stats,
+        per_point,
+        errors,
+    }
+}
+
+impl EvaluationReport {
+    /// The report as `armcomp evaluate --json` prints it.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut value = serde_json::to_value(self.stats).expect("the statistics serialise");
+        if !self.per_point.is_empty() {
+            value["per_point"] = serde_json::to_value(&self.per_point).expect("the statistics serialise");
+        }
+        value
+    }
+
+    /// The residuals CSV of `armcomp evaluate --residuals`: one row per sample, in file order.
+    pub fn residuals_csv(&self, robot: &Robot, samples: &[Sample]) -> String {
+        let units = robot.file.units;
+        let lu = units.length.symbol();
+        let mut out = format!(
+            "sample,point,{},x_err[{lu}],y_err[{lu}],z_err[{lu}],err[{lu}]\n",
+            joint_header(robot.tree(), units).join(",")
+        );
+        for (i, (s, e)) in samples.iter().zip(&self.errors).enumerate() {
+            let point = &robot.tree().points()[s.point].name;
+            let joints = joint_row(&s.q, robot.tree(), units).join(",");
+            let [x, y, z, d] = [e.x, e.y, e.z, e.norm()].map(|v| units.len_out(v));
+            // Writing to a String cannot fail.
+            let _ = writeln!(out, "{},{point},{joints},{x},{y},{z},{d}", i + 1);
+        }
+        out
+    }
+}

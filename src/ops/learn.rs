@@ -1,0 +1,45 @@
+//! `learn`: fits a model's residual predictor and stores it in the model file.
+
+use std::time::Instant;
+
+use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, model_errors, position_errors};
+use armcomp_core::measurement::Sample;
+use armcomp_core::{Error, Robot, RobotFile};
+
+/// A model with its fitted predictor and how much the predictor removes on the training data.
+#[derive(Debug)]
+pub struct LearnRun {
+    /// The model with the fitted predictor (its `file` is the model file).
+    pub robot: Robot,
+    /// Training errors of the model alone.
+    pub before: ErrorStats,
+    /// Training errors with the predictor.
+    pub after: ErrorStats,
+    /// Fitting time (s).
+    pub seconds: f64,
+}
+
+/// Fits the predictor `robot`'s `[predictor]` table describes on `samples` and stores it in
+/// `file`, the model's own description (re-read from its file by the command line, so that
+/// everything in it is kept).
+pub fn run(robot: &Robot, mut file: RobotFile, samples: &[Sample]) -> armcomp_core::Result<LearnRun> {
+    let Some(spec) = robot.file.predictor.as_deref() else {
+        return Err(Error::Input(
+            "the model has no [predictor] table; add one (e.g. `[predictor]` with `type = \"gp\"`) to say what to fit"
+                .into(),
+        ));
+    };
+    let start = Instant::now();
+    let fitted = fit_residual_predictor(robot, spec, samples)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let before = ErrorStats::from_errors(&model_errors(robot, samples));
+    file.fitted_predictor = Some(fitted);
+    let written = Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)?;
+    let after = ErrorStats::from_errors(&position_errors(&written, samples));
+    Ok(LearnRun {
+        robot: written,
+        before,
+        after,
+        seconds,
+    })
+}

@@ -1,0 +1,22 @@
+//! `simulate`: measurements of a truth robot at drawn or given poses, with tracker noise.
+
+use armcomp_core::Robot;
+use armcomp_core::measurement::MeasurementSet;
+use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::simulate::{SimulateParams, simulate};
+
+/// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or grid).
+pub fn draw_poses(truth: &Robot, sampler: &str, n: usize, seed: u64) -> armcomp_core::Result<Vec<Vec<f64>>> {
+    configurations(truth.tree(), Sampler::parse(sampler)?, n, seed)
+}
+
+/// Measures `truth` at `poses` with `noise_mm` of noise per axis, the noise drawn from `seed`.
+pub fn run(truth: &Robot, poses: &[Vec<f64>], noise_mm: f64, seed: u64) -> armcomp_core::Result<MeasurementSet> {
+    // Noise draws use a stream of their own so that the same poses get the same noise
+    // whether they were sampled or read from a file.
+    let params = SimulateParams {
+        noise_std: noise_mm * 1e-3,
+        seed: seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
+    };
+    simulate(truth, poses, params)
+}
