@@ -1,0 +1,245 @@
+"""armcomp: calibration and compensation of long, heavy, flexible robot arms.
+
+The same engine as the ``armcomp`` command, with numpy arrays in and out. Values are SI
+(m, rad) unless a name says otherwise (``noise_mm``, ``*_mm`` report fields).
+
+>>> import armcomp
+>>> robot = armcomp.Robot.load("robots/talos-left-arm.toml")
+>>> data = armcomp.Measurements.read("data/talos-left-arm/measurements.csv")
+>>> model, report = armcomp.calibrate(robot, data, identify=["base", "markers"])
+
+Long calls release the GIL and stop on Ctrl-C (``KeyboardInterrupt``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Iterable, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _armcomp as _native
+from ._armcomp import Measurements, Robot
+from ._convert import from_json
+from ._errors import ArmcompError, CalibrationWarning, InputError, NotConverged
+from ._reports import (
+    AxisErrors,
+    CalibrationReport,
+    Compensation,
+    Deficiency,
+    DiagnosisReport,
+    DiagnosisStep,
+    ErrorStats,
+    EvaluationReport,
+    FinalModel,
+    Identifiability,
+    IdentifiedValue,
+    LearnableResidual,
+    LearnReport,
+    Parameter,
+    Plan,
+    PriorChoice,
+    PriorScaleScore,
+    RankedCandidate,
+)
+
+__all__ = [
+    "ArmcompError",
+    "AxisErrors",
+    "CalibrationReport",
+    "CalibrationWarning",
+    "Compensation",
+    "Deficiency",
+    "DiagnosisReport",
+    "DiagnosisStep",
+    "ErrorStats",
+    "EvaluationReport",
+    "FinalModel",
+    "Identifiability",
+    "IdentifiedValue",
+    "InputError",
+    "LearnReport",
+    "LearnableResidual",
+    "Measurements",
+    "NotConverged",
+    "Parameter",
+    "Plan",
+    "PriorChoice",
+    "PriorScaleScore",
+    "RankedCandidate",
+    "Robot",
+    "calibrate",
+    "compensate",
+    "diagnose",
+    "evaluate",
+    "learn",
+    "plan",
+    "simulate",
+]
+
+
+def _names(value: Union[None, str, Iterable[str]]) -> Optional[list]:
+    """``"base,markers"`` or ``["base", "markers"]`` as a list."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [v.strip() for v in value.split(",")]
+    return list(value)
+
+
+def calibrate(
+    robot: Robot,
+    data: Measurements,
+    identify: Union[None, str, Sequence[str]] = None,
+    noise_mm: float = 0.1,
+    prior: Union[None, float, str] = 1.0,
+    max_iterations: int = 100,
+) -> Tuple[Robot, CalibrationReport]:
+    """Identifies a model of ``robot`` from ``data`` (Levenberg–Marquardt with priors), as
+    ``armcomp calibrate`` does.
+
+    ``identify``: what to identify (base, markers, geometry, offsets, errors, all, an error
+    model's type or a parameter pattern such as ``"j2.*"``); default base, markers, geometry
+    and errors. ``noise_mm``: the tracker noise per axis (mm). ``prior``: a factor on the robot
+    file's prior standard deviations, ``"auto"`` (5-fold cross-validation) or None (no
+    priors).
+
+    Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's
+    warnings, and a fit far above the declared noise, are issued as ``CalibrationWarning``.
+    Raises ``NotConverged`` (with ``.model`` and ``.report``) when the fit did not converge.
+    """
+    model, text, far = _native.calibrate(
+        robot,
+        data,
+        identify=_names(identify),
+        noise_mm=noise_mm,
+        prior="none" if prior is None else prior,
+        max_iterations=max_iterations,
+    )
+    report = from_json(CalibrationReport, text)
+    object.__setattr__(report, "far_above_noise", far)
+    for w in report.warnings:
+        warnings.warn(w, CalibrationWarning, stacklevel=2)
+    if far:
+        warnings.warn(
+            f"the fit ends far above the declared noise ({report.rms_over_noise:.1f} times what "
+            f"{noise_mm} mm per axis gives); check the data and the model",
+            CalibrationWarning,
+            stacklevel=2,
+        )
+    if not report.converged:
+        raise NotConverged(
+            f"calibration did not converge ({report.stop_reason}); .model is the best found",
+            model=model,
+            report=report,
+        )
+    return model, report
+
+
+def evaluate(model: Robot, data: Measurements) -> EvaluationReport:
+    """Position errors of ``model`` (with its fitted predictor) on ``data``, as
+    ``armcomp evaluate`` reports them."""
+    text, errors = _native.evaluate(model, data)
+    report = from_json(EvaluationReport, text)
+    object.__setattr__(report, "errors", errors)
+    return report
+
+
+def simulate(
+    truth: Robot,
+    poses: Optional[np.ndarray] = None,
+    n: int = 100,
+    sampler: str = "sobol",
+    noise_mm: float = 0.0,
+    seed: int = 0,
+) -> Measurements:
+    """Measurements of ``truth`` at ``poses`` (n × joints, SI) or at ``n`` poses drawn by
+    ``sampler`` (sobol, halton, random, grid), with ``noise_mm`` of noise per axis, as
+    ``armcomp simulate`` makes them; the same seed gives the same values."""
+    return _native.simulate(truth, poses=poses, n=n, sampler=sampler, noise_mm=noise_mm, seed=seed)
+
+
+def diagnose(
+    robot: Robot,
+    data: Measurements,
+    seed: int = 0,
+    folds: int = 3,
+    max_steps: int = 5,
+    min_reduction_percent: float = 5.0,
+    noise_mm: float = 0.1,
+    identify: Union[None, str, Sequence[str]] = None,
+    predictor: Optional[str] = "gp",
+) -> Tuple[Robot, DiagnosisReport]:
+    """Finds the effects ``robot`` misses, one by one, scored on held-out poses, as
+    ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
+    are the accepted effects. ``predictor`` (gp, ridge or None) scores what remains
+    learnable."""
+    model, text = _native.diagnose(
+        robot,
+        data,
+        seed=seed,
+        folds=folds,
+        max_steps=max_steps,
+        min_reduction_percent=min_reduction_percent,
+        noise_mm=noise_mm,
+        identify=_names(identify),
+        predictor=predictor,
+    )
+    return model, from_json(DiagnosisReport, text)
+
+
+def learn(model: Robot, data: Measurements) -> Tuple[Robot, LearnReport]:
+    """Fits the residual predictor ``model``'s ``[predictor]`` table describes on ``data``,
+    as ``armcomp learn`` does; returns the model with it and the training errors."""
+    fitted, text = _native.learn(model, data)
+    return fitted, from_json(LearnReport, text)
+
+
+def compensate(
+    model: Robot,
+    targets: np.ndarray,
+    mode: str = "exact",
+    frame: str = "measurement",
+) -> Compensation:
+    """Joint commands that put ``model``'s tool on ``targets`` (n × 3 positions in m, or
+    n × 7 with a tool orientation ``qw, qx, qy, qz`` to keep), in one call, as
+    ``armcomp compensate`` computes them. ``mode``: ``exact`` (the model with its predicted
+    residual) or ``paper`` (the two-step of the deflection paper); ``frame``: ``measurement``
+    or ``base``."""
+    q, corrected, std, unconverged = _native.compensate(
+        model, np.atleast_2d(np.asarray(targets, dtype=float)), mode=mode, frame=frame
+    )
+    return Compensation(q=q, corrected=corrected, std=std, unconverged=list(unconverged))
+
+
+def plan(
+    robot: Robot,
+    n: int = 100,
+    method: str = "sobol",
+    space: str = "joint",
+    pool: Optional[int] = None,
+    pool_sampler: str = "sobol",
+    identify: Union[None, str, Sequence[str]] = None,
+    trajectory: Optional[np.ndarray] = None,
+    trajectory_points: int = 50,
+    per_point: int = 10,
+    seed: int = 0,
+) -> Plan:
+    """Measurement poses for ``robot``, never in collision, as ``armcomp plan`` plans them:
+    ``method`` sobol, halton, random or grid (even sets in ``space`` joint or cartesian),
+    d-optimal (the best subset of a pool for identifying ``identify``) or trajectory (pool
+    poses nearest to a task ``trajectory``, n × joints)."""
+    poses, note = _native.plan(
+        robot,
+        n=n,
+        method=method,
+        space=space,
+        pool=pool,
+        pool_sampler=pool_sampler,
+        identify=_names(identify),
+        trajectory=trajectory,
+        trajectory_points=trajectory_points,
+        per_point=per_point,
+        seed=seed,
+    )
+    return Plan(poses=poses, note=note)

@@ -1,0 +1,240 @@
+"""What the operations return: reports as dataclasses (lengths in mm where the name says so,
+SI otherwise), each with ``to_dict()`` giving the command line's ``--json`` output."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Tuple
+
+import numpy as np
+
+from ._convert import Report
+
+
+@dataclass(frozen=True)
+class AxisErrors:
+    """Mean absolute error per axis of the measurement frame (mm)."""
+
+    x: float
+    y: float
+    z: float
+
+
+@dataclass(frozen=True)
+class ErrorStats(Report):
+    """Statistics of 3-D position errors (mm)."""
+
+    n: int
+    mean_mm: float
+    std_mm: float
+    rms_mm: float
+    max_mm: float
+    mean_abs_mm: AxisErrors
+    _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One calibrated parameter before and after, in its SI ``unit``."""
+
+    name: str
+    unit: str
+    initial: float
+    value: float
+    std: float
+    fixed: bool
+    at_bound: bool
+
+
+@dataclass(frozen=True)
+class Deficiency:
+    """A combination of parameters the data cannot determine, and what was done about it."""
+
+    combination: List[Tuple[str, float]]
+    action: str
+    fixed: Optional[str] = None
+
+
+@dataclass(frozen=True)
+class Identifiability:
+    """How well the selected parameters are determined by the data."""
+
+    n_equations: int
+    n_params: int
+    rank: int
+    condition_number: Optional[float]
+    condition_number_free: Optional[float]
+    deficiencies: List[Deficiency]
+    held_by_priors: List[str]
+    message: str
+
+
+@dataclass(frozen=True)
+class PriorScaleScore:
+    """A prior scale tried by cross-validation (None: no priors) and its held-out RMS (mm)."""
+
+    scale: Optional[float]
+    held_out_rms_mm: float
+
+
+@dataclass(frozen=True)
+class PriorChoice:
+    """The prior scale cross-validation chose (``prior="auto"``)."""
+
+    scale: Optional[float]
+    folds: int
+    seed: int
+    scores: List[PriorScaleScore]
+
+
+@dataclass(frozen=True)
+class CalibrationReport(Report):
+    """What calibration did and how well it fits (``armcomp calibrate --json``)."""
+
+    n_samples: int
+    measured_chain: List[str]
+    registered: bool
+    prior_scale: Optional[float]
+    identifiability: Identifiability
+    params: List[Parameter]
+    iterations: int
+    converged: bool
+    stop_reason: str
+    before: ErrorStats
+    after: ErrorStats
+    rms_over_noise: Optional[float]
+    warnings: List[str]
+    prior_choice: Optional[PriorChoice] = None
+    far_above_noise: bool = False
+    _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def parameters(self) -> Dict[str, Parameter]:
+        """The parameters by name."""
+        return {p.name: p for p in self.params}
+
+
+@dataclass(frozen=True)
+class EvaluationReport(Report):
+    """Errors of a model on measurements (``armcomp evaluate --json``), and per sample the
+    measured minus modelled position (``errors``, n × 3, m, measurement frame)."""
+
+    n: int
+    mean_mm: float
+    std_mm: float
+    rms_mm: float
+    max_mm: float
+    mean_abs_mm: AxisErrors
+    per_point: Dict[str, ErrorStats] = field(default_factory=dict)
+    errors: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
+    _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class RankedCandidate:
+    """One candidate effect as scored in a round of the diagnosis."""
+
+    effect: str
+    location: str
+    label: str
+    n_params: int
+    identified_params: int
+    heldout: Optional[ErrorStats]
+    heldout_bic: Optional[float]
+    share_removed: Optional[float]
+    at_neutral: bool
+    earns_parameters: bool
+    indistinguishable_from_best: bool
+    error: Optional[str] = None
+
+
+@dataclass(frozen=True)
+class IdentifiedValue:
+    """A value an accepted effect was identified with, in its SI ``unit``."""
+
+    value: float
+    unit: str
+
+
+@dataclass(frozen=True)
+class DiagnosisStep:
+    """One effect the diagnosis accepted."""
+
+    effect: str
+    location: str
+    label: str
+    summary: str
+    params: Dict[str, IdentifiedValue]
+    heldout_before: ErrorStats
+    heldout_after: ErrorStats
+    share_removed: float
+    equivalent: List[str]
+    ranking: List[RankedCandidate]
+
+
+@dataclass(frozen=True)
+class FinalModel:
+    """The model at the end of the diagnosis: its effects, held-out errors and residuals."""
+
+    effects: List[str]
+    heldout: ErrorStats
+    residuals: Dict[str, Any]
+    ranking: List[RankedCandidate]
+
+
+@dataclass(frozen=True)
+class LearnableResidual:
+    """How much of what remains a residual predictor learns on held-out poses."""
+
+    predictor: str
+    heldout_before: ErrorStats
+    heldout_after: ErrorStats
+    share_learnable: float
+
+
+@dataclass(frozen=True)
+class DiagnosisReport(Report):
+    """The diagnosis (``armcomp diagnose --json``): effects found step by step."""
+
+    n_samples: int
+    folds: int
+    initial: ErrorStats
+    initial_residuals: Dict[str, Any]
+    steps: List[DiagnosisStep]
+    final_: FinalModel
+    learnable_residual: Optional[LearnableResidual] = None
+    _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class LearnReport(Report):
+    """A fitted residual predictor: fitting time (s) and training errors without and with it."""
+
+    seconds: float
+    before: ErrorStats
+    after: ErrorStats
+    _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """Joint commands for a batch of targets.
+
+    ``q``: n × joints (SI); ``corrected``: n × 3 (m), where the model without its predictor
+    puts the tool, in the targets' frame; ``std``: n × 3 (m, measurement frame), the
+    predictor's standard deviation, or None; ``unconverged``: ``(row, miss in m)`` for the
+    targets exact mode could not meet (their commands are the closest found).
+    """
+
+    q: np.ndarray
+    corrected: np.ndarray
+    std: Optional[np.ndarray]
+    unconverged: List[Tuple[int, float]]
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Planned measurement poses (n × joints, SI) and how they were found."""
+
+    poses: np.ndarray
+    note: str

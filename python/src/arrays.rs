@@ -1,0 +1,44 @@
+//! numpy arrays in and out: SI values, one row per configuration, sample or target.
+
+use numpy::ndarray::Array2;
+use numpy::{AllowTypeChange, IntoPyArray, PyArray2, PyArrayLike1, PyArrayLike2};
+use pyo3::prelude::*;
+
+use crate::errors::input_error;
+
+/// A 1-D array (or sequence) of floats as a vector.
+pub fn vector(a: &PyArrayLike1<'_, f64, AllowTypeChange>) -> Vec<f64> {
+    a.as_array().iter().copied().collect()
+}
+
+/// A 2-D array (or nested sequence) as rows, checking the row width when `width` is given.
+pub fn rows(a: &PyArrayLike2<'_, f64, AllowTypeChange>, what: &str, width: Option<usize>) -> PyResult<Vec<Vec<f64>>> {
+    let view = a.as_array();
+    if let Some(w) = width
+        && view.ncols() != w
+    {
+        return Err(input_error(
+            &format!("{what}: expected {w} columns, got {}", view.ncols()),
+            None,
+            None,
+            Some(what),
+        ));
+    }
+    Ok(view.rows().into_iter().map(|r| r.to_vec()).collect())
+}
+
+/// Rows of equal width as an `n × width` array.
+pub fn matrix<'py>(py: Python<'py>, rows: &[Vec<f64>], width: usize) -> Bound<'py, PyArray2<f64>> {
+    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    Array2::from_shape_vec((rows.len(), width), flat)
+        .expect("every row has the width")
+        .into_pyarray(py)
+}
+
+/// 3-vectors as an `n × 3` array.
+pub fn points<'py>(py: Python<'py>, v: &[nalgebra::Vector3<f64>]) -> Bound<'py, PyArray2<f64>> {
+    let flat: Vec<f64> = v.iter().flat_map(|p| [p.x, p.y, p.z]).collect();
+    Array2::from_shape_vec((v.len(), 3), flat)
+        .expect("three values per point")
+        .into_pyarray(py)
+}

@@ -1,0 +1,53 @@
+//! `calibrate`: identification from measurements, as `armcomp calibrate` does it.
+
+use armcomp::ops::calibrate::Prior;
+use armcomp_core::calibrate::CalibrationParams;
+use pyo3::prelude::*;
+
+use crate::errors::{IntoPy, input_error};
+use crate::measurements::PyMeasurements;
+use crate::robot::PyRobot;
+
+/// `prior`: a positive factor, `"auto"` or `"none"`.
+fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
+    let text = match value.extract::<f64>() {
+        Ok(v) => v.to_string(),
+        Err(_) => value.extract::<String>()?,
+    };
+    text.parse()
+        .map_err(|m: String| input_error(&format!("prior: {m}"), None, None, Some("prior")))
+}
+
+/// Identifies a model of `robot` from `data`; returns the model, the report as JSON text (what
+/// `armcomp calibrate --json` prints) and whether the fit ended far above the declared noise.
+#[pyfunction]
+#[pyo3(signature = (robot, data, identify = None, noise_mm = 0.1, prior = None, max_iterations = 100))]
+pub fn calibrate(
+    py: Python<'_>,
+    robot: PyRef<'_, PyRobot>,
+    data: PyRef<'_, PyMeasurements>,
+    identify: Option<Vec<String>>,
+    noise_mm: f64,
+    prior: Option<&Bound<'_, PyAny>>,
+    max_iterations: usize,
+) -> PyResult<(PyRobot, String, bool)> {
+    let prior = match prior {
+        Some(p) => self::prior(p)?,
+        None => Prior::Scale(1.0),
+    };
+    let robot = robot.robot.clone();
+    let set = data.resolve(&robot)?;
+    let params = CalibrationParams {
+        identify: identify.unwrap_or_default(),
+        measurement_std: noise_mm * 1e-3,
+        max_iterations,
+        ..CalibrationParams::default()
+    };
+    let run = crate::interrupt::run(py, || {
+        armcomp::ops::calibrate::run(&robot, &set.samples, params, prior, &mut |_| {})
+    })?
+    .py()?;
+    let json = serde_json::to_string(&run.to_json()).expect("JSON values print");
+    let far = run.calibration.report.far_above_noise();
+    Ok((PyRobot::wrap(run.calibration.robot), json, far))
+}

@@ -1,0 +1,61 @@
+//! `diagnose`: finds the effects a model misses, as `armcomp diagnose` does.
+
+use armcomp::ops::diagnose::LearnableBy;
+use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::diagnose::DiagnoseParams;
+use pyo3::prelude::*;
+
+use crate::errors::{IntoPy, input_error};
+use crate::measurements::PyMeasurements;
+use crate::robot::PyRobot;
+
+/// Diagnoses `robot` on `data`; returns the improved model (found effects added, calibrated
+/// on all the data) and the report as JSON text (what `armcomp diagnose --json` prints).
+#[pyfunction]
+#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp"))]
+#[allow(clippy::too_many_arguments)]
+pub fn diagnose(
+    py: Python<'_>,
+    robot: PyRef<'_, PyRobot>,
+    data: PyRef<'_, PyMeasurements>,
+    seed: u64,
+    folds: usize,
+    max_steps: usize,
+    min_reduction_percent: f64,
+    noise_mm: f64,
+    identify: Option<Vec<String>>,
+    predictor: Option<&str>,
+) -> PyResult<(PyRobot, String)> {
+    let learnable_by = match predictor {
+        Some("gp") => LearnableBy::Gp,
+        Some("ridge") => LearnableBy::Ridge,
+        None | Some("none") => LearnableBy::None,
+        Some(other) => {
+            return Err(input_error(
+                &format!("unknown predictor `{other}`; expected gp, ridge or None"),
+                None,
+                None,
+                Some("predictor"),
+            ));
+        }
+    };
+    let robot = robot.robot.clone();
+    let set = data.resolve(&robot)?;
+    let params = DiagnoseParams {
+        folds,
+        seed,
+        calibration: CalibrationParams {
+            identify: identify.unwrap_or_default(),
+            measurement_std: noise_mm * 1e-3,
+            ..CalibrationParams::default()
+        },
+        min_rms_reduction: min_reduction_percent / 100.0,
+        max_steps,
+    };
+    let diagnosis = crate::interrupt::run(py, || {
+        armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by)
+    })?
+    .py()?;
+    let json = serde_json::to_string(&diagnosis.report).expect("the report serialises");
+    Ok((PyRobot::wrap(diagnosis.robot), json))
+}

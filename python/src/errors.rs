@@ -1,0 +1,100 @@
+//! Rust errors as the package's Python exceptions (defined in `armcomp/_errors.py`): bad input
+//! is `armcomp.InputError` with `file`, `line` and `field` when known, an interruption is
+//! `KeyboardInterrupt`, an unreadable file `OSError`.
+
+use std::path::Path;
+
+use armcomp_core::Error;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// An `armcomp.InputError` with its message and location.
+pub fn input_error(message: &str, file: Option<&Path>, line: Option<usize>, field: Option<&str>) -> PyErr {
+    Python::attach(|py| {
+        let build = || -> PyResult<PyErr> {
+            let class = py.import("armcomp._errors")?.getattr("InputError")?;
+            let kwargs = PyDict::new(py);
+            kwargs.set_item("file", file.map(|f| f.display().to_string()))?;
+            kwargs.set_item("line", line)?;
+            kwargs.set_item("field", field)?;
+            Ok(PyErr::from_value(class.call((message,), Some(&kwargs))?))
+        };
+        build().unwrap_or_else(|e| e)
+    })
+}
+
+/// `file:line: ` at the start of a message, as the CSV and URDF readers write them.
+fn file_and_line(message: &str) -> (Option<&Path>, Option<usize>) {
+    let Some((head, _)) = message.split_once(": ") else {
+        return (None, None);
+    };
+    match head.rsplit_once(':') {
+        Some((file, line)) if line.bytes().all(|b| b.is_ascii_digit()) && !line.is_empty() => {
+            (Some(Path::new(file)), line.parse().ok())
+        }
+        _ => (None, None),
+    }
+}
+
+/// The column a reader's message names (`column \`x[mm]\``), as the field.
+fn column(message: &str) -> Option<&str> {
+    let rest = &message[message.find("column `")? + "column `".len()..];
+    Some(&rest[..rest.find('`')?])
+}
+
+/// The Python exception for a core error; `context` (e.g. an anyhow chain) replaces the message.
+pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
+    let message = context.map_or_else(|| e.to_string(), str::to_string);
+    match e {
+        Error::Interrupted => PyKeyboardInterrupt::new_err(message),
+        Error::Io { path, .. } => Python::attach(|py| {
+            let err = PyOSError::new_err(message.clone());
+            // `filename` as Python's own file errors carry it.
+            let _ = err.value(py).setattr("filename", path.display().to_string());
+            err
+        }),
+        Error::InvalidFile { file, issues } => {
+            let first = issues.first();
+            let field = first.map(|i| i.path.as_str()).filter(|p| !p.is_empty());
+            input_error(&message, Some(file), first.and_then(|i| i.line), field)
+        }
+        Error::InvalidModel(issues) => {
+            let field = issues.first().map(|i| i.path.as_str()).filter(|p| !p.is_empty());
+            input_error(&message, None, None, field)
+        }
+        Error::Dimension { what, .. } => input_error(&message, None, None, Some(what)),
+        Error::Input(m) => {
+            let (file, line) = file_and_line(m);
+            input_error(&message, file, line, column(m))
+        }
+    }
+}
+
+/// The Python exception for an error of the command-line operations (an anyhow chain): its
+/// core error, if any, with the whole chain as the message.
+pub fn any_error(e: &anyhow::Error) -> PyErr {
+    let message = format!("{e:#}");
+    match e.chain().find_map(|c| c.downcast_ref::<Error>()) {
+        Some(core) => core_error(core, Some(&message)),
+        None => PyRuntimeError::new_err(message),
+    }
+}
+
+/// `Result` of the core as a Python result.
+pub trait IntoPy<T> {
+    /// Maps the error to its Python exception.
+    fn py(self) -> PyResult<T>;
+}
+
+impl<T> IntoPy<T> for armcomp_core::Result<T> {
+    fn py(self) -> PyResult<T> {
+        self.map_err(|e| core_error(&e, None))
+    }
+}
+
+impl<T> IntoPy<T> for anyhow::Result<T> {
+    fn py(self) -> PyResult<T> {
+        self.map_err(|e| any_error(&e))
+    }
+}

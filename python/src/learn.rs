@@ -1,0 +1,29 @@
+//! `learn`: fits a model's residual predictor, as `armcomp learn` does.
+
+use armcomp_core::RobotFile;
+use pyo3::prelude::*;
+
+use crate::errors::IntoPy;
+use crate::measurements::PyMeasurements;
+use crate::robot::PyRobot;
+
+/// Fits the predictor `model`'s `[predictor]` table describes on `data`; returns the model
+/// with the fitted predictor and `(seconds, before, after)` with the training errors of the
+/// model alone and with the predictor as JSON text.
+#[pyfunction]
+pub fn learn(
+    py: Python<'_>,
+    model: PyRef<'_, PyRobot>,
+    data: PyRef<'_, PyMeasurements>,
+) -> PyResult<(PyRobot, String)> {
+    let robot = model.robot.clone();
+    let set = data.resolve(&robot)?;
+    // The model's own description, every field kept (the command line re-reads its file).
+    let value = serde_json::to_value(&robot.file).expect("a robot file serialises");
+    let file: RobotFile = serde_json::from_value(value)
+        .map_err(|e| armcomp_core::Error::Input(format!("the model description does not read back: {e}")))
+        .py()?;
+    let run = crate::interrupt::run(py, || armcomp::ops::learn::run(&robot, file, &set.samples))?.py()?;
+    let json = serde_json::json!({"seconds": run.seconds, "before": run.before, "after": run.after});
+    Ok((PyRobot::wrap(run.robot), json.to_string()))
+}

@@ -1,0 +1,35 @@
+//! The native part of the `armcomp` Python package (`armcomp._armcomp`): robots, measurements
+//! and the operations of the command line, with numpy arrays in and out. The Python layer
+//! (`pysrc/armcomp`) turns the JSON reports into dataclasses and raises `NotConverged`.
+
+mod arrays;
+mod calibrate;
+mod compensate;
+mod diagnose;
+mod errors;
+mod evaluate;
+mod interrupt;
+mod learn;
+mod measurements;
+mod plan;
+mod robot;
+mod simulate;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The user config applies as for the command line; run-time plugin libraries load only
+    // from the folders it trusts.
+    armcomp::config::apply(false).map_err(|e| errors::core_error(&e, None))?;
+    m.add_class::<robot::PyRobot>()?;
+    m.add_class::<measurements::PyMeasurements>()?;
+    m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(learn::learn, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate::compensate, m)?)?;
+    m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
+    Ok(())
+}

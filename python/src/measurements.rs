@@ -1,0 +1,366 @@
+//! `armcomp.Measurements`: measured positions with their joint values, from a CSV or arrays.
+//!
+//! A CSV names joints and points, so it is read against a robot: at once when one is given,
+//! else when the data are first used with one (calibration, evaluation). Arrays and the
+//! results of `simulate` carry joint and point names and are matched to each robot by name.
+
+use std::ffi::CString;
+use std::path::PathBuf;
+
+use armcomp_core::Robot;
+use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
+use nalgebra::Vector3;
+use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
+use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyType;
+
+use crate::errors::{IntoPy, input_error};
+use crate::robot::{PyRobot, write_output};
+
+/// Where the data come from.
+#[derive(Debug, Clone)]
+enum Source {
+    /// A CSV's text, read against a robot when used.
+    Csv {
+        path: PathBuf,
+        text: String,
+        rows: Option<RowSelection>,
+    },
+    /// Samples whose joint values follow `joint_names` (`None`: the robot's own order) and
+    /// whose point indices refer to `point_names` (`None`: each sample measures the robot's
+    /// first marker).
+    Samples {
+        set: MeasurementSet,
+        joint_names: Option<Vec<String>>,
+        point_names: Option<Vec<String>>,
+    },
+}
+
+/// Measured positions (m, measurement frame) with the joint values (SI) they were measured at.
+#[pyclass(name = "Measurements", module = "armcomp", frozen)]
+pub struct PyMeasurements {
+    source: Source,
+}
+
+impl PyMeasurements {
+    /// Samples resolved against `robot`: their own, read with it.
+    pub fn from_set(robot: &Robot, set: MeasurementSet) -> Self {
+        let tree = robot.tree();
+        PyMeasurements {
+            source: Source::Samples {
+                set,
+                joint_names: Some(tree.coordinate_names().to_vec()),
+                point_names: Some(tree.points().iter().map(|p| p.name.clone()).collect()),
+            },
+        }
+    }
+
+    /// The samples for `robot`: the CSV read against it, or joint values and points matched
+    /// by name (joints the data lack hold the robot file's `hold` values).
+    pub fn resolve(&self, robot: &Robot) -> PyResult<MeasurementSet> {
+        let set = match &self.source {
+            Source::Csv { path, text, rows } => {
+                let mut set = parse_csv(text, path, &robot.csv_layout()).py()?;
+                if let Some(rows) = rows {
+                    set = set.select_rows(rows);
+                }
+                Python::attach(|py| -> PyResult<()> {
+                    for w in &set.warnings {
+                        let message = CString::new(w.replace('\0', " ")).expect("no NUL left");
+                        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+                    }
+                    Ok(())
+                })?;
+                set
+            }
+            Source::Samples {
+                set,
+                joint_names,
+                point_names,
+            } => map_by_name(robot, set, joint_names.as_deref(), point_names.as_deref())?,
+        };
+        if set.samples.is_empty() {
+            return Err(input_error("no measurements", None, None, None));
+        }
+        Ok(set)
+    }
+
+    /// The samples when they do not need a robot to be read.
+    fn samples(&self) -> PyResult<(&MeasurementSet, Option<&[String]>, Option<&[String]>)> {
+        match &self.source {
+            Source::Samples {
+                set,
+                joint_names,
+                point_names,
+            } => Ok((set, joint_names.as_deref(), point_names.as_deref())),
+            Source::Csv { path, .. } => Err(PyValueError::new_err(format!(
+                "{}: a CSV is read against a robot; use Measurements.read(path, robot) to see its values",
+                path.display()
+            ))),
+        }
+    }
+}
+
+/// `set` with joint values in `robot`'s order and point indices of `robot`.
+fn map_by_name(
+    robot: &Robot,
+    set: &MeasurementSet,
+    joint_names: Option<&[String]>,
+    point_names: Option<&[String]>,
+) -> PyResult<MeasurementSet> {
+    let tree = robot.tree();
+    let layout = robot.csv_layout();
+    let names = tree.coordinate_names();
+    // For each of the robot's coordinates, the data's column or the value it holds.
+    let columns: Vec<Result<usize, f64>> = match joint_names {
+        None => (0..tree.nq()).map(Ok).collect(),
+        Some(given) => {
+            if let Some(unknown) = given.iter().find(|g| !names.contains(g)) {
+                return Err(input_error(
+                    &format!(
+                        "the robot has no joint `{unknown}`; its joints are: {}",
+                        names.join(", ")
+                    ),
+                    None,
+                    None,
+                    Some("joint_names"),
+                ));
+            }
+            let mut missing = Vec::new();
+            let columns = names
+                .iter()
+                .zip(&layout.hold)
+                .map(|(n, hold)| match (given.iter().position(|g| g == n), hold) {
+                    (Some(c), _) => Ok(c),
+                    (None, Some(v)) => Err(*v),
+                    (None, None) => {
+                        missing.push(n.as_str());
+                        Err(f64::NAN)
+                    }
+                })
+                .collect();
+            if !missing.is_empty() {
+                return Err(input_error(
+                    &format!(
+                        "joint values missing for joint(s) that move the measured points: {}",
+                        missing.join(", ")
+                    ),
+                    None,
+                    None,
+                    Some("joint_names"),
+                ));
+            }
+            columns
+        }
+    };
+    let width = joint_names.map_or(tree.nq(), <[String]>::len);
+    // Torques are per coordinate: kept only when the data's joints are the robot's, in order.
+    let same_joints = width == tree.nq() && columns.iter().enumerate().all(|(i, c)| *c == Ok(i));
+    let mut samples = Vec::with_capacity(set.samples.len());
+    for (i, s) in set.samples.iter().enumerate() {
+        if s.q.len() != width {
+            return Err(input_error(
+                &format!("sample {}: {} joint values, expected {width}", i + 1, s.q.len()),
+                None,
+                None,
+                Some("joints"),
+            ));
+        }
+        let point = match point_names {
+            None => layout.points[0],
+            Some(p) => {
+                let name = &p[s.point];
+                tree.point_index(name).ok_or_else(|| {
+                    input_error(
+                        &format!("sample {}: the robot has no point `{name}`", i + 1),
+                        None,
+                        None,
+                        Some("points"),
+                    )
+                })?
+            }
+        };
+        let q: Vec<f64> = columns.iter().map(|c| c.map_or_else(|v| v, |c| s.q[c])).collect();
+        tree.check_q(&q)
+            .map_err(|e| armcomp_core::Error::Input(format!("sample {}: {e}", i + 1)))
+            .py()?;
+        samples.push(Sample {
+            q,
+            point,
+            torque: if same_joints { s.torque.clone() } else { None },
+            ..s.clone()
+        });
+    }
+    Ok(MeasurementSet {
+        samples,
+        rows: set.rows.clone(),
+        warnings: Vec::new(),
+    })
+}
+
+#[pymethods]
+impl PyMeasurements {
+    /// Measurements from arrays: `joints` (n × joints, SI: rad, m), `positions` (n × 3, m,
+    /// measurement frame), `points` (the measured point of each row by name, or one name for
+    /// all; default: the robot's first marker) and `joint_names` (the columns of `joints`;
+    /// default: every joint of the robot in its order; joints left out hold the robot file's
+    /// `hold` values).
+    #[new]
+    #[pyo3(signature = (joints, positions, points = None, joint_names = None))]
+    fn new(
+        joints: PyArrayLike2<'_, f64, AllowTypeChange>,
+        positions: PyArrayLike2<'_, f64, AllowTypeChange>,
+        points: Option<&Bound<'_, PyAny>>,
+        joint_names: Option<Vec<String>>,
+    ) -> PyResult<Self> {
+        let q = crate::arrays::rows(&joints, "joints", joint_names.as_ref().map(Vec::len))?;
+        let p = crate::arrays::rows(&positions, "positions", Some(3))?;
+        if q.len() != p.len() {
+            return Err(input_error(
+                &format!("joints has {} rows, positions {}", q.len(), p.len()),
+                None,
+                None,
+                Some("positions"),
+            ));
+        }
+        // Point names: one per row, or one for all; indices into the list of distinct names.
+        let (point_names, index): (Option<Vec<String>>, Vec<usize>) = match points {
+            None => (None, vec![0; q.len()]),
+            Some(obj) => {
+                let per_row: Vec<String> = match obj.extract::<String>() {
+                    Ok(one) => vec![one; q.len()],
+                    Err(_) => obj.extract()?,
+                };
+                if per_row.len() != q.len() {
+                    return Err(input_error(
+                        &format!("points has {} names for {} rows", per_row.len(), q.len()),
+                        None,
+                        None,
+                        Some("points"),
+                    ));
+                }
+                let mut names: Vec<String> = Vec::new();
+                let index = per_row
+                    .iter()
+                    .map(|n| match names.iter().position(|m| m == n) {
+                        Some(i) => i,
+                        None => {
+                            names.push(n.clone());
+                            names.len() - 1
+                        }
+                    })
+                    .collect();
+                (Some(names), index)
+            }
+        };
+        if let Some(bad) = p.iter().flatten().chain(q.iter().flatten()).find(|v| !v.is_finite()) {
+            return Err(input_error(&format!("a value is not finite: {bad}"), None, None, None));
+        }
+        let samples = q
+            .into_iter()
+            .zip(p)
+            .zip(index)
+            .map(|((q, p), point)| Sample {
+                q,
+                point,
+                position: Vector3::new(p[0], p[1], p[2]),
+                orientation: None,
+                payload: None,
+                temperature: None,
+                torque: None,
+            })
+            .collect::<Vec<_>>();
+        let rows = (0..samples.len()).collect();
+        Ok(PyMeasurements {
+            source: Source::Samples {
+                set: MeasurementSet {
+                    samples,
+                    rows,
+                    warnings: Vec::new(),
+                },
+                joint_names,
+                point_names,
+            },
+        })
+    }
+
+    /// Reads a measurement CSV (units in the headers, see the project's file formats); with
+    /// `robot` it is read against it now, else when first used. `rows` keeps some data rows
+    /// (0-based, header excluded): `"even"`, `"odd"`, `"N"`, `"A..B"`, comma-separated.
+    #[classmethod]
+    #[pyo3(signature = (path, robot = None, rows = None))]
+    fn read(
+        _cls: &Bound<'_, PyType>,
+        path: PathBuf,
+        robot: Option<PyRef<'_, PyRobot>>,
+        rows: Option<&str>,
+    ) -> PyResult<Self> {
+        let text = armcomp_core::io::read_text(&path).py()?;
+        let rows = rows
+            .map(|r| r.parse::<RowSelection>())
+            .transpose()
+            .map_err(|m| input_error(&format!("rows: {m}"), None, None, Some("rows")))?;
+        let data = PyMeasurements {
+            source: Source::Csv { path, text, rows },
+        };
+        match robot {
+            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?)),
+            None => Ok(data),
+        }
+    }
+
+    /// These measurements read against `robot` (joint values in its order, its points).
+    fn for_robot(&self, robot: PyRef<'_, PyRobot>) -> PyResult<Self> {
+        Ok(PyMeasurements::from_set(&robot.robot, self.resolve(&robot.robot)?))
+    }
+
+    /// Joint values, one row per sample (SI), in the order of `joint_names`.
+    #[getter]
+    fn joints<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (set, names, _) = self.samples()?;
+        let q: Vec<Vec<f64>> = set.samples.iter().map(|s| s.q.clone()).collect();
+        let width = names.map_or_else(|| q.first().map_or(0, Vec::len), <[String]>::len);
+        Ok(crate::arrays::matrix(py, &q, width))
+    }
+
+    /// Measured positions (m, measurement frame), one row per sample.
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (set, _, _) = self.samples()?;
+        let p: Vec<_> = set.samples.iter().map(|s| s.position).collect();
+        Ok(crate::arrays::points(py, &p))
+    }
+
+    /// The measured point of each sample, by name (None: the robot's first marker).
+    #[getter]
+    fn points(&self) -> PyResult<Option<Vec<String>>> {
+        let (set, _, names) = self.samples()?;
+        Ok(names.map(|n| set.samples.iter().map(|s| n[s.point].clone()).collect()))
+    }
+
+    /// The columns of `joints` (None: the robot's joints in order).
+    #[getter]
+    fn joint_names(&self) -> PyResult<Option<Vec<String>>> {
+        Ok(self.samples()?.1.map(<[String]>::to_vec))
+    }
+
+    /// Writes the measurements as a measurement CSV for `robot` (its joints and units),
+    /// atomically, never over a file the robot was read from.
+    fn save(&self, path: PathBuf, robot: PyRef<'_, PyRobot>) -> PyResult<()> {
+        let set = self.resolve(&robot.robot)?;
+        let text = write_csv(&set, robot.robot.tree(), robot.robot.file.units);
+        write_output(&robot.robot, &path, &text)
+    }
+
+    fn __len__(&self) -> PyResult<usize> {
+        Ok(self.samples()?.0.samples.len())
+    }
+
+    fn __repr__(&self) -> String {
+        match &self.source {
+            Source::Csv { path, .. } => format!("Measurements.read({:?})", path.display().to_string()),
+            Source::Samples { set, .. } => format!("Measurements({} samples)", set.samples.len()),
+        }
+    }
+}

@@ -1,0 +1,306 @@
+//! `armcomp.Robot`: a robot or model file (or a bare URDF) ready to evaluate.
+
+use std::ffi::CString;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use armcomp_core::calibrate::ParameterSpace;
+use armcomp_core::io::{check_output, write_atomic};
+use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::{Robot, RobotFile};
+use nalgebra::Matrix6xX;
+use numpy::ndarray::Array2;
+use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayLike2, PyArrayMethods};
+use pyo3::exceptions::PyUserWarning;
+use pyo3::prelude::*;
+
+use crate::arrays::vector;
+use crate::errors::{IntoPy, input_error};
+use crate::measurements::PyMeasurements;
+
+/// A robot: kinematics, points, error models and (for a model) identified values and a
+/// fitted predictor. Values are SI (m, rad) in and out, whatever units the file uses.
+#[pyclass(name = "Robot", module = "armcomp", frozen)]
+pub struct PyRobot {
+    pub robot: Arc<Robot>,
+}
+
+impl PyRobot {
+    /// Wraps a robot an operation built (its reading warnings were issued when it was loaded).
+    pub fn wrap(robot: Robot) -> Self {
+        PyRobot { robot: Arc::new(robot) }
+    }
+
+    /// Wraps a robot just read, handing its reading warnings to Python's `warnings`.
+    pub fn new(py: Python<'_>, robot: Robot) -> PyResult<Self> {
+        for w in robot.warnings() {
+            let message = CString::new(w.replace('\0', " ")).expect("no NUL left");
+            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+        }
+        Ok(PyRobot { robot: Arc::new(robot) })
+    }
+
+    /// Index of the point named `name`, or the tool.
+    fn point_index(&self, name: Option<&str>) -> PyResult<usize> {
+        let tree = self.robot.tree();
+        match name {
+            None => Ok(self.robot.tool()),
+            Some(n) => tree.point_index(n).ok_or_else(|| {
+                let names: Vec<&str> = tree.points().iter().map(|p| p.name.as_str()).collect();
+                input_error(
+                    &format!("the robot has no point `{n}`; its points are: {}", names.join(", ")),
+                    None,
+                    None,
+                    Some("point"),
+                )
+            }),
+        }
+    }
+
+    /// `q` checked against the robot's joints.
+    fn configuration(&self, q: &PyArrayLike1<'_, f64, AllowTypeChange>) -> PyResult<Vec<f64>> {
+        let q = vector(q);
+        self.robot.tree().check_q(&q).py()?;
+        Ok(q)
+    }
+}
+
+/// Writes `text` to `path` atomically, never over a file `robot` was read from.
+pub fn write_output(robot: &Robot, path: &Path, text: &str) -> PyResult<()> {
+    check_output(path, &robot.inputs()).py()?;
+    write_atomic(path, text.as_bytes()).py()
+}
+
+#[pymethods]
+impl PyRobot {
+    /// Reads a robot or model file (TOML, or JSON by extension) or a bare URDF (SI units, a
+    /// point at every link). What was skipped while reading is issued as warnings.
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let robot = py.detach(|| armcomp::read_robot(&path)).py()?;
+        PyRobot::new(py, robot)
+    }
+
+    /// Builds a robot from robot-file TOML text; relative paths in it (a URDF, meshes) are
+    /// resolved against `base_dir` (default: the working folder).
+    #[staticmethod]
+    #[pyo3(signature = (text, base_dir = None))]
+    fn from_toml(py: Python<'_>, text: String, base_dir: Option<PathBuf>) -> PyResult<Self> {
+        let src = SourceFile {
+            path: base_dir.unwrap_or_default().join("<from_toml>"),
+            text,
+            format: Format::Toml,
+        };
+        let robot = py
+            .detach(|| {
+                let file: RobotFile = src.parse()?;
+                Robot::from_source(file, &src)
+            })
+            .py()?;
+        PyRobot::new(py, robot)
+    }
+
+    /// The robot's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.robot.file.name.clone()
+    }
+
+    /// Names of the independent joints: the columns of `q`, in order.
+    #[getter]
+    fn joint_names(&self) -> Vec<String> {
+        self.robot.tree().coordinate_names().to_vec()
+    }
+
+    /// Number of independent joints.
+    #[getter]
+    fn nq(&self) -> usize {
+        self.robot.tree().nq()
+    }
+
+    /// Names of the points, in the order `fk` returns them.
+    #[getter]
+    fn points(&self) -> Vec<String> {
+        self.robot.tree().points().iter().map(|p| p.name.clone()).collect()
+    }
+
+    /// Name of the tool point.
+    #[getter]
+    fn tool(&self) -> String {
+        self.robot.tree().points()[self.robot.tool()].name.clone()
+    }
+
+    /// Names of the measured points (the measurement CSV's `x1, y1, z1`, `x2`, ...).
+    #[getter]
+    fn markers(&self) -> Vec<String> {
+        let points = self.robot.tree().points();
+        self.robot.markers().iter().map(|&m| points[m].name.clone()).collect()
+    }
+
+    /// What was skipped while reading the description.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.robot.warnings().to_vec()
+    }
+
+    /// The identifiable parameters: `(names, values, units)` with values in SI units (chain
+    /// geometry, error models, measurement frame `base.*` and marker offsets `marker.*`).
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> (Vec<String>, Bound<'py, PyArray1<f64>>, Vec<&'static str>) {
+        let space = ParameterSpace::new(&self.robot);
+        let names = space.params.iter().map(|p| p.info.name.clone()).collect();
+        let values = space.initial().into_pyarray(py);
+        let units = space.params.iter().map(|p| p.info.quantity.si_unit()).collect();
+        (names, values, units)
+    }
+
+    /// Forward kinematics of the full model at `q` (SI): the positions of every point (a
+    /// `points × 3` array, m, base frame) and the tool pose (a 4 × 4 homogeneous matrix).
+    fn fk<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyArrayLike1<'py, f64, AllowTypeChange>,
+    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+        let q = self.configuration(&q)?;
+        let frames = self.robot.forward(&q).py()?;
+        let positions: Vec<_> = frames.point.iter().map(|p| p.translation.vector).collect();
+        let tool = frames.point[self.robot.tool()].to_homogeneous();
+        let pose = Array2::from_shape_fn((4, 4), |(r, c)| tool[(r, c)]).into_pyarray(py);
+        Ok((crate::arrays::points(py, &positions), pose))
+    }
+
+    /// Forward kinematics of many configurations in one call: `Q` is `n × nq` (SI), the result
+    /// `n × points × 3` (m, base frame), computed without the GIL straight into the array.
+    fn fk_many<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyArrayLike2<'py, f64, AllowTypeChange>,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        let (n, nq) = q.as_array().dim();
+        let tree = self.robot.tree();
+        if nq != tree.nq() {
+            return Err(input_error(
+                &format!(
+                    "Q has {nq} columns but the robot has {} joints: {}",
+                    tree.nq(),
+                    tree.coordinate_names().join(", ")
+                ),
+                None,
+                None,
+                Some("Q"),
+            ));
+        }
+        // A C-ordered float64 array is read in place; anything else is copied once.
+        let copy;
+        let qs = match q.as_slice() {
+            Ok(s) => s,
+            Err(_) => {
+                copy = q.as_array().iter().copied().collect::<Vec<f64>>();
+                &copy
+            }
+        };
+        let out = PyArray3::<f64>::zeros(py, [n, tree.points().len(), 3], false);
+        {
+            let mut write = out.readwrite();
+            let slice = write.as_slice_mut().expect("a new array is contiguous");
+            let robot = &self.robot;
+            py.detach(|| robot.point_positions_many_into(n, qs, slice, &mut robot.workspace()))
+                .py()?;
+        }
+        Ok(out)
+    }
+
+    /// The 6 × nq Jacobian of the tool (or the named point) at `q`: rows 0–2 its linear
+    /// velocity, rows 3–5 the angular velocity, base frame, of the chain at this robot's
+    /// geometry (the error models' deformation is not differentiated).
+    #[pyo3(signature = (q, point = None))]
+    fn jacobian<'py>(
+        &self,
+        py: Python<'py>,
+        q: PyArrayLike1<'py, f64, AllowTypeChange>,
+        point: Option<&str>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let q = self.configuration(&q)?;
+        let p = self.point_index(point)?;
+        let tree = self.robot.tree();
+        let mut ws = armcomp_core::TreeWorkspace::new(tree);
+        tree.forward_into(&q, &mut ws);
+        let mut jac = Matrix6xX::zeros(tree.nq());
+        tree.pose_jacobian_into(&ws, p, &mut jac);
+        Ok(Array2::from_shape_fn((6, tree.nq()), |(r, c)| jac[(r, c)]).into_pyarray(py))
+    }
+
+    /// The robot file with this robot's values as text (TOML, or JSON with `format="json"`).
+    #[pyo3(signature = (format = "toml"))]
+    fn to_text(&self, format: &str) -> PyResult<String> {
+        let name = match format {
+            "toml" => "model.toml",
+            "json" => "model.json",
+            other => {
+                return Err(input_error(
+                    &format!("unknown format `{other}`; expected toml or json"),
+                    None,
+                    None,
+                    Some("format"),
+                ));
+            }
+        };
+        self.robot.to_file().to_text_for(Path::new(name)).py()
+    }
+
+    /// Writes the robot file with this robot's values (a calibrated model) to `path`
+    /// atomically: TOML, or JSON for a `.json` extension; never over a file it was read from.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        let text = self.robot.to_file().to_text_for(&path).py()?;
+        write_output(&self.robot, &path, &text)
+    }
+
+    /// Writes the model's URDF with the identified joint origins and axes (every other byte
+    /// of its URDF kept) to `path`. Error models and a fitted predictor, which URDF cannot
+    /// hold, are refused unless `rigid_only`; with `data` it returns how far (m) dropping them
+    /// moves the measured points, else None.
+    #[pyo3(signature = (path, rigid_only = false, data = None))]
+    fn to_urdf(
+        &self,
+        path: PathBuf,
+        rigid_only: bool,
+        data: Option<PyRef<'_, PyMeasurements>>,
+    ) -> PyResult<Option<f64>> {
+        let robot = &self.robot;
+        let dropped = armcomp::ops::export_urdf::inexpressible(robot);
+        if !dropped.is_empty() && !rigid_only {
+            return Err(input_error(
+                &format!(
+                    "URDF cannot express {}; the exported URDF would not be this model. Pass rigid_only=True (and data=) to export the rigid geometry anyway",
+                    dropped.join(", ")
+                ),
+                None,
+                None,
+                None,
+            ));
+        }
+        let urdf = armcomp_urdf::calibrated_urdf(robot).py()?;
+        let mut inputs = robot.inputs();
+        inputs.push(urdf.source.clone());
+        check_output(&path, &inputs).py()?;
+        let deviation = match (&data, dropped.is_empty()) {
+            (Some(d), false) => {
+                let set = d.resolve(robot)?;
+                Some(armcomp::ops::export_urdf::rigid_deviation(robot, &set.samples).py()?)
+            }
+            _ => None,
+        };
+        write_atomic(&path, urdf.text.as_bytes()).py()?;
+        Ok(deviation)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Robot({:?}, {} joints, {} points, tool {:?})",
+            self.robot.file.name,
+            self.robot.tree().nq(),
+            self.robot.tree().points().len(),
+            self.tool()
+        )
+    }
+}
