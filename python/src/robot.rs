@@ -10,7 +10,10 @@ use armcomp_core::robot_file::{Format, SourceFile};
 use armcomp_core::{Robot, RobotFile};
 use nalgebra::Matrix6xX;
 use numpy::ndarray::Array2;
-use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayLike2, PyArrayMethods};
+use numpy::{
+    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayLike2, PyArrayMethods,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 
@@ -38,6 +41,17 @@ impl PyRobot {
             PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
         }
         Ok(PyRobot { robot: Arc::new(robot) })
+    }
+
+    /// The description `save` writes: the robot's own when it carries a fitted predictor
+    /// (fitted to exactly these values, as `armcomp learn` writes it), else its values written
+    /// back into its file (as `armcomp calibrate` writes a model).
+    fn text_for(&self, path: &Path) -> PyResult<String> {
+        if self.robot.file.fitted_predictor.is_some() {
+            self.robot.file.to_text_for(path).py()
+        } else {
+            self.robot.to_file().to_text_for(path).py()
+        }
     }
 
     /// Index of the point named `name`, or the tool.
@@ -193,8 +207,8 @@ impl PyRobot {
         // A C-ordered float64 array is read in place; anything else is copied once.
         let copy;
         let qs = match q.as_slice() {
-            Ok(s) => s,
-            Err(_) => {
+            Ok(s) if q.is_c_contiguous() => s,
+            _ => {
                 copy = q.as_array().iter().copied().collect::<Vec<f64>>();
                 &copy
             }
@@ -245,13 +259,14 @@ impl PyRobot {
                 ));
             }
         };
-        self.robot.to_file().to_text_for(Path::new(name)).py()
+        self.text_for(Path::new(name))
     }
 
-    /// Writes the robot file with this robot's values (a calibrated model) to `path`
-    /// atomically: TOML, or JSON for a `.json` extension; never over a file it was read from.
+    /// Writes the robot file with this robot's values (a calibrated model, with its fitted
+    /// predictor) to `path` atomically: TOML, or JSON for a `.json` extension; never over a
+    /// file it was read from.
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        let text = self.robot.to_file().to_text_for(&path).py()?;
+        let text = self.text_for(&path)?;
         write_output(&self.robot, &path, &text)
     }
 

@@ -1,0 +1,124 @@
+"""Type stubs of the native module (``armcomp._armcomp``); use it through ``armcomp``."""
+
+from os import PathLike
+from typing import List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+_Path = Union[str, PathLike]
+_Array = npt.ArrayLike
+
+class Robot:
+    """A robot: kinematics, points, error models and (for a model) identified values and a
+    fitted predictor. Values are SI (m, rad) in and out."""
+
+    @staticmethod
+    def load(path: _Path) -> Robot:
+        """Reads a robot or model file (TOML, JSON) or a bare URDF."""
+    @staticmethod
+    def from_toml(text: str, base_dir: Optional[_Path] = None) -> Robot:
+        """Builds a robot from robot-file TOML text; relative paths resolve against ``base_dir``."""
+    @property
+    def name(self) -> str: ...
+    @property
+    def joint_names(self) -> List[str]:
+        """The independent joints: the columns of ``q``, in order."""
+    @property
+    def nq(self) -> int: ...
+    @property
+    def points(self) -> List[str]:
+        """The points, in the order ``fk`` returns them."""
+    @property
+    def tool(self) -> str: ...
+    @property
+    def markers(self) -> List[str]: ...
+    @property
+    def warnings(self) -> List[str]: ...
+    @property
+    def parameters(self) -> Tuple[List[str], np.ndarray, List[str]]:
+        """``(names, values, units)`` of the identifiable parameters, values in SI units."""
+    def fk(self, q: _Array) -> Tuple[np.ndarray, np.ndarray]:
+        """Positions of every point (points × 3, m, base frame) and the tool pose (4 × 4)."""
+    def fk_many(self, q: _Array) -> np.ndarray:
+        """``n × nq`` configurations → ``n × points × 3`` positions (m), in one call."""
+    def jacobian(self, q: _Array, point: Optional[str] = None) -> np.ndarray:
+        """6 × nq: linear (rows 0–2) and angular (rows 3–5) velocity of the tool or ``point``."""
+    def to_text(self, format: str = "toml") -> str:
+        """The robot file with this robot's values (``toml`` or ``json``)."""
+    def save(self, path: _Path) -> None:
+        """Writes the robot (model) file atomically; JSON for a ``.json`` extension."""
+    def to_urdf(self, path: _Path, rigid_only: bool = False, data: Optional[Measurements] = None) -> Optional[float]:
+        """Writes the model's URDF with the identified joints; returns what ``rigid_only`` drops (m)."""
+
+class Measurements:
+    """Measured positions (m, measurement frame) and the joint values (SI) they were measured at."""
+
+    def __init__(
+        self,
+        joints: _Array,
+        positions: _Array,
+        points: Union[None, str, Sequence[str]] = None,
+        joint_names: Optional[Sequence[str]] = None,
+    ) -> None: ...
+    @classmethod
+    def read(cls, path: _Path, robot: Optional[Robot] = None, rows: Optional[str] = None) -> Measurements:
+        """Reads a measurement CSV (against ``robot`` now, or when first used)."""
+    def for_robot(self, robot: Robot) -> Measurements: ...
+    @property
+    def joints(self) -> np.ndarray: ...
+    @property
+    def positions(self) -> np.ndarray: ...
+    @property
+    def points(self) -> Optional[List[str]]: ...
+    @property
+    def joint_names(self) -> Optional[List[str]]: ...
+    def save(self, path: _Path, robot: Robot) -> None:
+        """Writes a measurement CSV in ``robot``'s joints and units."""
+    def __len__(self) -> int: ...
+
+def calibrate(
+    robot: Robot,
+    data: Measurements,
+    identify: Optional[List[str]] = None,
+    noise_mm: float = 0.1,
+    prior: Union[None, float, str] = None,
+    max_iterations: int = 100,
+) -> Tuple[Robot, str, bool]: ...
+def evaluate(model: Robot, data: Measurements) -> Tuple[str, np.ndarray]: ...
+def simulate(
+    truth: Robot,
+    poses: Optional[_Array] = None,
+    n: int = 100,
+    sampler: str = "sobol",
+    noise_mm: float = 0.0,
+    seed: int = 0,
+) -> Measurements: ...
+def diagnose(
+    robot: Robot,
+    data: Measurements,
+    seed: int = 0,
+    folds: int = 3,
+    max_steps: int = 5,
+    min_reduction_percent: float = 5.0,
+    noise_mm: float = 0.1,
+    identify: Optional[List[str]] = None,
+    predictor: Optional[str] = "gp",
+) -> Tuple[Robot, str]: ...
+def learn(model: Robot, data: Measurements) -> Tuple[Robot, str]: ...
+def compensate(
+    model: Robot, targets: _Array, mode: str = "exact", frame: str = "measurement"
+) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray], List[Tuple[int, float]]]: ...
+def plan(
+    robot: Robot,
+    n: int = 100,
+    method: str = "sobol",
+    space: str = "joint",
+    pool: Optional[int] = None,
+    pool_sampler: str = "sobol",
+    identify: Optional[List[str]] = None,
+    trajectory: Optional[_Array] = None,
+    trajectory_points: int = 50,
+    per_point: int = 10,
+    seed: int = 0,
+) -> Tuple[np.ndarray, str]: ...

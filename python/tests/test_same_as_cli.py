@@ -1,0 +1,180 @@
+"""The package and the `armcomp` command give the same results on the same inputs: the same
+model bytes, the same JSON reports, the same measurements, poses and joint commands."""
+
+import csv
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import armcomp
+from conftest import ROOT, TALOS, TALOS_DATA, cli, cli_json
+
+TRUTH = ROOT / "robots" / "industrial-6dof-truth.toml"
+NOMINAL = ROOT / "robots" / "industrial-6dof.toml"
+GEOMETRY = "base,markers,geometry"
+
+
+def read_table(path):
+    """A CSV written by the command line: header and rows of floats (strings kept)."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], rows[1:]
+
+
+def to_si(header, column):
+    """A joint column's values in SI, from the unit in its header."""
+    unit = header.split("[")[1].rstrip("]") if "[" in header else ""
+    scale = {"deg": math.pi / 180, "mm": 1e-3, "rad": 1.0, "m": 1.0}[unit]
+    return np.array([float(v) for v in column]) * scale
+
+
+@pytest.fixture(scope="module")
+def simulated(tmp_path_factory):
+    """40 measurements of the industrial truth, by the command line and by the package."""
+    tmp = tmp_path_factory.mktemp("sim")
+    cli("simulate", "--robot", TRUTH, "--n", 40, "--noise-mm", 0.05, "--seed", 3, "--out", tmp / "cli.csv")
+    # Both read the command line's file: the same inputs to the last bit (a file in mm and
+    # degrees does not hold the simulation's SI values exactly).
+    return tmp, armcomp.Measurements.read(tmp / "cli.csv", armcomp.Robot.load(TRUTH))
+
+
+def test_simulate_writes_the_same_bytes(simulated):
+    tmp, _ = simulated
+    truth = armcomp.Robot.load(TRUTH)
+    data = armcomp.simulate(truth, n=40, noise_mm=0.05, seed=3)
+    data.save(tmp / "py.csv", truth)
+    assert (tmp / "py.csv").read_bytes() == (tmp / "cli.csv").read_bytes()
+    assert len(data) == 40 and data.positions.shape == (40, 3)
+    # The noise is what was asked for: the same poses without noise, 0.05 mm per axis apart.
+    exact = armcomp.simulate(truth, poses=data.joints)
+    assert 0.03 < np.std(data.positions - exact.positions) * 1e3 < 0.07
+
+
+@pytest.mark.parametrize("ext", ["toml", "json"])
+def test_calibrate_writes_the_same_model_and_report(simulated, ext):
+    tmp, data = simulated
+    expected = cli_json(
+        "calibrate", "--robot", TRUTH, "--data", tmp / "cli.csv", "--noise-mm", 0.05, "--identify", GEOMETRY,
+        "--out", tmp / f"cli.{ext}",
+    )
+    model, report = armcomp.calibrate(armcomp.Robot.load(TRUTH), data, noise_mm=0.05, identify=GEOMETRY)
+    model.save(tmp / f"py.{ext}")
+    assert (tmp / f"py.{ext}").read_bytes() == (tmp / f"cli.{ext}").read_bytes()
+    assert report.to_dict() == expected
+    assert report.converged and not report.far_above_noise
+    assert report.parameters["base.x"].unit == "m"
+
+
+def test_not_converged_carries_the_model_the_command_line_writes(simulated):
+    """The nominal arm lacks the truth's reducers and payload: the fit stops at its iteration
+    limit far above the noise (exit 3), and the best model is still written."""
+    tmp, data = simulated
+    expected = cli_json(
+        "calibrate", "--robot", NOMINAL, "--data", tmp / "cli.csv", "--noise-mm", 0.05, "--out", tmp / "nc.toml",
+        expect=(3,),
+    )
+    with pytest.warns(armcomp.CalibrationWarning), pytest.raises(armcomp.NotConverged) as e:
+        armcomp.calibrate(armcomp.Robot.load(NOMINAL), data, noise_mm=0.05)
+    assert not e.value.report.converged and e.value.report.to_dict() == expected
+    e.value.model.save(tmp / "nc-py.toml")
+    assert (tmp / "nc-py.toml").read_bytes() == (tmp / "nc.toml").read_bytes()
+
+
+def test_talos_levels_match_the_command_line(tmp_path):
+    """The README's TALOS levels: registration (which ends far above the noise, exit 3 and a
+    warning) and joint offsets without priors, trained on the even rows."""
+    robot = armcomp.Robot.load(TALOS)
+    train = armcomp.Measurements.read(TALOS_DATA, rows="even")
+    for identify, prior, code in [("base,markers", "1", 3), ("base,markers,offsets", "none", 0)]:
+        expected = cli_json(
+            "calibrate", "--robot", TALOS, "--data", TALOS_DATA, "--rows", "even", "--identify", identify,
+            "--prior", prior, "--out", tmp_path / "cli.toml", expect=(code,),
+        )
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            model, report = armcomp.calibrate(robot, train, identify=identify, prior=None if prior == "none" else 1.0)
+        far = [w for w in caught if issubclass(w.category, armcomp.CalibrationWarning)]
+        assert bool(far) == (code == 3) == report.far_above_noise
+        model.save(tmp_path / "py.toml")
+        assert (tmp_path / "py.toml").read_bytes() == (tmp_path / "cli.toml").read_bytes()
+        assert report.to_dict() == expected
+    # Evaluation on the held-out rows, and the identified URDF.
+    assert armcomp.evaluate(model, armcomp.Measurements.read(TALOS_DATA, rows="odd")).to_dict() == cli_json(
+        "evaluate", "--model", tmp_path / "cli.toml", "--data", TALOS_DATA, "--rows", "odd"
+    )
+    cli("export-urdf", "--model", tmp_path / "cli.toml", "--out", tmp_path / "cli.urdf")
+    assert model.to_urdf(tmp_path / "py.urdf") is None
+    assert (tmp_path / "py.urdf").read_bytes() == (tmp_path / "cli.urdf").read_bytes()
+
+
+def test_evaluate_reports_per_point_as_the_command_line(simulated):
+    tmp, data = simulated
+    nominal = armcomp.Robot.load(NOMINAL)
+    report = armcomp.evaluate(nominal, data)
+    assert report.to_dict() == cli_json("evaluate", "--model", NOMINAL, "--data", tmp / "cli.csv")
+    # The errors are measured minus modelled positions.
+    np.testing.assert_allclose(
+        np.sqrt(np.mean(np.sum(report.errors**2, axis=1))) * 1e3, report.rms_mm, rtol=1e-12
+    )
+
+
+def test_learn_writes_the_same_model(simulated, tmp_path):
+    tmp, data = simulated
+    model, _ = armcomp.calibrate(armcomp.Robot.load(TRUTH), data, noise_mm=0.05, identify=GEOMETRY)
+    with_predictor = tmp_path / "model.toml"
+    with_predictor.write_text(model.to_text() + '\n[predictor]\ntype = "ridge"\n')
+    cli("learn", "--model", with_predictor, "--data", tmp / "cli.csv", "--out", tmp_path / "cli.toml")
+    fitted, report = armcomp.learn(armcomp.Robot.load(with_predictor), data)
+    fitted.save(tmp_path / "py.toml")
+    assert (tmp_path / "py.toml").read_bytes() == (tmp_path / "cli.toml").read_bytes()
+    assert report.after.mean_mm <= report.before.mean_mm
+
+
+def test_compensate_gives_the_command_line_joint_commands(simulated, tmp_path):
+    tmp, data = simulated
+    cli(
+        "calibrate", "--robot", TRUTH, "--data", tmp / "cli.csv", "--noise-mm", 0.05, "--identify", GEOMETRY,
+        "--out", tmp_path / "m.toml",
+    )
+    model = armcomp.Robot.load(tmp_path / "m.toml")
+    targets = data.positions[:6] + np.array([0.01, -0.02, 0.005])
+    (tmp_path / "targets.csv").write_text(
+        "x[m],y[m],z[m]\n" + "".join(f"{float(x)!r},{float(y)!r},{float(z)!r}\n" for x, y, z in targets)
+    )
+    cli("compensate", "--model", tmp_path / "m.toml", "--targets", tmp_path / "targets.csv", "--out", tmp_path / "q.csv")
+    header, rows = read_table(tmp_path / "q.csv")
+    result = armcomp.compensate(model, targets)
+    assert result.q.shape == (6, model.nq) and result.std is None and result.unconverged == []
+    for k, name in enumerate(model.joint_names):
+        np.testing.assert_allclose(result.q[:, k], to_si(header[k], [r[k] for r in rows]), rtol=1e-12, atol=1e-15)
+    corrected = np.array([[float(v) for v in r[model.nq : model.nq + 3]] for r in rows]) * 1e-3
+    np.testing.assert_allclose(result.corrected, corrected, rtol=1e-12, atol=1e-15)
+    # The commands put the model's tool on the targets, as measured.
+    check = armcomp.simulate(model, poses=result.q)
+    np.testing.assert_allclose(check.positions, targets, atol=1e-6)
+
+
+def test_plan_gives_the_command_line_poses(tmp_path):
+    cli("plan", "--robot", NOMINAL, "--n", 12, "--method", "halton", "--seed", 5, "--out", tmp_path / "p.csv")
+    header, rows = read_table(tmp_path / "p.csv")
+    planned = armcomp.plan(armcomp.Robot.load(NOMINAL), n=12, method="halton", seed=5)
+    assert planned.poses.shape == (12, 6)
+    for k in range(6):
+        np.testing.assert_allclose(planned.poses[:, k], to_si(header[k], [r[k] for r in rows]), rtol=1e-12)
+
+
+def test_diagnose_reports_as_the_command_line(simulated):
+    tmp, data = simulated
+    args = ["--folds", 3, "--max-steps", 1, "--predictor", "none", "--noise-mm", 0.05, "--seed", 2, "--identify", "base"]
+    expected = cli_json("diagnose", "--robot", NOMINAL, "--data", tmp / "cli.csv", *args)
+    model, report = armcomp.diagnose(
+        armcomp.Robot.load(NOMINAL), data, folds=3, max_steps=1, predictor=None, noise_mm=0.05, seed=2, identify="base"
+    )
+    assert report.to_dict() == expected
+    assert len(report.steps) == len(expected["steps"]) == 1
+    for step, raw in zip(report.steps, expected["steps"]):
+        assert isinstance(step, armcomp.DiagnosisStep) and step.label == raw["label"]
+        assert step.heldout_after.rms_mm == raw["heldout_after"]["rms_mm"]
+    assert report.final_.heldout.n == len(data)
