@@ -81,6 +81,20 @@ pub fn any_error(e: &anyhow::Error) -> PyErr {
     }
 }
 
+/// [`core_error`] for an error reading `path`: a message about the file as a whole (`path:
+/// does not exist`) names it as the `file` too.
+pub fn file_error(e: &Error, path: &Path) -> PyErr {
+    let err = core_error(e, None);
+    Python::attach(|py| {
+        let value = err.value(py);
+        let unnamed = value.getattr("file").is_ok_and(|f| f.is_none());
+        if unnamed && e.to_string().starts_with(&format!("{}:", path.display())) {
+            let _ = value.setattr("file", path.display().to_string());
+        }
+    });
+    err
+}
+
 /// `Result` of the core as a Python result.
 pub trait IntoPy<T> {
     /// Maps the error to its Python exception.

@@ -15,7 +15,7 @@ use pyo3::exceptions::{PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyType;
 
-use crate::errors::{IntoPy, input_error};
+use crate::errors::{IntoPy, file_error, input_error};
 use crate::robot::{PyRobot, write_output};
 
 /// Where the data come from.
@@ -296,7 +296,7 @@ impl PyMeasurements {
         robot: Option<PyRef<'_, PyRobot>>,
         rows: Option<&str>,
     ) -> PyResult<Self> {
-        let text = armcomp_core::io::read_text(&path).py()?;
+        let text = armcomp_core::io::read_text(&path).map_err(|e| file_error(&e, &path))?;
         let rows = rows
             .map(|r| r.parse::<RowSelection>())
             .transpose()

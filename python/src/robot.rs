@@ -18,7 +18,7 @@ use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 
 use crate::arrays::vector;
-use crate::errors::{IntoPy, input_error};
+use crate::errors::{IntoPy, file_error, input_error};
 use crate::measurements::PyMeasurements;
 
 /// A robot: kinematics, points, error models and (for a model) identified values and a
@@ -91,7 +91,9 @@ impl PyRobot {
     /// point at every link). What was skipped while reading is issued as warnings.
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
-        let robot = py.detach(|| armcomp::read_robot(&path)).py()?;
+        let robot = py
+            .detach(|| armcomp::read_robot(&path))
+            .map_err(|e| file_error(&e, &path))?;
         PyRobot::new(py, robot)
     }
 
@@ -130,6 +132,19 @@ impl PyRobot {
     #[getter]
     fn nq(&self) -> usize {
         self.robot.tree().nq()
+    }
+
+    /// Lower and upper limit of each joint (nq × 2, SI; ±inf where the file gives none).
+    #[getter]
+    fn joint_limits<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let limits = self.robot.tree().coordinate_limits();
+        Array2::from_shape_fn((limits.len(), 2), |(i, c)| match (limits[i], c) {
+            (Some(l), 0) => l.lower,
+            (Some(l), _) => l.upper,
+            (None, 0) => f64::NEG_INFINITY,
+            (None, _) => f64::INFINITY,
+        })
+        .into_pyarray(py)
     }
 
     /// Names of the points, in the order `fk` returns them.

@@ -128,6 +128,12 @@ def test_fk_many_reads_any_layout_and_dtype():
     np.testing.assert_array_equal(robot.fk_many(np.zeros((2, 2), dtype=np.int64))[0], robot.fk([0, 0])[0])
 
 
+def test_joint_limits_are_the_urdf_ones_in_si():
+    robot = armcomp.Robot.load(ROOT / "tests" / "data" / "urdf" / "panda.urdf")
+    # Franka's published range of joint 4 (rad).
+    np.testing.assert_allclose(robot.joint_limits[robot.joint_names.index("panda_joint4")], [-3.0718, -0.0698])
+
+
 def test_fk_rejects_wrong_sizes_and_non_finite_values():
     robot = armcomp.Robot.from_toml(PLANAR_2R)
     with pytest.raises(armcomp.InputError) as e:

@@ -27,6 +27,9 @@ class Robot:
     @property
     def nq(self) -> int: ...
     @property
+    def joint_limits(self) -> np.ndarray:
+        """nq × 2: lower and upper limit of each joint (SI; ±inf where none)."""
+    @property
     def points(self) -> List[str]:
         """The points, in the order ``fk`` returns them."""
     @property

@@ -1,0 +1,106 @@
+"""Errors are Python exceptions naming where the input is wrong; long calls release the GIL
+and stop on Ctrl-C; measurements from arrays match a robot by joint and point names."""
+
+import os
+import signal
+import threading
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import armcomp
+from conftest import TALOS, TALOS_DATA
+from test_fk import PLANAR_2R
+
+
+@pytest.fixture(scope="module")
+def talos():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = armcomp.Robot.load(TALOS)
+        return robot, armcomp.Measurements.read(TALOS_DATA, robot, rows="even")
+
+
+def long_call(robot, data):
+    """About two seconds of work: geometry with the prior chosen by cross-validation."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return armcomp.calibrate(robot, data, identify="base,markers,geometry", prior="auto")
+
+
+def test_a_robot_file_error_names_file_line_and_field(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(PLANAR_2R.replace('a = 0.7', 'a = "long"'))
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.Robot.load(path)
+    assert e.value.file == str(path)
+    assert e.value.line == PLANAR_2R.splitlines().index('a = 0.7') + 1
+    assert "kinematics" in e.value.field and "a" in e.value.field
+    assert isinstance(e.value, ValueError)
+
+
+def test_a_missing_file_is_named(tmp_path):
+    for read in [armcomp.Measurements.read, armcomp.Robot.load]:
+        with pytest.raises(armcomp.InputError) as e:
+            read(tmp_path / "missing.toml")
+        assert e.value.file == str(tmp_path / "missing.toml") and "does not exist" in str(e.value)
+
+
+def test_bad_arguments_name_the_argument(talos):
+    robot, data = talos
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.calibrate(robot, data, prior="sometimes")
+    assert e.value.field == "prior"
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.compensate(robot, np.zeros((2, 4)))
+    assert e.value.field == "targets"
+
+
+def test_measurements_from_arrays_follow_joint_and_point_names():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    q = np.array([[0.3, -0.2], [1.0, 0.5], [-0.7, 1.2]])
+    positions = robot.fk_many(q)[:, robot.points.index("tool"), :]
+    # Columns in another order than the robot's, named; the tool measured exactly.
+    data = armcomp.Measurements(q[:, ::-1], positions, points="tool", joint_names=["j2", "j1"])
+    assert armcomp.evaluate(robot, data).max_mm < 1e-9
+    # Without names the columns are the robot's joints in order.
+    assert armcomp.evaluate(robot, armcomp.Measurements(q, positions, points=["tool"] * 3)).max_mm < 1e-9
+    shifted = armcomp.Measurements(q, positions + [0.001, 0.0, 0.0], points="tool")
+    report = armcomp.evaluate(robot, shifted)
+    np.testing.assert_allclose(report.errors, [[0.001, 0.0, 0.0]] * 3, atol=1e-12)
+    assert report.mean_abs_mm.x == pytest.approx(1.0)
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.evaluate(robot, armcomp.Measurements(q, positions, joint_names=["j1", "elbow"]))
+    assert "elbow" in str(e.value) and e.value.field == "joint_names"
+
+
+def test_long_calls_release_the_gil(talos):
+    robot, data = talos
+    worker = threading.Thread(target=long_call, args=talos)
+    worker.start()
+    start = time.perf_counter()
+    spins = 0
+    while worker.is_alive() and time.perf_counter() - start < 0.5:
+        spins += 1
+    # The loop ran while the calibration was still going: the GIL was free meanwhile.
+    assert worker.is_alive() and spins > 10_000
+    worker.join()
+
+
+def test_ctrl_c_stops_a_long_call_and_the_next_one_runs(talos):
+    robot, data = talos
+    start = time.perf_counter()
+    long_call(robot, data)
+    full = time.perf_counter() - start
+    timer = threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        long_call(robot, data)
+    stopped = time.perf_counter() - start
+    assert stopped < 0.2 + 0.5 * (full - 0.2), (stopped, full)
+    # The stop request is withdrawn: the same call completes afterwards.
+    model, report = long_call(robot, data)
+    assert report.converged
