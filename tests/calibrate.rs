@@ -930,7 +930,8 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
 /// truth's servo scales, eccentric encoders, ...), a geometric refit would trade the feed's
 /// length against the tool marker by half a metre along a direction the data barely sees.
 /// Every parameter the data barely determine stays within three prior standard deviations
-/// (the robot file's, 5 mm for lengths) of its start, on two seeds.
+/// (the robot file's, 5 mm for lengths) of its start, on two seeds, and the report says the
+/// fit is far above the noise.
 #[test]
 fn parameters_the_data_barely_see_move_no_more_than_their_prior_allows() {
     let base = robot("rock-drill.toml");
@@ -965,11 +966,11 @@ fn parameters_the_data_barely_see_move_no_more_than_their_prior_allows() {
                 prior[name] * 1e3
             );
         }
-        let (tool_z, _) = value(&r, "marker.tool.z");
+        // The effects the model lacks leave it far above the noise, which the report says.
         assert!(
-            tool_z.abs() < 0.05,
-            "seed {seed}: the marker moved {:.1} mm",
-            tool_z * 1e3
+            r.rms_over_noise > 10.0 && !r.warnings.is_empty(),
+            "seed {seed}: RMS {:.3} mm with no warning",
+            r.after.rms_mm
         );
     }
 }

@@ -1306,29 +1306,40 @@ impl Problem<'_> {
                 }
                 None => vec![f64::INFINITY; free.len()],
             };
-            // The gradient test: how much ½χ² changes, to first order, when a parameter moves
-            // by one standard deviation (its curvature alone where the matrix is singular). A
-            // stationary point has none; a damped crawl far from one does.
-            let gradient = g
+            // The gradient test, made independent of scale and correlation: how far the full
+            // Newton step from here (the bounds respected) would move each parameter, in its
+            // standard deviations. At a minimum it moves nothing that matters; a damped crawl
+            // far from one leaves a large step. Correlated parameters whose gradients cancel
+            // in combination pass, and a parameter held at its bound by the data passes.
+            // Where the matrix is singular, each parameter's gradient over its own curvature.
+            let blocked = |c: usize, step: f64| {
+                let b = &space.params[free[c]].info;
+                let v = theta[free[c]];
+                (v <= b.lower && step < 0.0) || (v >= b.upper && step > 0.0)
+            };
+            let newton = bounded_step(&a, &g, blocked).unwrap_or_else(|| {
+                DVector::from_iterator(free.len(), (0..free.len()).map(|c| g[c] / a[(c, c)].max(floor)))
+            });
+            let gradient = newton
                 .iter()
                 .enumerate()
-                .map(|(c, gc)| {
+                .map(|(c, dc)| {
                     let sd = if std[c].is_finite() {
                         std[c]
                     } else {
                         1.0 / a[(c, c)].max(floor).sqrt()
                     };
-                    (gc * sd).abs()
+                    (dc / sd).abs()
                 })
                 .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) });
             let gradient_ok = gradient <= params.min_step;
             if let Some(step) = small_step.as_ref().filter(|_| gradient_ok) {
                 converged = true;
-                break format!("{step}, and the gradient is {gradient:.1e} per standard deviation");
+                break format!("{step}, and the Newton step is {gradient:.1e} standard deviations");
             }
             if *iterations >= params.max_iterations {
                 break format!(
-                    "iteration limit ({}) reached; the gradient is {gradient:.1e} per standard deviation",
+                    "iteration limit ({}) reached; the Newton step is {gradient:.1e} standard deviations",
                     params.max_iterations
                 );
             }
@@ -1339,11 +1350,10 @@ impl Problem<'_> {
                 for c in 0..free.len() {
                     m[(c, c)] += lambda * a[(c, c)].max(floor);
                 }
-                let Some(chol) = m.cholesky() else {
+                let Some(delta) = bounded_step(&m, &g, blocked) else {
                     lambda *= 10.0;
                     continue;
                 };
-                let delta = chol.solve(&(-&g));
                 let mut trial = theta.clone();
                 for (c, &k) in free.iter().enumerate() {
                     let b = &space.params[k].info;
@@ -1391,16 +1401,41 @@ impl Problem<'_> {
                 // the model cannot be evaluated or differentiated near here.
                 converged = gradient_ok && cost.is_finite();
                 break if converged {
-                    format!("no step lowers the cost further; the gradient is {gradient:.1e} per standard deviation")
+                    format!("no step lowers the cost further; the Newton step is {gradient:.1e} standard deviations")
                 } else {
                     format!(
-                        "no step lowers the cost, but the gradient is {gradient:.1e} per standard deviation \
+                        "no step lowers the cost, but the Newton step is {gradient:.1e} standard deviations \
                          (cost {cost:.3e}): not a minimum"
                     )
                 };
             }
         };
         Ok(StageOutcome { converged, stop_reason })
+    }
+}
+
+/// The damped step `−m⁻¹g` with the parameters that sit at a bound and would step out of it
+/// held (`blocked(c, step)`): solving for the others alone keeps the step a descent direction
+/// of the free ones, where clipping the full step to the bounds distorts it and leaves the
+/// solver crawling. `None` when the matrix is not positive definite.
+fn bounded_step(m: &DMatrix<f64>, g: &DVector<f64>, blocked: impl Fn(usize, f64) -> bool) -> Option<DVector<f64>> {
+    let n = g.len();
+    let mut held = vec![false; n];
+    loop {
+        let mut mm = m.clone();
+        let mut rhs = -g;
+        for c in (0..n).filter(|&c| held[c]) {
+            mm.row_mut(c).fill(0.0);
+            mm.column_mut(c).fill(0.0);
+            mm[(c, c)] = 1.0;
+            rhs[c] = 0.0;
+        }
+        let delta = mm.cholesky()?.solve(&rhs);
+        let newly: Vec<usize> = (0..n).filter(|&c| !held[c] && blocked(c, delta[c])).collect();
+        if newly.is_empty() {
+            return Some(delta);
+        }
+        newly.into_iter().for_each(|c| held[c] = true);
     }
 }
 
