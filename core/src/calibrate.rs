@@ -547,7 +547,7 @@ impl Problem<'_> {
     }
 
     /// How each Jacobian column of `free` is computed at `theta`.
-    fn column_plans(&self, theta: &[f64], d: &Decoded, free: &[usize]) -> Result<Vec<ColumnPlan>> {
+    fn column_plans(&self, theta: &[f64], d: &Decoded, free: &[usize], form: JacobianForm) -> Result<Vec<ColumnPlan>> {
         let space = self.space;
         free.iter()
             .map(|&k| {
@@ -576,12 +576,10 @@ impl Problem<'_> {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
                         let tree = space.tree(self.robot, &t)?;
-                        if self.robot.error_models().is_empty() {
-                            geometry_plan(&d.tree, tree, h)
-                        } else {
-                            // Deformations depend on the geometry (moment arms), to first
-                            // order in the deflection angles: difference the full model.
+                        if form == JacobianForm::Exact && !self.robot.error_models().is_empty() {
                             ColumnPlan::Finite { tree, h }
+                        } else {
+                            geometry_plan(&d.tree, tree, h)
                         }
                     }
                 })
@@ -591,13 +589,21 @@ impl Problem<'_> {
 
     /// Jacobian of the measurement residuals with respect to the parameters `free`.
     ///
-    /// On rigid robots, geometry that moves joint placements and point frames is
-    /// differentiated through first-order twists at the joint frames: a few vector operations
-    /// per sample instead of a forward kinematics run. Error-model parameters are differenced
+    /// Geometry that moves joint placements and point frames is differentiated through
+    /// first-order twists at the joint frames: a few vector operations per sample instead of a
+    /// forward kinematics run; on deformed robots that holds the deformation, and the exact
+    /// `form` differences the full model instead. Error-model parameters are differenced
     /// through the deformed kinematics only (the model's share of the deformation re-evaluated,
-    /// the rigid frames reused); other geometry through the full model.
-    fn jacobian(&self, theta: &[f64], d: &Decoded, e: &Evaluation, free: &[usize]) -> Result<DMatrix<f64>> {
-        let plans = self.column_plans(theta, d, free)?;
+    /// the rigid frames reused).
+    fn jacobian(
+        &self,
+        theta: &[f64],
+        d: &Decoded,
+        e: &Evaluation,
+        free: &[usize],
+        form: JacobianForm,
+    ) -> Result<DMatrix<f64>> {
+        let plans = self.column_plans(theta, d, free, form)?;
         let ncols = plans.len();
         let r_meas = d.t_meas_base.rotation.to_rotation_matrix().into_inner();
         let n_models = self.robot.error_models().len();
@@ -714,6 +720,18 @@ fn subtract(out: &mut Perturbation, other: &Perturbation) {
         .iter_mut()
         .zip(&other.point_twist)
         .for_each(|(a, b)| *a -= b);
+}
+
+/// How the Jacobian treats the deformation of a robot with error models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum JacobianForm {
+    /// Every column exact: geometry differenced through the full deformed model, so the
+    /// deformation's own dependence on the geometry (its moment arms) is included.
+    Exact,
+    /// Geometry columns as first-order twists at the deformed frames with the deformation
+    /// held: a few vector operations per pose and column, off by the relative size of the
+    /// deflections (about 1e-3), which is what an iteration far from the minimum needs.
+    HeldDeformation,
 }
 
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
@@ -1112,7 +1130,7 @@ pub fn calibrate(
     let (d, e, _) = problem.predict(&theta0)?;
 
     // Identifiability at the start decides what is held.
-    let jac0 = problem.jacobian(&theta0, &d, &e, &selected)?;
+    let jac0 = problem.jacobian(&theta0, &d, &e, &selected, JacobianForm::Exact)?;
     let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
     let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
     let held = barely_seen(&space, &jac0, &selected, &free);
@@ -1167,7 +1185,7 @@ pub fn calibrate(
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
     let pred = to_meas(&d.t_meas_base, &e.world);
     let r = problem.residuals(&pred);
-    let j = problem.jacobian(&theta, &d, &e, &free)?;
+    let j = problem.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?;
     let mut a = j.transpose() * &j;
     for (c, &k) in free.iter().enumerate() {
         a[(c, c)] += space.params[k].info.sigma.powi(-2);
@@ -1288,8 +1306,15 @@ impl Problem<'_> {
         // Why the last accepted step was small, when it was: the step test. Convergence needs
         // it and the gradient test at the point the step reached.
         let mut small_step: Option<String> = None;
+        // Deformed robots iterate on the fast form while it makes progress, and finish on the
+        // exact one, so the minimum and the convergence test are those of the true model.
+        let mut form = if self.robot.error_models().is_empty() {
+            JacobianForm::Exact
+        } else {
+            JacobianForm::HeldDeformation
+        };
         let stop_reason = loop {
-            let j = self.jacobian(theta, d, e, free)?;
+            let j = self.jacobian(theta, d, e, free, form)?;
             let mut a = j.transpose() * &j;
             let mut g = j.transpose() * &r;
             for (c, (&k, w)) in free.iter().zip(&prior_w).enumerate() {
@@ -1376,6 +1401,11 @@ impl Problem<'_> {
                     (*theta, *d, *e, r, cost) = (trial, d1, e1, r1, cost1);
                     lambda = (lambda / 3.0).max(1e-12);
                     accepted = true;
+                    // Once a step gains less than the noise can tell apart (½χ² by less than
+                    // one), the fast form's error matters more than its speed.
+                    if improvement < 1.0 {
+                        form = JacobianForm::Exact;
+                    }
                     small_step = if relative < params.tolerance || improvement < params.min_improvement {
                         Some(format!("the last step improved ½χ² by only {improvement:.2e}"))
                     } else if moved < params.min_step {
@@ -1396,6 +1426,12 @@ impl Problem<'_> {
                 rms: (r.norm_squared() / self.samples.len() as f64).sqrt() * params.measurement_std,
                 lambda,
             });
+            if !accepted && form == JacobianForm::HeldDeformation {
+                form = JacobianForm::Exact;
+                small_step = None;
+                lambda = 1e-3;
+                continue;
+            }
             if !accepted {
                 // No step lowers the cost: a minimum if the gradient vanishes there, otherwise
                 // the model cannot be evaluated or differentiated near here.
@@ -1625,7 +1661,7 @@ pub fn identification_jacobian(
     };
     let theta = space.initial();
     let (d, e, _) = problem.predict(&theta)?;
-    let jac = problem.jacobian(&theta, &d, &e, &selected)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     Ok((
         jac,
         selected.iter().map(|&k| space.params[k].info.name.clone()).collect(),
