@@ -17,6 +17,9 @@
 //! the available crates pull in another nalgebra version.
 
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, SymmetricEigen, Vector3, Vector6};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -374,7 +377,19 @@ pub struct CalibrationParams {
     /// below 1 holds the parameters closer to their starting values, infinite drops the
     /// priors. [`choose_prior_scale`] picks it by cross-validation.
     pub prior_scale: f64,
+    /// Fits that end more than [`RESTART_ABOVE_NOISE`] times above the noise are repeated
+    /// this many times from perturbed starts, keeping the lowest cost: every parameter with a
+    /// prior moved by a normal draw of its prior standard deviation, and parameters along
+    /// which the cost has several minima ([`ParamInfo::multimodal`]: backlash, scales) by
+    /// their typical size as well.
+    pub restarts: usize,
+    /// Seed of the restarts' perturbations; the same seed gives the same fit.
+    pub seed: u64,
 }
+
+/// A fit whose RMS is this many times what the declared noise gives is restarted (see
+/// [`CalibrationParams::restarts`]); below it the fit explains the data to within its noise.
+pub const RESTART_ABOVE_NOISE: f64 = 1.5;
 
 impl Default for CalibrationParams {
     fn default() -> Self {
@@ -388,6 +403,8 @@ impl Default for CalibrationParams {
             rank_tolerance: 1e-5,
             use_priors: true,
             prior_scale: 1.0,
+            restarts: 2,
+            seed: 0,
         }
     }
 }
@@ -482,6 +499,9 @@ pub struct CalibrationReport {
     pub params: Vec<ParamResult>,
     /// Iterations run.
     pub iterations: usize,
+    /// Final training RMS (mm) of each restart from a perturbed start, in order; empty when
+    /// the first fit already reached the noise (see [`CalibrationParams::restarts`]).
+    pub restarts_rms_mm: Vec<f64>,
     /// Whether the cost stopped decreasing within the tolerance.
     pub converged: bool,
     /// Why the iteration stopped.
@@ -493,7 +513,12 @@ pub struct CalibrationReport {
     /// The 3-D RMS after, over what the declared noise alone gives (`√3 σ`); above
     /// [`FAR_ABOVE_NOISE`] the model or the data is wrong, not just noisy.
     pub rms_over_noise: f64,
-    /// What the fit suggests is wrong when it ends far above the noise, most likely first.
+    /// Whether the data read in another unit (metres for millimetres, radians for degrees,
+    /// or the reverse) fit the starting model far better than as declared; the warnings say
+    /// which and the fix.
+    pub units_mislabelled: bool,
+    /// What the fit suggests is wrong when it ends far above the noise or the units look
+    /// mislabelled, most likely first.
     pub warnings: Vec<String>,
 }
 
@@ -506,6 +531,12 @@ impl CalibrationReport {
     /// Whether the fit ended far above the noise the data declares (see [`FAR_ABOVE_NOISE`]).
     pub fn far_above_noise(&self) -> bool {
         self.rms_over_noise.is_nan() || self.rms_over_noise > FAR_ABOVE_NOISE
+    }
+
+    /// Whether the data or the model is wrong, not just noisy: far above the noise, or units
+    /// that look mislabelled.
+    pub fn suspect(&self) -> bool {
+        self.far_above_noise() || self.units_mislabelled
     }
 }
 
@@ -533,6 +564,27 @@ impl Problem<'_> {
         let e = evaluate(self.robot, &d, self.samples, &mut ws);
         let meas = to_meas(&d.t_meas_base, &e.world);
         Ok((d, e, meas))
+    }
+
+    /// ½χ² of `stage` with the priors of `free` centred at `theta0`: what Levenberg–Marquardt
+    /// minimises.
+    fn cost(&self, stage: &Stage, theta0: &[f64], free: &[usize]) -> f64 {
+        let r = self.residuals(&to_meas(&stage.d.t_meas_base, &stage.e.world));
+        self.cost_of(&stage.theta, theta0, free, &r)
+    }
+
+    fn cost_of(&self, theta: &[f64], theta0: &[f64], free: &[usize], r: &DVector<f64>) -> f64 {
+        let prior: f64 = free
+            .iter()
+            .map(|&k| ((theta[k] - theta0[k]) / self.space.params[k].info.sigma).powi(2))
+            .sum();
+        0.5 * (r.norm_squared() + prior)
+    }
+
+    /// The RMS of `stage`'s 3-D residuals over what the noise alone gives (√3 σ).
+    fn rms_over_noise(&self, stage: &Stage) -> f64 {
+        let r = self.residuals(&to_meas(&stage.d.t_meas_base, &stage.e.world));
+        (r.norm_squared() / (3.0 * self.samples.len() as f64)).sqrt()
     }
 
     /// Measurement residuals `(p̂ − p) / σ`, three per sample.
@@ -793,6 +845,19 @@ fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64) -> Column
     ColumnPlan::Twists { joints, points }
 }
 
+/// The size a parameter of this kind typically has when it matters (SI): 10 mm, 0.6°, 1 %,
+/// 1e-4 rad/(N m), 0.1 kg, ...
+fn typical_size(info: &ParamInfo) -> f64 {
+    match info.quantity {
+        Quantity::Length | Quantity::Angle | Quantity::Dimensionless => 1e-2,
+        Quantity::Compliance => 1e-4,
+        Quantity::Mass => 0.1,
+        Quantity::Rigidity => 1e3,
+        Quantity::PerKelvin => 1e-6,
+        Quantity::Other(_) => 1e-3,
+    }
+}
+
 /// A copy of `theta` and a forward-difference step for parameter `k`, signed to stay within
 /// the upper bound. Steps are 1e-6 of the value or of a typical scale, whichever is larger.
 ///
@@ -805,14 +870,7 @@ fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
     let typical = if p.info.sigma.is_finite() {
         p.info.sigma
     } else {
-        match p.info.quantity {
-            Quantity::Length | Quantity::Angle | Quantity::Dimensionless => 1e-2,
-            Quantity::Compliance => 1e-4,
-            Quantity::Mass => 0.1,
-            Quantity::Rigidity => 1e3,
-            Quantity::PerKelvin => 1e-6,
-            Quantity::Other(_) => 1e-3,
-        }
+        typical_size(&p.info)
     };
     let mut h = 1e-6 * theta[k].abs().max(typical);
     if theta[k] + h > p.info.upper {
@@ -1175,6 +1233,43 @@ pub fn calibrate(
     if !free.is_empty() {
         outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
     }
+    let mut restarts_rms_mm = Vec::new();
+    if !free.is_empty() && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
+        let mut best_cost = problem.cost(&stage, &theta0, &free);
+        let mut rng = StdRng::seed_from_u64(params.seed);
+        for _ in 0..params.restarts {
+            let mut start = stage.theta.clone();
+            for &k in &free {
+                // One draw per parameter whether used or not, so that two fits sharing their
+                // first parameters (a baseline and a candidate) start from the same geometry.
+                let z: f64 = StandardNormal.sample(&mut rng);
+                let info = &held_space.params[k].info;
+                let spread = if info.multimodal {
+                    typical_size(info)
+                } else {
+                    info.sigma
+                };
+                if spread.is_finite() {
+                    start[k] = (start[k] + z * spread).clamp(info.lower, info.upper);
+                }
+            }
+            let Ok((d, e, _)) = problem.predict(&start) else {
+                continue;
+            };
+            let mut trial = Stage {
+                theta: start,
+                d,
+                e,
+                iterations: 0,
+            };
+            let trial_outcome = problem.levenberg_marquardt(&mut trial, &theta0, &free, params, observer)?;
+            restarts_rms_mm.push(problem.rms_over_noise(&trial) * 3f64.sqrt() * params.measurement_std * 1e3);
+            let cost = problem.cost(&trial, &theta0, &free);
+            if cost < best_cost {
+                (best_cost, stage, outcome) = (cost, trial, trial_outcome);
+            }
+        }
+    }
     let Stage {
         theta,
         d,
@@ -1232,11 +1327,29 @@ pub fn calibrate(
 
     let after = stats(samples, &pred);
     let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
-    let warnings = if rms_over_noise <= FAR_ABOVE_NOISE {
-        Vec::new()
-    } else {
-        far_above_noise_causes(&problem, &theta0, &after, rms_over_noise)?
-    };
+    // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
+    // can shrink the arm onto positions read a thousand times too small.
+    let unit_mistake = unit_mistake(&problem, &theta0)?;
+    let mut warnings = Vec::new();
+    if rms_over_noise > FAR_ABOVE_NOISE || rms_over_noise.is_nan() {
+        warnings.push(format!(
+            "the fit's RMS ({:.4} mm) is {rms_over_noise:.0} times what the declared noise ({} mm per axis) gives \
+             (√3·σ = {:.4} mm)",
+            after.rms_mm,
+            params.measurement_std * 1e3,
+            3f64.sqrt() * params.measurement_std * 1e3
+        ));
+        if unit_mistake.is_none() {
+            warnings.push(
+                "likely causes: wrong units in the data or the robot file, measurements of another point than the \
+                 markers (or rows mixed up), the noise declared too small, or an effect the model lacks (try \
+                 `armcomp diagnose`)"
+                    .into(),
+            );
+        }
+    }
+    let units_mislabelled = unit_mistake.is_some();
+    warnings.extend(unit_mistake);
     let calibrated = apply(robot, &space, &theta)?;
     Ok(Calibration {
         robot: calibrated,
@@ -1248,11 +1361,13 @@ pub fn calibrate(
             identifiability,
             params: params_out,
             iterations,
+            restarts_rms_mm,
             converged: outcome.converged,
             stop_reason: outcome.stop_reason,
             before,
             after,
             rms_over_noise,
+            units_mislabelled,
             warnings,
         },
     })
@@ -1285,14 +1400,7 @@ impl Problem<'_> {
     ) -> Result<StageOutcome> {
         let space = self.space;
         let prior_w: Vec<f64> = free.iter().map(|&k| 1.0 / space.params[k].info.sigma).collect();
-        let cost_of = |theta: &[f64], r: &DVector<f64>| -> f64 {
-            let prior: f64 = free
-                .iter()
-                .zip(&prior_w)
-                .map(|(&k, w)| ((theta[k] - theta0[k]) * w).powi(2))
-                .sum();
-            0.5 * (r.norm_squared() + prior)
-        };
+        let cost_of = |theta: &[f64], r: &DVector<f64>| self.cost_of(theta, theta0, free, r);
         let Stage {
             theta,
             d,
@@ -1536,23 +1644,10 @@ fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> f64 {
     (sum / model.len() as f64).sqrt()
 }
 
-/// The likely causes of a fit that ends `ratio` times above its noise, as messages with the
-/// fix. Unit mistakes give themselves away: the starting model registered rigidly onto the
-/// measured points fits far better once the positions or the revolute joint values are read
-/// in the other unit. Otherwise the general causes are listed.
-fn far_above_noise_causes(
-    problem: &Problem<'_>,
-    theta0: &[f64],
-    after: &ErrorStats,
-    ratio: f64,
-) -> Result<Vec<String>> {
-    let noise_mm = problem.sigma * 1e3;
-    let mut out = vec![format!(
-        "the fit's RMS ({:.4} mm) is {ratio:.0} times what the declared noise ({noise_mm} mm per axis) gives \
-         (√3·σ = {:.4} mm)",
-        after.rms_mm,
-        3f64.sqrt() * noise_mm
-    )];
+/// A unit mistake the data give away: the starting model registered rigidly onto the measured
+/// points fits ten times better once the positions or the revolute joint values are read in
+/// the other unit. The message names the mistake and the fix.
+fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Option<String>> {
     let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
         let p = Problem { samples, ..*problem };
         Ok(p.predict(theta0)?.1.world)
@@ -1610,20 +1705,13 @@ fn far_above_noise_causes(
         .iter()
         .filter(|(rms, _, _)| *rms < 0.1 * as_declared)
         .min_by(|a, b| a.0.total_cmp(&b.0));
-    match best {
-        Some((rms, what, fix)) => out.push(format!(
+    Ok(best.map(|(rms, what, fix)| {
+        format!(
             "{what} (the starting model registered onto them leaves {:.3} mm instead of {:.3} mm); {fix}",
             rms * 1e3,
             as_declared * 1e3
-        )),
-        None => out.push(
-            "likely causes: wrong units in the data or the robot file, measurements of another point than the \
-             markers (or rows mixed up), the noise declared too small, or an effect the model lacks (try \
-             `armcomp diagnose`)"
-                .into(),
-        ),
-    }
-    Ok(out)
+        )
+    }))
 }
 
 /// Sensitivity of every marker's measured position at each pose to the parameters `identify`
