@@ -42,7 +42,8 @@ pub struct PlanReport {
 
 /// `n` evenly spread poses in `space`, drawn with `sampler` and `seed`, each passing `accept`.
 /// Fewer are returned (and the report says why) when candidates run out: at most `20 n` are
-/// tried.
+/// tried, and for a grid only its `n` points (a longer grid's first `n` points would fill a
+/// corner of the ranges only).
 pub fn spread(
     robot: &Robot,
     space: Space,
@@ -57,7 +58,11 @@ pub fn spread(
         unreachable: 0,
         rejected: 0,
     };
-    let tries = n.saturating_mul(20).max(n);
+    let tries = if sampler == Sampler::Grid {
+        n
+    } else {
+        n.saturating_mul(20).max(n)
+    };
     let mut ws = robot.workspace();
     match space {
         Space::Joint => {
