@@ -127,15 +127,15 @@ pub fn learning_curve(
             let of_size = || jobs.iter().zip(&scored).filter(move |((size, _, _), _)| *size == n);
             let selected = of_size()
                 .find(|((_, draw, _), _)| draw.is_none())
-                .map(|(_, s)| s.clone())
+                .map(|(_, s)| *s)
                 .expect("one choice per size");
             let random: Vec<ErrorStats> = of_size()
                 .filter(|((_, draw, _), _)| draw.is_some())
-                .map(|(_, s)| s.clone())
+                .map(|(_, s)| *s)
                 .collect();
             CurvePoint {
                 size: n,
-                random: if random.is_empty() { vec![selected.clone()] } else { random },
+                random: if random.is_empty() { vec![selected] } else { random },
                 selected,
             }
         })
