@@ -79,7 +79,10 @@ fn talos_curve_points_are_the_fits_they_name() {
     )
     .unwrap();
     let html = std::fs::read_to_string(page).unwrap();
-    assert!(html.contains(&format!("<td>15</td><td>{:.3}</td>", curve.points[0].selected.rms_mm)), "{html}");
+    assert!(
+        html.contains(&format!("<td>15</td><td>{:.3}</td>", curve.points[0].selected.rms_mm)),
+        "{html}"
+    );
     let svg = std::fs::read_to_string(out.join("curve-1.svg")).unwrap();
     assert!(svg.contains("FIGAROH: 2.14 mm") && svg.contains("training poses"));
 }

@@ -166,7 +166,11 @@ fn d_and_a_optimal_designs_of_a_straight_line_match_the_hand_calculation() {
         let report = optimal_subset(&design, 10, criterion, 10).unwrap();
         let zeros = report.chosen.iter().filter(|&&i| i < 10).count();
         assert_eq!(zeros, at_zero, "{criterion:?}: {:?}", report.chosen);
-        assert!((report.value - value).abs() < 1e-6, "{criterion:?}: {} vs {value}", report.value);
+        assert!(
+            (report.value - value).abs() < 1e-6,
+            "{criterion:?}: {} vs {value}",
+            report.value
+        );
         // Greedy alone: the first pick goes to the lower index on ties, the exchanges repair it.
         let greedy = optimal_subset(&design, 10, criterion, 0).unwrap();
         assert_eq!(greedy.value, greedy.greedy_value);
@@ -219,13 +223,26 @@ xyz = [-1.0, 0.3, 0.0]
     for extra in [
         vec!["--method", "d-optimal", "--n", "2", "--pool", pool_arg],
         vec!["--method", "a-optimal", "--n", "4", "--pool", pool_arg],
-        vec!["--method", "d-optimal", "--n", "3", "--pool-sampler", "grid", "--pool", "60"],
+        vec![
+            "--method",
+            "d-optimal",
+            "--n",
+            "3",
+            "--pool-sampler",
+            "grid",
+            "--pool",
+            "60",
+        ],
         vec!["--next", "2", "--measured", measured_arg, "--pool", pool_arg],
     ] {
         let poses = run(&extra);
         assert!(!poses.is_empty());
         for q in &poses {
-            assert!(!collision.collides(q, &mut ws), "{extra:?} picked {:.1}°", q[0].to_degrees());
+            assert!(
+                !collision.collides(q, &mut ws),
+                "{extra:?} picked {:.1}°",
+                q[0].to_degrees()
+            );
         }
         // The free end of the range is still taken: the collision filter, not chance, kept
         // the post's poses out.
@@ -351,7 +368,16 @@ fn retrospective_selection_names_rows_that_calibrate_reads() {
     let output = Command::new(bin)
         .args(["plan", "--robot"])
         .arg(root().join("robots/talos-left-arm.toml"))
-        .args(["--method", "d-optimal", "--n", "15", "--identify", "base,markers,offsets", "--json", "--pool"])
+        .args([
+            "--method",
+            "d-optimal",
+            "--n",
+            "15",
+            "--identify",
+            "base,markers,offsets",
+            "--json",
+            "--pool",
+        ])
         .arg(&pool)
         .arg("--out")
         .arg(&out)

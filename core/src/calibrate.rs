@@ -1068,7 +1068,11 @@ fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
         .eigenvalues
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    let condition = if emin > 0.0 { (emax / emin).sqrt() } else { f64::INFINITY };
+    let condition = if emin > 0.0 {
+        (emax / emin).sqrt()
+    } else {
+        f64::INFINITY
+    };
     let inv_diag = match scaled.try_inverse() {
         Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
         None => vec![f64::INFINITY; n],
@@ -1113,7 +1117,12 @@ pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationPa
     let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
     let cols: Vec<usize> = free
         .iter()
-        .map(|k| selected.iter().position(|s| s == k).expect("free parameters are selected"))
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
         .collect();
     let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
     let mut a = j.transpose() * &j;

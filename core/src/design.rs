@@ -219,8 +219,8 @@ pub fn optimal_subset(design: &Design, n: usize, criterion: Criterion, exchange_
         // A fresh state per pass keeps round-off from accumulating over the updates.
         let mut state = DesignState::new(design, &chosen, criterion)?;
         let mut changed = false;
-        for k in 0..chosen.len() {
-            let out = chosen[k];
+        for slot in chosen.iter_mut() {
+            let out = *slot;
             state.update(design, out, -1.0, criterion)?;
             taken[out] = false;
             let keep = state.gain(design, out, criterion).unwrap_or(f64::NEG_INFINITY);
@@ -233,7 +233,7 @@ pub fn optimal_subset(design: &Design, n: usize, criterion: Criterion, exchange_
                 changed = true;
             }
             taken[put] = true;
-            chosen[k] = put;
+            *slot = put;
             state.update(design, put, 1.0, criterion)?;
         }
         if !changed {

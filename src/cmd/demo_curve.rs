@@ -68,8 +68,7 @@ fn run_curve(
 /// the chosen poses of the 250 training poses, scored on the 250 held-out poses.
 pub fn agile_justin(opts: &Options) -> anyhow::Result<ExitCode> {
     let robot = Twin::get("agile-justin").expect("built in").robot()?;
-    let samples =
-        armcomp::agile_justin::parse_measurements(MEASUREMENTS, Path::new(MEASUREMENTS_PATH), &robot)?;
+    let samples = armcomp::agile_justin::parse_measurements(MEASUREMENTS, Path::new(MEASUREMENTS_PATH), &robot)?;
     let split = half_split(&samples, opts.seed)?;
     let (train, test) = (subset(&samples, &split.train), subset(&samples, &split.test));
     let full = STEPS[STEPS.len() - 1];
@@ -120,7 +119,9 @@ fn justin_targets(c: &LearningCurveReport) {
                 .map(|p| format!("{} poses {:.2} mm", p.size, p.selected.mean_mm))
                 .collect::<Vec<_>>()
                 .join(", ");
-            println!("   target: held-out mean ≤ {JUSTIN_TARGET_MM} mm from at most {JUSTIN_TARGET_POSES} chosen poses: NOT met ({best})");
+            println!(
+                "   target: held-out mean ≤ {JUSTIN_TARGET_MM} mm from at most {JUSTIN_TARGET_POSES} chosen poses: NOT met ({best})"
+            );
         }
     }
     beats_median(c, |s| s.mean_mm);
@@ -140,23 +141,34 @@ fn beats_median(c: &LearningCurveReport, stat: fn(&ErrorStats) -> f64) {
         if wins.len() == compared.len() { "met" } else { "NOT met" },
         wins.len(),
         compared.len(),
-        if wins.is_empty() { String::new() } else { format!(": {}", wins.join(", ")) }
+        if wins.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", wins.join(", "))
+        }
     );
 }
 
 /// FIGAROH's full-data joint-offset held-out RMSE per split (mm).
-const FIGAROH_OFFSETS_RMS: [(&str, &str, &str, f64); 2] = [("interleaved", "even", "odd", 2.14), ("time", "..40", "40..", 3.19)];
+const FIGAROH_OFFSETS_RMS: [(&str, &str, &str, f64); 2] =
+    [("interleaved", "even", "odd", 2.14), ("time", "..40", "40..", 3.19)];
 
 /// `armcomp demo talos`: TALOS' two splits, at the joint-offset level (FIGAROH's, no priors)
 /// and with full geometry (priors scaled by cross-validation on the chosen poses).
 pub fn talos(opts: &Options, robot_path: &Path, data_path: &Path) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(robot_path)
-        .with_context(|| format!("{}: run from the repository root, or give --robot", robot_path.display()))?;
+    let robot = armcomp::load_robot(robot_path).with_context(|| {
+        format!(
+            "{}: run from the repository root, or give --robot",
+            robot_path.display()
+        )
+    })?;
     let set = read_csv(data_path, &robot.csv_layout())
         .with_context(|| format!("{}: run from the repository root", data_path.display()))?;
     let mut curves = Vec::new();
     for (split, train_rows, test_rows, figaroh) in FIGAROH_OFFSETS_RMS {
-        let train = set.select_rows(&train_rows.parse().map_err(anyhow::Error::msg)?).samples;
+        let train = set
+            .select_rows(&train_rows.parse().map_err(anyhow::Error::msg)?)
+            .samples;
         let test = set.select_rows(&test_rows.parse().map_err(anyhow::Error::msg)?).samples;
         let n = train.len();
         let mut sizes: Vec<usize> = SIZES.iter().copied().filter(|&s| s <= n).chain([n / 2, n]).collect();
@@ -164,7 +176,11 @@ pub fn talos(opts: &Options, robot_path: &Path, data_path: &Path) -> anyhow::Res
         sizes.dedup();
         let levels: [(&str, &str, bool); 2] = [
             ("joint offsets, no priors", "base,markers,offsets", false),
-            ("full geometry, priors by cross-validation", "base,markers,geometry", true),
+            (
+                "full geometry, priors by cross-validation",
+                "base,markers,geometry",
+                true,
+            ),
         ];
         for (level, identify, cv) in levels {
             let identify: Vec<String> = identify.split(',').map(String::from).collect();

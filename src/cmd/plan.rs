@@ -177,9 +177,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.next.is_some() && args.measured.is_none() {
         bail!("--next proposes what to measure after the poses of --measured FILE; give that file");
     }
-    let method = args.method.clone().unwrap_or_else(|| {
-        if args.next.is_some() { "uncertainty" } else { "sobol" }.to_string()
-    });
+    let method = args
+        .method
+        .clone()
+        .unwrap_or_else(|| if args.next.is_some() { "uncertainty" } else { "sobol" }.to_string());
     let n = args.next.unwrap_or(args.n);
     // Poses in collision (self-collision or fixtures) are never planned.
     let collision = CollisionModel::new(&robot);
@@ -209,7 +210,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             Some(path) => super::read_measurements(&robot, path, None)?.samples,
             None => Vec::new(),
         };
-        return optimal(&args, &robot, criterion, n.min(candidates.samples.len()), candidates, &measured);
+        return optimal(
+            &args,
+            &robot,
+            criterion,
+            n.min(candidates.samples.len()),
+            candidates,
+            &measured,
+        );
     }
     if args.next.is_some() || args.measured.is_some() {
         bail!("--next and --measured go with the methods d-optimal, a-optimal and uncertainty, not `{method}`");
@@ -297,7 +305,11 @@ fn optimal(
             (write_csv(&set, robot.tree(), robot.file.units), report.chosen.len())
         }
         None => {
-            let poses: Vec<Vec<f64>> = report.chosen.iter().map(|&i| candidates.samples[i][0].q.clone()).collect();
+            let poses: Vec<Vec<f64>> = report
+                .chosen
+                .iter()
+                .map(|&i| candidates.samples[i][0].q.clone())
+                .collect();
             (write_poses(&poses, robot.tree(), robot.file.units), poses.len())
         }
     };
@@ -329,7 +341,9 @@ fn print_report(r: &SelectionReport, measured: usize, rows: Option<&[usize]>) {
     println!(
         "{}: {what} {:.6e} after the greedy choice, {:.6e} after {} exchange(s)",
         r.criterion.name(),
-        r.greedy_value, r.value, r.exchanges
+        r.greedy_value,
+        r.value,
+        r.exchanges
     );
     println!(
         "predicted RMS 3-D position std over the pool: {:.4} mm {}, {:.4} mm with the chosen poses",

@@ -339,11 +339,18 @@ pub fn learning_curve(curve: &Curve) -> Svg {
         chart
             .configure_mesh()
             .x_desc("training poses")
-            .y_desc(format!("held-out {} 3-D error (mm)", if curve.metric == "rms" { "RMS" } else { "mean" }))
+            .y_desc(format!(
+                "held-out {} 3-D error (mm)",
+                if curve.metric == "rms" { "RMS" } else { "mean" }
+            ))
             .draw()
             .map_err(draw_error)?;
         chart
-            .draw_series(random.iter().map(|&(x, r)| PathElement::new(vec![(x, r[2]), (x, r[3])], PAPER_COLOR.stroke_width(2))))
+            .draw_series(
+                random
+                    .iter()
+                    .map(|&(x, r)| PathElement::new(vec![(x, r[2]), (x, r[3])], PAPER_COLOR.stroke_width(2))),
+            )
             .map_err(draw_error)?;
         chart
             .draw_series(std::iter::once(PathElement::new(
@@ -354,10 +361,17 @@ pub fn learning_curve(curve: &Curve) -> Svg {
             .label("random subsets: median, min–max")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], PAPER_COLOR.stroke_width(2)));
         chart
-            .draw_series(random.iter().map(|&(x, r)| Circle::new((x, r[1]), 3, PAPER_COLOR.filled())))
+            .draw_series(
+                random
+                    .iter()
+                    .map(|&(x, r)| Circle::new((x, r[1]), 3, PAPER_COLOR.filled())),
+            )
             .map_err(draw_error)?;
         chart
-            .draw_series(std::iter::once(PathElement::new(chosen.clone(), MEASURED_COLOR.stroke_width(2))))
+            .draw_series(std::iter::once(PathElement::new(
+                chosen.clone(),
+                MEASURED_COLOR.stroke_width(2),
+            )))
             .map_err(draw_error)?
             .label("chosen by armcomp plan")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], MEASURED_COLOR.stroke_width(2)));

@@ -26,7 +26,11 @@ pub struct Curve {
 impl Curve {
     /// The statistic [`Curve::metric`] names.
     pub fn stat(&self) -> fn(&ErrorStats) -> f64 {
-        if self.metric == "rms" { |s| s.rms_mm } else { |s| s.mean_mm }
+        if self.metric == "rms" {
+            |s| s.rms_mm
+        } else {
+            |s| s.mean_mm
+        }
     }
 }
 
@@ -170,7 +174,8 @@ pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<Path
             message,
         })?;
         files.push((name.clone(), svg.into_bytes()));
-        let caption = "Held-out error against training poses: the tool's choice, and the random subsets' median with their range";
+        let caption =
+            "Held-out error against training poses: the tool's choice, and the random subsets' median with their range";
         let _ = writeln!(
             html,
             "<figure><img src=\"{name}\" alt=\"{caption}\"><figcaption>{caption}</figcaption></figure>"
