@@ -6,16 +6,25 @@
 //! Random subsets of one draw are nested (the first `n` poses of one seeded permutation), so
 //! the curve of a draw is a user measuring in random order.
 
-use armcomp_core::design::{SelectionParams, select_poses};
+use std::path::Path;
+
+use armcomp_core::calibrate::{CalibrationParams, calibrate};
+use armcomp_core::design::{Criterion, SelectionParams, select_poses};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::Sample;
-use armcomp_core::split::pose_groups;
-use armcomp_core::{Result, Robot};
+use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample};
+use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
+use armcomp_core::split::{pose_groups, subset};
+use armcomp_core::{Error, Result, Robot};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use rayon::prelude::*;
 use serde::Serialize;
+
+use crate::agile_justin::{
+    MEASUREMENT_STD, MEASUREMENTS, MEASUREMENTS_PATH, STEPS, fit_full_model, half_split, parse_measurements,
+};
+use crate::twins::Twin;
 
 /// Settings of [`learning_curve`].
 #[derive(Debug, Clone)]
@@ -148,12 +157,128 @@ pub fn learning_curve(
     })
 }
 
-/// Fits to run for `params` on `train_poses` training poses (for a progress bar).
-pub fn fits(params: &CurveParams, train_poses: usize) -> usize {
-    params
-        .sizes
-        .iter()
-        .filter(|&&n| n <= train_poses)
-        .map(|&n| if n == train_poses { 1 } else { 1 + params.draws })
-        .sum()
+/// The sizes of the demos' curves (poses).
+pub const SIZES: [usize; 7] = [20, 40, 60, 80, 100, 150, 250];
+
+/// Agile Justin's curve (`armcomp demo agile-justin --learning-curve`): the paper's full
+/// model, fitted step by step as the step table does, on poses of the table's 250 training
+/// poses (split `seed`), chosen by `criterion` for the full model's parameters with the
+/// fits' tracker noise, or drawn at random (`draws` per size); scored on the 250 held-out
+/// poses.
+pub fn agile_justin_curve(
+    seed: u64,
+    criterion: Criterion,
+    draws: usize,
+    on_fit: &(dyn Fn() + Sync),
+) -> Result<LearningCurveReport> {
+    let robot = Twin::get("agile-justin").expect("built in").robot()?;
+    let samples = parse_measurements(MEASUREMENTS, Path::new(MEASUREMENTS_PATH), &robot)?;
+    let split = half_split(&samples, seed)?;
+    let (train, test) = (subset(&samples, &split.train), subset(&samples, &split.test));
+    let full = STEPS[STEPS.len() - 1];
+    let params = CurveParams {
+        sizes: SIZES.to_vec(),
+        draws,
+        seed,
+        selection: SelectionParams {
+            criterion,
+            identify: full.identify.iter().map(|w| w.to_string()).collect(),
+            measurement_std: MEASUREMENT_STD,
+            ..SelectionParams::default()
+        },
+    };
+    let title = format!(
+        "Agile Justin: held-out mean of the full model ({}) against training poses, split seed {seed}",
+        full.label
+    );
+    learning_curve(
+        &robot,
+        &train,
+        &test,
+        &params,
+        &title,
+        &|s| fit_full_model(&robot, s),
+        on_fit,
+    )
+}
+
+/// A TALOS curve: the split, and FIGAROH's full-data joint-offset held-out RMSE on it.
+#[derive(Debug, Clone, Serialize)]
+pub struct TalosCurve {
+    /// `interleaved` or `time` (data/talos-left-arm/README.md).
+    pub split: &'static str,
+    /// FIGAROH's joint-offset held-out RMSE from all training rows (mm).
+    pub figaroh_offsets_rms_mm: f64,
+    /// The curve.
+    pub report: LearningCurveReport,
+}
+
+/// TALOS' splits: name, training rows, held-out rows, FIGAROH's joint-offset held-out RMSE (mm).
+pub const TALOS_SPLITS: [(&str, &str, &str, f64); 2] =
+    [("interleaved", "even", "odd", 2.14), ("time", "..40", "40..", 3.19)];
+
+/// TALOS' curves (`armcomp demo talos`) on `set` (its measurements for `robot`): on each split,
+/// at the joint-offset level without priors (FIGAROH's) and with full geometry held by priors
+/// scaled by 5-fold cross-validation on the fitted rows; sizes half the training rows, the
+/// [`SIZES`] up to the training rows, and all of them.
+pub fn talos_curves(
+    robot: &Robot,
+    set: &MeasurementSet,
+    seed: u64,
+    criterion: Criterion,
+    draws: usize,
+    on_fit: &(dyn Fn() + Sync),
+) -> Result<Vec<TalosCurve>> {
+    let mut curves = Vec::new();
+    for (split, train_rows, test_rows, figaroh) in TALOS_SPLITS {
+        let rows = |spec: &str| -> Result<Vec<Sample>> {
+            let selection: RowSelection = spec.parse().map_err(Error::Input)?;
+            Ok(set.select_rows(&selection).samples)
+        };
+        let (train, test) = (rows(train_rows)?, rows(test_rows)?);
+        let n = pose_groups(&train).len();
+        let mut sizes: Vec<usize> = SIZES.iter().copied().filter(|&s| s <= n).chain([n / 2, n]).collect();
+        sizes.sort_unstable();
+        sizes.dedup();
+        let levels: [(&str, &str, bool); 2] = [
+            ("joint offsets, no priors", "base,markers,offsets", false),
+            (
+                "full geometry, priors by cross-validation",
+                "base,markers,geometry",
+                true,
+            ),
+        ];
+        for (level, identify, cv) in levels {
+            let identify: Vec<String> = identify.split(',').map(String::from).collect();
+            let params = CurveParams {
+                sizes: sizes.clone(),
+                draws,
+                seed,
+                selection: SelectionParams {
+                    criterion,
+                    identify: identify.clone(),
+                    ..SelectionParams::default()
+                },
+            };
+            let calibration = CalibrationParams {
+                identify,
+                use_priors: cv,
+                ..CalibrationParams::default()
+            };
+            let fit = |s: &[Sample]| -> Result<Robot> {
+                let mut p = calibration.clone();
+                if cv {
+                    p.prior_scale = choose_prior_scale(robot, s, &p, &DEFAULT_GRID, 5, 0)?.scale;
+                }
+                Ok(calibrate(robot, s, &p, &mut |_| {})?.robot)
+            };
+            let title = format!("TALOS, {split} split: held-out RMSE at the level {level}");
+            curves.push(TalosCurve {
+                split,
+                figaroh_offsets_rms_mm: figaroh,
+                report: learning_curve(robot, &train, &test, &params, &title, &fit, on_fit)?,
+            });
+        }
+    }
+    Ok(curves)
 }

@@ -4,8 +4,11 @@
 //! curves of both demos run with
 //! `cargo test --release --test integration learning_curve -- --ignored`.
 
+use std::path::Path;
+
+use armcomp::agile_justin::{MEASUREMENTS, STEPS, half_split, parse_measurements, step_table};
 use armcomp::demos::report::{Curve, write_page};
-use armcomp::learning_curve::{CurveParams, learning_curve};
+use armcomp::learning_curve::{CurveParams, agile_justin_curve, learning_curve, talos_curves};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::design::{Criterion, SelectionParams, select_poses};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
@@ -85,4 +88,63 @@ fn talos_curve_points_are_the_fits_they_name() {
     );
     let svg = std::fs::read_to_string(out.join("curve-1.svg")).unwrap();
     assert!(svg.contains("FIGAROH: 2.14 mm") && svg.contains("training poses"));
+}
+
+/// The documented Agile Justin curve (docs/poses.md; about 15 min with `--release` on 2
+/// cores): the chosen poses beat the median of 10 random subsets at every size below all 250
+/// training poses, and all 250 give the step table's full-model held-out error.
+#[test]
+#[ignore]
+fn agile_justin_choice_beats_the_median_random_subset_at_every_size() {
+    let c = agile_justin_curve(1, Criterion::Uncertainty, 10, &|| {}).unwrap();
+    assert_eq!(c.train_poses, 250);
+    for p in c.points.iter().filter(|p| p.size < c.train_poses) {
+        let median = p.random_summary(|s| s.mean_mm)[1];
+        assert!(
+            p.selected.mean_mm < median,
+            "{} poses: chosen {:.3} mm, median random {median:.3} mm",
+            p.size,
+            p.selected.mean_mm
+        );
+    }
+    let r = robot("agile-justin.toml");
+    let samples = parse_measurements(MEASUREMENTS, Path::new("m.csv"), &r).unwrap();
+    let table = step_table(&r, &samples, &half_split(&samples, 1).unwrap(), &STEPS, None).unwrap();
+    let all = c.points.last().unwrap();
+    assert_eq!(all.size, 250);
+    assert_eq!(all.selected, table[STEPS.len() - 1].test);
+}
+
+/// The documented TALOS curves (docs/poses.md; about 3 min with `--release`): every training
+/// row at the joint-offset level gives FIGAROH's published held-out RMSE, half of them chosen
+/// by the tool reach it on the interleaved split, and with full geometry on both.
+#[test]
+#[ignore]
+fn talos_half_the_rows_reach_figaroh_joint_offset_figure() {
+    let (r, _, _) = talos();
+    let set = read_csv(&root().join("data/talos-left-arm/measurements.csv"), &r.csv_layout()).unwrap();
+    let curves = talos_curves(&r, &set, 1, Criterion::Uncertainty, 10, &|| {}).unwrap();
+    assert_eq!(curves.len(), 4);
+    for (k, c) in curves.iter().enumerate() {
+        let all = c.report.points.last().unwrap();
+        let half = c
+            .report
+            .points
+            .iter()
+            .find(|p| p.size == c.report.train_poses / 2)
+            .unwrap();
+        if k % 2 == 0 {
+            // Joint offsets without priors: FIGAROH's level.
+            assert!(
+                (all.selected.rms_mm - c.figaroh_offsets_rms_mm).abs() < 0.005,
+                "{}",
+                c.report.title
+            );
+            if c.split == "interleaved" {
+                assert!(half.selected.rms_mm <= c.figaroh_offsets_rms_mm, "{}", c.report.title);
+            }
+        } else {
+            assert!(half.selected.rms_mm <= c.figaroh_offsets_rms_mm, "{}", c.report.title);
+        }
+    }
 }
