@@ -1104,6 +1104,111 @@ fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize) -> String
     out
 }
 
+/// What the data determine of the selected parameters, before any fitting.
+struct Assessment {
+    report: IdentifiabilityReport,
+    /// The selected parameters left free (not fixed as undeterminable).
+    free: Vec<usize>,
+    /// The free parameters the data barely determine (see [`barely_seen`]).
+    held: Vec<usize>,
+}
+
+/// The identifiability of the parameters `selected` from the Jacobian `jac` (residuals in units
+/// of the noise, columns of `selected`): what cannot be determined (fixed or held by priors)
+/// and what is barely determined, with the report saying so.
+fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], tol: f64) -> Assessment {
+    let (mut report, fixed) = analyse(space, jac, selected, tol);
+    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let held = barely_seen(space, jac, selected, &free);
+    if !held.is_empty() {
+        report.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
+        let sep = if report.message.is_empty() { "" } else { " " };
+        report.message.push_str(&format!(
+            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
+             of their start: {}.",
+            held.len(),
+            report.held_by_priors.join(", ")
+        ));
+    }
+    Assessment { report, free, held }
+}
+
+/// The condition number of the normal matrix `a` (priors included) after scaling it to a unit
+/// diagonal, and the diagonal of its inverse (infinite when singular).
+fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
+    let n = a.nrows();
+    let scale = DVector::from_iterator(n, (0..n).map(|c| a[(c, c)].sqrt().max(1e-300)));
+    let scaled = DMatrix::from_fn(n, n, |i, k| a[(i, k)] / (scale[i] * scale[k]));
+    let eig = scaled.clone().symmetric_eigen();
+    let (emin, emax) = eig
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let condition = if emin > 0.0 {
+        (emax / emin).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    let inv_diag = match scaled.try_inverse() {
+        Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
+        None => vec![f64::INFINITY; n],
+    };
+    (condition, inv_diag)
+}
+
+/// The robot's parameter space with the priors `params` asks for (scaled by its
+/// `prior_scale`, or none).
+fn prior_space(robot: &Robot, params: &CalibrationParams) -> ParameterSpace {
+    let mut space = ParameterSpace::new(robot);
+    for p in &mut space.params {
+        p.info.sigma = if params.use_priors {
+            p.info.sigma * params.prior_scale
+        } else {
+            f64::INFINITY
+        };
+    }
+    space
+}
+
+/// How well measurements at the configurations of `samples` (their measured positions are not
+/// used) would determine the parameters `params.identify` selects, before any fit: the
+/// identifiability report [`calibrate`] starts from (linearised at the robot's values, the
+/// measurement frame as the robot file guesses it), with the condition number over the free
+/// parameters with their priors. For judging a set of poses before measuring it.
+pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -> Result<IdentifiabilityReport> {
+    if samples.is_empty() {
+        return Err(Error::Input("an identifiability report needs at least one pose".into()));
+    }
+    let space = prior_space(robot, params);
+    let selected = space.select(robot, &params.identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples,
+        sigma: params.measurement_std,
+    };
+    let theta = space.initial();
+    let (d, e, _) = problem.predict(&theta)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
+    let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
+    let cols: Vec<usize> = free
+        .iter()
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
+        .collect();
+    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    report.condition_number_free = normal_equations(&a).0;
+    Ok(report)
+}
+
 /// Identifies the parameters chosen by `params.identify` from `samples` (measured positions
 /// in the measurement frame). `observer` sees every iteration (for a progress display).
 ///
@@ -1155,14 +1260,7 @@ pub fn calibrate(
             )));
         }
     }
-    let mut space = ParameterSpace::new(robot);
-    for p in &mut space.params {
-        p.info.sigma = if params.use_priors {
-            p.info.sigma * params.prior_scale
-        } else {
-            f64::INFINITY
-        };
-    }
+    let space = prior_space(robot, params);
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem {
         robot,
@@ -1189,24 +1287,16 @@ pub fn calibrate(
 
     // Identifiability at the start decides what is held.
     let jac0 = problem.jacobian(&theta0, &d, &e, &selected, JacobianForm::Exact)?;
-    let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
-    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
-    let held = barely_seen(&space, &jac0, &selected, &free);
+    let Assessment {
+        report: mut identifiability,
+        free,
+        held,
+    } = assess(&space, &jac0, &selected, params.rank_tolerance);
     let mut held_space = space.clone();
     for &k in &held {
         let info = &mut held_space.params[k].info;
         info.lower = info.lower.max(theta0[k] - PRIOR_BOX * info.sigma);
         info.upper = info.upper.min(theta0[k] + PRIOR_BOX * info.sigma);
-    }
-    if !held.is_empty() {
-        identifiability.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
-        let sep = if identifiability.message.is_empty() { "" } else { " " };
-        identifiability.message.push_str(&format!(
-            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
-             of their start: {}.",
-            held.len(),
-            identifiability.held_by_priors.join(", ")
-        ));
     }
     let problem = Problem {
         space: &held_space,
@@ -1287,24 +1377,9 @@ pub fn calibrate(
     }
     let dof = (r.len() as f64 - free.len() as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
-    let scale = DVector::from_iterator(free.len(), (0..free.len()).map(|c| a[(c, c)].sqrt().max(1e-300)));
-    let scaled = DMatrix::from_fn(free.len(), free.len(), |i, k| a[(i, k)] / (scale[i] * scale[k]));
-    let eig = scaled.clone().symmetric_eigen();
-    let (emin, emax) = eig
-        .eigenvalues
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    identifiability.condition_number_free = if emin > 0.0 {
-        (emax / emin).sqrt()
-    } else {
-        f64::INFINITY
-    };
-    let cov_diag: Vec<f64> = match scaled.try_inverse() {
-        Some(inv) => (0..free.len())
-            .map(|c| s2 * inv[(c, c)] / (scale[c] * scale[c]))
-            .collect(),
-        None => vec![f64::INFINITY; free.len()],
-    };
+    let (condition_number_free, inv_diag) = normal_equations(&a);
+    identifiability.condition_number_free = condition_number_free;
+    let cov_diag: Vec<f64> = inv_diag.iter().map(|v| s2 * v).collect();
     let initial = space.initial();
     let params_out = selected
         .iter()
@@ -1722,29 +1797,41 @@ pub fn identification_jacobian(
     poses: &[Vec<f64>],
     identify: &[String],
 ) -> Result<(DMatrix<f64>, Vec<String>)> {
-    let samples: Vec<Sample> = poses
+    let samples: Vec<Sample> = poses.iter().flat_map(|q| marker_samples(robot, q)).collect();
+    samples_jacobian(robot, &samples, identify)
+}
+
+/// One sample per marker of `robot` at configuration `q` (measured positions zero): what
+/// measuring every marker there would give, for planning.
+pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
+    robot
+        .markers()
         .iter()
-        .flat_map(|q| {
-            robot.markers().iter().map(|&m| Sample {
-                q: q.clone(),
-                point: m,
-                position: Vector3::zeros(),
-                orientation: None,
-                payload: None,
-                temperature: None,
-                torque: None,
-            })
+        .map(|&m| Sample {
+            q: q.to_vec(),
+            point: m,
+            position: Vector3::zeros(),
+            orientation: None,
+            payload: None,
+            temperature: None,
+            torque: None,
         })
-        .collect();
-    for q in poses {
-        robot.tree().check_q(q)?;
+        .collect()
+}
+
+/// [`identification_jacobian`] at the configurations, points and conditions (payload,
+/// temperature) of `samples`: three rows per sample, in sample order; their measured
+/// positions are not used.
+pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) -> Result<(DMatrix<f64>, Vec<String>)> {
+    for s in samples {
+        robot.tree().check_q(&s.q)?;
     }
     let space = ParameterSpace::new(robot);
     let selected = space.select(robot, identify)?;
     let problem = Problem {
         robot,
         space: &space,
-        samples: &samples,
+        samples,
         sigma: 1.0,
     };
     let theta = space.initial();
