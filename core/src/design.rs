@@ -281,10 +281,10 @@ pub struct SelectionReport {
     pub criterion: Criterion,
     /// Indices into the pool, in the order they entered the set.
     pub chosen: Vec<usize>,
-    /// The criterion's value of the set (scaled units; see [`Design::value`]), after the
-    /// greedy pass and at the end.
+    /// The criterion's value of the set after the greedy pass (scaled units; see
+    /// [`Design::value`]).
     pub greedy_value: f64,
-    /// The same at the end.
+    /// The same after the exchanges.
     pub value: f64,
     /// Exchanges the refinement made.
     pub exchanges: usize,

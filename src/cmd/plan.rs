@@ -85,14 +85,17 @@ enum Pool {
 }
 
 impl Pool {
-    fn parse(text: Option<&str>, default: usize) -> Pool {
-        match text {
-            None => Pool::Sampled(default),
+    /// `--pool`: a number of poses to sample, or a file; none gives `Sampled(0)`, the method's
+    /// default size.
+    fn parse(text: Option<&str>) -> anyhow::Result<Pool> {
+        Ok(match text {
+            None => Pool::Sampled(0),
             Some(t) => match t.trim().parse::<usize>() {
+                Ok(0) => bail!("--pool 0: give a number of poses to sample (at least 1) or a file"),
                 Ok(n) => Pool::Sampled(n),
                 Err(_) => Pool::File(PathBuf::from(t)),
             },
-        }
+        })
     }
 }
 
@@ -162,7 +165,7 @@ fn skipped(colliding: usize) -> String {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
-    let pool_arg = Pool::parse(args.pool.as_deref(), 0);
+    let pool_arg = Pool::parse(args.pool.as_deref())?;
     let mut read: Vec<&Path> = args.trajectory.iter().map(|p| p.as_path()).collect();
     read.extend(args.measured.as_deref());
     if let Pool::File(p) = &pool_arg {
