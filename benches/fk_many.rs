@@ -21,7 +21,12 @@ fn configurations(robot: &Robot) -> Vec<f64> {
     let mut rng = StdRng::seed_from_u64(1);
     let limits = robot.tree().coordinate_limits();
     (0..N)
-        .flat_map(|_| limits.iter().map(|l| l.map_or(0.0, |l| 0.5 * (l.lower + l.upper))).collect::<Vec<_>>())
+        .flat_map(|_| {
+            limits
+                .iter()
+                .map(|l| l.map_or(0.0, |l| 0.5 * (l.lower + l.upper)))
+                .collect::<Vec<_>>()
+        })
         .map(|mid| mid + rng.random_range(-0.5..0.5) * 0.1)
         .collect()
 }

@@ -245,6 +245,16 @@ fn calibrate_sequence(robot: &Robot, train: &[Sample], selections: &[Vec<String>
     Ok(out)
 }
 
+/// The paper's full model (the last step) fitted on `train` step by step, as the table does.
+pub fn fit_full_model(robot: &Robot, train: &[Sample]) -> Result<Robot> {
+    let selections: Vec<Vec<String>> = STEPS
+        .iter()
+        .map(|s| s.identify.iter().map(|w| w.to_string()).collect())
+        .collect();
+    let mut robots = calibrate_sequence(robot, train, &selections)?;
+    Ok(robots.pop().expect("five steps").0)
+}
+
 /// A parameter group of the paper's leave-one-out analysis (full model minus that group).
 #[derive(Debug, Clone, Copy)]
 pub struct ParamGroup {

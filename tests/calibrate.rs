@@ -675,11 +675,7 @@ fn mislabelled_units_are_named_both_ways_and_pure_noise_is_far_above_the_noise()
     for seed in [31, 32, 33] {
         let data = measure(&truth, 60, seed);
         let good = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap().report;
-        assert!(
-            !good.far_above_noise() && good.warnings.is_empty(),
-            "{:?}",
-            good.warnings
-        );
+        assert!(!good.suspect() && good.warnings.is_empty(), "{:?}", good.warnings);
         let scale_q = |f: f64| -> Vec<Sample> {
             data.iter()
                 .map(|s| {
@@ -712,7 +708,11 @@ fn mislabelled_units_are_named_both_ways_and_pure_noise_is_far_above_the_noise()
             ("degrees read as radians", scale_q(deg), "degrees declared as radians"),
         ] {
             let report = calibrate(&nominal, &samples, &params, &mut |_| {}).unwrap().report;
-            assert!(report.far_above_noise(), "{what}: {:?}", report.after);
+            assert!(
+                report.suspect() && report.units_mislabelled,
+                "{what}: {:?}",
+                report.after
+            );
             assert!(
                 report.warnings.iter().any(|w| w.contains(expected)),
                 "{what} (seed {seed}): {:?}",
@@ -930,7 +930,8 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
 /// truth's servo scales, eccentric encoders, ...), a geometric refit would trade the feed's
 /// length against the tool marker by half a metre along a direction the data barely sees.
 /// Every parameter the data barely determine stays within three prior standard deviations
-/// (the robot file's, 5 mm for lengths) of its start, on two seeds.
+/// (the robot file's, 5 mm for lengths) of its start, on two seeds, and the report says the
+/// fit is far above the noise.
 #[test]
 fn parameters_the_data_barely_see_move_no_more_than_their_prior_allows() {
     let base = robot("rock-drill.toml");
@@ -965,11 +966,86 @@ fn parameters_the_data_barely_see_move_no_more_than_their_prior_allows() {
                 prior[name] * 1e3
             );
         }
-        let (tool_z, _) = value(&r, "marker.tool.z");
+        // The effects the model lacks leave it far above the noise, which the report says.
         assert!(
-            tool_z.abs() < 0.05,
-            "seed {seed}: the marker moved {:.1} mm",
-            tool_z * 1e3
+            r.rms_over_noise > 10.0 && !r.warnings.is_empty(),
+            "seed {seed}: RMS {:.3} mm with no warning",
+            r.after.rms_mm
         );
+    }
+}
+
+/// The stuck case: the rock drill with 0.3° of backlash at j6, fitted from a backlash of zero
+/// with its geometry on each training fold of 300 poses. Every fold reaches the noise floor
+/// and says it converged, and the play comes out within three standard deviations of the
+/// truth; a fit at the noise floor is not restarted.
+#[test]
+fn a_backlash_fitted_from_zero_reaches_the_noise_floor_on_every_fold() {
+    let with_backlash = |play_deg: f64| {
+        let base = robot("rock-drill.toml");
+        let mut file = base.to_file();
+        let spec = serde_json::json!({"type": "backlash", "backlash": {"j6": play_deg}});
+        file.error_models.push(serde_json::from_value(spec).unwrap());
+        base.rebuild(file).unwrap()
+    };
+    let (truth, start) = (with_backlash(0.3), with_backlash(0.0));
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        max_iterations: 30,
+        ..Default::default()
+    };
+    for seed in [5, 6] {
+        let data = measure(&truth, 300, seed);
+        for split in kfold(&data, 3, seed).unwrap() {
+            let train: Vec<Sample> = split.train.iter().map(|&i| data[i].clone()).collect();
+            let r = calibrate(&start, &train, &params, &mut |_| {}).unwrap().report;
+            assert!(
+                r.converged && r.rms_over_noise < 1.1 && r.restarts_rms_mm.is_empty(),
+                "seed {seed}: RMS {:.4} mm, {}",
+                r.after.rms_mm,
+                r.stop_reason
+            );
+            let (play, std) = value(&r, "backlash.j6");
+            assert!(
+                (play - 0.3f64.to_radians()).abs() < 3.0 * std,
+                "seed {seed}: play {:.4}° ± {:.4}°",
+                play.to_degrees(),
+                std.to_degrees()
+            );
+        }
+    }
+}
+
+/// Restarts: a model that lacks the truth's backlash ends above the noise, so the fit is
+/// repeated from perturbed starts; the same seed gives the same restarts and the same model,
+/// and no restart is kept unless its cost is lower.
+#[test]
+fn restarts_are_seeded_and_keep_the_lowest_cost() {
+    let base = robot("rock-drill.toml");
+    let mut file = base.to_file();
+    let spec = serde_json::json!({"type": "backlash", "backlash": {"j6": 0.3}});
+    file.error_models.push(serde_json::from_value(spec).unwrap());
+    let truth = base.rebuild(file).unwrap();
+    let data = measure(&truth, 150, 8);
+    let fit = |restarts: usize, seed: u64| {
+        let params = CalibrationParams {
+            measurement_std: NOISE,
+            restarts,
+            seed,
+            ..Default::default()
+        };
+        calibrate(&base, &data, &params, &mut |_| {}).unwrap()
+    };
+    let (once, a, b, other) = (fit(0, 0), fit(3, 1), fit(3, 1), fit(3, 2));
+    assert!(once.report.restarts_rms_mm.is_empty());
+    assert_eq!(a.report.restarts_rms_mm.len(), 3);
+    assert_eq!(a.report.restarts_rms_mm, b.report.restarts_rms_mm);
+    let text = |c: &armcomp_core::calibrate::Calibration| {
+        c.robot.to_file().to_text_for(std::path::Path::new("m.toml")).unwrap()
+    };
+    assert_eq!(text(&a), text(&b));
+    assert_ne!(a.report.restarts_rms_mm, other.report.restarts_rms_mm);
+    for r in [&a.report, &other.report] {
+        assert!(r.after.rms_mm <= once.report.after.rms_mm * (1.0 + 1e-9));
     }
 }

@@ -13,6 +13,7 @@ mod demo_report;
 mod diagnose;
 mod fk;
 mod jacobian;
+mod learning_curve;
 mod malformed;
 mod measurement;
 mod mutated_inputs;

@@ -17,6 +17,9 @@
 //! the available crates pull in another nalgebra version.
 
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, SymmetricEigen, Vector3, Vector6};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -374,7 +377,19 @@ pub struct CalibrationParams {
     /// below 1 holds the parameters closer to their starting values, infinite drops the
     /// priors. [`choose_prior_scale`] picks it by cross-validation.
     pub prior_scale: f64,
+    /// Fits that end more than [`RESTART_ABOVE_NOISE`] times above the noise are repeated
+    /// this many times from perturbed starts, keeping the lowest cost: every parameter with a
+    /// prior moved by a normal draw of its prior standard deviation, and parameters along
+    /// which the cost has several minima ([`ParamInfo::multimodal`]: backlash, scales) by
+    /// their typical size as well.
+    pub restarts: usize,
+    /// Seed of the restarts' perturbations; the same seed gives the same fit.
+    pub seed: u64,
 }
+
+/// A fit whose RMS is this many times what the declared noise gives is restarted (see
+/// [`CalibrationParams::restarts`]); below it the fit explains the data to within its noise.
+pub const RESTART_ABOVE_NOISE: f64 = 1.5;
 
 impl Default for CalibrationParams {
     fn default() -> Self {
@@ -388,6 +403,8 @@ impl Default for CalibrationParams {
             rank_tolerance: 1e-5,
             use_priors: true,
             prior_scale: 1.0,
+            restarts: 2,
+            seed: 0,
         }
     }
 }
@@ -482,6 +499,9 @@ pub struct CalibrationReport {
     pub params: Vec<ParamResult>,
     /// Iterations run.
     pub iterations: usize,
+    /// Final training RMS (mm) of each restart from a perturbed start, in order; empty when
+    /// the first fit already reached the noise (see [`CalibrationParams::restarts`]).
+    pub restarts_rms_mm: Vec<f64>,
     /// Whether the cost stopped decreasing within the tolerance.
     pub converged: bool,
     /// Why the iteration stopped.
@@ -493,7 +513,12 @@ pub struct CalibrationReport {
     /// The 3-D RMS after, over what the declared noise alone gives (`√3 σ`); above
     /// [`FAR_ABOVE_NOISE`] the model or the data is wrong, not just noisy.
     pub rms_over_noise: f64,
-    /// What the fit suggests is wrong when it ends far above the noise, most likely first.
+    /// Whether the data read in another unit (metres for millimetres, radians for degrees,
+    /// or the reverse) fit the starting model far better than as declared; the warnings say
+    /// which and the fix.
+    pub units_mislabelled: bool,
+    /// What the fit suggests is wrong when it ends far above the noise or the units look
+    /// mislabelled, most likely first.
     pub warnings: Vec<String>,
 }
 
@@ -506,6 +531,12 @@ impl CalibrationReport {
     /// Whether the fit ended far above the noise the data declares (see [`FAR_ABOVE_NOISE`]).
     pub fn far_above_noise(&self) -> bool {
         self.rms_over_noise.is_nan() || self.rms_over_noise > FAR_ABOVE_NOISE
+    }
+
+    /// Whether the data or the model is wrong, not just noisy: far above the noise, or units
+    /// that look mislabelled.
+    pub fn suspect(&self) -> bool {
+        self.far_above_noise() || self.units_mislabelled
     }
 }
 
@@ -535,6 +566,27 @@ impl Problem<'_> {
         Ok((d, e, meas))
     }
 
+    /// ½χ² of `stage` with the priors of `free` centred at `theta0`: what Levenberg–Marquardt
+    /// minimises.
+    fn cost(&self, stage: &Stage, theta0: &[f64], free: &[usize]) -> f64 {
+        let r = self.residuals(&to_meas(&stage.d.t_meas_base, &stage.e.world));
+        self.cost_of(&stage.theta, theta0, free, &r)
+    }
+
+    fn cost_of(&self, theta: &[f64], theta0: &[f64], free: &[usize], r: &DVector<f64>) -> f64 {
+        let prior: f64 = free
+            .iter()
+            .map(|&k| ((theta[k] - theta0[k]) / self.space.params[k].info.sigma).powi(2))
+            .sum();
+        0.5 * (r.norm_squared() + prior)
+    }
+
+    /// The RMS of `stage`'s 3-D residuals over what the noise alone gives (√3 σ).
+    fn rms_over_noise(&self, stage: &Stage) -> f64 {
+        let r = self.residuals(&to_meas(&stage.d.t_meas_base, &stage.e.world));
+        (r.norm_squared() / (3.0 * self.samples.len() as f64)).sqrt()
+    }
+
     /// Measurement residuals `(p̂ − p) / σ`, three per sample.
     fn residuals(&self, predicted: &[Vector3<f64>]) -> DVector<f64> {
         DVector::from_iterator(
@@ -547,7 +599,7 @@ impl Problem<'_> {
     }
 
     /// How each Jacobian column of `free` is computed at `theta`.
-    fn column_plans(&self, theta: &[f64], d: &Decoded, free: &[usize]) -> Result<Vec<ColumnPlan>> {
+    fn column_plans(&self, theta: &[f64], d: &Decoded, free: &[usize], form: JacobianForm) -> Result<Vec<ColumnPlan>> {
         let space = self.space;
         free.iter()
             .map(|&k| {
@@ -576,12 +628,10 @@ impl Problem<'_> {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
                         let tree = space.tree(self.robot, &t)?;
-                        if self.robot.error_models().is_empty() {
-                            geometry_plan(&d.tree, tree, h)
-                        } else {
-                            // Deformations depend on the geometry (moment arms), to first
-                            // order in the deflection angles: difference the full model.
+                        if form == JacobianForm::Exact && !self.robot.error_models().is_empty() {
                             ColumnPlan::Finite { tree, h }
+                        } else {
+                            geometry_plan(&d.tree, tree, h)
                         }
                     }
                 })
@@ -591,13 +641,21 @@ impl Problem<'_> {
 
     /// Jacobian of the measurement residuals with respect to the parameters `free`.
     ///
-    /// On rigid robots, geometry that moves joint placements and point frames is
-    /// differentiated through first-order twists at the joint frames: a few vector operations
-    /// per sample instead of a forward kinematics run. Error-model parameters are differenced
+    /// Geometry that moves joint placements and point frames is differentiated through
+    /// first-order twists at the joint frames: a few vector operations per sample instead of a
+    /// forward kinematics run; on deformed robots that holds the deformation, and the exact
+    /// `form` differences the full model instead. Error-model parameters are differenced
     /// through the deformed kinematics only (the model's share of the deformation re-evaluated,
-    /// the rigid frames reused); other geometry through the full model.
-    fn jacobian(&self, theta: &[f64], d: &Decoded, e: &Evaluation, free: &[usize]) -> Result<DMatrix<f64>> {
-        let plans = self.column_plans(theta, d, free)?;
+    /// the rigid frames reused).
+    fn jacobian(
+        &self,
+        theta: &[f64],
+        d: &Decoded,
+        e: &Evaluation,
+        free: &[usize],
+        form: JacobianForm,
+    ) -> Result<DMatrix<f64>> {
+        let plans = self.column_plans(theta, d, free, form)?;
         let ncols = plans.len();
         let r_meas = d.t_meas_base.rotation.to_rotation_matrix().into_inner();
         let n_models = self.robot.error_models().len();
@@ -716,6 +774,18 @@ fn subtract(out: &mut Perturbation, other: &Perturbation) {
         .for_each(|(a, b)| *a -= b);
 }
 
+/// How the Jacobian treats the deformation of a robot with error models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum JacobianForm {
+    /// Every column exact: geometry differenced through the full deformed model, so the
+    /// deformation's own dependence on the geometry (its moment arms) is included.
+    Exact,
+    /// Geometry columns as first-order twists at the deformed frames with the deformation
+    /// held: a few vector operations per pose and column, off by the relative size of the
+    /// deflections (about 1e-3), which is what an iteration far from the minimum needs.
+    HeldDeformation,
+}
+
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
 enum ColumnPlan {
     /// Geometry acting through joint placements and point frames: the twist per unit of the
@@ -775,6 +845,19 @@ fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64) -> Column
     ColumnPlan::Twists { joints, points }
 }
 
+/// The size a parameter of this kind typically has when it matters (SI): 10 mm, 0.6°, 1 %,
+/// 1e-4 rad/(N m), 0.1 kg, ...
+fn typical_size(info: &ParamInfo) -> f64 {
+    match info.quantity {
+        Quantity::Length | Quantity::Angle | Quantity::Dimensionless => 1e-2,
+        Quantity::Compliance => 1e-4,
+        Quantity::Mass => 0.1,
+        Quantity::Rigidity => 1e3,
+        Quantity::PerKelvin => 1e-6,
+        Quantity::Other(_) => 1e-3,
+    }
+}
+
 /// A copy of `theta` and a forward-difference step for parameter `k`, signed to stay within
 /// the upper bound. Steps are 1e-6 of the value or of a typical scale, whichever is larger.
 ///
@@ -787,14 +870,7 @@ fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
     let typical = if p.info.sigma.is_finite() {
         p.info.sigma
     } else {
-        match p.info.quantity {
-            Quantity::Length | Quantity::Angle | Quantity::Dimensionless => 1e-2,
-            Quantity::Compliance => 1e-4,
-            Quantity::Mass => 0.1,
-            Quantity::Rigidity => 1e3,
-            Quantity::PerKelvin => 1e-6,
-            Quantity::Other(_) => 1e-3,
-        }
+        typical_size(&p.info)
     };
     let mut h = 1e-6 * theta[k].abs().max(typical);
     if theta[k] + h > p.info.upper {
@@ -1028,6 +1104,111 @@ fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize) -> String
     out
 }
 
+/// What the data determine of the selected parameters, before any fitting.
+struct Assessment {
+    report: IdentifiabilityReport,
+    /// The selected parameters left free (not fixed as undeterminable).
+    free: Vec<usize>,
+    /// The free parameters the data barely determine (see [`barely_seen`]).
+    held: Vec<usize>,
+}
+
+/// The identifiability of the parameters `selected` from the Jacobian `jac` (residuals in units
+/// of the noise, columns of `selected`): what cannot be determined (fixed or held by priors)
+/// and what is barely determined, with the report saying so.
+fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], tol: f64) -> Assessment {
+    let (mut report, fixed) = analyse(space, jac, selected, tol);
+    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let held = barely_seen(space, jac, selected, &free);
+    if !held.is_empty() {
+        report.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
+        let sep = if report.message.is_empty() { "" } else { " " };
+        report.message.push_str(&format!(
+            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
+             of their start: {}.",
+            held.len(),
+            report.held_by_priors.join(", ")
+        ));
+    }
+    Assessment { report, free, held }
+}
+
+/// The condition number of the normal matrix `a` (priors included) after scaling it to a unit
+/// diagonal, and the diagonal of its inverse (infinite when singular).
+fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
+    let n = a.nrows();
+    let scale = DVector::from_iterator(n, (0..n).map(|c| a[(c, c)].sqrt().max(1e-300)));
+    let scaled = DMatrix::from_fn(n, n, |i, k| a[(i, k)] / (scale[i] * scale[k]));
+    let eig = scaled.clone().symmetric_eigen();
+    let (emin, emax) = eig
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let condition = if emin > 0.0 {
+        (emax / emin).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    let inv_diag = match scaled.try_inverse() {
+        Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
+        None => vec![f64::INFINITY; n],
+    };
+    (condition, inv_diag)
+}
+
+/// The robot's parameter space with the priors `params` asks for (scaled by its
+/// `prior_scale`, or none).
+fn prior_space(robot: &Robot, params: &CalibrationParams) -> ParameterSpace {
+    let mut space = ParameterSpace::new(robot);
+    for p in &mut space.params {
+        p.info.sigma = if params.use_priors {
+            p.info.sigma * params.prior_scale
+        } else {
+            f64::INFINITY
+        };
+    }
+    space
+}
+
+/// How well measurements at the configurations of `samples` (their measured positions are not
+/// used) would determine the parameters `params.identify` selects, before any fit: the
+/// identifiability report [`calibrate`] starts from (linearised at the robot's values, the
+/// measurement frame as the robot file guesses it), with the condition number over the free
+/// parameters with their priors. For judging a set of poses before measuring it.
+pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -> Result<IdentifiabilityReport> {
+    if samples.is_empty() {
+        return Err(Error::Input("an identifiability report needs at least one pose".into()));
+    }
+    let space = prior_space(robot, params);
+    let selected = space.select(robot, &params.identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples,
+        sigma: params.measurement_std,
+    };
+    let theta = space.initial();
+    let (d, e, _) = problem.predict(&theta)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
+    let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
+    let cols: Vec<usize> = free
+        .iter()
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
+        .collect();
+    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    report.condition_number_free = normal_equations(&a).0;
+    Ok(report)
+}
+
 /// Identifies the parameters chosen by `params.identify` from `samples` (measured positions
 /// in the measurement frame). `observer` sees every iteration (for a progress display).
 ///
@@ -1079,14 +1260,7 @@ pub fn calibrate(
             )));
         }
     }
-    let mut space = ParameterSpace::new(robot);
-    for p in &mut space.params {
-        p.info.sigma = if params.use_priors {
-            p.info.sigma * params.prior_scale
-        } else {
-            f64::INFINITY
-        };
-    }
+    let space = prior_space(robot, params);
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem {
         robot,
@@ -1112,25 +1286,17 @@ pub fn calibrate(
     let (d, e, _) = problem.predict(&theta0)?;
 
     // Identifiability at the start decides what is held.
-    let jac0 = problem.jacobian(&theta0, &d, &e, &selected)?;
-    let (mut identifiability, fixed) = analyse(&space, &jac0, &selected, params.rank_tolerance);
-    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
-    let held = barely_seen(&space, &jac0, &selected, &free);
+    let jac0 = problem.jacobian(&theta0, &d, &e, &selected, JacobianForm::Exact)?;
+    let Assessment {
+        report: mut identifiability,
+        free,
+        held,
+    } = assess(&space, &jac0, &selected, params.rank_tolerance);
     let mut held_space = space.clone();
     for &k in &held {
         let info = &mut held_space.params[k].info;
         info.lower = info.lower.max(theta0[k] - PRIOR_BOX * info.sigma);
         info.upper = info.upper.min(theta0[k] + PRIOR_BOX * info.sigma);
-    }
-    if !held.is_empty() {
-        identifiability.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
-        let sep = if identifiability.message.is_empty() { "" } else { " " };
-        identifiability.message.push_str(&format!(
-            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
-             of their start: {}.",
-            held.len(),
-            identifiability.held_by_priors.join(", ")
-        ));
     }
     let problem = Problem {
         space: &held_space,
@@ -1157,6 +1323,43 @@ pub fn calibrate(
     if !free.is_empty() {
         outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
     }
+    let mut restarts_rms_mm = Vec::new();
+    if !free.is_empty() && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
+        let mut best_cost = problem.cost(&stage, &theta0, &free);
+        let mut rng = StdRng::seed_from_u64(params.seed);
+        for _ in 0..params.restarts {
+            let mut start = stage.theta.clone();
+            for &k in &free {
+                // One draw per parameter whether used or not, so that two fits sharing their
+                // first parameters (a baseline and a candidate) start from the same geometry.
+                let z: f64 = StandardNormal.sample(&mut rng);
+                let info = &held_space.params[k].info;
+                let spread = if info.multimodal {
+                    typical_size(info)
+                } else {
+                    info.sigma
+                };
+                if spread.is_finite() {
+                    start[k] = (start[k] + z * spread).clamp(info.lower, info.upper);
+                }
+            }
+            let Ok((d, e, _)) = problem.predict(&start) else {
+                continue;
+            };
+            let mut trial = Stage {
+                theta: start,
+                d,
+                e,
+                iterations: 0,
+            };
+            let trial_outcome = problem.levenberg_marquardt(&mut trial, &theta0, &free, params, observer)?;
+            restarts_rms_mm.push(problem.rms_over_noise(&trial) * 3f64.sqrt() * params.measurement_std * 1e3);
+            let cost = problem.cost(&trial, &theta0, &free);
+            if cost < best_cost {
+                (best_cost, stage, outcome) = (cost, trial, trial_outcome);
+            }
+        }
+    }
     let Stage {
         theta,
         d,
@@ -1167,31 +1370,16 @@ pub fn calibrate(
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
     let pred = to_meas(&d.t_meas_base, &e.world);
     let r = problem.residuals(&pred);
-    let j = problem.jacobian(&theta, &d, &e, &free)?;
+    let j = problem.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?;
     let mut a = j.transpose() * &j;
     for (c, &k) in free.iter().enumerate() {
         a[(c, c)] += space.params[k].info.sigma.powi(-2);
     }
     let dof = (r.len() as f64 - free.len() as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
-    let scale = DVector::from_iterator(free.len(), (0..free.len()).map(|c| a[(c, c)].sqrt().max(1e-300)));
-    let scaled = DMatrix::from_fn(free.len(), free.len(), |i, k| a[(i, k)] / (scale[i] * scale[k]));
-    let eig = scaled.clone().symmetric_eigen();
-    let (emin, emax) = eig
-        .eigenvalues
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
-    identifiability.condition_number_free = if emin > 0.0 {
-        (emax / emin).sqrt()
-    } else {
-        f64::INFINITY
-    };
-    let cov_diag: Vec<f64> = match scaled.try_inverse() {
-        Some(inv) => (0..free.len())
-            .map(|c| s2 * inv[(c, c)] / (scale[c] * scale[c]))
-            .collect(),
-        None => vec![f64::INFINITY; free.len()],
-    };
+    let (condition_number_free, inv_diag) = normal_equations(&a);
+    identifiability.condition_number_free = condition_number_free;
+    let cov_diag: Vec<f64> = inv_diag.iter().map(|v| s2 * v).collect();
     let initial = space.initial();
     let params_out = selected
         .iter()
@@ -1214,11 +1402,29 @@ pub fn calibrate(
 
     let after = stats(samples, &pred);
     let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
-    let warnings = if rms_over_noise <= FAR_ABOVE_NOISE {
-        Vec::new()
-    } else {
-        far_above_noise_causes(&problem, &theta0, &after, rms_over_noise)?
-    };
+    // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
+    // can shrink the arm onto positions read a thousand times too small.
+    let unit_mistake = unit_mistake(&problem, &theta0)?;
+    let mut warnings = Vec::new();
+    if rms_over_noise > FAR_ABOVE_NOISE || rms_over_noise.is_nan() {
+        warnings.push(format!(
+            "the fit's RMS ({:.4} mm) is {rms_over_noise:.0} times what the declared noise ({} mm per axis) gives \
+             (√3·σ = {:.4} mm)",
+            after.rms_mm,
+            params.measurement_std * 1e3,
+            3f64.sqrt() * params.measurement_std * 1e3
+        ));
+        if unit_mistake.is_none() {
+            warnings.push(
+                "likely causes: wrong units in the data or the robot file, measurements of another point than the \
+                 markers (or rows mixed up), the noise declared too small, or an effect the model lacks (try \
+                 `armcomp diagnose`)"
+                    .into(),
+            );
+        }
+    }
+    let units_mislabelled = unit_mistake.is_some();
+    warnings.extend(unit_mistake);
     let calibrated = apply(robot, &space, &theta)?;
     Ok(Calibration {
         robot: calibrated,
@@ -1230,11 +1436,13 @@ pub fn calibrate(
             identifiability,
             params: params_out,
             iterations,
+            restarts_rms_mm,
             converged: outcome.converged,
             stop_reason: outcome.stop_reason,
             before,
             after,
             rms_over_noise,
+            units_mislabelled,
             warnings,
         },
     })
@@ -1267,14 +1475,7 @@ impl Problem<'_> {
     ) -> Result<StageOutcome> {
         let space = self.space;
         let prior_w: Vec<f64> = free.iter().map(|&k| 1.0 / space.params[k].info.sigma).collect();
-        let cost_of = |theta: &[f64], r: &DVector<f64>| -> f64 {
-            let prior: f64 = free
-                .iter()
-                .zip(&prior_w)
-                .map(|(&k, w)| ((theta[k] - theta0[k]) * w).powi(2))
-                .sum();
-            0.5 * (r.norm_squared() + prior)
-        };
+        let cost_of = |theta: &[f64], r: &DVector<f64>| self.cost_of(theta, theta0, free, r);
         let Stage {
             theta,
             d,
@@ -1288,9 +1489,16 @@ impl Problem<'_> {
         // Why the last accepted step was small, when it was: the step test. Convergence needs
         // it and the gradient test at the point the step reached.
         let mut small_step: Option<String> = None;
+        // Deformed robots iterate on the fast form while it makes progress, and finish on the
+        // exact one, so the minimum and the convergence test are those of the true model.
+        let mut form = if self.robot.error_models().is_empty() {
+            JacobianForm::Exact
+        } else {
+            JacobianForm::HeldDeformation
+        };
         let stop_reason = loop {
             crate::interrupt::check()?;
-            let j = self.jacobian(theta, d, e, free)?;
+            let j = self.jacobian(theta, d, e, free, form)?;
             let mut a = j.transpose() * &j;
             let mut g = j.transpose() * &r;
             for (c, (&k, w)) in free.iter().zip(&prior_w).enumerate() {
@@ -1307,29 +1515,40 @@ impl Problem<'_> {
                 }
                 None => vec![f64::INFINITY; free.len()],
             };
-            // The gradient test: how much ½χ² changes, to first order, when a parameter moves
-            // by one standard deviation (its curvature alone where the matrix is singular). A
-            // stationary point has none; a damped crawl far from one does.
-            let gradient = g
+            // The gradient test, made independent of scale and correlation: how far the full
+            // Newton step from here (the bounds respected) would move each parameter, in its
+            // standard deviations. At a minimum it moves nothing that matters; a damped crawl
+            // far from one leaves a large step. Correlated parameters whose gradients cancel
+            // in combination pass, and a parameter held at its bound by the data passes.
+            // Where the matrix is singular, each parameter's gradient over its own curvature.
+            let blocked = |c: usize, step: f64| {
+                let b = &space.params[free[c]].info;
+                let v = theta[free[c]];
+                (v <= b.lower && step < 0.0) || (v >= b.upper && step > 0.0)
+            };
+            let newton = bounded_step(&a, &g, blocked).unwrap_or_else(|| {
+                DVector::from_iterator(free.len(), (0..free.len()).map(|c| g[c] / a[(c, c)].max(floor)))
+            });
+            let gradient = newton
                 .iter()
                 .enumerate()
-                .map(|(c, gc)| {
+                .map(|(c, dc)| {
                     let sd = if std[c].is_finite() {
                         std[c]
                     } else {
                         1.0 / a[(c, c)].max(floor).sqrt()
                     };
-                    (gc * sd).abs()
+                    (dc / sd).abs()
                 })
                 .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) });
             let gradient_ok = gradient <= params.min_step;
             if let Some(step) = small_step.as_ref().filter(|_| gradient_ok) {
                 converged = true;
-                break format!("{step}, and the gradient is {gradient:.1e} per standard deviation");
+                break format!("{step}, and the Newton step is {gradient:.1e} standard deviations");
             }
             if *iterations >= params.max_iterations {
                 break format!(
-                    "iteration limit ({}) reached; the gradient is {gradient:.1e} per standard deviation",
+                    "iteration limit ({}) reached; the Newton step is {gradient:.1e} standard deviations",
                     params.max_iterations
                 );
             }
@@ -1340,11 +1559,10 @@ impl Problem<'_> {
                 for c in 0..free.len() {
                     m[(c, c)] += lambda * a[(c, c)].max(floor);
                 }
-                let Some(chol) = m.cholesky() else {
+                let Some(delta) = bounded_step(&m, &g, blocked) else {
                     lambda *= 10.0;
                     continue;
                 };
-                let delta = chol.solve(&(-&g));
                 let mut trial = theta.clone();
                 for (c, &k) in free.iter().enumerate() {
                     let b = &space.params[k].info;
@@ -1367,6 +1585,11 @@ impl Problem<'_> {
                     (*theta, *d, *e, r, cost) = (trial, d1, e1, r1, cost1);
                     lambda = (lambda / 3.0).max(1e-12);
                     accepted = true;
+                    // Once a step gains less than the noise can tell apart (½χ² by less than
+                    // one), the fast form's error matters more than its speed.
+                    if improvement < 1.0 {
+                        form = JacobianForm::Exact;
+                    }
                     small_step = if relative < params.tolerance || improvement < params.min_improvement {
                         Some(format!("the last step improved ½χ² by only {improvement:.2e}"))
                     } else if moved < params.min_step {
@@ -1387,21 +1610,52 @@ impl Problem<'_> {
                 rms: (r.norm_squared() / self.samples.len() as f64).sqrt() * params.measurement_std,
                 lambda,
             });
+            if !accepted && form == JacobianForm::HeldDeformation {
+                form = JacobianForm::Exact;
+                small_step = None;
+                lambda = 1e-3;
+                continue;
+            }
             if !accepted {
                 // No step lowers the cost: a minimum if the gradient vanishes there, otherwise
                 // the model cannot be evaluated or differentiated near here.
                 converged = gradient_ok && cost.is_finite();
                 break if converged {
-                    format!("no step lowers the cost further; the gradient is {gradient:.1e} per standard deviation")
+                    format!("no step lowers the cost further; the Newton step is {gradient:.1e} standard deviations")
                 } else {
                     format!(
-                        "no step lowers the cost, but the gradient is {gradient:.1e} per standard deviation \
+                        "no step lowers the cost, but the Newton step is {gradient:.1e} standard deviations \
                          (cost {cost:.3e}): not a minimum"
                     )
                 };
             }
         };
         Ok(StageOutcome { converged, stop_reason })
+    }
+}
+
+/// The damped step `−m⁻¹g` with the parameters that sit at a bound and would step out of it
+/// held (`blocked(c, step)`): solving for the others alone keeps the step a descent direction
+/// of the free ones, where clipping the full step to the bounds distorts it and leaves the
+/// solver crawling. `None` when the matrix is not positive definite.
+fn bounded_step(m: &DMatrix<f64>, g: &DVector<f64>, blocked: impl Fn(usize, f64) -> bool) -> Option<DVector<f64>> {
+    let n = g.len();
+    let mut held = vec![false; n];
+    loop {
+        let mut mm = m.clone();
+        let mut rhs = -g;
+        for c in (0..n).filter(|&c| held[c]) {
+            mm.row_mut(c).fill(0.0);
+            mm.column_mut(c).fill(0.0);
+            mm[(c, c)] = 1.0;
+            rhs[c] = 0.0;
+        }
+        let delta = mm.cholesky()?.solve(&rhs);
+        let newly: Vec<usize> = (0..n).filter(|&c| !held[c] && blocked(c, delta[c])).collect();
+        if newly.is_empty() {
+            return Some(delta);
+        }
+        newly.into_iter().for_each(|c| held[c] = true);
     }
 }
 
@@ -1466,23 +1720,10 @@ fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> f64 {
     (sum / model.len() as f64).sqrt()
 }
 
-/// The likely causes of a fit that ends `ratio` times above its noise, as messages with the
-/// fix. Unit mistakes give themselves away: the starting model registered rigidly onto the
-/// measured points fits far better once the positions or the revolute joint values are read
-/// in the other unit. Otherwise the general causes are listed.
-fn far_above_noise_causes(
-    problem: &Problem<'_>,
-    theta0: &[f64],
-    after: &ErrorStats,
-    ratio: f64,
-) -> Result<Vec<String>> {
-    let noise_mm = problem.sigma * 1e3;
-    let mut out = vec![format!(
-        "the fit's RMS ({:.4} mm) is {ratio:.0} times what the declared noise ({noise_mm} mm per axis) gives \
-         (√3·σ = {:.4} mm)",
-        after.rms_mm,
-        3f64.sqrt() * noise_mm
-    )];
+/// A unit mistake the data give away: the starting model registered rigidly onto the measured
+/// points fits ten times better once the positions or the revolute joint values are read in
+/// the other unit. The message names the mistake and the fix.
+fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Option<String>> {
     let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
         let p = Problem { samples, ..*problem };
         Ok(p.predict(theta0)?.1.world)
@@ -1540,20 +1781,13 @@ fn far_above_noise_causes(
         .iter()
         .filter(|(rms, _, _)| *rms < 0.1 * as_declared)
         .min_by(|a, b| a.0.total_cmp(&b.0));
-    match best {
-        Some((rms, what, fix)) => out.push(format!(
+    Ok(best.map(|(rms, what, fix)| {
+        format!(
             "{what} (the starting model registered onto them leaves {:.3} mm instead of {:.3} mm); {fix}",
             rms * 1e3,
             as_declared * 1e3
-        )),
-        None => out.push(
-            "likely causes: wrong units in the data or the robot file, measurements of another point than the \
-             markers (or rows mixed up), the noise declared too small, or an effect the model lacks (try \
-             `armcomp diagnose`)"
-                .into(),
-        ),
-    }
-    Ok(out)
+        )
+    }))
 }
 
 /// Sensitivity of every marker's measured position at each pose to the parameters `identify`
@@ -1564,34 +1798,46 @@ pub fn identification_jacobian(
     poses: &[Vec<f64>],
     identify: &[String],
 ) -> Result<(DMatrix<f64>, Vec<String>)> {
-    let samples: Vec<Sample> = poses
+    let samples: Vec<Sample> = poses.iter().flat_map(|q| marker_samples(robot, q)).collect();
+    samples_jacobian(robot, &samples, identify)
+}
+
+/// One sample per marker of `robot` at configuration `q` (measured positions zero): what
+/// measuring every marker there would give, for planning.
+pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
+    robot
+        .markers()
         .iter()
-        .flat_map(|q| {
-            robot.markers().iter().map(|&m| Sample {
-                q: q.clone(),
-                point: m,
-                position: Vector3::zeros(),
-                orientation: None,
-                payload: None,
-                temperature: None,
-                torque: None,
-            })
+        .map(|&m| Sample {
+            q: q.to_vec(),
+            point: m,
+            position: Vector3::zeros(),
+            orientation: None,
+            payload: None,
+            temperature: None,
+            torque: None,
         })
-        .collect();
-    for q in poses {
-        robot.tree().check_q(q)?;
+        .collect()
+}
+
+/// [`identification_jacobian`] at the configurations, points and conditions (payload,
+/// temperature) of `samples`: three rows per sample, in sample order; their measured
+/// positions are not used.
+pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) -> Result<(DMatrix<f64>, Vec<String>)> {
+    for s in samples {
+        robot.tree().check_q(&s.q)?;
     }
     let space = ParameterSpace::new(robot);
     let selected = space.select(robot, identify)?;
     let problem = Problem {
         robot,
         space: &space,
-        samples: &samples,
+        samples,
         sigma: 1.0,
     };
     let theta = space.initial();
     let (d, e, _) = problem.predict(&theta)?;
-    let jac = problem.jacobian(&theta, &d, &e, &selected)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     Ok((
         jac,
         selected.iter().map(|&k| space.params[k].info.name.clone()).collect(),

@@ -9,6 +9,7 @@ pub mod calibrate;
 pub mod candidate;
 pub mod collision;
 pub mod compensate;
+pub mod design;
 pub mod diagnose;
 pub mod error;
 pub mod evaluate;

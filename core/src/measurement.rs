@@ -130,6 +130,22 @@ pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Ve
         .collect())
 }
 
+/// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
+/// `x1`, ...): measurements rather than joint configurations alone.
+pub fn has_positions(text: &str) -> bool {
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    reader.headers().is_ok_and(|h| {
+        h.iter().any(|c| {
+            let (name, _) = split_header(c);
+            matches!(name, "x" | "y" | "z") || numbered_position(name).is_some()
+        })
+    })
+}
+
 /// `x3` → `(axis 0, slot 2)`: a numbered position column.
 fn numbered_position(name: &str) -> Option<(usize, usize)> {
     let axis = ["x", "y", "z"].iter().position(|a| name.starts_with(a))?;

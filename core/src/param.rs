@@ -55,6 +55,10 @@ pub struct ParamInfo {
     pub lower: f64,
     /// Largest physically meaningful value (SI); `f64::INFINITY` for none.
     pub upper: f64,
+    /// Whether the fit's cost may have several minima along this parameter (a backlash that
+    /// flips with the load's sign, a scale of a stiffness): calibration's restarts move it by
+    /// its typical size, not only by its prior.
+    pub multimodal: bool,
 }
 
 impl ParamInfo {
@@ -67,7 +71,14 @@ impl ParamInfo {
             sigma,
             lower: f64::NEG_INFINITY,
             upper: f64::INFINITY,
+            multimodal: false,
         }
+    }
+
+    /// The same parameter marked as one along which the cost may have several minima.
+    pub fn multimodal(mut self) -> Self {
+        self.multimodal = true;
+        self
     }
 
     /// The same parameter restricted to `[lower, upper]` (SI), which calibration respects.

@@ -5,16 +5,14 @@
 //! - Cartesian sets: quasi-random points in the box the tool can reach, each turned into a
 //!   configuration by IK on the full model (the ANN paper's QRS pool); points IK cannot reach
 //!   are skipped;
-//! - D-optimal subsets: greedy selection from a pool maximising `log det(JᵀJ)` of the
-//!   identification Jacobian (observability for calibration);
+//! - optimal subsets of a pool for calibration are [`crate::design`]'s;
 //! - trajectory-similar subsets (ANN paper Sec. 3.4.1): points spread along a task trajectory
 //!   by arc length, and for each the nearest unused pool points by tool position.
 //!
 //! Every method takes an `accept` filter (e.g. collision checking) applied to candidates.
 
-use nalgebra::{Cholesky, DMatrix, Vector3};
+use nalgebra::Vector3;
 
-use crate::calibrate::identification_jacobian;
 use crate::error::{Error, Result};
 use crate::ik::{IkOptions, IkTarget, IkWorkspace, solve_ik};
 use crate::robot::Robot;
@@ -44,7 +42,8 @@ pub struct PlanReport {
 
 /// `n` evenly spread poses in `space`, drawn with `sampler` and `seed`, each passing `accept`.
 /// Fewer are returned (and the report says why) when candidates run out: at most `20 n` are
-/// tried.
+/// tried, and for a grid only its `n` points (a longer grid's first `n` points would fill a
+/// corner of the ranges only).
 pub fn spread(
     robot: &Robot,
     space: Space,
@@ -59,7 +58,11 @@ pub fn spread(
         unreachable: 0,
         rejected: 0,
     };
-    let tries = n.saturating_mul(20).max(n);
+    let tries = if sampler == Sampler::Grid {
+        n
+    } else {
+        n.saturating_mul(20).max(n)
+    };
     let mut ws = robot.workspace();
     match space {
         Space::Joint => {
@@ -136,65 +139,6 @@ fn nearest(set: &[Vector3<f64>], p: &Vector3<f64>, k: usize) -> Vec<usize> {
     idx
 }
 
-/// Greedy D-optimal selection of `n` poses from `pool` for identifying the parameters
-/// `identify` selects (see [`crate::calibrate::ParameterSpace::select`]).
-///
-/// Columns are scaled to unit norm over the pool, the information matrix starts at `εI` so
-/// directions no pose can determine do not dominate, and each step adds the pose with the
-/// largest gain `log det(I + Jᵢ M⁻¹ Jᵢᵀ)`; the gains of all candidates are kept up to date
-/// with rank-3 Woodbury updates, so a step costs `O(pool · p)`. Returns indices into `pool` in
-/// selection order and the final `log det M`.
-pub fn d_optimal(robot: &Robot, pool: &[Vec<f64>], n: usize, identify: &[String]) -> Result<(Vec<usize>, f64)> {
-    if n > pool.len() {
-        return Err(Error::Input(format!(
-            "cannot pick {n} poses from a pool of {}",
-            pool.len()
-        )));
-    }
-    let (mut jac, _) = identification_jacobian(robot, pool, identify)?;
-    let rows = jac.nrows() / pool.len().max(1);
-    for mut c in jac.column_iter_mut() {
-        let norm = c.norm();
-        if norm > 0.0 {
-            c /= norm;
-        }
-    }
-    let p = jac.ncols();
-    let eps = 1e-6;
-    // W = M⁻¹ Jᵀ for all candidates (p × rows·pool), with M = εI at the start.
-    let mut w: DMatrix<f64> = jac.transpose() / eps;
-    let mut chosen = Vec::with_capacity(n);
-    let mut taken = vec![false; pool.len()];
-    let mut log_det = p as f64 * eps.ln();
-    for _ in 0..n {
-        // Gain of candidate i: log det(I + Jᵢ M⁻¹ Jᵢᵀ).
-        let mut best = (usize::MAX, f64::NEG_INFINITY);
-        for i in (0..pool.len()).filter(|&i| !taken[i]) {
-            let ji = jac.rows(i * rows, rows);
-            let s = DMatrix::identity(rows, rows) + ji * w.columns(i * rows, rows);
-            let gain = Cholesky::new(s).map_or(f64::NEG_INFINITY, |c| 2.0 * c.l().diagonal().map(f64::ln).sum());
-            if gain > best.1 {
-                best = (i, gain);
-            }
-        }
-        let (s_idx, gain) = best;
-        if s_idx == usize::MAX {
-            break;
-        }
-        taken[s_idx] = true;
-        chosen.push(s_idx);
-        log_det += gain;
-        // Woodbury: M'⁻¹ = M⁻¹ − M⁻¹Jₛᵀ S⁻¹ Jₛ M⁻¹, so W' = W − Wₛ S⁻¹ (Jₛ W).
-        let js = jac.rows(s_idx * rows, rows).into_owned();
-        let ws = w.columns(s_idx * rows, rows).into_owned();
-        let s = DMatrix::identity(rows, rows) + &js * &ws;
-        let s_inv = s.try_inverse().ok_or_else(|| Error::Input("singular update".into()))?;
-        let update = &ws * (s_inv * (&js * &w));
-        w -= update;
-    }
-    Ok((chosen, log_det))
-}
-
 /// Trajectory-similar selection (ANN paper Sec. 3.4.1): `points` positions spread along the
 /// tool path of `trajectory` (configurations in task order) by arc length, and for each the
 /// `per_point` nearest unused pool positions. Returns indices into `pool_positions`.
@@ -258,17 +202,4 @@ pub fn resample_by_arc_length(path: &[Vector3<f64>], n: usize) -> Vec<Vector3<f6
             path[i - 1] + (path[i] - path[i - 1]) * t.clamp(0.0, 1.0)
         })
         .collect()
-}
-
-/// `log det(JᵀJ + εI)` of a pose set for the parameters `identify` selects (unscaled columns,
-/// so compare sets of the same robot and parameters only).
-pub fn information_log_det(robot: &Robot, poses: &[Vec<f64>], identify: &[String]) -> Result<f64> {
-    let (jac, _) = identification_jacobian(robot, poses, identify)?;
-    let mut m = jac.transpose() * &jac;
-    for i in 0..m.nrows() {
-        m[(i, i)] += 1e-6;
-    }
-    Cholesky::new(m)
-        .map(|c| 2.0 * c.l().diagonal().map(f64::ln).sum())
-        .ok_or_else(|| Error::Input("the information matrix is not positive definite".into()))
 }

@@ -21,7 +21,8 @@ fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
 /// Identifies a model of `robot` from `data`; returns the model, the report as JSON text (what
 /// `armcomp calibrate --json` prints) and whether the fit ended far above the declared noise.
 #[pyfunction]
-#[pyo3(signature = (robot, data, identify = None, noise_mm = 0.1, prior = None, max_iterations = 100))]
+#[pyo3(signature = (robot, data, identify = None, noise_mm = 0.1, prior = None, max_iterations = 100, restarts = 2, seed = 0))]
+#[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
     robot: PyRef<'_, PyRobot>,
@@ -30,6 +31,8 @@ pub fn calibrate(
     noise_mm: f64,
     prior: Option<&Bound<'_, PyAny>>,
     max_iterations: usize,
+    restarts: usize,
+    seed: u64,
 ) -> PyResult<(PyRobot, String, bool)> {
     let prior = match prior {
         Some(p) => self::prior(p)?,
@@ -41,6 +44,8 @@ pub fn calibrate(
         identify: identify.unwrap_or_default(),
         measurement_std: noise_mm * 1e-3,
         max_iterations,
+        restarts,
+        seed,
         ..CalibrationParams::default()
     };
     let run = crate::interrupt::run(py, || {

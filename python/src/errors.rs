@@ -9,6 +9,15 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
+/// Hands `messages` to Python's `warnings` as `UserWarning`s.
+pub fn warn_all(py: Python<'_>, messages: &[String]) -> PyResult<()> {
+    for w in messages {
+        let message = std::ffi::CString::new(w.replace('\0', " ")).expect("no NUL left");
+        PyErr::warn(py, &py.get_type::<pyo3::exceptions::PyUserWarning>(), &message, 1)?;
+    }
+    Ok(())
+}
+
 /// An `armcomp.InputError` with its message and location.
 pub fn input_error(message: &str, file: Option<&Path>, line: Option<usize>, field: Option<&str>) -> PyErr {
     Python::attach(|py| {

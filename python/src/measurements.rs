@@ -4,18 +4,17 @@
 //! else when the data are first used with one (calibration, evaluation). Arrays and the
 //! results of `simulate` carry joint and point names and are matched to each robot by name.
 
-use std::ffi::CString;
 use std::path::PathBuf;
 
 use armcomp_core::Robot;
 use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
-use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyType;
 
-use crate::errors::{IntoPy, file_error, input_error};
+use crate::errors::{IntoPy, file_error, input_error, warn_all};
 use crate::robot::{PyRobot, write_output};
 
 /// Where the data come from.
@@ -65,13 +64,7 @@ impl PyMeasurements {
                 if let Some(rows) = rows {
                     set = set.select_rows(rows);
                 }
-                Python::attach(|py| -> PyResult<()> {
-                    for w in &set.warnings {
-                        let message = CString::new(w.replace('\0', " ")).expect("no NUL left");
-                        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
-                    }
-                    Ok(())
-                })?;
+                Python::attach(|py| warn_all(py, &set.warnings))?;
                 set
             }
             Source::Samples {

@@ -1,47 +1,99 @@
 //! `plan`: measurement poses, as `armcomp plan` plans them.
 
-use armcomp::ops::plan::{PlanParams, run};
+use armcomp::ops::plan::{PlanParams, PlanPool, run};
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
 use pyo3::prelude::*;
 
-use crate::errors::IntoPy;
+use crate::errors::{IntoPy, input_error};
+use crate::measurements::PyMeasurements;
 use crate::robot::PyRobot;
 
-/// Plans `n` measurement poses (n × joints, SI) for `robot` by `method` (sobol, halton,
-/// random, grid, d-optimal, trajectory), never in collision; returns them and a note.
+/// Plans measurement poses for `robot` by `method` (sobol, halton, random, grid, d-optimal,
+/// a-optimal, uncertainty, trajectory), never in collision. `pool` is a number of poses to
+/// sample, an array of configurations or `Measurements` (retrospective selection). Returns
+/// the poses, a note, the chosen data rows (measured pool) and the selection report as JSON
+/// text (optimal methods).
 #[pyfunction]
-#[pyo3(signature = (robot, n = 100, method = "sobol", space = "joint", pool = None, pool_sampler = "sobol", identify = None, trajectory = None, trajectory_points = 50, per_point = 10, seed = 0))]
+#[pyo3(signature = (robot, n = 100, method = None, space = "joint", pool = None, pool_sampler = "sobol", identify = None, next = None, measured = None, noise_mm = 0.1, exchange_passes = 10, trajectory = None, trajectory_points = 50, per_point = 10, seed = 0))]
 #[allow(clippy::too_many_arguments)]
 pub fn plan<'py>(
     py: Python<'py>,
     robot: PyRef<'_, PyRobot>,
     n: usize,
-    method: &str,
+    method: Option<String>,
     space: &str,
-    pool: Option<usize>,
+    pool: Option<Bound<'py, PyAny>>,
     pool_sampler: &str,
     identify: Option<Vec<String>>,
+    next: Option<usize>,
+    measured: Option<PyRef<'_, PyMeasurements>>,
+    noise_mm: f64,
+    exchange_passes: usize,
     trajectory: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
     trajectory_points: usize,
     per_point: usize,
     seed: u64,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, String)> {
+) -> PyResult<(Bound<'py, PyArray2<f64>>, String, Option<Vec<usize>>, Option<String>)> {
     let r = robot.robot.clone();
+    let nq = r.tree().nq();
     let trajectory = trajectory
-        .map(|t| crate::arrays::rows(&t, "trajectory", Some(r.tree().nq())))
+        .map(|t| crate::arrays::rows(&t, "trajectory", Some(nq)))
         .transpose()?;
+    let pool = match pool {
+        None => PlanPool::Sampled(0),
+        Some(p) => {
+            if let Ok(size) = p.extract::<usize>() {
+                if size == 0 {
+                    return Err(input_error(
+                        "pool 0: give a number of poses to sample (at least 1), configurations or measurements",
+                        None,
+                        None,
+                        Some("pool"),
+                    ));
+                }
+                PlanPool::Sampled(size)
+            } else if let Ok(data) = p.cast::<PyMeasurements>() {
+                PlanPool::Measured(data.borrow().resolve(&r)?)
+            } else {
+                let array: PyArrayLike2<'py, f64, AllowTypeChange> = p.extract().map_err(|_| {
+                    input_error(
+                        "pool: expected a number of poses, an n × joints array of configurations or Measurements",
+                        None,
+                        None,
+                        Some("pool"),
+                    )
+                })?;
+                PlanPool::Configurations(crate::arrays::rows(&array, "pool", Some(nq))?)
+            }
+        }
+    };
+    let measured = match measured {
+        Some(m) => m.resolve(&r)?.samples,
+        None => Vec::new(),
+    };
     let params = PlanParams {
         n,
-        method: method.into(),
+        method,
         space: space.into(),
         pool,
         pool_sampler: pool_sampler.into(),
         identify: identify.unwrap_or_default(),
+        next,
+        measured,
+        measurement_std: noise_mm * 1e-3,
+        exchange_passes,
         trajectory,
         trajectory_points,
         per_point,
         seed,
     };
     let planned = crate::interrupt::run(py, || run(&r, &params))?.py()?;
-    Ok((crate::arrays::matrix(py, &planned.poses, r.tree().nq()), planned.note))
+    crate::errors::warn_all(py, &planned.warnings)?;
+    let selection = planned.selection_json().map(|v| v.to_string());
+    Ok((
+        crate::arrays::matrix(py, &planned.poses, nq),
+        planned.note,
+        planned.rows,
+        selection,
+    ))
 }

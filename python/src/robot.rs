@@ -1,6 +1,5 @@
 //! `armcomp.Robot`: a robot or model file (or a bare URDF) ready to evaluate.
 
-use std::ffi::CString;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -14,7 +13,6 @@ use numpy::{
     AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayLike2, PyArrayMethods,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 
 use crate::arrays::vector;
@@ -36,10 +34,7 @@ impl PyRobot {
 
     /// Wraps a robot just read, handing its reading warnings to Python's `warnings`.
     pub fn new(py: Python<'_>, robot: Robot) -> PyResult<Self> {
-        for w in robot.warnings() {
-            let message = CString::new(w.replace('\0', " ")).expect("no NUL left");
-            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
-        }
+        crate::errors::warn_all(py, robot.warnings())?;
         Ok(PyRobot { robot: Arc::new(robot) })
     }
 

@@ -68,16 +68,16 @@ def test_calibrate_writes_the_same_model_and_report(simulated, ext):
 
 
 def test_not_converged_carries_the_model_the_command_line_writes(simulated):
-    """The nominal arm lacks the truth's reducers and payload: the fit stops at its iteration
-    limit far above the noise (exit 3), and the best model is still written."""
+    """The nominal arm lacks the truth's reducers and payload, and three iterations are not
+    enough: the fit stops unconverged far above the noise (exit 3), and the best model is
+    still written."""
     tmp, data = simulated
-    expected = cli_json(
-        "calibrate", "--robot", NOMINAL, "--data", tmp / "cli.csv", "--noise-mm", 0.05, "--out", tmp / "nc.toml",
-        expect=(3,),
-    )
+    args = ["--noise-mm", 0.05, "--max-iterations", 3]
+    expected = cli_json("calibrate", "--robot", NOMINAL, "--data", tmp / "cli.csv", *args, "--out", tmp / "nc.toml", expect=(3,))
     with pytest.warns(armcomp.CalibrationWarning), pytest.raises(armcomp.NotConverged) as e:
-        armcomp.calibrate(armcomp.Robot.load(NOMINAL), data, noise_mm=0.05)
+        armcomp.calibrate(armcomp.Robot.load(NOMINAL), data, noise_mm=0.05, max_iterations=3)
     assert not e.value.report.converged and e.value.report.to_dict() == expected
+    assert e.value.report.far_above_noise
     e.value.model.save(tmp / "nc-py.toml")
     assert (tmp / "nc-py.toml").read_bytes() == (tmp / "nc.toml").read_bytes()
 
@@ -163,6 +163,26 @@ def test_plan_gives_the_command_line_poses(tmp_path):
     assert planned.poses.shape == (12, 6)
     for k in range(6):
         np.testing.assert_allclose(planned.poses[:, k], to_si(header[k], [r[k] for r in rows]), rtol=1e-12)
+
+
+def test_plan_picks_the_command_line_rows_and_next_poses(simulated, tmp_path):
+    """Retrospective D-optimal selection from measured rows, and the next poses to measure
+    after them: the same rows, report and poses as the command line."""
+    tmp, data = simulated
+    robot = armcomp.Robot.load(NOMINAL)
+    args = ["--robot", NOMINAL, "--identify", GEOMETRY, "--noise-mm", 0.05]
+    expected = cli_json("plan", *args, "--method", "d-optimal", "--n", 8, "--pool", tmp / "cli.csv", "--out", tmp_path / "rows.csv")
+    picked = armcomp.plan(robot, n=8, method="d-optimal", pool=data, identify=GEOMETRY, noise_mm=0.05)
+    assert picked.rows == expected["rows"] and len(set(picked.rows)) == 8
+    assert picked.selection == expected
+    # The chosen rows' joint values are those rows of the data.
+    np.testing.assert_allclose(picked.poses, data.joints[picked.rows], rtol=1e-12)
+    cli_json("plan", *args, "--next", 4, "--measured", tmp / "cli.csv", "--pool", 60, "--out", tmp_path / "next.csv")
+    header, rows = read_table(tmp_path / "next.csv")
+    proposed = armcomp.plan(robot, next=4, measured=data, pool=60, identify=GEOMETRY, noise_mm=0.05)
+    assert proposed.poses.shape == (4, 6) and proposed.rows is None
+    for k in range(6):
+        np.testing.assert_allclose(proposed.poses[:, k], to_si(header[k], [r[k] for r in rows]), rtol=1e-12)
 
 
 def test_diagnose_reports_as_the_command_line(simulated):

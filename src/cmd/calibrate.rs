@@ -40,6 +40,13 @@ pub struct Args {
     /// cross-validation on the given data alone).
     #[arg(long, default_value = "1")]
     prior: Prior,
+    /// Restarts from perturbed starts when the fit ends more than 1.5 times above the noise
+    /// (a local minimum, or an effect the model lacks); the lowest cost is kept.
+    #[arg(long, default_value_t = 2)]
+    restarts: usize,
+    /// Seed of the restarts' perturbations; the same seed gives the same bytes.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -53,6 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm * 1e-3,
         max_iterations: args.max_iterations,
+        restarts: args.restarts,
+        seed: args.seed,
         ..CalibrationParams::default()
     };
     let bar = indicatif::ProgressBar::new(params.max_iterations as u64);
@@ -98,11 +107,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             report.stop_reason
         );
     }
-    // Far above the noise says more than not converged: the data or the model is wrong.
-    Ok(if report.far_above_noise() {
-        eprintln!(
-            "warning: the fit ends far above the declared noise; the model was written, but check the data and the model"
-        );
+    // Far above the noise or mislabelled units say more than not converged: the data or the
+    // model is wrong.
+    Ok(if report.suspect() {
+        eprintln!("warning: the model was written, but check the data and the model (see the warnings above)");
         ExitCode::from(3)
     } else if !report.converged {
         ExitCode::from(2)
@@ -140,6 +148,17 @@ fn print_report(r: &CalibrationReport) {
     );
     if !id.message.is_empty() {
         println!("identifiability: {}", id.message);
+    }
+    if !r.restarts_rms_mm.is_empty() {
+        println!(
+            "restarted from {} perturbed start(s), which ended at RMS {} mm; the lowest cost is kept",
+            r.restarts_rms_mm.len(),
+            r.restarts_rms_mm
+                .iter()
+                .map(|v| format!("{v:.4}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
     }
     println!(
         "{} after {} iterations ({})",

@@ -6,7 +6,8 @@ use armcomp_core::Robot;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Which twin: `rock-drill` (default), `industrial` or `agile-justin` (real data).
+    /// Which twin: `rock-drill` (default), `industrial`, or real data: `agile-justin`, `talos`
+    /// (learning curves on TALOS' measurements).
     #[arg(default_value = "rock-drill")]
     twin: String,
     /// Seed of every random draw of the protocol; the same seed gives the same tables.
@@ -40,6 +41,23 @@ pub struct Args {
     /// effects (0 skips it; minutes per effect).
     #[arg(long, default_value_t = 0)]
     diagnose_steps: usize,
+    /// agile-justin: instead of the table, the held-out error against the number of training
+    /// poses (20 … 250) for the poses `armcomp plan` chooses and for random subsets (the
+    /// `talos` demo always shows these).
+    #[arg(long)]
+    learning_curve: bool,
+    /// Learning curves: how the tool chooses (d-optimal, a-optimal or uncertainty).
+    #[arg(long, default_value = "uncertainty")]
+    curve_method: armcomp_core::design::Criterion,
+    /// Learning curves: random subsets per size.
+    #[arg(long, default_value_t = 10)]
+    draws: usize,
+    /// talos: the robot file (run from the repository root for the default).
+    #[arg(long, default_value = "robots/talos-left-arm.toml")]
+    robot: std::path::PathBuf,
+    /// talos: the measurements.
+    #[arg(long, default_value = "data/talos-left-arm/measurements.csv")]
+    data: std::path::PathBuf,
 }
 
 /// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
@@ -158,6 +176,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
             super::demo_output::emit(&[table], false, args.report.as_deref())?;
         }
+        "agile-justin" | "talos" if args.learning_curve || args.twin == "talos" => {
+            let opts = super::demo_curve::Options {
+                json: args.json,
+                seed: args.seed,
+                criterion: args.curve_method,
+                draws: args.draws,
+                report: args.report,
+            };
+            return if args.twin == "talos" {
+                super::demo_curve::talos(&opts, &args.robot, &args.data)
+            } else {
+                super::demo_curve::agile_justin(&opts)
+            };
+        }
         "agile-justin" => {
             return super::demo_justin::run(&super::demo_justin::Options {
                 json: args.json,
@@ -170,7 +202,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             });
         }
         other => bail!(
-            "unknown twin `{other}`; demos: rock-drill, industrial, agile-justin (robot files: {})",
+            "unknown twin `{other}`; demos: rock-drill, industrial, agile-justin, talos (robot files: {})",
             TWINS.iter().map(|t| t.path).collect::<Vec<_>>().join(", ")
         ),
     }

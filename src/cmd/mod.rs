@@ -4,6 +4,7 @@ pub mod calibrate;
 pub mod check_pose;
 pub mod compensate;
 pub mod demo;
+pub mod demo_curve;
 pub mod demo_justin;
 pub mod demo_output;
 pub mod diagnose;

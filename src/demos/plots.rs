@@ -6,6 +6,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
+use super::report::Curve;
 use super::{PaperMetric, Row, Table};
 
 /// Colour of the measured bars (the paper's values are drawn in [`PAPER_COLOR`]).
@@ -305,4 +306,97 @@ fn per_axis_panel(
             .map_err(draw_error)?;
     }
     Ok(())
+}
+
+/// A learning curve: held-out error against training poses for the tool's choice (a line
+/// through its points), the random subsets' median (a line) with their range (bars), and the
+/// reference value as a dashed horizontal line.
+pub fn learning_curve(curve: &Curve) -> Svg {
+    let stat = curve.stat();
+    let points = &curve.report.points;
+    let chosen: Vec<(f64, f64)> = points.iter().map(|p| (p.size as f64, stat(&p.selected))).collect();
+    let random: Vec<(f64, [f64; 4])> = points.iter().map(|p| (p.size as f64, p.random_summary(stat))).collect();
+    let top = random
+        .iter()
+        .map(|(_, r)| r[3])
+        .chain(chosen.iter().map(|c| c.1))
+        .chain(curve.reference.as_ref().map(|r| r.0))
+        .fold(0.0, f64::max)
+        * 1.1
+        + 1e-9;
+    let right = chosen.iter().map(|c| c.0).fold(1.0, f64::max) * 1.05;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (900, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_error)?;
+        let mut chart = ChartBuilder::on(&root)
+            .margin(15)
+            .caption(&curve.report.title, ("sans-serif", 15))
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..right, 0.0..top)
+            .map_err(draw_error)?;
+        chart
+            .configure_mesh()
+            .x_desc("training poses")
+            .y_desc(format!(
+                "held-out {} 3-D error (mm)",
+                if curve.metric == "rms" { "RMS" } else { "mean" }
+            ))
+            .draw()
+            .map_err(draw_error)?;
+        chart
+            .draw_series(
+                random
+                    .iter()
+                    .map(|&(x, r)| PathElement::new(vec![(x, r[2]), (x, r[3])], PAPER_COLOR.stroke_width(2))),
+            )
+            .map_err(draw_error)?;
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                random.iter().map(|&(x, r)| (x, r[1])).collect::<Vec<_>>(),
+                PAPER_COLOR.stroke_width(2),
+            )))
+            .map_err(draw_error)?
+            .label("random subsets: median, min–max")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], PAPER_COLOR.stroke_width(2)));
+        chart
+            .draw_series(
+                random
+                    .iter()
+                    .map(|&(x, r)| Circle::new((x, r[1]), 3, PAPER_COLOR.filled())),
+            )
+            .map_err(draw_error)?;
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                chosen.clone(),
+                MEASURED_COLOR.stroke_width(2),
+            )))
+            .map_err(draw_error)?
+            .label("chosen by armcomp plan")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], MEASURED_COLOR.stroke_width(2)));
+        chart
+            .draw_series(chosen.iter().map(|&c| Circle::new(c, 4, MEASURED_COLOR.filled())))
+            .map_err(draw_error)?;
+        if let Some((value, label)) = &curve.reference {
+            chart
+                // Dashed: 40 dashes across the plot.
+                .draw_series((0..40).map(|k| {
+                    let x = right * f64::from(k) / 40.0;
+                    PathElement::new(vec![(x, *value), (x + 0.6 * right / 40.0, *value)], BEFORE_COLOR)
+                }))
+                .map_err(draw_error)?
+                .label(format!("{label}: {value} mm"))
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BEFORE_COLOR));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE)
+            .border_style(BLACK)
+            .draw()
+            .map_err(draw_error)?;
+        root.present().map_err(draw_error)?;
+    }
+    Ok(svg)
 }

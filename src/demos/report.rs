@@ -6,9 +6,33 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Result;
+use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::io::{check_report_folder, write_folder_atomic};
 
 use super::{PaperMetric, Table, plots};
+use crate::learning_curve::LearningCurveReport;
+
+/// A learning curve as the report shows it.
+#[derive(Debug, Clone)]
+pub struct Curve {
+    /// The curve.
+    pub report: LearningCurveReport,
+    /// The held-out statistic shown: `mean` or `rms` (3-D, mm).
+    pub metric: &'static str,
+    /// A reference value (mm) drawn across the plot, and what it is.
+    pub reference: Option<(f64, String)>,
+}
+
+impl Curve {
+    /// The statistic [`Curve::metric`] names.
+    pub fn stat(&self) -> fn(&ErrorStats) -> f64 {
+        if self.metric == "rms" {
+            |s| s.rms_mm
+        } else {
+            |s| s.mean_mm
+        }
+    }
+}
 
 /// The file-name stem of a table's plots: its title up to the colon, in lower-case words
 /// joined by dashes, numbered so that two tables never share files.
@@ -40,6 +64,11 @@ pub fn check(dir: &Path) -> Result<()> {
 /// Writes the folder `dir` with `index.html` and the plots of every table, whole (into a
 /// temporary folder, then moved into place), and returns the page's path.
 pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
+    write_page(dir, tables, &[])
+}
+
+/// [`write`] with learning curves after the tables: each a table of its sizes and a plot.
+pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<PathBuf> {
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
     let mut html = String::from(
         "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>armcomp demo</title>\
@@ -112,6 +141,45 @@ pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
                 "<figure><img src=\"{name}\" alt=\"{caption}\"><figcaption>{caption}</figcaption></figure>"
             );
         }
+    }
+    for (i, c) in curves.iter().enumerate() {
+        let stat = c.stat();
+        let _ = writeln!(
+            html,
+            "<h2>{}</h2>\n<p>{} training poses, {} held out; the held-out 3-D {} error of the model fitted on the \
+             poses the tool chose from the training poses, and on random subsets of them ({} seeded draws).</p>",
+            esc(&c.report.title),
+            c.report.train_poses,
+            c.report.test_poses,
+            if c.metric == "rms" { "RMS" } else { "mean" },
+            c.report.points.iter().map(|p| p.random.len()).max().unwrap_or(0)
+        );
+        let _ = writeln!(
+            html,
+            "<table><tr><th>poses</th><th>chosen mm</th><th>random mean mm</th><th>random median mm</th><th>random min mm</th><th>random max mm</th></tr>"
+        );
+        for p in &c.report.points {
+            let [mean, median, lo, hi] = p.random_summary(stat);
+            let _ = writeln!(
+                html,
+                "<tr><td>{}</td><td>{:.3}</td><td>{mean:.3}</td><td>{median:.3}</td><td>{lo:.3}</td><td>{hi:.3}</td></tr>",
+                p.size,
+                stat(&p.selected)
+            );
+        }
+        html.push_str("</table>\n");
+        let name = format!("curve-{}.svg", i + 1);
+        let svg = plots::learning_curve(c).map_err(|message| armcomp_core::Error::Io {
+            path: dir.join(&name),
+            message,
+        })?;
+        files.push((name.clone(), svg.into_bytes()));
+        let caption =
+            "Held-out error against training poses: the tool's choice, and the random subsets' median with their range";
+        let _ = writeln!(
+            html,
+            "<figure><img src=\"{name}\" alt=\"{caption}\"><figcaption>{caption}</figcaption></figure>"
+        );
     }
     html.push_str("</body></html>\n");
     files.push(("index.html".into(), html.into_bytes()));

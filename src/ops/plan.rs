@@ -1,28 +1,52 @@
-//! `plan`: measurement poses, evenly spread, D-optimal or near a task trajectory; never in
-//! collision.
+//! `plan`: measurement poses, evenly spread, optimal for calibration (D-, A-optimal or least
+//! predicted uncertainty, from a sampled pool, given configurations or measured rows), or near
+//! a task trajectory; never in collision.
 
 use std::cell::RefCell;
 
 use armcomp_core::collision::CollisionModel;
-use armcomp_core::plan::{Space, d_optimal, spread, trajectory_similar};
+use armcomp_core::design::{Criterion, SelectionParams, SelectionReport, pose_candidates, select_poses};
+use armcomp_core::measurement::{MeasurementSet, Sample};
+use armcomp_core::plan::{Space, spread, trajectory_similar};
 use armcomp_core::sampling::Sampler;
-use armcomp_core::{Error, Robot};
+use armcomp_core::{Error, Result, Robot};
+
+/// Where the optimal and trajectory methods pick from.
+#[derive(Debug, Clone)]
+pub enum PlanPool {
+    /// This many configurations sampled collision-free (0: the method's default, 10 × n for
+    /// the optimal methods, 2000 for trajectory).
+    Sampled(usize),
+    /// Joint configurations without measurements (SI).
+    Configurations(Vec<Vec<f64>>),
+    /// Measured rows: retrospective selection of the rows worth calibrating on.
+    Measured(MeasurementSet),
+}
 
 /// Settings of [`run`].
 #[derive(Debug, Clone)]
 pub struct PlanParams {
     /// Number of poses (for `trajectory`: trajectory points × neighbours instead).
     pub n: usize,
-    /// sobol, halton, random, grid, d-optimal or trajectory.
-    pub method: String,
-    /// `joint` or `cartesian`: where poses (or the pool) spread evenly.
+    /// sobol, halton, random, grid, d-optimal, a-optimal, uncertainty or trajectory; `None`:
+    /// sobol, or uncertainty with `next`.
+    pub method: Option<String>,
+    /// `joint` or `cartesian`: where poses (or a sampled pool) spread evenly.
     pub space: String,
-    /// Pool size for d-optimal (default 10 × n) and trajectory (default 2000).
-    pub pool: Option<usize>,
-    /// How the pool is drawn: sobol, halton, random or grid.
+    /// What the optimal and trajectory methods pick from.
+    pub pool: PlanPool,
+    /// How a sampled pool is drawn: sobol, halton, random or grid.
     pub pool_sampler: String,
-    /// Parameters a d-optimal plan should determine (as calibration's `identify`).
+    /// Parameters the optimal methods should determine (as calibration's `identify`).
     pub identify: Vec<String>,
+    /// Propose this many poses to measure after `measured` (replaces `n`).
+    pub next: Option<usize>,
+    /// Samples measured so far: their information counts as known.
+    pub measured: Vec<Sample>,
+    /// Standard deviation of the tracker noise per axis (m).
+    pub measurement_std: f64,
+    /// Most exchange passes refining the greedy choice of the optimal methods.
+    pub exchange_passes: usize,
     /// The task trajectory for `trajectory`: joint configurations in task order (SI).
     pub trajectory: Option<Vec<Vec<f64>>>,
     /// Points spread along the trajectory by arc length.
@@ -37,11 +61,15 @@ impl Default for PlanParams {
     fn default() -> Self {
         PlanParams {
             n: 100,
-            method: "sobol".into(),
+            method: None,
             space: "joint".into(),
-            pool: None,
+            pool: PlanPool::Sampled(0),
             pool_sampler: "sobol".into(),
             identify: Vec::new(),
+            next: None,
+            measured: Vec::new(),
+            measurement_std: 1e-4,
+            exchange_passes: 10,
             trajectory: None,
             trajectory_points: 50,
             per_point: 10,
@@ -50,17 +78,37 @@ impl Default for PlanParams {
     }
 }
 
-/// Planned poses (SI joint values) and a one-line account of how they were found.
+/// Planned poses and how they were found.
 #[derive(Debug, Clone)]
 pub struct PlanRun {
-    /// The poses.
+    /// The poses (SI joint values).
     pub poses: Vec<Vec<f64>>,
     /// What was picked from what, or skipped.
     pub note: String,
+    /// The optimal methods' report: criterion values, identifiability, parameter stds.
+    pub selection: Option<SelectionReport>,
+    /// With a measured pool: the data rows chosen, and their samples (every marker).
+    pub rows: Option<Vec<usize>>,
+    /// With a measured pool: the samples of the chosen rows, in the chosen order.
+    pub chosen_samples: Option<Vec<Sample>>,
+    /// Fewer poses than asked for, and why.
+    pub warnings: Vec<String>,
+}
+
+impl PlanRun {
+    /// The optimal methods' report as `armcomp plan --json` prints it, with the chosen `rows`.
+    pub fn selection_json(&self) -> Option<serde_json::Value> {
+        self.selection.as_ref().map(|report| {
+            // Plain numbers, strings and lists: serialising cannot fail.
+            let mut value = serde_json::to_value(report).expect("the report serialises");
+            value["rows"] = serde_json::to_value(&self.rows).expect("rows serialise");
+            value
+        })
+    }
 }
 
 /// Plans measurement poses for `robot`.
-pub fn run(robot: &Robot, p: &PlanParams) -> armcomp_core::Result<PlanRun> {
+pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
     let space = match p.space.as_str() {
         "joint" => Space::Joint,
         "cartesian" => Space::Cartesian,
@@ -70,32 +118,73 @@ pub fn run(robot: &Robot, p: &PlanParams) -> armcomp_core::Result<PlanRun> {
             )));
         }
     };
+    if p.next.is_some() && p.measured.is_empty() {
+        return Err(Error::Input(
+            "proposing the next poses needs the poses measured so far".into(),
+        ));
+    }
+    let method = p
+        .method
+        .clone()
+        .unwrap_or_else(|| if p.next.is_some() { "uncertainty" } else { "sobol" }.to_string());
+    let n = p.next.unwrap_or(p.n);
     // Poses in collision (self-collision or fixtures) are never planned.
     let collision = CollisionModel::new(robot);
     let collision_ws = RefCell::new(collision.workspace());
     let accept = |q: &[f64]| !collision.collides(q, &mut collision_ws.borrow_mut());
     let pool_sampler = Sampler::parse(&p.pool_sampler)?;
-    let pool = |n: usize| spread(robot, space, pool_sampler, n, p.seed, &accept);
-    Ok(match p.method.as_str() {
-        "d-optimal" => {
-            let pool = pool(p.pool.unwrap_or(10 * p.n))?;
-            let (chosen, log_det) = d_optimal(robot, &pool.poses, p.n.min(pool.poses.len()), &p.identify)?;
-            PlanRun {
-                poses: chosen.iter().map(|&i| pool.poses[i].clone()).collect(),
-                note: format!(
-                    "picked from a pool of {} ({} unreachable); log det of the scaled information {log_det:.2}",
-                    pool.poses.len(),
-                    pool.unreachable
-                ),
+    let sampled = |n: usize| spread(robot, space, pool_sampler, n, p.seed, &accept);
+    if let Ok(criterion) = method.parse::<Criterion>() {
+        let candidates = match &p.pool {
+            PlanPool::Measured(set) => measured_candidates(set, &accept),
+            PlanPool::Configurations(poses) => {
+                let total = poses.len();
+                let poses: Vec<Vec<f64>> = poses.iter().filter(|q| accept(q)).cloned().collect();
+                Candidates {
+                    note: format!(
+                        "picked from {} configurations{}",
+                        poses.len(),
+                        skipped(total - poses.len())
+                    ),
+                    samples: pose_candidates(robot, &poses),
+                    rows: None,
+                }
             }
-        }
+            PlanPool::Sampled(size) => {
+                let plan = sampled(if *size == 0 { 10 * n } else { *size })?;
+                Candidates {
+                    note: format!(
+                        "picked from a sampled pool of {} ({} unreachable, {} colliding left out)",
+                        plan.poses.len(),
+                        plan.unreachable,
+                        plan.rejected
+                    ),
+                    samples: pose_candidates(robot, &plan.poses),
+                    rows: None,
+                }
+            }
+        };
+        return optimal(robot, p, criterion, n, candidates);
+    }
+    if p.next.is_some() || !p.measured.is_empty() {
+        return Err(Error::Input(format!(
+            "the next poses and the measured ones go with the methods d-optimal, a-optimal and uncertainty, not `{method}`"
+        )));
+    }
+    let mut warnings = Vec::new();
+    let (poses, note) = match method.as_str() {
         "trajectory" => {
             let Some(trajectory) = &p.trajectory else {
                 return Err(Error::Input(
                     "method trajectory needs a trajectory (joint configurations in task order)".into(),
                 ));
             };
-            let pool = pool(p.pool.unwrap_or(2000))?;
+            let PlanPool::Sampled(size) = p.pool else {
+                return Err(Error::Input(
+                    "method trajectory samples its pool; give the pool as a number of poses".into(),
+                ));
+            };
+            let pool = sampled(if size == 0 { 2000 } else { size })?;
             let chosen = trajectory_similar(
                 robot,
                 trajectory,
@@ -103,25 +192,125 @@ pub fn run(robot: &Robot, p: &PlanParams) -> armcomp_core::Result<PlanRun> {
                 p.trajectory_points,
                 p.per_point,
             )?;
-            PlanRun {
-                poses: chosen.iter().map(|&i| pool.poses[i].clone()).collect(),
-                note: format!(
+            (
+                chosen.iter().map(|&i| pool.poses[i].clone()).collect(),
+                format!(
                     "{} trajectory points × {} nearest of a pool of {}",
                     p.trajectory_points,
                     p.per_point,
                     pool.poses.len()
                 ),
-            }
+            )
         }
         sampler => {
-            let plan = spread(robot, space, Sampler::parse(sampler)?, p.n, p.seed, &accept)?;
-            PlanRun {
-                note: format!(
-                    "{} unreachable and {} colliding candidates skipped",
-                    plan.unreachable, plan.rejected
-                ),
-                poses: plan.poses,
+            let plan = spread(robot, space, Sampler::parse(sampler)?, n, p.seed, &accept)?;
+            if plan.poses.len() < n {
+                warnings.push(format!("only {} of {n} poses could be planned", plan.poses.len()));
             }
+            let note = format!(
+                "{} unreachable and {} colliding candidates skipped",
+                plan.unreachable, plan.rejected
+            );
+            (plan.poses, note)
         }
+    };
+    Ok(PlanRun {
+        poses,
+        note,
+        selection: None,
+        rows: None,
+        chosen_samples: None,
+        warnings,
+    })
+}
+
+/// Candidates for the optimal methods: their samples and where they come from.
+struct Candidates {
+    samples: Vec<Vec<Sample>>,
+    /// Data row of each candidate when the pool is measured.
+    rows: Option<Vec<usize>>,
+    note: String,
+}
+
+/// The measured rows of `set` as candidates (one per data row, its markers together), the
+/// colliding ones left out.
+fn measured_candidates(set: &MeasurementSet, accept: &dyn Fn(&[f64]) -> bool) -> Candidates {
+    let mut groups: Vec<(usize, Vec<Sample>)> = Vec::new();
+    for (s, &row) in set.samples.iter().zip(&set.rows) {
+        match groups.last_mut() {
+            Some((r, g)) if *r == row => g.push(s.clone()),
+            _ => groups.push((row, vec![s.clone()])),
+        }
+    }
+    let total = groups.len();
+    let (rows, samples): (Vec<usize>, Vec<Vec<Sample>>) = groups.into_iter().filter(|(_, g)| accept(&g[0].q)).unzip();
+    Candidates {
+        note: format!(
+            "picked from {} measured rows{}",
+            rows.len(),
+            skipped(total - rows.len())
+        ),
+        samples,
+        rows: Some(rows),
+    }
+}
+
+fn skipped(colliding: usize) -> String {
+    if colliding > 0 {
+        format!(" ({colliding} colliding left out)")
+    } else {
+        String::new()
+    }
+}
+
+/// The optimal methods: the best `n` of the candidates given the measured samples.
+fn optimal(robot: &Robot, p: &PlanParams, criterion: Criterion, n: usize, candidates: Candidates) -> Result<PlanRun> {
+    if candidates.samples.is_empty() {
+        return Err(Error::Input(format!(
+            "the pool has no collision-free pose to pick from ({})",
+            candidates.note
+        )));
+    }
+    let params = SelectionParams {
+        criterion,
+        identify: p.identify.clone(),
+        measurement_std: p.measurement_std,
+        exchange_passes: p.exchange_passes,
+    };
+    let report = select_poses(
+        robot,
+        &candidates.samples,
+        n.min(candidates.samples.len()),
+        &p.measured,
+        &[],
+        &params,
+    )?;
+    let poses: Vec<Vec<f64>> = report
+        .chosen
+        .iter()
+        .map(|&i| candidates.samples[i][0].q.clone())
+        .collect();
+    let mut warnings = Vec::new();
+    if poses.len() < n {
+        warnings.push(format!("only {} poses could be picked", poses.len()));
+    }
+    let rows = candidates
+        .rows
+        .as_ref()
+        .map(|rows| report.chosen.iter().map(|&i| rows[i]).collect());
+    let chosen_samples = candidates.rows.as_ref().map(|_| {
+        report
+            .chosen
+            .iter()
+            .flat_map(|&i| candidates.samples[i].iter().cloned())
+            .collect()
+    });
+    Ok(PlanRun {
+        poses,
+        note: candidates.note,
+        selection: Some(report),
+        rows,
+        chosen_samples,
+        warnings,
     })
 }

@@ -11,7 +11,7 @@ use armcomp_core::{
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{check_finite, check_positive, resolve_joint_table};
+use crate::common::{check_positive, resolve_joint_table};
 use armcomp_core::gravity::{Subtrees, joint_gravity_load};
 
 fn default_smoothing() -> f64 {
@@ -56,8 +56,13 @@ impl ErrorModelSpec for BacklashSpec {
             self.smoothing,
             "torque in N m",
         );
+        // A play is a width: zero or more.
         let resolved = resolve_joint_table(ctx, "backlash", &self.backlash, &mut issues, |i, p, v| {
-            check_finite(i, p, v)
+            let ok = v.is_finite() && v >= 0.0;
+            if !ok {
+                i.push(p, format!("expected a play of zero or more, got {v}"));
+            }
+            ok
         });
         if !issues.is_empty() {
             return Err(issues);
@@ -73,12 +78,12 @@ impl ErrorModelSpec for BacklashSpec {
             } else {
                 (Quantity::Angle, u.ang(v))
             };
-            params.push(ParamInfo::new(
-                format!("backlash.{}", tree.joints()[j].name),
-                q,
-                si,
-                f64::INFINITY,
-            ));
+            params.push(
+                ParamInfo::new(format!("backlash.{}", tree.joints()[j].name), q, si, f64::INFINITY)
+                    .with_bounds(0.0, f64::INFINITY)
+                    // The play's effect flips with the load's sign: a fit from zero may stop short.
+                    .multimodal(),
+            );
             joints.push((j, prismatic));
         }
         Ok(Box::new(BacklashModel {

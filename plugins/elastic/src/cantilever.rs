@@ -297,8 +297,10 @@ impl ErrorModelSpec for CantileverSpec {
                         table.get(&l.name).copied().unwrap_or(1.0),
                         0.5,
                     )
-                    // Rigidity scales must stay positive (the spec rejects others).
-                    .with_bounds(1e-3, f64::INFINITY),
+                    // Rigidity scales must stay positive (the spec rejects others); the
+                    // deflection goes as their inverse.
+                    .with_bounds(1e-3, f64::INFINITY)
+                    .multimodal(),
                 );
             }
         }

@@ -13,6 +13,7 @@ Long calls release the GIL and stop on Ctrl-C (``KeyboardInterrupt``).
 
 from __future__ import annotations
 
+import json
 import warnings
 from typing import Iterable, Optional, Sequence, Tuple, Union
 
@@ -94,6 +95,8 @@ def calibrate(
     noise_mm: float = 0.1,
     prior: Union[None, float, str] = 1.0,
     max_iterations: int = 100,
+    restarts: int = 2,
+    seed: int = 0,
 ) -> Tuple[Robot, CalibrationReport]:
     """Identifies a model of ``robot`` from ``data`` (Levenberg–Marquardt with priors), as
     ``armcomp calibrate`` does.
@@ -102,7 +105,8 @@ def calibrate(
     model's type or a parameter pattern such as ``"j2.*"``); default base, markers, geometry
     and errors. ``noise_mm``: the tracker noise per axis (mm). ``prior``: a factor on the robot
     file's prior standard deviations, ``"auto"`` (5-fold cross-validation) or None (no
-    priors).
+    priors). ``restarts``: fits from perturbed starts (seeded by ``seed``) when the fit ends
+    more than 1.5 times above the noise; the lowest cost is kept.
 
     Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's
     warnings, and a fit far above the declared noise, are issued as ``CalibrationWarning``.
@@ -115,6 +119,8 @@ def calibrate(
         noise_mm=noise_mm,
         prior="none" if prior is None else prior,
         max_iterations=max_iterations,
+        restarts=restarts,
+        seed=seed,
     )
     report = from_json(CalibrationReport, text)
     object.__setattr__(report, "far_above_noise", far)
@@ -215,21 +221,29 @@ def compensate(
 def plan(
     robot: Robot,
     n: int = 100,
-    method: str = "sobol",
+    method: Optional[str] = None,
     space: str = "joint",
-    pool: Optional[int] = None,
+    pool: Union[None, int, np.ndarray, Measurements] = None,
     pool_sampler: str = "sobol",
     identify: Union[None, str, Sequence[str]] = None,
+    next: Optional[int] = None,
+    measured: Optional[Measurements] = None,
+    noise_mm: float = 0.1,
+    exchange_passes: int = 10,
     trajectory: Optional[np.ndarray] = None,
     trajectory_points: int = 50,
     per_point: int = 10,
     seed: int = 0,
 ) -> Plan:
-    """Measurement poses for ``robot``, never in collision, as ``armcomp plan`` plans them:
-    ``method`` sobol, halton, random or grid (even sets in ``space`` joint or cartesian),
-    d-optimal (the best subset of a pool for identifying ``identify``) or trajectory (pool
-    poses nearest to a task ``trajectory``, n × joints)."""
-    poses, note = _native.plan(
+    """Measurement poses for ``robot``, never in collision, as ``armcomp plan`` plans them.
+
+    ``method``: sobol, halton, random or grid (even sets in ``space`` joint or cartesian);
+    d-optimal, a-optimal or uncertainty (the best ``n`` of a ``pool`` for identifying
+    ``identify``: a number of poses to sample, an array of configurations, or
+    ``Measurements`` to pick the rows worth calibrating on); or trajectory (pool poses nearest
+    to a task ``trajectory``, n × joints). Default: sobol, or uncertainty with ``next``.
+    ``next=K`` proposes the K poses to measure after ``measured``."""
+    poses, note, rows, selection = _native.plan(
         robot,
         n=n,
         method=method,
@@ -237,9 +251,18 @@ def plan(
         pool=pool,
         pool_sampler=pool_sampler,
         identify=_names(identify),
+        next=next,
+        measured=measured,
+        noise_mm=noise_mm,
+        exchange_passes=exchange_passes,
         trajectory=trajectory,
         trajectory_points=trajectory_points,
         per_point=per_point,
         seed=seed,
     )
-    return Plan(poses=poses, note=note)
+    return Plan(
+        poses=poses,
+        note=note,
+        rows=None if rows is None else list(rows),
+        selection=None if selection is None else json.loads(selection),
+    )

@@ -87,6 +87,8 @@ def calibrate(
     noise_mm: float = 0.1,
     prior: Union[None, float, str] = None,
     max_iterations: int = 100,
+    restarts: int = 2,
+    seed: int = 0,
 ) -> Tuple[Robot, str, bool]: ...
 def evaluate(model: Robot, data: Measurements) -> Tuple[str, np.ndarray]: ...
 def simulate(
@@ -115,13 +117,17 @@ def compensate(
 def plan(
     robot: Robot,
     n: int = 100,
-    method: str = "sobol",
+    method: Optional[str] = None,
     space: str = "joint",
-    pool: Optional[int] = None,
+    pool: Union[None, int, _Array, Measurements] = None,
     pool_sampler: str = "sobol",
     identify: Optional[List[str]] = None,
+    next: Optional[int] = None,
+    measured: Optional[Measurements] = None,
+    noise_mm: float = 0.1,
+    exchange_passes: int = 10,
     trajectory: Optional[_Array] = None,
     trajectory_points: int = 50,
     per_point: int = 10,
     seed: int = 0,
-) -> Tuple[np.ndarray, str]: ...
+) -> Tuple[np.ndarray, str, Optional[List[int]], Optional[str]]: ...

@@ -98,11 +98,13 @@ class CalibrationReport(Report):
     identifiability: Identifiability
     params: List[Parameter]
     iterations: int
+    restarts_rms_mm: List[float]
     converged: bool
     stop_reason: str
     before: ErrorStats
     after: ErrorStats
     rms_over_noise: Optional[float]
+    units_mislabelled: bool
     warnings: List[str]
     prior_choice: Optional[PriorChoice] = None
     far_above_noise: bool = False
@@ -234,7 +236,12 @@ class Compensation:
 
 @dataclass(frozen=True)
 class Plan:
-    """Planned measurement poses (n × joints, SI) and how they were found."""
+    """Planned measurement poses (n × joints, SI) and how they were found. For the optimal
+    methods ``selection`` is ``armcomp plan --json``'s report (criterion values,
+    identifiability, parameter standard deviations before and after); with measured rows as
+    the pool ``rows`` are the data rows chosen."""
 
     poses: np.ndarray
     note: str
+    rows: Optional[List[int]] = None
+    selection: Optional[Dict[str, Any]] = None
