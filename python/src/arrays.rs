@@ -6,6 +6,9 @@ use pyo3::prelude::*;
 
 use crate::errors::input_error;
 
+/// A 2-D float64 array handed to Python.
+pub type Matrix<'py> = Bound<'py, PyArray2<f64>>;
+
 /// A 1-D array (or sequence) of floats as a vector.
 pub fn vector(a: &PyArrayLike1<'_, f64, AllowTypeChange>) -> Vec<f64> {
     a.as_array().iter().copied().collect()

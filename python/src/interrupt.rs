@@ -30,7 +30,7 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
             *guard || worker.is_finished()
         };
         let mut signal = None;
-        while !py.detach(&finished) {
+        while !py.detach(finished) {
             if let Err(e) = py.check_signals() {
                 armcomp_core::interrupt::request();
                 signal = Some(e);

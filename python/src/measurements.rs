@@ -17,6 +17,9 @@ use pyo3::types::PyType;
 use crate::errors::{IntoPy, file_error, input_error, warn_all};
 use crate::robot::{PyRobot, write_output};
 
+/// Names given with arrays, when they were.
+type Names<'a> = Option<&'a [String]>;
+
 /// Where the data come from.
 #[derive(Debug, Clone)]
 enum Source {
@@ -79,8 +82,9 @@ impl PyMeasurements {
         Ok(set)
     }
 
-    /// The samples when they do not need a robot to be read.
-    fn samples(&self) -> PyResult<(&MeasurementSet, Option<&[String]>, Option<&[String]>)> {
+    /// The samples when they do not need a robot to be read, with the joint and point names
+    /// they were given.
+    fn samples(&self) -> PyResult<(&MeasurementSet, Names<'_>, Names<'_>)> {
         match &self.source {
             Source::Samples {
                 set,

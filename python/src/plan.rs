@@ -1,12 +1,16 @@
 //! `plan`: measurement poses, as `armcomp plan` plans them.
 
 use armcomp::ops::plan::{PlanParams, PlanPool, run};
-use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
+use numpy::{AllowTypeChange, PyArrayLike2};
 use pyo3::prelude::*;
 
+use crate::arrays::Matrix;
 use crate::errors::{IntoPy, input_error};
 use crate::measurements::PyMeasurements;
 use crate::robot::PyRobot;
+
+/// Poses, note, chosen data rows and the selection report's JSON.
+type PlanOutput<'py> = (Matrix<'py>, String, Option<Vec<usize>>, Option<String>);
 
 /// Plans measurement poses for `robot` by `method` (sobol, halton, random, grid, d-optimal,
 /// a-optimal, uncertainty, trajectory), never in collision. `pool` is a number of poses to
@@ -33,7 +37,7 @@ pub fn plan<'py>(
     trajectory_points: usize,
     per_point: usize,
     seed: u64,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, String, Option<Vec<usize>>, Option<String>)> {
+) -> PyResult<PlanOutput<'py>> {
     let r = robot.robot.clone();
     let nq = r.tree().nq();
     let trajectory = trajectory

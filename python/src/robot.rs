@@ -15,7 +15,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use crate::arrays::vector;
+use crate::arrays::{Matrix, vector};
 use crate::errors::{IntoPy, file_error, input_error};
 use crate::measurements::PyMeasurements;
 
@@ -184,7 +184,7 @@ impl PyRobot {
         &self,
         py: Python<'py>,
         q: PyArrayLike1<'py, f64, AllowTypeChange>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>)> {
+    ) -> PyResult<(Matrix<'py>, Matrix<'py>)> {
         let q = self.configuration(&q)?;
         let frames = self.robot.forward(&q).py()?;
         let positions: Vec<_> = frames.point.iter().map(|p| p.translation.vector).collect();
