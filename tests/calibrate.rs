@@ -879,8 +879,9 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
         measurement_std: NOISE,
         ..Default::default()
     };
-    // Relative scale errors: the payloads weigh (1 + scale) times what is declared.
-    for (seed, scale, extra) in [(61, -0.2, 0.0), (62, 0.15, 0.4), (63, -0.4, 0.0)] {
+    // Relative scale errors: the payloads weigh (1 + scale) times what is declared. A payload
+    // 90 % heavier than declared is outside the model's plausible ±50 %: fitted, and flagged.
+    for (seed, scale, extra) in [(61, -0.2, 0.0), (62, 0.15, 0.4), (63, -0.4, 0.0), (64, 0.9, 0.0)] {
         let (truth, _) = truth_of(
             &nominal,
             &[("payload_mass_error.scale", scale), ("payload_mass_error.mass", extra)],
@@ -919,6 +920,21 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
             "seed {seed}: scale {s} ± {s_sd}, truth {scale}"
         );
         assert!(m >= 0.0, "seed {seed}: a payload declared as 0 kg would weigh {m} kg");
+        let plausible = cal
+            .report
+            .params
+            .iter()
+            .find(|p| p.name == "payload_mass_error.scale")
+            .unwrap()
+            .plausible;
+        let warned = cal.report.warnings.iter().any(|w| {
+            w.contains("payload_mass_error.scale") && w.contains("plausible") && w.contains("-0.5000 to 0.5000")
+        });
+        assert!(
+            plausible == (scale.abs() <= 0.5) && warned != plausible,
+            "seed {seed}: scale {s} plausible {plausible}, warnings {:?}",
+            cal.report.warnings
+        );
         assert!(
             (m - extra).abs() < 4.0 * m_sd.max(1e-3),
             "seed {seed}: offset {m} ± {m_sd}, truth {extra}"

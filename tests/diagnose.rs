@@ -415,6 +415,12 @@ fn check_case(c: &Case, n: usize) -> CaseResult {
                 step.label,
                 step.location
             );
+            // Every hidden truth here has values a real robot has.
+            assert!(
+                step.implausible.is_empty(),
+                "{what}: plausible values flagged: {:?}",
+                step.implausible
+            );
             if *below_noise {
                 let left = left_after_calibration(&nominal, &truth, n, c);
                 assert!(

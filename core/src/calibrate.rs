@@ -479,6 +479,9 @@ pub struct ParamResult {
     /// data pushed it as far as it may go, so its value says more about the model than about
     /// the robot.
     pub at_bound: bool,
+    /// Whether the value lies in the range its model calls physically plausible
+    /// ([`crate::param::ParamInfo::plausible`]); a fit that needs an implausible value is warned about.
+    pub plausible: bool,
 }
 
 /// What calibration did and how well it fits.
@@ -1396,6 +1399,7 @@ pub fn calibrate(
                 std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
                 fixed: c.is_none(),
                 at_bound: c.is_some() && (theta[k] <= info.lower || theta[k] >= info.upper),
+                plausible: info.is_plausible(theta[k]),
             }
         })
         .collect();
@@ -1425,6 +1429,13 @@ pub fn calibrate(
     }
     let units_mislabelled = unit_mistake.is_some();
     warnings.extend(unit_mistake);
+    // A value no real robot has says the model explains the data with the wrong effect.
+    warnings.extend(
+        selected
+            .iter()
+            .filter(|&&k| free.contains(&k))
+            .filter_map(|&k| held_space.params[k].info.implausibility(theta[k])),
+    );
     let calibrated = apply(robot, &space, &theta)?;
     Ok(Calibration {
         robot: calibrated,

@@ -161,6 +161,10 @@ pub struct DiagnosisStep {
     pub equivalent: Vec<String>,
     /// Every candidate of the round, best first.
     pub ranking: Vec<RankedCandidate>,
+    /// Its values outside the range the model calls physically plausible, in words: the
+    /// effect explains the data, but not with values a real robot has; likely another effect
+    /// (or a wrong declared quantity, such as a payload's mass) acts through the same motion.
+    pub implausible: Vec<String>,
 }
 
 /// The model the diagnosis ends with.
@@ -293,21 +297,35 @@ pub fn diagnose(
         let before = ErrorStats::from_errors(&current.errors);
         let after = best.heldout.expect("an accepted candidate was evaluated");
         let values = new_model_values(&fitted);
+        let implausible: Vec<String> = match (fitted.error_models().last(), fitted.error_values().last()) {
+            (Some(m), Some(v)) => m
+                .params()
+                .iter()
+                .zip(v)
+                .filter_map(|(p, &v)| p.implausibility(v))
+                .collect(),
+            _ => Vec::new(),
+        };
         let alternatives = if equivalent.is_empty() {
             String::new()
         } else {
             format!("; the data cannot tell it from: {}", equivalent.join(", "))
+        };
+        let flagged = if implausible.is_empty() {
+            String::new()
+        } else {
+            format!("; implausible: {}", implausible.join("; "))
         };
         steps.push(DiagnosisStep {
             effect: best.effect.clone(),
             location: best.location.clone(),
             label: best.label.clone(),
             summary: format!(
-                "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm){alternatives}",
+                "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm){alternatives}{flagged}",
                 best.label,
                 values
                     .iter()
-                    .map(|(_, q, v)| readable(*q, *v))
+                    .map(|(_, q, v)| q.readable(*v))
                     .collect::<Vec<_>>()
                     .join(", "),
                 100.0 * best.share_removed,
@@ -331,6 +349,7 @@ pub fn diagnose(
             share_removed: best.share_removed,
             equivalent,
             ranking,
+            implausible,
         });
         current = best.evaluation.expect("an accepted candidate was evaluated");
         heldout_norms_mm.push(norms_mm(&current.errors));
@@ -572,17 +591,6 @@ fn new_model_values(robot: &Robot) -> Vec<(String, Quantity, f64)> {
             .map(|(p, v)| (p.name.clone(), p.quantity, *v))
             .collect(),
         _ => Vec::new(),
-    }
-}
-
-/// A value in the unit a field engineer reads it in: mm, degrees, or SI in scientific notation.
-pub fn readable(quantity: Quantity, value: f64) -> String {
-    match quantity {
-        Quantity::Length => format!("{:.3} mm", value * 1e3),
-        Quantity::Angle => format!("{:.4} deg", value.to_degrees()),
-        Quantity::Dimensionless => format!("{value:.4}"),
-        Quantity::Mass => format!("{value:.3} kg"),
-        q => format!("{value:.3e} {}", q.si_unit()),
     }
 }
 

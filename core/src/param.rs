@@ -25,6 +25,18 @@ pub enum Quantity {
 }
 
 impl Quantity {
+    /// `value` (SI) in the unit a field engineer reads it in: mm, degrees, or SI in
+    /// scientific notation.
+    pub fn readable(&self, value: f64) -> String {
+        match self {
+            Quantity::Length => format!("{:.3} mm", value * 1e3),
+            Quantity::Angle => format!("{:.4} deg", value.to_degrees()),
+            Quantity::Dimensionless => format!("{value:.4}"),
+            Quantity::Mass => format!("{value:.3} kg"),
+            q => format!("{value:.3e} {}", q.si_unit()),
+        }
+    }
+
     /// The SI unit symbol.
     pub fn si_unit(&self) -> &'static str {
         match self {
@@ -59,6 +71,9 @@ pub struct ParamInfo {
     /// flips with the load's sign, a scale of a stiffness): calibration's restarts move it by
     /// its typical size, not only by its prior.
     pub multimodal: bool,
+    /// The range (SI) in which a value is physically plausible for the model, as its plugin
+    /// states it; values outside are reported, not refused. Unbounded when nothing is stated.
+    pub plausible: (f64, f64),
 }
 
 impl ParamInfo {
@@ -72,6 +87,7 @@ impl ParamInfo {
             lower: f64::NEG_INFINITY,
             upper: f64::INFINITY,
             multimodal: false,
+            plausible: (f64::NEG_INFINITY, f64::INFINITY),
         }
     }
 
@@ -79,6 +95,40 @@ impl ParamInfo {
     pub fn multimodal(mut self) -> Self {
         self.multimodal = true;
         self
+    }
+
+    /// The same parameter with the range `[lower, upper]` (SI) its model calls plausible.
+    pub fn with_plausible(mut self, lower: f64, upper: f64) -> Self {
+        self.plausible = (lower, upper);
+        self
+    }
+
+    /// Whether `value` (SI) lies in the plausible range.
+    pub fn is_plausible(&self, value: f64) -> bool {
+        (self.plausible.0..=self.plausible.1).contains(&value)
+    }
+
+    /// "`name` = value is outside its plausible range [lo, hi] unit", in the unit people
+    /// read, when `value` (SI) is outside; `None` otherwise.
+    pub fn implausibility(&self, value: f64) -> Option<String> {
+        if self.is_plausible(value) {
+            return None;
+        }
+        let (lo, hi) = self.plausible;
+        let bound = |v: f64| {
+            if v.is_finite() {
+                self.quantity.readable(v)
+            } else {
+                format!("{}∞", if v < 0.0 { "-" } else { "" })
+            }
+        };
+        Some(format!(
+            "{} = {} is outside the range its model calls plausible, {} to {}",
+            self.name,
+            self.quantity.readable(value),
+            bound(lo),
+            bound(hi)
+        ))
     }
 
     /// The same parameter restricted to `[lower, upper]` (SI), which calibration respects.

@@ -81,6 +81,9 @@ impl ErrorModelSpec for BacklashSpec {
             params.push(
                 ParamInfo::new(format!("backlash.{}", tree.joints()[j].name), q, si, f64::INFINITY)
                     .with_bounds(0.0, f64::INFINITY)
+                    // Gear trains play by hundredths of a degree, worn ones by tenths; a
+                    // millimetre-scale play is a loose slide.
+                    .with_plausible(0.0, if prismatic { 5e-3 } else { 1f64.to_radians() })
                     // The play's effect flips with the load's sign: a fit from zero may stop short.
                     .multimodal(),
             );

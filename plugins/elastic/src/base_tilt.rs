@@ -59,8 +59,11 @@ impl ErrorModelSpec for BaseTiltSpec {
             compliance,
             subtrees: Subtrees::new(ctx.tree),
             params: vec![
-                ParamInfo::new("base_tilt.x", Quantity::Angle, u.ang(self.tilt[0]), 1f64.to_radians()),
-                ParamInfo::new("base_tilt.y", Quantity::Angle, u.ang(self.tilt[1]), 1f64.to_radians()),
+                // A base set on a slope or a sagging floor tilts by up to a few degrees.
+                ParamInfo::new("base_tilt.x", Quantity::Angle, u.ang(self.tilt[0]), 1f64.to_radians())
+                    .with_plausible(-5f64.to_radians(), 5f64.to_radians()),
+                ParamInfo::new("base_tilt.y", Quantity::Angle, u.ang(self.tilt[1]), 1f64.to_radians())
+                    .with_plausible(-5f64.to_radians(), 5f64.to_radians()),
             ],
         }))
     }

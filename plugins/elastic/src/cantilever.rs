@@ -300,6 +300,9 @@ impl ErrorModelSpec for CantileverSpec {
                     // Rigidity scales must stay positive (the spec rejects others); the
                     // deflection goes as their inverse.
                     .with_bounds(1e-3, f64::INFINITY)
+                    // Section and modulus are known to within a factor of a few (welds,
+                    // joints, cut-outs soften a beam; stiffeners and fill harden it).
+                    .with_plausible(0.1, 10.0)
                     .multimodal(),
                 );
             }

@@ -66,18 +66,20 @@ impl ErrorModelSpec for EncoderEccentricitySpec {
         let mut params = Vec::new();
         for (j, ab) in &found {
             let n = &tree.joints()[*j].name;
-            params.push(ParamInfo::new(
-                format!("encoder_eccentricity.{n}.sin"),
-                Quantity::Angle,
-                u.ang(ab[0]),
-                0.01,
-            ));
-            params.push(ParamInfo::new(
-                format!("encoder_eccentricity.{n}.cos"),
-                Quantity::Angle,
-                u.ang(ab[1]),
-                0.01,
-            ));
+            // A mounted encoder disc is off centre by hundredths of a degree; a degree means
+            // a damaged or slipping one.
+            let plausible = 1f64.to_radians();
+            for (k, component) in ["sin", "cos"].into_iter().enumerate() {
+                params.push(
+                    ParamInfo::new(
+                        format!("encoder_eccentricity.{n}.{component}"),
+                        Quantity::Angle,
+                        u.ang(ab[k]),
+                        0.01,
+                    )
+                    .with_plausible(-plausible, plausible),
+                );
+            }
         }
         Ok(Box::new(EncoderEccentricityModel {
             spec: self.clone(),

@@ -50,12 +50,14 @@ pub(crate) fn frame_params(prefix: &str, values: &[f64; 6], units: &armcomp_core
     (0..6)
         .map(|k| {
             if k < 3 {
+                // Machining and assembly put a frame off by millimetres, not decimetres.
                 ParamInfo::new(
                     format!("{prefix}.{}", SUFFIX[k]),
                     Quantity::Length,
                     units.len(values[k]),
                     0.01,
                 )
+                .with_plausible(-0.05, 0.05)
             } else {
                 ParamInfo::new(
                     format!("{prefix}.{}", SUFFIX[k]),
@@ -63,6 +65,7 @@ pub(crate) fn frame_params(prefix: &str, values: &[f64; 6], units: &armcomp_core
                     units.ang(values[k]),
                     1f64.to_radians(),
                 )
+                .with_plausible(-5f64.to_radians(), 5f64.to_radians())
             }
         })
         .collect()

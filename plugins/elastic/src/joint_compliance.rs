@@ -35,6 +35,13 @@ pub(crate) fn check_compliance(issues: &mut Issues, path: &str, v: f64) -> bool 
 }
 
 /// The unit of a joint's compliance.
+/// The largest plausible rotational compliance (rad/(N m)): 10 N m turns a hobby servo by
+/// 6°; every real arm is stiffer.
+pub(crate) const PLAUSIBLE_ROTATIONAL_COMPLIANCE: f64 = 1e-2;
+
+/// The largest plausible linear compliance of a slide (m/N): 10 N push it by 1 cm.
+const PLAUSIBLE_LINEAR_COMPLIANCE: f64 = 1e-3;
+
 pub(crate) fn compliance_quantity(motion: &Motion) -> Quantity {
     match motion {
         Motion::Prismatic(_) => Quantity::Other("m/N"),
@@ -110,6 +117,13 @@ impl ErrorModelSpec for JointComplianceSpec {
                 )
                 // A negative compliance is not physical, and the spec rejects it.
                 .with_bounds(0.0, f64::INFINITY)
+                .with_plausible(
+                    0.0,
+                    match joints[j].motion {
+                        Motion::Prismatic(_) => PLAUSIBLE_LINEAR_COMPLIANCE,
+                        _ => PLAUSIBLE_ROTATIONAL_COMPLIANCE,
+                    },
+                )
             })
             .collect();
         Ok(Box::new(JointComplianceModel {

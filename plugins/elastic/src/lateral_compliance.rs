@@ -107,7 +107,8 @@ impl ErrorModelSpec for LateralComplianceSpec {
                         f64::INFINITY,
                     )
                     // The spec accepts no negative compliance.
-                    .with_bounds(0.0, f64::INFINITY),
+                    .with_bounds(0.0, f64::INFINITY)
+                    .with_plausible(0.0, crate::joint_compliance::PLAUSIBLE_ROTATIONAL_COMPLIANCE),
                 );
             }
         }

@@ -112,15 +112,20 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
             body,
             compliance,
             params: vec![
+                // A payload mis-declared by more than its own mass (or 20 kg for light ones)
+                // is a different payload.
                 ParamInfo::new("payload_mass_error.mass", Quantity::Mass, self.mass, f64::INFINITY)
-                    .with_bounds(-declared, f64::INFINITY),
+                    .with_bounds(-declared, f64::INFINITY)
+                    .with_plausible(-declared, declared.max(20.0)),
                 ParamInfo::new(
                     "payload_mass_error.scale",
                     Quantity::Dimensionless,
                     self.scale,
                     f64::INFINITY,
                 )
-                .with_bounds(-1.0, f64::INFINITY),
+                .with_bounds(-1.0, f64::INFINITY)
+                // Scales and catalogue masses are off by percents; by half is another payload.
+                .with_plausible(-0.5, 0.5),
             ],
         }))
     }

@@ -67,12 +67,16 @@ impl ErrorModelSpec for ThermalGrowthSpec {
                 .iter()
                 .map(|p| own_frame_translation(&p.local))
                 .collect(),
-            params: vec![ParamInfo::new(
-                "thermal_growth.coefficient",
-                Quantity::PerKelvin,
-                self.coefficient,
-                1e-5,
-            )],
+            // Structural metals grow by 10–25e-6 per kelvin, carbon fibre slightly shrinks.
+            params: vec![
+                ParamInfo::new(
+                    "thermal_growth.coefficient",
+                    Quantity::PerKelvin,
+                    self.coefficient,
+                    1e-5,
+                )
+                .with_plausible(-2e-6, 30e-6),
+            ],
         }))
     }
 }

@@ -48,6 +48,8 @@ impl ErrorModelSpec for TransmissionScaleSpec {
                     v,
                     0.01,
                 )
+                // Gear ratios are exact; belts, capstans and trimmed servos are off by percents.
+                .with_plausible(-0.2, 0.2)
             })
             .collect();
         Ok(Box::new(TransmissionScaleModel {

@@ -44,6 +44,7 @@ class Parameter:
     std: float
     fixed: bool
     at_bound: bool
+    plausible: bool = True
 
 
 @dataclass(frozen=True)
@@ -172,6 +173,7 @@ class DiagnosisStep:
     share_removed: float
     equivalent: List[str]
     ranking: List[RankedCandidate]
+    implausible: List[str] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
