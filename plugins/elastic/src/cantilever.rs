@@ -14,7 +14,10 @@
 //! `armcomp_core::mass`), `GJ` twist about `x`.
 //!
 //! **Loads**, from gravity in the rigid configuration: the link's own weight spread uniformly
-//! over its free length (its centre of mass is taken at mid-span, as in the paper); at each
+//! over its free length (its centre of mass is taken at mid-span, as in the paper); for a
+//! telescopic link with a `section_length`, the weight per length of the section (mass over
+//! section length) over the part that is out of its parent, so the load grows with the
+//! extension and the part still inside rests on the parent; at each
 //! child joint's seat the force and moment of everything that hangs beyond it, payload
 //! included; a payload on the link itself at its projection on the axis. Axial force is
 //! ignored (no buckling or stretching), as is the torsion from the link's own weight.
@@ -26,7 +29,9 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::mass::BeamRigidity;
-use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, StaticState};
+use armcomp_core::{
+    ErrorModel, ErrorModelSpec, Issues, ModelContext, Motion, ParamInfo, Perturbation, Quantity, StaticState,
+};
 use nalgebra::{Isometry3, Vector3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -188,6 +193,11 @@ pub struct CantileverSpec {
     /// Identified scale of the torsional rigidity GJ per link (default 1 each).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub gj_scale: BTreeMap<String, f64>,
+    /// Length of the sliding section of telescopic (prismatic) links, in the file's length
+    /// unit: its weight spreads over the section, so only the part out of the parent loads
+    /// the cantilever. Without it, the whole weight spreads over the free length.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub section_length: BTreeMap<String, f64>,
 }
 
 /// One modelled link.
@@ -198,6 +208,8 @@ struct BeamLink {
     rigidity: BeamRigidity,
     children: Vec<usize>,
     points: Vec<usize>,
+    /// Length of a telescopic section (m), when given.
+    section_length: Option<f64>,
 }
 
 /// The built cantilever model.
@@ -269,7 +281,30 @@ impl ErrorModelSpec for CantileverSpec {
                 rigidity,
                 children,
                 points,
+                section_length: None,
             });
+        }
+        for (name, &v) in &self.section_length {
+            let p = format!("{path}.section_length.{name}");
+            let Some(link) = links.iter_mut().find(|l| &l.name == name) else {
+                issues.push(
+                    p,
+                    format!(
+                        "link `{name}` is not modelled; modelled links are: {}",
+                        name_list(links.iter().map(|l| l.name.as_str()))
+                    ),
+                );
+                continue;
+            };
+            if !matches!(tree.joints()[link.body - 1].motion, Motion::Prismatic(_)) {
+                issues.push(
+                    p,
+                    format!("link `{name}` does not slide (its joint is not prismatic); only telescopic sections have a section length"),
+                );
+                continue;
+            }
+            check_positive(&mut issues, &p, v, "length");
+            link.section_length = Some(ctx.build.units.len(v));
         }
         let mut params = Vec::new();
         for (field, table) in [("ei_scale", &self.ei_scale), ("gj_scale", &self.gj_scale)] {
@@ -359,7 +394,10 @@ impl CantileverModel {
         let mut th = Vector3::zeros();
         let own = state.mass.bodies[l.body].mass;
         if own != 0.0 {
-            beam.add_uniform(s, &(state.gravity * (own / beam.length)), &mut u, &mut th);
+            // A section longer than its free length is partly inside its parent, which carries
+            // that part; one extended past its length spreads its whole weight.
+            let spread = l.section_length.map_or(beam.length, |ls| ls.max(beam.length));
+            beam.add_uniform(s, &(state.gravity * (own / spread)), &mut u, &mut th);
         }
         for &c in &l.children {
             let seat = state.frames.joint_frame[c].translation.vector;

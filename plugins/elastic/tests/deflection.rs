@@ -608,3 +608,98 @@ fn equilibrium_solves_the_fixed_point_and_reports_failure() {
     }
     assert!((ws.perturbation.joint_offset[0] - want).abs() < 0.05);
 }
+
+/// A horizontal telescopic section (prismatic joint, axis horizontal) of mass `m`, the tool
+/// at its tip; `extra` goes into the cantilever model.
+fn telescope(extra: &str) -> String {
+    format!(
+        r#"
+name = "telescope"
+gravity = [0, 0, -9.81]
+[kinematics]
+type = "mdh"
+[[kinematics.joints]]
+name = "j1"
+kind = "prismatic"
+alpha = 1.5707963267948966
+limits = [0, 2]
+[[links]]
+name = "j1"
+mass = 6.0
+beam = {{ ei_y = 5.0e4, ei_z = 5.0e4, gj = 3.0e4 }}
+[[points]]
+name = "tool"
+link = "j1"
+xyz = [0, 0, 0]
+[[error_models]]
+type = "cantilever_deflection"
+{extra}
+"#
+    )
+}
+
+#[test]
+fn a_telescopic_section_loads_the_cantilever_with_the_part_that_is_out() {
+    let (m, ei, section) = (6.0, 5.0e4, 0.5);
+    let with_section = robot(&telescope("section_length = { j1 = 0.5 }"));
+    let without = robot(&telescope(""));
+    let tool = with_section.tree().point_index("tool").unwrap();
+    // Tip deflection of a cantilever of free length d under q per length: q d⁴ / (8 EI).
+    let tip = |q: f64, d: f64| q * d.powi(4) / (8.0 * ei);
+    for (d, q_section) in [
+        // Partly out: the section's weight per length over the free part.
+        (0.2, m * G / section),
+        (0.4, m * G / section),
+        // Pulled past its length: the whole weight over the free length.
+        (0.6, m * G / 0.6),
+    ] {
+        for (r, q) in [(&with_section, q_section), (&without, m * G / d)] {
+            let (pert, _) = perturbation_of(r, 0, &[1.0, 1.0], &[d], None);
+            let got = pert.point_twist[tool].fixed_rows::<3>(0).norm();
+            assert!(
+                close(got, tip(q, d), 1e-9),
+                "extension {d} m: tip deflection {got} m, textbook {} m",
+                tip(q, d)
+            );
+        }
+    }
+    // The load grows with the extension: twice as far out, sixteen times the deflection
+    // (d⁴ at a fixed weight per length), against eight (d³) when the weight spreads.
+    let deflection = |r: &armcomp_core::Robot, d: f64| {
+        perturbation_of(r, 0, &[1.0, 1.0], &[d], None).0.point_twist[tool]
+            .fixed_rows::<3>(0)
+            .norm()
+    };
+    assert!(close(
+        deflection(&with_section, 0.4) / deflection(&with_section, 0.2),
+        16.0,
+        1e-9
+    ));
+    assert!(close(deflection(&without, 0.4) / deflection(&without, 0.2), 8.0, 1e-9));
+}
+
+#[test]
+fn a_section_length_needs_a_sliding_link_and_a_positive_length() {
+    let revolute = one_link(1.0, "mass = 1.0", "section_length = { j1 = 0.5 }", [0.0, 0.0, -G]);
+    let issues = robot_issues(&revolute);
+    assert!(
+        issues
+            .iter()
+            .any(|i| i.contains("section_length.j1") && i.contains("not prismatic")),
+        "{issues:?}"
+    );
+    let issues = robot_issues(&telescope("section_length = { j1 = -0.5 }"));
+    assert!(
+        issues
+            .iter()
+            .any(|i| i.contains("section_length.j1") && i.contains("positive length")),
+        "{issues:?}"
+    );
+    let issues = robot_issues(&telescope("section_length = { boom = 0.5 }"));
+    assert!(
+        issues
+            .iter()
+            .any(|i| i.contains("section_length.boom") && i.contains("not modelled")),
+        "{issues:?}"
+    );
+}
