@@ -1,20 +1,25 @@
-//! The demos' claims on smaller configurations and fresh seeds. Rock drill: the nominal
-//! deflection model removes a minor share of the error, the hybrid beats the network alone with
-//! the small training set, and this project's best pipeline with the small training set is near
-//! the measurement noise and beats the paper's pipelines with the large one. Industrial:
+//! The demos' claims on smaller configurations and fresh seeds. Rock drill: the README's
+//! claims marked met (the deflection model lowers the error, the hybrid beats the network alone
+//! with the small training set, this project's best pipeline with the small set is near the
+//! measurement noise and beats the paper's pipelines with the large one) each hold on at least
+//! two of three seeds, and the nominal deflection model removes a minor share of the error. Industrial:
 //! the orderings of the ANN paper that hold on its twin. A sweep over seeds summarises the runs
 //! of its seeds.
 
 use armcomp::demos::industrial;
-use armcomp::demos::rock_drill::{Config, collection_order, paper_grid, run, sweep};
+use armcomp::demos::rock_drill::{Config, claims, collection_order, paper_grid, run, sweep};
 use armcomp_learn::SparrowParams;
 
 use crate::common::Scratch;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 
+/// The README's claims hold on about two seeds in three, not on every seed: each claim is
+/// checked to hold on at least two of three fresh seeds, and the deflection model's minor
+/// share on the mean over them.
 #[test]
 fn rock_drill_demo_orders_the_pipelines_as_claimed() {
+    use rayon::prelude::*;
     // Grouped as the paper collected them: the small set holds two settings of the telescopes.
     // A hundred targets, so the deflection model's share of the error is measured to a few
     // per cent.
@@ -30,37 +35,45 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
         max_epochs: 300,
         ..Config::paper(20_261_121)
     };
-    let table = run(&config).unwrap();
-    let z = |name: &str| table.row(name).unwrap_or_else(|| panic!("row {name}")).mean_abs_z_mm;
-    let (large, small) = (config.large, config.small);
-    assert!(z("deflection only") < z("original"), "{table:#?}");
+    let seeds = [20_261_121, 20_261_131, 20_261_141];
+    let tables: Vec<_> = seeds
+        .par_iter()
+        .map(|&seed| run(&Config { seed, ..config.clone() }).unwrap())
+        .collect();
+    let per_seed: Vec<Vec<(String, bool)>> = tables.iter().map(|t| claims(t, &config)).collect();
+    // The orderings the README marks as met; "every learned row beats the deflection model
+    // and more poses beat fewer" and "the hybrid helps most with few poses" it reports as
+    // holding on five or six seeds of eight only, and are not checked.
+    let checked = [
+        "the nominal deflection model lowers the error",
+        "the hybrid beats SSA-BP alone",
+        "best pipeline with 300 poses within twice",
+        "best pipeline with 300 poses beats",
+    ];
+    let mut matched = 0;
+    for (k, (claim, _)) in per_seed[0].iter().enumerate() {
+        if !checked.iter().any(|c| claim.starts_with(c)) {
+            continue;
+        }
+        matched += 1;
+        let held = per_seed.iter().filter(|c| c[k].1).count();
+        assert!(held >= 2, "`{claim}` held on {held} of 3 seeds: {tables:#?}");
+    }
+    assert_eq!(matched, checked.len(), "claims renamed: {:?}", per_seed[0]);
     // The nominal deflection model removes a minor share: servo scales and zeros, geometry and
     // joint compliance dominate the error and change sign over the workspace (the paper's
     // Table I: 13 % of the mean, 4 % of the variance).
-    assert!(z("deflection only") > 0.75 * z("original"), "{table:#?}");
-    let variance = |name: &str| table.row(name).unwrap().variance_mm2;
-    assert!(variance("deflection only") > 0.7 * variance("original"), "{table:#?}");
-    // The hybrid helps most with few poses.
+    let total = |name: &str, of: fn(&armcomp::demos::Row) -> f64| -> f64 {
+        tables.iter().map(|t| of(t.row(name).unwrap())).sum()
+    };
     assert!(
-        z(&format!("deflection + SSA-BP, {small} poses")) < z(&format!("SSA-BP only, {small} poses")),
-        "{table:#?}"
+        total("deflection only", |r| r.mean_abs_z_mm) > 0.75 * total("original", |r| r.mean_abs_z_mm),
+        "{tables:#?}"
     );
-    let best_small = table
-        .rows
-        .iter()
-        .filter(|r| r.name.starts_with("calibrated") && r.training_poses == small)
-        .map(|r| r.mean_abs_z_mm)
-        .fold(f64::INFINITY, f64::min);
     assert!(
-        best_small <= 2.0 * table.noise_mean_abs_z_mm,
-        "{best_small} mm; {table:#?}"
+        total("deflection only", |r| r.variance_mm2) > 0.7 * total("original", |r| r.variance_mm2),
+        "{tables:#?}"
     );
-    for paper_large in [
-        format!("SSA-BP only, {large} poses"),
-        format!("deflection + SSA-BP, {large} poses"),
-    ] {
-        assert!(best_small < z(&paper_large), "{paper_large}: {table:#?}");
-    }
 }
 
 #[test]
