@@ -82,3 +82,48 @@ fn schema_lists_every_registered_plugin() {
         );
     }
 }
+
+/// A built-in plugin's `type` is written twice, as its typetag name and in its registry entry:
+/// the two lists agree, role by role. Unknown types are rejected with typetag's list of the
+/// names it knows; a registered type deserialises as far as its first missing field.
+#[test]
+fn registry_names_are_the_names_robot_files_deserialise() {
+    use armcomp_core::{ErrorModelSpec, KinematicsSpec, PredictorSpec, Role};
+    fn error_of(role: Role, value: serde_json::Value) -> Option<String> {
+        match role {
+            Role::Kinematics => serde_json::from_value::<Box<dyn KinematicsSpec>>(value).err(),
+            Role::ErrorModel => serde_json::from_value::<Box<dyn ErrorModelSpec>>(value).err(),
+            Role::Predictor => serde_json::from_value::<Box<dyn PredictorSpec>>(value).err(),
+        }
+        .map(|e| e.to_string())
+    }
+    let plugins = armcomp::registry::builtin_plugins();
+    for role in [Role::Kinematics, Role::ErrorModel, Role::Predictor] {
+        let mut registered: Vec<&str> = plugins.iter().filter(|p| p.role == role).map(|p| p.type_name).collect();
+        registered.sort_unstable();
+        for name in &registered {
+            if let Some(e) = error_of(role, serde_json::json!({ "type": name })) {
+                assert!(!e.contains("unknown variant"), "{role:?} `{name}`: {e}");
+            }
+        }
+        let e = error_of(role, serde_json::json!({ "type": "no-such-plugin" })).expect("an unknown type is refused");
+        let list = e
+            .split_once("expected one of ")
+            .or_else(|| e.split_once("expected "))
+            .unwrap_or_else(|| panic!("{role:?}: {e}"))
+            .1;
+        // The example run-time plugin is also linked into this test binary, to compare its
+        // library with the same code in process; it is not built in.
+        let mut known: Vec<&str> = list
+            .split('`')
+            .skip(1)
+            .step_by(2)
+            .filter(|n| *n != "cable_sag")
+            .collect();
+        known.sort_unstable();
+        assert_eq!(
+            known, registered,
+            "{role:?}: typetag knows {known:?}, the registry lists {registered:?}"
+        );
+    }
+}
