@@ -5,7 +5,7 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use armcomp::twins::Twin;
-use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::evaluate::fit_residual_predictor;
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
@@ -37,7 +37,7 @@ fn bench(c: &mut Criterion) {
         })
         .collect();
     let q0 = mid_range(&model);
-    let mut comp = Compensator::new(&model, Some(gp.as_ref()), CompensationOptions::default()).expect("sizes match");
+    let mut comp = Compensator::new(&model, Some(gp.as_ref()), CompensationParams::default()).expect("sizes match");
     let mut i = 0;
     c.bench_function("compensate exact, GP (900 samples), per target", |b| {
         b.iter(|| {

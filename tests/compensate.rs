@@ -1,9 +1,9 @@
 //! Compensation: commanding the truth robot with the computed command lands on the target.
 
 use armcomp_core::PredictorSpec;
-use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, position_errors};
-use armcomp_core::ik::{IkOptions, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
+use armcomp_core::ik::{IkParams, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
 use armcomp_core::measurement::{read_csv, write_csv};
 use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_learn::{GpSpec, KnnSpec, RidgeSpec};
@@ -44,7 +44,7 @@ fn compensate_cli(
 #[test]
 fn the_truth_as_model_compensates_exactly() {
     let truth = robot("rock-drill-truth.toml");
-    let mut comp = Compensator::for_model(&truth, CompensationOptions::default()).unwrap();
+    let mut comp = Compensator::for_model(&truth, CompensationParams::default()).unwrap();
     let q0 = vec![0.0, 0.2, 0.05, 0.5, -0.4, 0.0, 0.03];
     for t in targets(&truth, 10, 3) {
         let c = comp.compensate(&t, &q0, CompensationMode::Exact).unwrap();
@@ -66,9 +66,9 @@ fn ik_with_a_linear_offset_solves_the_offset_model() {
     };
     let mut ws = IkWorkspace::new(&robot);
     for t in targets(&robot, 8, 21) {
-        let opts = IkOptions {
+        let opts = IkParams {
             position_tolerance: 1e-10,
-            ..IkOptions::default()
+            ..IkParams::default()
         };
         solve_ik_with_offset(
             &robot,
@@ -122,7 +122,7 @@ fn exact_mode_solves_model_plus_residual() {
     let rotation = model.t_meas_base().rotation.inverse();
     for (name, spec) in [("gp", &gp as &dyn PredictorSpec), ("ridge", &ridge), ("knn", &knn)] {
         let predictor = fit_residual_predictor(&model, spec, &data.samples).unwrap();
-        let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationOptions::default()).unwrap();
+        let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationParams::default()).unwrap();
         let q0 = mid_range(&model);
         let (mut out, mut scratch) = ([0.0; 3], Vec::new());
         for t in targets(&truth, 6, 32) {
@@ -240,7 +240,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         landed_error.push(mean);
     }
     // Uncompensated through the nominal deflection model, for scale.
-    let mut comp = Compensator::for_model(&nominal, CompensationOptions::default()).unwrap();
+    let mut comp = Compensator::for_model(&nominal, CompensationParams::default()).unwrap();
     let q0 = armcomp_core::compensate::mid_range(&nominal);
     let mut before = 0.0;
     for t in &goals {
@@ -278,7 +278,7 @@ fn exact_mode_keeps_the_orientation_of_a_pose_target() {
     let data = noiseless_data(&truth, 41);
     let predictor = fit_residual_predictor(&model, &quick_gp(), &data.samples).unwrap();
     let rotation = model.t_meas_base().rotation.inverse();
-    let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationOptions::default()).unwrap();
+    let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationParams::default()).unwrap();
     let (mut out, mut scratch) = ([0.0; 3], Vec::new());
     for target in inner_poses(&model, 6, 42, Vector3::zeros()) {
         let c = comp
@@ -412,7 +412,7 @@ fn a_residual_predictor_learns_several_points_and_compensates_the_tool() {
         );
     }
     // The tool's residual is predicted at its own position on the feed.
-    let mut comp = Compensator::for_model(&learned, CompensationOptions::default()).unwrap();
+    let mut comp = Compensator::for_model(&learned, CompensationParams::default()).unwrap();
     let q0 = mid_range(&learned);
     for t in targets(&truth, 3, 42) {
         let c = comp.compensate(&t, &q0, CompensationMode::Exact).unwrap();

@@ -46,9 +46,9 @@ pub enum ParamGroup {
     Marker(usize),
 }
 
-/// One parameter calibration may change.
+/// One parameter of a [`ParameterSpace`]: what calibration may change.
 #[derive(Debug, Clone, Serialize)]
-pub struct CalibrationParam {
+pub struct SpaceParam {
     /// Name, quantity, starting value, prior and bounds.
     pub info: ParamInfo,
     /// What it belongs to.
@@ -62,7 +62,7 @@ pub struct CalibrationParam {
 #[derive(Debug, Clone)]
 pub struct ParameterSpace {
     /// The parameters.
-    pub params: Vec<CalibrationParam>,
+    pub params: Vec<SpaceParam>,
     n_chain: usize,
     error_offsets: Vec<usize>,
     base_offset: usize,
@@ -79,7 +79,7 @@ impl ParameterSpace {
         for (info, v) in robot.chain_params().iter().zip(robot.chain_values()) {
             let mut info = info.clone();
             info.nominal = *v;
-            params.push(CalibrationParam {
+            params.push(SpaceParam {
                 info,
                 group: ParamGroup::Geometry,
                 model_type: String::new(),
@@ -93,7 +93,7 @@ impl ParameterSpace {
             for (info, v) in m.params().iter().zip(values) {
                 let mut info = info.clone();
                 info.nominal = *v;
-                params.push(CalibrationParam {
+                params.push(SpaceParam {
                     info,
                     group: ParamGroup::ErrorModel(i),
                     model_type: model_type.clone(),
@@ -109,7 +109,7 @@ impl ParameterSpace {
             } else {
                 (Quantity::Angle, rpy[k - 3])
             };
-            params.push(CalibrationParam {
+            params.push(SpaceParam {
                 info: ParamInfo::new(
                     setup.next().expect("one name per base parameter"),
                     quantity,
@@ -123,7 +123,7 @@ impl ParameterSpace {
         let marker_offset = params.len();
         for i in 0..robot.markers().len() {
             for _ in 0..3 {
-                params.push(CalibrationParam {
+                params.push(SpaceParam {
                     info: ParamInfo::new(
                         setup.next().expect("three names per marker"),
                         Quantity::Length,
@@ -869,7 +869,7 @@ fn typical_size(info: &ParamInfo) -> f64 {
 /// well above the round-off of metre-sized positions (1e-16 m) even under small loads. A
 /// compliance stepped by 1e-13 rad/(N m) under the 0.1 N m of a lateral moment moves it by
 /// 1e-14 m, which the identifiability analysis cannot tell from zero.
-fn step(theta: &[f64], k: usize, p: &CalibrationParam) -> (Vec<f64>, f64) {
+fn step(theta: &[f64], k: usize, p: &SpaceParam) -> (Vec<f64>, f64) {
     let typical = if p.info.sigma.is_finite() {
         p.info.sigma
     } else {

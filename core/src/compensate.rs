@@ -19,7 +19,7 @@ use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
 use crate::evaluate::predictor_input_into;
-use crate::ik::{IkError, IkOptions, IkReport, IkTarget, IkWorkspace, LinearOffset, Start, solve_from};
+use crate::ik::{IkError, IkParams, IkReport, IkTarget, IkWorkspace, LinearOffset, Start, solve_from};
 use crate::plugin::FittedPredictor;
 use crate::robot::Robot;
 
@@ -45,9 +45,9 @@ pub enum CompensationMode {
 
 /// Settings of a [`Compensator`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CompensationOptions {
+pub struct CompensationParams {
     /// The inverse kinematics of each step.
-    pub ik: IkOptions,
+    pub ik: IkParams,
     /// Most re-linearisations of the residual in exact mode.
     pub max_shifts: usize,
     /// Exact mode stops when the full model (chain, error models and predicted residual) puts
@@ -55,12 +55,12 @@ pub struct CompensationOptions {
     pub tolerance: f64,
 }
 
-impl Default for CompensationOptions {
+impl Default for CompensationParams {
     fn default() -> Self {
-        CompensationOptions {
-            ik: IkOptions {
+        CompensationParams {
+            ik: IkParams {
                 position_tolerance: 1e-9,
-                ..IkOptions::default()
+                ..IkParams::default()
             },
             max_shifts: 20,
             tolerance: 1e-8,
@@ -95,7 +95,7 @@ pub struct Compensator<'a> {
     predictor: Option<&'a dyn FittedPredictor>,
     /// Rotation from the measurement frame to the base frame (residuals are measured).
     base_from_meas: UnitQuaternion<f64>,
-    options: CompensationOptions,
+    params: CompensationParams,
     ik: IkWorkspace,
     /// The residual linearised at the current command (base frame).
     offset: LinearOffset,
@@ -114,7 +114,7 @@ impl<'a> Compensator<'a> {
     pub fn new(
         robot: &'a Robot,
         predictor: Option<&'a dyn FittedPredictor>,
-        options: CompensationOptions,
+        params: CompensationParams,
     ) -> Result<Self> {
         let nq = robot.tree().nq();
         let n_inputs = predictor.map_or(nq, |p| p.n_inputs());
@@ -130,7 +130,7 @@ impl<'a> Compensator<'a> {
             robot,
             predictor,
             base_from_meas: robot.t_meas_base().rotation.inverse(),
-            options,
+            params,
             ik: IkWorkspace::new(robot),
             offset: LinearOffset::zeros(robot.tree().nq()),
             out: [0.0; 3],
@@ -145,8 +145,8 @@ impl<'a> Compensator<'a> {
     }
 
     /// The robot's own fitted predictor, if its file carries one.
-    pub fn for_model(robot: &'a Robot, options: CompensationOptions) -> Result<Self> {
-        Self::new(robot, robot.file.fitted_predictor.as_deref(), options)
+    pub fn for_model(robot: &'a Robot, params: CompensationParams) -> Result<Self> {
+        Self::new(robot, robot.file.fitted_predictor.as_deref(), params)
     }
 
     /// The joint command of the last [`compensate`](Compensator::compensate).
@@ -185,12 +185,12 @@ impl<'a> Compensator<'a> {
         // With a predictor the first solve only has to come near: the solves after it, from
         // its result, set the final accuracy. Without one it is the answer.
         let first_tolerance = match self.predictor {
-            Some(_) => self.options.ik.position_tolerance.max(FIRST_SOLVE_TOLERANCE),
-            None => self.options.ik.position_tolerance,
+            Some(_) => self.params.ik.position_tolerance.max(FIRST_SOLVE_TOLERANCE),
+            None => self.params.ik.position_tolerance,
         };
         let mut report = solve(
             self.robot,
-            &self.options.ik,
+            &self.params.ik,
             &mut self.ik,
             target,
             None,
@@ -208,14 +208,14 @@ impl<'a> Compensator<'a> {
         };
         let max_shifts = match mode {
             CompensationMode::Paper => 1,
-            CompensationMode::Exact => self.options.max_shifts,
+            CompensationMode::Exact => self.params.max_shifts,
         };
         let mut shifts = 0;
         loop {
             let residual = self.linearise(predictor, mode, shifts == 0);
             let at = self.ik.robot.frames.point[self.robot.tool()].translation.vector;
             let mismatch = (at + residual - position).norm();
-            if shifts == max_shifts || (mode == CompensationMode::Exact && mismatch <= self.options.tolerance) {
+            if shifts == max_shifts || (mode == CompensationMode::Exact && mismatch <= self.params.tolerance) {
                 return Ok(Compensation {
                     corrected_target: at,
                     residual,
@@ -228,13 +228,13 @@ impl<'a> Compensator<'a> {
             // a few thousandths of this mismatch; the final accuracy is checked above on the
             // full model, never taken from the solve.
             let tolerance = self
-                .options
+                .params
                 .ik
                 .position_tolerance
                 .max(INNER_TOLERANCE_FRACTION * mismatch);
             report = solve(
                 self.robot,
-                &self.options.ik,
+                &self.params.ik,
                 &mut self.ik,
                 target,
                 Some(&self.offset),
@@ -287,21 +287,21 @@ impl<'a> Compensator<'a> {
 }
 
 /// IK of `robot`'s tool onto `target` with the model plus `offset`, from `start`, to
-/// `position_tolerance` (the other settings from `options`).
+/// `position_tolerance` (the other settings from `params`).
 fn solve(
     robot: &Robot,
-    options: &IkOptions,
+    params: &IkParams,
     ik: &mut IkWorkspace,
     target: &IkTarget,
     offset: Option<&LinearOffset>,
     start: Start<'_>,
     position_tolerance: f64,
 ) -> std::result::Result<IkReport, IkError> {
-    let options = IkOptions {
+    let params = IkParams {
         position_tolerance,
-        ..*options
+        ..*params
     };
-    solve_from(robot, robot.tool(), target, offset, start, &options, ik)
+    solve_from(robot, robot.tool(), target, offset, start, &params, ik)
 }
 
 /// The middle of the joint limits (zero for unlimited joints), a start that makes each

@@ -73,7 +73,7 @@ impl LinearOffset {
 
 /// Settings of [`solve_ik`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct IkOptions {
+pub struct IkParams {
     /// The iteration.
     pub method: IkMethod,
     /// Most iterations per start.
@@ -94,9 +94,9 @@ pub struct IkOptions {
     pub temperature: Option<f64>,
 }
 
-impl Default for IkOptions {
+impl Default for IkParams {
     fn default() -> Self {
-        IkOptions {
+        IkParams {
             method: IkMethod::default(),
             max_iterations: 200,
             restarts: 64,
@@ -298,7 +298,7 @@ pub fn solve_ik(
     point: usize,
     target: &IkTarget,
     q0: &[f64],
-    opts: &IkOptions,
+    opts: &IkParams,
     ws: &mut IkWorkspace,
 ) -> Result<IkReport, IkError> {
     solve_ik_with_offset(robot, point, target, None, q0, opts, ws)
@@ -312,7 +312,7 @@ pub fn solve_ik_with_offset(
     target: &IkTarget,
     offset: Option<&LinearOffset>,
     q0: &[f64],
-    opts: &IkOptions,
+    opts: &IkParams,
     ws: &mut IkWorkspace,
 ) -> Result<IkReport, IkError> {
     solve_from(robot, point, target, offset, Start::Given(q0), opts, ws)
@@ -336,7 +336,7 @@ pub(crate) fn solve_from(
     target: &IkTarget,
     offset: Option<&LinearOffset>,
     start_at: Start<'_>,
-    opts: &IkOptions,
+    opts: &IkParams,
     ws: &mut IkWorkspace,
 ) -> Result<IkReport, IkError> {
     let tree = robot.tree();

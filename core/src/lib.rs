@@ -40,7 +40,7 @@ pub use candidate::{Candidate, CandidateFn, CandidateScope, CandidateTemplate};
 pub use collision::{CollisionModel, CollisionWorkspace, Contact};
 pub use error::{Error, Issue, Issues, Result};
 pub use ik::{
-    IkError, IkMethod, IkOptions, IkReport, IkTarget, IkWorkspace, LinearOffset, solve_ik, solve_ik_with_offset,
+    IkError, IkMethod, IkParams, IkReport, IkTarget, IkWorkspace, LinearOffset, solve_ik, solve_ik_with_offset,
 };
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;

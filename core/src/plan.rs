@@ -14,7 +14,7 @@
 use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
-use crate::ik::{IkOptions, IkTarget, IkWorkspace, solve_ik};
+use crate::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
 use crate::robot::Robot;
 use crate::sampling::{Sampler, configurations, unit_points};
 
@@ -93,11 +93,11 @@ pub fn spread(
                 (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
                 |(lo, hi), p| (lo.inf(p), hi.sup(p)),
             );
-            let opts = IkOptions {
+            let opts = IkParams {
                 restarts: 2,
                 max_iterations: 100,
                 position_tolerance: 1e-7,
-                ..IkOptions::default()
+                ..IkParams::default()
             };
             let mut ik = IkWorkspace::new(robot);
             for u in unit_points(sampler, tries, 3, seed)? {

@@ -177,7 +177,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             super::demo_output::emit(&[table], false, args.report.as_deref())?;
         }
         "agile-justin" | "talos" if args.learning_curve || args.twin == "talos" => {
-            let opts = super::demo_curve::Options {
+            let opts = super::demo_curve::CurveParams {
                 json: args.json,
                 seed: args.seed,
                 criterion: args.curve_method,
@@ -191,7 +191,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             };
         }
         "agile-justin" => {
-            return super::demo_justin::run(&super::demo_justin::Options {
+            return super::demo_justin::run(&super::demo_justin::JustinParams {
                 json: args.json,
                 folds: args.folds,
                 seed: args.seed,

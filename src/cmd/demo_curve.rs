@@ -12,8 +12,8 @@ use armcomp_core::design::Criterion;
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::measurement::read_csv;
 
-/// Options of the learning-curve demos.
-pub struct Options {
+/// CurveParams of the learning-curve demos.
+pub struct CurveParams {
     /// Print the curves as JSON on stdout.
     pub json: bool,
     /// Seed of the split (Agile Justin) and of the random subsets.
@@ -43,7 +43,7 @@ fn progress() -> indicatif::ProgressBar {
 }
 
 /// `armcomp demo agile-justin --learning-curve`.
-pub fn agile_justin(opts: &Options) -> anyhow::Result<ExitCode> {
+pub fn agile_justin(opts: &CurveParams) -> anyhow::Result<ExitCode> {
     let bar = progress();
     let curve = agile_justin_curve(opts.seed, opts.criterion, opts.draws, &|| bar.inc(1));
     bar.finish_and_clear();
@@ -110,7 +110,7 @@ fn beats_median(c: &LearningCurveReport, stat: fn(&ErrorStats) -> f64) {
 
 /// `armcomp demo talos`: TALOS' two splits at two levels (the robot file and data are read
 /// from the given paths, by default relative to the repository root).
-pub fn talos(opts: &Options, robot_path: &Path, data_path: &Path) -> anyhow::Result<ExitCode> {
+pub fn talos(opts: &CurveParams, robot_path: &Path, data_path: &Path) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(robot_path).with_context(|| {
         format!(
             "{}: run from the repository root, or give --robot",
@@ -153,7 +153,7 @@ pub fn talos(opts: &Options, robot_path: &Path, data_path: &Path) -> anyhow::Res
     Ok(ExitCode::SUCCESS)
 }
 /// Prints the curves (text or JSON) and writes the report.
-fn emit(curves: &[Curve], opts: &Options) -> anyhow::Result<()> {
+fn emit(curves: &[Curve], opts: &CurveParams) -> anyhow::Result<()> {
     if let Some(dir) = &opts.report {
         let page = armcomp::demos::report::write_page(dir, &[], curves)?;
         eprintln!("wrote {}", page.display());

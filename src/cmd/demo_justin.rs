@@ -15,8 +15,8 @@ use armcomp_core::diagnose::DiagnosisReport;
 use armcomp_core::evaluate::ErrorStats;
 use serde::Serialize;
 
-/// Options of `armcomp demo agile-justin`.
-pub struct Options {
+/// JustinParams of `armcomp demo agile-justin`.
+pub struct JustinParams {
     /// Print the results as JSON on stdout.
     pub json: bool,
     /// Folds of the cross-validation (0 skips it).
@@ -61,7 +61,7 @@ fn cells(s: &ErrorStats) -> String {
     format!("{:>6.2} {:>6.2} {:>6.2}", s.mean_mm, s.std_mm, s.max_mm)
 }
 
-pub fn run(opts: &Options) -> anyhow::Result<ExitCode> {
+pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     let robot = Twin::get("agile-justin").expect("built in").robot()?;
     let samples = parse_measurements(MEASUREMENTS, Path::new(MEASUREMENTS_PATH), &robot)?;

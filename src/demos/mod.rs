@@ -10,9 +10,9 @@ pub mod seed_sweep;
 
 use std::time::Instant;
 
-use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::ik::{IkOptions, IkTarget, IkWorkspace, solve_ik};
+use armcomp_core::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
 use armcomp_core::measurement::Sample;
 use armcomp_core::plugin::FittedPredictor;
 use armcomp_core::simulate::{SimulateParams, simulate};
@@ -149,7 +149,7 @@ impl TestBench<'_> {
         training: (usize, f64),
         paper: Option<PaperValue>,
     ) -> Result<Row> {
-        let mut options = CompensationOptions::default();
+        let mut options = CompensationParams::default();
         if self.task.is_some() {
             // Stay on the taught configuration's branch, as a controller would.
             options.ik.restarts = 0;
@@ -224,9 +224,9 @@ pub fn pose_command(
     start: &[f64],
     ik: &mut IkWorkspace,
 ) -> Option<Vec<f64>> {
-    let options = IkOptions {
+    let options = IkParams {
         restarts: 0,
-        ..IkOptions::default()
+        ..IkParams::default()
     };
     let pose = IkTarget::Pose(Isometry3::from_parts((*position).into(), *orientation));
     solve_ik(model, model.tool(), &pose, start, &options, ik)

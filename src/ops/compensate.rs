@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, bail};
-use armcomp_core::compensate::{CompensationMode, CompensationOptions, Compensator, mid_range};
+use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::ik::IkTarget;
 use armcomp_core::measurement::{joint_header, joint_row, split_header};
 use armcomp_core::units::LengthUnit;
@@ -47,8 +47,8 @@ pub struct CompensationRun {
 }
 
 /// The solver settings every caller uses.
-pub fn options() -> CompensationOptions {
-    CompensationOptions::default()
+pub fn options() -> CompensationParams {
+    CompensationParams::default()
 }
 
 /// Compensates `targets` in order (each from the middle of the joint ranges); an error names

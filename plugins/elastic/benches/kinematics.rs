@@ -5,7 +5,7 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
-use armcomp_core::{IkOptions, IkTarget, IkWorkspace, Robot, RobotFile, solve_ik};
+use armcomp_core::{IkParams, IkTarget, IkWorkspace, Robot, RobotFile, solve_ik};
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Matrix6xX;
 
@@ -59,7 +59,7 @@ fn bench_robot(c: &mut Criterion, name: &str, r: &Robot, pose: bool) {
         IkTarget::Position(goal.translation.vector)
     };
     let mut ik = IkWorkspace::new(r);
-    let opts = IkOptions::default();
+    let opts = IkParams::default();
     c.bench_function(&format!("{name}/ik"), |b| {
         b.iter(|| solve_ik(r, tool, black_box(&target), &q, &opts, &mut ik).expect("reachable"))
     });

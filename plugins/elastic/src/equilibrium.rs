@@ -12,16 +12,16 @@ use crate::common::ElasticError;
 
 /// When to stop iterating.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EquilibriumOptions {
+pub struct EquilibriumParams {
     /// Most evaluations of the error models (at least 1).
     pub max_iterations: usize,
     /// Largest change of any joint offset or twist component (m or rad) that counts as settled.
     pub tolerance: f64,
 }
 
-impl Default for EquilibriumOptions {
+impl Default for EquilibriumParams {
     fn default() -> Self {
-        EquilibriumOptions {
+        EquilibriumParams {
             max_iterations: 50,
             tolerance: 1e-12,
         }
@@ -78,7 +78,7 @@ pub fn solve_equilibrium(
     robot: &Robot,
     q: &[f64],
     temperature: Option<f64>,
-    opts: &EquilibriumOptions,
+    opts: &EquilibriumParams,
     ws: &mut RobotWorkspace,
     eq: &mut EquilibriumWorkspace,
 ) -> Result<EquilibriumReport, ElasticError> {

@@ -31,7 +31,7 @@ pub use cantilever::{Beam, CantileverModel, CantileverSpec};
 pub use common::{ElasticError, adjoint};
 pub use differential::{tool_differential, tool_differential_world};
 pub use encoder_eccentricity::{EncoderEccentricityModel, EncoderEccentricitySpec};
-pub use equilibrium::{EquilibriumOptions, EquilibriumReport, EquilibriumWorkspace, solve_equilibrium};
+pub use equilibrium::{EquilibriumParams, EquilibriumReport, EquilibriumWorkspace, solve_equilibrium};
 pub use geometric_offsets::{GeometricOffsetsModel, GeometricOffsetsSpec};
 pub use joint_compliance::{JointComplianceModel, JointComplianceSpec};
 pub use lateral_compliance::{LateralComplianceModel, LateralComplianceSpec};

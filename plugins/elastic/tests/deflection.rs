@@ -574,7 +574,7 @@ fn bad_specs_are_reported_with_field_paths() {
 
 #[test]
 fn equilibrium_solves_the_fixed_point_and_reports_failure() {
-    use armcomp_elastic::{ElasticError, EquilibriumOptions, EquilibriumWorkspace, solve_equilibrium};
+    use armcomp_elastic::{ElasticError, EquilibriumParams, EquilibriumWorkspace, solve_equilibrium};
     let r = robot(&pendulum(3.0e-3));
     let (c, k) = (3.0e-3, 15.0 * G * 0.8);
     let q = 0.3;
@@ -588,7 +588,7 @@ fn equilibrium_solves_the_fixed_point_and_reports_failure() {
     let want = 0.5 * (lo + hi);
     let mut ws = r.workspace();
     let mut eq = EquilibriumWorkspace::new(&r);
-    let rep = solve_equilibrium(&r, &[q], None, &EquilibriumOptions::default(), &mut ws, &mut eq).unwrap();
+    let rep = solve_equilibrium(&r, &[q], None, &EquilibriumParams::default(), &mut ws, &mut eq).unwrap();
     assert!(
         (ws.perturbation.joint_offset[0] - want).abs() < 1e-11,
         "{} vs {want}",
@@ -598,7 +598,7 @@ fn equilibrium_solves_the_fixed_point_and_reports_failure() {
     // The one-shot model differs from equilibrium by more than the tolerance: the iteration matters.
     assert!((c * -k * q.cos() - want).abs() > 1e-3);
     // Too few iterations: reported, with the best iterate in the workspace.
-    let opts = EquilibriumOptions {
+    let opts = EquilibriumParams {
         max_iterations: 3,
         tolerance: 1e-14,
     };

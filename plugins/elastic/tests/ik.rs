@@ -3,7 +3,7 @@
 
 use crate::common::robot;
 use crate::common::robots::{ROCK_DRILL_MODELS, SIX_AXIS_MODELS, rock_drill, six_axis};
-use armcomp_core::{IkError, IkMethod, IkOptions, IkTarget, IkWorkspace, Robot, solve_ik};
+use armcomp_core::{IkError, IkMethod, IkParams, IkTarget, IkWorkspace, Robot, solve_ik};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -39,9 +39,9 @@ fn round_trip_allowing(r: &Robot, count: usize, pose: bool, method: IkMethod, se
     let mut ws = IkWorkspace::new(r);
     let mut fk = r.workspace();
     let tool = r.tool();
-    let opts = IkOptions {
+    let opts = IkParams {
         method,
-        ..IkOptions::default()
+        ..IkParams::default()
     };
     let start = mid_q(r);
     let mut worst: f64 = 0.0;
@@ -137,7 +137,7 @@ fn deflection_changes_the_answer() {
         deformed.tool(),
         &IkTarget::Position(p),
         &q,
-        &IkOptions::default(),
+        &IkParams::default(),
         &mut ws,
     )
     .unwrap();
@@ -152,10 +152,10 @@ fn unreachable_target_returns_the_closest_point() {
     let r = robot(&rock_drill(ROCK_DRILL_MODELS));
     let target = nalgebra::Vector3::new(10.0, 0.0, 0.5);
     let mut ws = IkWorkspace::new(&r);
-    let opts = IkOptions {
+    let opts = IkParams {
         max_iterations: 100,
         restarts: 3,
-        ..IkOptions::default()
+        ..IkParams::default()
     };
     match solve_ik(&r, r.tool(), &IkTarget::Position(target), &mid_q(&r), &opts, &mut ws) {
         Err(IkError::Unreachable {
@@ -192,12 +192,12 @@ fn bad_input_is_an_error() {
     let mut ws = IkWorkspace::new(&r);
     let t = IkTarget::Position(nalgebra::Vector3::new(f64::NAN, 0.0, 0.0));
     assert!(matches!(
-        solve_ik(&r, r.tool(), &t, &[0.0; 6], &IkOptions::default(), &mut ws),
+        solve_ik(&r, r.tool(), &t, &[0.0; 6], &IkParams::default(), &mut ws),
         Err(IkError::Input(_))
     ));
     let t = IkTarget::Position(nalgebra::Vector3::new(0.5, 0.0, 0.0));
     assert!(matches!(
-        solve_ik(&r, r.tool(), &t, &[0.0; 5], &IkOptions::default(), &mut ws),
+        solve_ik(&r, r.tool(), &t, &[0.0; 5], &IkParams::default(), &mut ws),
         Err(IkError::Input(_))
     ));
 }
