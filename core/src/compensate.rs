@@ -146,7 +146,7 @@ impl<'a> Compensator<'a> {
 
     /// The robot's own fitted predictor, if its file carries one.
     pub fn for_model(robot: &'a Robot, params: CompensationParams) -> Result<Self> {
-        Self::new(robot, robot.file.fitted_predictor.as_deref(), params)
+        Self::new(robot, robot.predictor(), params)
     }
 
     /// The joint command of the last [`compensate`](Compensator::compensate).

@@ -74,7 +74,7 @@ impl ErrorStats {
 /// residual predictor.
 pub fn position_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut errors = model_errors(robot, samples);
-    if let Some(p) = robot.file.fitted_predictor.as_deref() {
+    if let Some(p) = robot.predictor() {
         let (mut out, mut scratch, mut input) = ([0.0; 3], Vec::new(), Vec::new());
         for (e, s) in errors.iter_mut().zip(samples) {
             predictor_input_into(robot, p.n_inputs(), &s.q, s.point, &mut input);

@@ -643,6 +643,14 @@ impl Robot {
     pub fn warnings(&self) -> &[String] {
         &self.warnings
     }
+    /// The residual predictor the robot file configures (hyper-parameters), if any.
+    pub fn predictor_spec(&self) -> Option<&dyn crate::PredictorSpec> {
+        self.file.predictor.as_deref()
+    }
+    /// The predictor fitted to this robot's residuals (a model file written by `learn`), if any.
+    pub fn predictor(&self) -> Option<&dyn crate::FittedPredictor> {
+        self.file.fitted_predictor.as_deref()
+    }
 
     /// Sets the chain parameters and rebuilds the tree.
     pub fn set_chain_values(&mut self, values: &[f64]) -> Result<()> {

@@ -42,7 +42,7 @@ impl PyRobot {
     /// (fitted to exactly these values, as `armcomp learn` writes it), else its values written
     /// back into its file (as `armcomp calibrate` writes a model).
     fn text_for(&self, path: &Path) -> PyResult<String> {
-        if self.robot.file.fitted_predictor.is_some() {
+        if self.robot.predictor().is_some() {
             self.robot.file.to_text_for(path).py()
         } else {
             self.robot.to_file().to_text_for(path).py()

@@ -26,7 +26,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
-    if robot.file.predictor.is_none() {
+    if robot.predictor_spec().is_none() {
         bail!(
             "{}: no [predictor] table; add one (e.g. `[predictor]` with `type = \"gp\"`) to say what to fit",
             args.model.display()

@@ -23,7 +23,7 @@ pub struct LearnRun {
 /// `file`, the model's own description (re-read from its file by the command line, so that
 /// everything in it is kept).
 pub fn run(robot: &Robot, mut file: RobotFile, samples: &[Sample]) -> armcomp_core::Result<LearnRun> {
-    let Some(spec) = robot.file.predictor.as_deref() else {
+    let Some(spec) = robot.predictor_spec() else {
         return Err(Error::Input(
             "the model has no [predictor] table; add one (e.g. `[predictor]` with `type = \"gp\"`) to say what to fit"
                 .into(),
