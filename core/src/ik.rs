@@ -11,7 +11,7 @@
 //!   Levenberg–Marquardt style, robust near singular configurations.
 //!
 //! Joint limits are respected by projecting every iterate onto them. A start that stalls is
-//! followed by deterministic restarts spread over the limits (Halton points). When no start
+//! followed by deterministic restarts spread over the limits (Sobol points). When no start
 //! reaches the tolerance the error carries the closest configuration found and its distance;
 //! the iteration count is capped, so the solver always returns.
 
@@ -78,7 +78,7 @@ pub struct IkParams {
     pub method: IkMethod,
     /// Most iterations per start.
     pub max_iterations: usize,
-    /// Further starts (Halton points within the limits) after the given one fails.
+    /// Further starts (Sobol points within the limits) after the given one fails.
     pub restarts: usize,
     /// Position error (m) at which the target counts as reached.
     pub position_tolerance: f64,
@@ -264,32 +264,6 @@ fn free_blocked(robot: &Robot, q: &[f64], dq: &[f64], jac: &mut Matrix6xX<f64>) 
     any
 }
 
-/// Radical inverse of `i` in base `b` (Halton sequence).
-fn radical_inverse(mut i: usize, b: usize) -> f64 {
-    let (mut f, mut r) = (1.0, 0.0);
-    while i > 0 {
-        f /= b as f64;
-        r += f * (i % b) as f64;
-        i /= b;
-    }
-    r
-}
-
-/// The `k`-th prime (k = 0 → 2).
-fn prime(k: usize) -> usize {
-    let mut found = 0;
-    let mut n = 2;
-    loop {
-        if (2..n).take_while(|d| d * d <= n).all(|d| n % d != 0) {
-            if found == k {
-                return n;
-            }
-            found += 1;
-        }
-        n += 1;
-    }
-}
-
 /// Solves IK for point `point` (index in `robot.tree().points()`, e.g. [`Robot::tool`]) from
 /// the start `q0`. On success the joint values are in [`IkWorkspace::q`] and `ws.robot.frames`
 /// holds the full model there. Targets are in the robot base frame.
@@ -380,13 +354,13 @@ pub(crate) fn solve_from(
     let mut best_cost = f64::INFINITY;
     let limits = tree.coordinate_limits();
     for start in 0..=opts.restarts {
-        // Start: the given one, then Halton points within the limits.
+        // Start: the given one, then Sobol points within the limits.
         let previous = start == 0 && matches!(start_at, Start::Previous);
         if start == 0 {
             ws.q.copy_from_slice(&ws.start);
         } else {
             for (k, v) in ws.q.iter_mut().enumerate() {
-                let h = radical_inverse(start, prime(k));
+                let h = crate::sampling::sobol_coordinate(start as u32, k, 0);
                 *v = match limits[k] {
                     Some(l) => l.lower + (l.upper - l.lower) * h,
                     None if tree.coordinate_is_prismatic()[k] => ws.start[k],

@@ -38,22 +38,21 @@ const PRIMES: [u8; 24] = [
     2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53, 59, 61, 67, 71, 73, 79, 83, 89,
 ];
 
+/// Coordinate `d` of point `i` of the scrambled Sobol sequence of `seed`, in `[0, 1)`. The
+/// sequence's table has 256 dimensions; further ones repeat it under other scrambles, so any
+/// number of joints gets well-spread values. Allocation-free (IK restarts call it per joint).
+pub fn sobol_coordinate(i: u32, d: usize, seed: u32) -> f64 {
+    const TABLE: usize = sobol_burley::NUM_DIMENSIONS as usize;
+    f64::from(sobol_burley::sample(i, (d % TABLE) as u32, seed ^ (d / TABLE) as u32))
+}
+
 /// `n` points in `[0, 1)^dim`.
 pub fn unit_points(sampler: Sampler, n: usize, dim: usize, seed: u64) -> Result<Vec<Vec<f64>>> {
     match sampler {
         Sampler::Sobol => {
-            if dim > 256 {
-                return Err(Error::Input(format!(
-                    "the Sobol sampler supports up to 256 dimensions, not {dim}"
-                )));
-            }
             let seed = (seed ^ (seed >> 32)) as u32;
             Ok((0..n as u32)
-                .map(|i| {
-                    (0..dim as u32)
-                        .map(|d| f64::from(sobol_burley::sample(i, d, seed)))
-                        .collect()
-                })
+                .map(|i| (0..dim).map(|d| sobol_coordinate(i, d, seed)).collect())
                 .collect())
         }
         Sampler::Halton => {
