@@ -11,6 +11,7 @@ mod conventions;
 mod demo;
 mod demo_report;
 mod diagnose;
+mod docs;
 mod fk;
 mod jacobian;
 mod learning_curve;

@@ -83,8 +83,8 @@ def test_not_converged_carries_the_model_the_command_line_writes(simulated):
 
 
 def test_talos_levels_match_the_command_line(tmp_path):
-    """The README's TALOS levels: registration (which ends far above the noise, exit 3 and a
-    warning) and joint offsets without priors, trained on the even rows."""
+    """The TALOS levels of docs/reproductions/talos.md: registration (which ends far above the
+    noise, exit 3 and a warning) and joint offsets without priors, trained on the even rows."""
     robot = armcomp.Robot.load(TALOS)
     train = armcomp.Measurements.read(TALOS_DATA, rows="even")
     for identify, prior, code in [("base,markers", "1", 3), ("base,markers,offsets", "none", 0)]:
