@@ -1,4 +1,4 @@
-//! The demos' claims on smaller configurations and fresh seeds. Rock drill: the README's
+//! The demos' claims on smaller configurations and fresh seeds. Rock drill: the
 //! claims marked met (the deflection model lowers the error, the hybrid beats the network alone
 //! with the small training set, this project's best pipeline with the small set is near the
 //! measurement noise and beats the paper's pipelines with the large one) each hold on at least
@@ -14,7 +14,7 @@ use crate::common::Scratch;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 
-/// The README's claims hold on about two seeds in three, not on every seed: each claim is
+/// The reproduction page's claims hold on about two seeds in three, not on every seed: each claim is
 /// checked to hold on at least two of three fresh seeds, and the deflection model's minor
 /// share on the mean over them.
 #[test]
@@ -41,7 +41,7 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
         .map(|&seed| run(&Config { seed, ..config.clone() }).unwrap())
         .collect();
     let per_seed: Vec<Vec<(String, bool)>> = tables.iter().map(|t| claims(t, &config)).collect();
-    // The orderings the README marks as met; "every learned row beats the deflection model
+    // The orderings the reproduction page marks as met; "every learned row beats the deflection model
     // and more poses beat fewer" and "the hybrid helps most with few poses" it reports as
     // holding on five or six seeds of eight only, and are not checked.
     let checked = [

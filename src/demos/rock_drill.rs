@@ -187,7 +187,7 @@ pub fn sweep(config: &Config, n: usize, on_done: &(dyn Fn(u64) + Sync)) -> Resul
     Ok(SeedSweep::new(seeds, tables, |t| claims(t, config)))
 }
 
-/// The README's claims on one table: the paper's findings first (its order of the rows that
+/// The claims of docs/reproductions/deflection-ssa-bp.md on one table: the paper's findings first (its order of the rows that
 /// have a paper value), then this project's targets.
 pub fn claims(table: &Table, config: &Config) -> Vec<(String, bool)> {
     let (large, small) = (config.large, config.small);
