@@ -766,3 +766,34 @@ fn a_zero_valued_second_effect_is_never_named() {
         }
     }
 }
+
+/// On a humanoid measured at one hand, effects are tried only where they can move the marker:
+/// the joints from the base to the hand, never the other arm, the legs or the head.
+#[test]
+fn candidates_stay_on_the_measured_chain() {
+    let talos = robot("talos-left-arm.toml");
+    let chain = talos.measured_joint_names();
+    assert!(chain.iter().any(|j| j == "arm_left_4_joint") && !chain.iter().any(|j| j.starts_with("arm_right")));
+    let mut per_joint = 0;
+    for plugin in armcomp::registry::builtin_plugins() {
+        let Some(candidates) = plugin.candidates else { continue };
+        for c in candidates(&talos) {
+            if c.location != "global" {
+                per_joint += 1;
+                assert!(
+                    chain.contains(&c.location),
+                    "{}: `{}` at {} moves no marker; the measured chain is {chain:?}",
+                    plugin.type_name,
+                    c.label,
+                    c.location
+                );
+            }
+        }
+    }
+    // Compliance, lateral compliance, backlash, eccentricity and scale on each chain joint.
+    assert!(
+        per_joint >= 5 * chain.len(),
+        "{per_joint} per-joint candidates for {} joints",
+        chain.len()
+    );
+}

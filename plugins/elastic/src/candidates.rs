@@ -6,13 +6,17 @@ use std::collections::BTreeMap;
 use armcomp_core::{Candidate, Motion, Robot};
 use serde_json::{Value, json};
 
-/// One candidate per moving joint (revolute only when `revolute_only`), its spec built by
-/// `spec` from the joint name.
+/// One candidate per moving joint on a marker's path (revolute only when `revolute_only`), its
+/// spec built by `spec` from the joint name: effects elsewhere (a humanoid's other arm, legs,
+/// head) cannot move a marker.
 fn per_joint(robot: &Robot, revolute_only: bool, what: &str, spec: impl Fn(&str) -> Value) -> Vec<Candidate> {
     robot
         .tree()
         .joints()
         .iter()
+        .zip(robot.measured_joints())
+        .filter(|(_, on)| *on)
+        .map(|(j, _)| j)
         .filter(|j| match j.motion {
             Motion::Revolute(_) => true,
             Motion::Prismatic(_) => !revolute_only,
@@ -93,14 +97,17 @@ pub(crate) fn transmission_scale(robot: &Robot) -> Vec<Candidate> {
     )
 }
 
-/// Each link with a beam section, bending at its nominal rigidity scaled by what calibration
-/// identifies (a scale of 1 is the beam as declared).
+/// Each link with a beam section on a marker's path, bending at its nominal rigidity scaled by
+/// what calibration identifies (a scale of 1 is the beam as declared).
 pub(crate) fn cantilever_deflection(robot: &Robot) -> Vec<Candidate> {
+    let on = robot.measured_joints();
+    // A link bends what hangs beyond its own joint (body `b` moves on joint `b - 1`).
+    let carries_marker = |name: &str| robot.tree().body_index(name).is_some_and(|b| b > 0 && on[b - 1]);
     robot
         .file
         .links
         .iter()
-        .filter(|l| l.beam.is_some())
+        .filter(|l| l.beam.is_some() && carries_marker(&l.name))
         .map(|l| Candidate {
             location: l.name.clone(),
             label: format!("{} link bending", l.name),
