@@ -534,7 +534,9 @@ fn an_identified_base_tilt_evaluates_from_its_model_file_as_it_did_in_the_fit() 
     // joint compliances make the tilt identifiable apart from the measurement frame.
     let base = robot("rock-drill.toml");
     let mut file = base.to_file();
-    let tilt = serde_json::json!({"type": "base_tilt", "tilt": [0.0, 0.0], "compliance": {"j1": 1e-3, "j2": 1e-3}});
+    let tilt = serde_json::json!({"type": "base_tilt", "tilt": [0.0, 0.0]});
+    let compliance = serde_json::json!({"type": "joint_compliance", "compliance": {"j1": 1e-3, "j2": 1e-3}});
+    file.error_models.push(serde_json::from_value(compliance).unwrap());
     file.error_models.push(serde_json::from_value(tilt).unwrap());
     let nominal = base.rebuild(file).unwrap();
     let deg = 1f64.to_radians();
@@ -869,7 +871,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
     let compliance = serde_json::json!({"j2": 2e-5, "j3": 3e-5});
     for spec in [
         serde_json::json!({"type": "joint_compliance", "compliance": compliance}),
-        serde_json::json!({"type": "payload_mass_error", "compliance": compliance}),
+        serde_json::json!({"type": "payload_mass_error"}),
     ] {
         file.error_models.push(serde_json::from_value(spec).unwrap());
     }

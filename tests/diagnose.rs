@@ -267,7 +267,7 @@ fn cases() -> Vec<Case> {
         Case {
             known: vec![json!({"type": "joint_compliance", "compliance": {"j1": 1e-3, "j2": 1e-3}})],
             ..rock_drill(
-                json!({"type": "base_tilt", "tilt": [0.0, 5.0], "compliance": {"j1": 1e-3, "j2": 1e-3}}),
+                json!({"type": "base_tilt", "tilt": [0.0, 5.0]}),
                 named_below_noise("global"),
             )
         },
@@ -282,7 +282,7 @@ fn cases() -> Vec<Case> {
                 payloads: &[0.0, 0.2, 0.5],
             },
             ..rock_drill(
-                json!({"type": "payload_mass_error", "mass": 0.15, "compliance": {"j2": 1e-3}}),
+                json!({"type": "payload_mass_error", "mass": 0.15}),
                 named_below_noise("global"),
             )
         },
@@ -361,7 +361,7 @@ fn cases() -> Vec<Case> {
                 payloads: &[0.0, 2.5],
             },
             ..industrial(
-                json!({"type": "base_tilt", "tilt": [2.0, 2.0], "compliance": {"j1": 6e-5, "j2": 6e-5, "j3": 1e-4, "j5": 1.5e-4}}),
+                json!({"type": "base_tilt", "tilt": [2.0, 2.0]}),
                 named_below_noise("global"),
             )
         },
@@ -373,10 +373,7 @@ fn cases() -> Vec<Case> {
                 drift: false,
                 payloads: &[0.0, 2.5],
             },
-            ..industrial(
-                json!({"type": "payload_mass_error", "mass": 1.0, "compliance": {"j2": 6e-5, "j3": 1e-4, "j5": 1.5e-4}}),
-                named("global"),
-            )
+            ..industrial(json!({"type": "payload_mass_error", "mass": 1.0}), named("global"))
         },
     ]
 }

@@ -625,7 +625,13 @@ impl Problem<'_> {
                         let (_, h) = step(theta, k, p);
                         let mut values = d.errors[i].clone();
                         values[k - space.error_offsets[i]] += h;
-                        ColumnPlan::Model { model: i, values, h }
+                        if self.robot.error_models()[i].adjusts_loads() {
+                            let mut errors = d.errors.clone();
+                            errors[i] = values;
+                            ColumnPlan::Loads { errors, h }
+                        } else {
+                            ColumnPlan::Model { model: i, values, h }
+                        }
                     }
                     ParamGroup::Geometry => {
                         let (mut t, h) = step(theta, k, p);
@@ -720,6 +726,14 @@ impl Problem<'_> {
                                 }
                                 r_meas * dp
                             }
+                            ColumnPlan::Loads { errors, h } => {
+                                // A changed load changes what every elastic model does.
+                                self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
+                                let dp = (ws_fd.frames.point[s.point].translation.vector
+                                    - ws.frames.point[s.point].translation.vector)
+                                    / *h;
+                                r_meas * dp
+                            }
                             ColumnPlan::Finite { tree, h } => {
                                 self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
                                 let dp = (ws_fd.frames.point[s.point].translation.vector
@@ -803,6 +817,10 @@ enum ColumnPlan {
     /// model's deformation re-evaluated (the rigid kinematics is reused).
     /// `values` are the model's parameters with this one stepped by `h`.
     Model { model: usize, values: Vec<f64>, h: f64 },
+    /// A parameter of a load-adjusting model (a payload mass, a base tilt): finite differences
+    /// of the full model, since every elastic model responds to the load. `errors` are all the
+    /// models' parameters with this one stepped by `h`.
+    Loads { errors: Vec<Vec<f64>>, h: f64 },
     /// A base-frame parameter: finite differences of `T_meas_base` (no kinematics) between
     /// the current pose and the one with the parameter stepped by `h`.
     Base {

@@ -45,7 +45,7 @@ pub use ik::{
 pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, ModelContext,
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, Loads, ModelContext,
     PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
 };
 pub use robot::{Conditions, Robot, RobotWorkspace};

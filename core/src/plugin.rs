@@ -172,6 +172,24 @@ pub trait ErrorModel: Debug + Send + Sync {
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation);
     /// The spec with `values` written back in the file's units, for model files.
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec>;
+    /// Whether the model changes the loads every model sees ([`adjust_loads`](Self::adjust_loads)):
+    /// a payload heavier than declared, a tilted gravity. Such a model acts only through the
+    /// elastic models that respond to loads, with their own (identified) compliances.
+    fn adjusts_loads(&self) -> bool {
+        false
+    }
+    /// Changes `loads` (the declared ones, or what earlier models made of them) for parameter
+    /// `values`. Must not allocate.
+    fn adjust_loads(&self, _values: &[f64], _loads: &mut Loads) {}
+}
+
+/// The loads error models respond to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Loads {
+    /// Gravity in the base frame (m/s²).
+    pub gravity: Vector3<f64>,
+    /// The payload's mass (kg; 0 without a payload).
+    pub payload_mass: f64,
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -85,6 +85,10 @@ pub struct RobotWorkspace {
     pub frames: TreeWorkspace,
     /// The mass model with a per-evaluation payload applied.
     pub mass: MassModel,
+    /// Whether the last evaluation's loads were the robot's own mass model (otherwise `mass`)
+    /// and its gravity, as load-adjusting error models left them.
+    own_mass: bool,
+    gravity: Vector3<f64>,
 }
 
 impl Robot {
@@ -673,6 +677,8 @@ impl Robot {
             perturbation: Perturbation::zeros(&self.tree),
             frames: TreeWorkspace::new(&self.tree),
             mass: self.mass.clone(),
+            own_mass: true,
+            gravity: self.gravity,
         }
     }
 
@@ -703,19 +709,60 @@ impl Robot {
             return;
         }
         ws.perturbation.clear();
-        let mass = self.mass_under(conditions, tree, &mut ws.mass);
+        let (own_mass, gravity) = self.loads_into(conditions, tree, error_values, &mut ws.mass);
+        ws.own_mass = own_mass;
+        ws.gravity = gravity;
         let state = StaticState {
             q,
             tree,
             frames: &ws.rigid,
-            mass,
-            gravity: self.gravity,
+            mass: if own_mass { &self.mass } else { &ws.mass },
+            gravity,
             temperature: conditions.temperature,
         };
         for (m, v) in self.error_models.iter().zip(error_values) {
             m.perturb(&state, v, &mut ws.perturbation);
         }
         tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+    }
+
+    /// The loads under `conditions` with the points of `tree` and error-model `values`:
+    /// whether the mass model is the robot's own (otherwise the one written into `scratch`:
+    /// a payload applied, or load-adjusting models' payload mass) and the gravity (base
+    /// frame), load-adjusting models applied in order.
+    pub fn loads_into(
+        &self,
+        conditions: Conditions,
+        tree: &KinematicTree,
+        error_values: &[Vec<f64>],
+        scratch: &mut MassModel,
+    ) -> (bool, Vector3<f64>) {
+        let adjusting = self.error_models.iter().any(|m| m.adjusts_loads());
+        let own = self.mass_is_own(conditions, tree);
+        if !adjusting {
+            if !own {
+                self.mass_under(conditions, tree, scratch);
+            }
+            return (own, self.gravity);
+        }
+        if own {
+            scratch.clone_from(&self.mass);
+        } else {
+            self.mass_under(conditions, tree, scratch);
+        }
+        let declared = scratch.payload.as_ref().map_or(0.0, |p| p.mass);
+        let mut loads = crate::plugin::Loads {
+            gravity: self.gravity,
+            payload_mass: declared,
+        };
+        for (m, v) in self.error_models.iter().zip(error_values) {
+            m.adjust_loads(v, &mut loads);
+        }
+        if loads.payload_mass != declared {
+            let (body, com) = self.payload_site(tree);
+            scratch.payload.get_or_insert(Payload { mass: 0.0, body, com }).mass = loads.payload_mass;
+        }
+        (false, loads.gravity)
     }
 
     /// The mass model under `conditions` with the points of `tree`: the robot's own, or a copy
@@ -778,12 +825,8 @@ impl Robot {
             q: &sample.q,
             tree,
             frames: &ws.rigid,
-            mass: if self.mass_is_own(conditions, tree) {
-                &self.mass
-            } else {
-                &ws.mass
-            },
-            gravity: self.gravity,
+            mass: if ws.own_mass { &self.mass } else { &ws.mass },
+            gravity: ws.gravity,
             temperature: conditions.temperature,
         };
         self.error_models[model].perturb(&state, values, out);

@@ -1,20 +1,16 @@
 //! Base tilt: the robot stands slightly tilted, by small angles about the base x and y axes.
 //! The whole arm turns with its base (applied like a base frame error), and gravity seen in the
-//! base frame tilts the other way. Other models read gravity from the static state, which this
-//! model cannot change; the gravity part is therefore modelled here, through the joint
-//! compliances given in `compliance`: `dq_i = c_i · (τ_i(Rᵀ g) − τ_i(g))`.
-
-use std::collections::BTreeMap;
-
-use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, StaticState};
+//! base frame tilts the other way: every elastic model of the robot (joint and lateral
+//! compliance, link bending) sees the tilted gravity, with its own identified values.
+use armcomp_core::{
+    ErrorModel, ErrorModelSpec, Issues, Loads, ModelContext, ParamInfo, Perturbation, Quantity, StaticState,
+};
 use nalgebra::{UnitQuaternion, Vector3, Vector6};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{check_finite, resolve_joint_table};
+use crate::common::check_finite;
 use crate::geometric_offsets::BaseAttachments;
-use crate::joint_compliance::check_compliance;
-use armcomp_core::gravity::{Subtrees, joint_gravity_load};
 
 /// Base tilt as written in the robot file.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
@@ -23,9 +19,6 @@ pub struct BaseTiltSpec {
     /// Tilt about the base x and y axes, in the file's angle unit.
     #[serde(default)]
     pub tilt: [f64; 2],
-    /// Joint compliances (rad/(N m)) through which the tilted gravity acts (optional).
-    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
-    pub compliance: BTreeMap<String, f64>,
 }
 
 /// The built base-tilt model.
@@ -34,8 +27,6 @@ pub struct BaseTiltModel {
     spec: BaseTiltSpec,
     units: armcomp_core::Units,
     base: BaseAttachments,
-    compliance: Vec<(usize, f64)>,
-    subtrees: Subtrees,
     params: Vec<ParamInfo>,
 }
 
@@ -47,7 +38,6 @@ impl ErrorModelSpec for BaseTiltSpec {
         for (k, v) in self.tilt.iter().enumerate() {
             check_finite(&mut issues, &format!("{path}.tilt[{k}]"), *v);
         }
-        let compliance = resolve_joint_table(ctx, "compliance", &self.compliance, &mut issues, check_compliance);
         if !issues.is_empty() {
             return Err(issues);
         }
@@ -56,8 +46,6 @@ impl ErrorModelSpec for BaseTiltSpec {
             spec: self.clone(),
             units: u,
             base: BaseAttachments::new(ctx.tree),
-            compliance,
-            subtrees: Subtrees::new(ctx.tree),
             params: vec![
                 // A base set on a slope or a sagging floor tilts by up to a few degrees.
                 ParamInfo::new("base_tilt.x", Quantity::Angle, u.ang(self.tilt[0]), 1f64.to_radians())
@@ -77,16 +65,15 @@ impl ErrorModel for BaseTiltModel {
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         let eps = Vector6::new(0.0, 0.0, 0.0, values[0], values[1], 0.0);
         self.base.apply(&eps, state.tree, out);
-        if self.compliance.is_empty() {
-            return;
-        }
+    }
+
+    fn adjusts_loads(&self) -> bool {
+        true
+    }
+
+    fn adjust_loads(&self, values: &[f64], loads: &mut Loads) {
         let tilt = UnitQuaternion::from_scaled_axis(Vector3::new(values[0], values[1], 0.0));
-        let mut tilted = *state;
-        tilted.gravity = tilt.inverse_transform_vector(&state.gravity);
-        for &(j, c) in &self.compliance {
-            let d = joint_gravity_load(&tilted, &self.subtrees, j) - joint_gravity_load(state, &self.subtrees, j);
-            out.joint_offset[j] += c * d;
-        }
+        loads.gravity = tilt.inverse_transform_vector(&loads.gravity);
     }
 
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {

@@ -1,8 +1,6 @@
 //! The instances of each effect the diagnosis workflow tries on a robot: per moving joint, per
 //! beam link, or once for the whole arm, each at values that add nothing until calibrated.
 
-use std::collections::BTreeMap;
-
 use armcomp_core::{Candidate, Motion, Robot};
 use serde_json::{Value, json};
 
@@ -30,18 +28,16 @@ fn per_joint(robot: &Robot, revolute_only: bool, what: &str, spec: impl Fn(&str)
         .collect()
 }
 
-/// The joint compliances (rad/(N m)) of the robot's `joint_compliance` models, through which
-/// effects that change the gravity load act.
-fn known_compliances(robot: &Robot) -> BTreeMap<String, f64> {
-    let mut out = BTreeMap::new();
-    for (m, values) in robot.error_models().iter().zip(robot.error_values()) {
-        for (p, v) in m.params().iter().zip(values) {
-            if let Some(joint) = p.name.strip_prefix("joint_compliance.") {
-                out.insert(joint.to_string(), *v);
-            }
-        }
-    }
-    out
+/// Whether the robot has an elastic model, through which a changed load (a tilted gravity, a
+/// heavier payload) shows.
+fn responds_to_loads(robot: &Robot) -> bool {
+    robot.error_models().iter().any(|m| {
+        m.params().iter().any(|p| {
+            ["joint_compliance.", "lateral_compliance.", "cantilever."]
+                .iter()
+                .any(|prefix| p.name.starts_with(prefix))
+        })
+    })
 }
 
 fn global(label: &str, spec: Value) -> Vec<Candidate> {
@@ -123,28 +119,23 @@ pub(crate) fn thermal_growth(_robot: &Robot) -> Vec<Candidate> {
     )
 }
 
-/// A tilted base differs from a turned measurement frame only through the joints' compliance
-/// to the tilted gravity, so it is tried once the robot knows some compliance.
+/// A tilted base differs from a turned measurement frame only through what the tilted gravity
+/// bends, so it is tried once the robot has an elastic model.
 pub(crate) fn base_tilt(robot: &Robot) -> Vec<Candidate> {
-    let compliance = known_compliances(robot);
-    if compliance.is_empty() {
+    if !responds_to_loads(robot) {
         return Vec::new();
     }
-    global(
-        "base tilt",
-        json!({ "type": "base_tilt", "tilt": [0.0, 0.0], "compliance": compliance }),
-    )
+    global("base tilt", json!({ "type": "base_tilt", "tilt": [0.0, 0.0] }))
 }
 
-/// A wrong payload mass shows through the joints' compliance to it, so it is tried once the
-/// robot knows some compliance.
+/// A wrong payload mass shows through what it bends, so it is tried once the robot has an
+/// elastic model.
 pub(crate) fn payload_mass_error(robot: &Robot) -> Vec<Candidate> {
-    let compliance = known_compliances(robot);
-    if compliance.is_empty() {
+    if !responds_to_loads(robot) {
         return Vec::new();
     }
     global(
         "payload mass error",
-        json!({ "type": "payload_mass_error", "mass": 0.0, "scale": 0.0, "compliance": compliance }),
+        json!({ "type": "payload_mass_error", "mass": 0.0, "scale": 0.0 }),
     )
 }

@@ -97,12 +97,23 @@ pub fn solve_equilibrium(
     let mut change = f64::INFINITY;
     for it in 1..=opts.max_iterations.max(1) {
         ws.perturbation.clear();
+        // The loads as load-adjusting models leave them (a payload's corrected mass, a tilted
+        // gravity), with no per-measurement payload.
+        let (own_mass, gravity) = robot.loads_into(
+            armcomp_core::Conditions {
+                payload: None,
+                temperature,
+            },
+            tree,
+            robot.error_values(),
+            &mut ws.mass,
+        );
         let state = StaticState {
             q,
             tree,
             frames: &ws.frames,
-            mass: robot.mass(),
-            gravity: robot.gravity(),
+            mass: if own_mass { robot.mass() } else { &ws.mass },
+            gravity,
             temperature,
         };
         for (m, v) in robot.error_models().iter().zip(robot.error_values()) {

@@ -106,13 +106,13 @@ pub fn plugins() -> Vec<PluginInfo> {
             "base_tilt",
             BaseTiltSpec,
             Some(&candidates::base_tilt),
-            "The base stands tilted by two small angles; the arm turns with it and gravity tilts through given joint compliances"
+            "The base stands tilted by two small angles; the arm turns with it and every elastic model sees the tilted gravity"
         ),
         entry!(
             "payload_mass_error",
             PayloadMassErrorSpec,
             Some(&candidates::payload_mass_error),
-            "The payload is heavier or lighter than declared; the difference bends the joints through their compliances"
+            "The payload weighs (1 + scale) times what is declared plus a mass; every elastic model sees the corrected payload"
         ),
         entry!(
             "transmission_scale",

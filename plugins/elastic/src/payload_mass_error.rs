@@ -1,27 +1,25 @@
 //! Payload mass error: the payload weighs `(1 + s)·m + Δm` where the file or the measurement
 //! declares `m`: a relative scale error `s` for declared masses wrong by a factor (a scale
 //! calibrated wrongly, a gripper's share), an offset `Δm` for a constant error (an unlisted
-//! adapter). Both enter linearly, like `transmission_scale`. The extra weight `s·m + Δm` bends the joints it hangs from through their compliances:
-//! `dq_i = c_i · τ_i`, `τ_i` its torque about joint `i` (force along it for prismatic joints).
+//! adapter). Both enter linearly, like `transmission_scale`. The model changes the payload every
+//! elastic model of the robot sees (joint and lateral compliance, link bending), so the extra
+//! weight bends the arm through their own identified values; it hangs where the payload does
+//! (`[payload] point`, or the tool).
 //!
 //! Bounds keep the identified values physical: `s ≥ −1`, and `Δm ≥ −m_file` (the file's
 //! payload, 0 without one), so a payload declared as the file's, or as nothing, never comes
 //! out with a negative mass.
 
-use std::collections::BTreeMap;
-
 use armcomp_core::{
-    ErrorModel, ErrorModelSpec, Issues, ModelContext, Motion, ParamInfo, Perturbation, Quantity, StaticState,
+    ErrorModel, ErrorModelSpec, Issues, Loads, ModelContext, ParamInfo, Perturbation, Quantity, StaticState,
 };
-use nalgebra::Vector3;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::common::{check_finite, name_list, resolve_joint_table};
-use crate::joint_compliance::check_compliance;
+use crate::common::check_finite;
 
 /// Payload mass error as written in the robot file.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PayloadMassErrorSpec {
     /// Extra mass (kg; negative when the payload is lighter than declared).
@@ -31,36 +29,16 @@ pub struct PayloadMassErrorSpec {
     /// declared (plus `mass`).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub scale: f64,
-    /// Where the extra mass hangs (default: the declared payload, or the point `tool`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub point: Option<String>,
-    /// Joint compliances (rad/(N m), m/N for prismatic joints) through which it acts.
-    pub compliance: BTreeMap<String, f64>,
 }
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
 
-/// Where a payload mass error hangs.
-#[derive(Debug, Clone, Copy)]
-enum Site {
-    /// At a tree point (index).
-    Point(usize),
-    /// At the declared payload.
-    Payload,
-}
-
 /// The built payload-mass-error model.
 #[derive(Debug, Clone)]
 pub struct PayloadMassErrorModel {
     spec: PayloadMassErrorSpec,
-    /// Where the extra mass hangs: a point of the tree being evaluated, or the declared
-    /// payload of the mass model being evaluated (either may move during calibration).
-    site: Site,
-    /// The body it hangs on.
-    body: usize,
-    compliance: Vec<(usize, f64)>,
     params: Vec<ParamInfo>,
 }
 
@@ -68,7 +46,6 @@ pub struct PayloadMassErrorModel {
 impl ErrorModelSpec for PayloadMassErrorSpec {
     fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
         let path = ctx.build.path;
-        let tree = ctx.tree;
         let mut issues = Issues::default();
         check_finite(&mut issues, &format!("{path}.mass"), self.mass);
         if !(self.scale.is_finite() && self.scale >= -1.0) {
@@ -77,40 +54,12 @@ impl ErrorModelSpec for PayloadMassErrorSpec {
                 format!("expected a relative error of -1 or more, got {}", self.scale),
             );
         }
-        let declared = ctx.mass.payload.as_ref().map_or(0.0, |p| p.mass);
-        if self.compliance.is_empty() {
-            issues.push(format!("{path}.compliance"), "expected at least one joint compliance");
-        }
-        let compliance = resolve_joint_table(ctx, "compliance", &self.compliance, &mut issues, check_compliance);
-        let at = match (&self.point, &ctx.mass.payload) {
-            (Some(name), _) => tree.point_index(name).map(|p| (tree.points()[p].body, Site::Point(p))),
-            (None, Some(p)) => Some((p.body, Site::Payload)),
-            (None, None) => tree
-                .point_index("tool")
-                .map(|p| (tree.points()[p].body, Site::Point(p))),
-        };
-        if at.is_none() {
-            issues.push(
-                format!("{path}.point"),
-                format!(
-                    "point `{}` does not exist; points are: {}",
-                    self.point.as_deref().unwrap_or("tool"),
-                    name_list(tree.points().iter().map(|p| p.name.as_str()))
-                ),
-            );
-        }
-        let Some((body, site)) = at.filter(|_| issues.is_empty()) else {
+        if !issues.is_empty() {
             return Err(issues);
-        };
-        let compliance = compliance
-            .into_iter()
-            .filter(|(j, _)| tree.support(body).contains(j))
-            .collect();
+        }
+        let declared = ctx.mass.payload.as_ref().map_or(0.0, |p| p.mass);
         Ok(Box::new(PayloadMassErrorModel {
             spec: self.clone(),
-            site,
-            body,
-            compliance,
             params: vec![
                 // A payload mis-declared by more than its own mass (or 20 kg for light ones)
                 // is a different payload.
@@ -136,23 +85,15 @@ impl ErrorModel for PayloadMassErrorModel {
         &self.params
     }
 
-    fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
-        let declared = state.mass.payload.as_ref().map_or(0.0, |p| p.mass);
-        let f = state.gravity * (values[0] + values[1] * declared);
-        let local = match self.site {
-            Site::Point(p) => state.tree.points()[p].local.translation.vector,
-            Site::Payload => state.mass.payload.as_ref().map_or_else(Vector3::zeros, |p| p.com),
-        };
-        let p = state.frames.body[self.body].transform_point(&local.into()).coords;
-        for &(j, c) in &self.compliance {
-            let frame = &state.frames.joint_frame[j];
-            let load = match state.tree.joints()[j].motion {
-                Motion::Revolute(a) => (frame.rotation * a.into_inner()).dot(&(p - frame.translation.vector).cross(&f)),
-                Motion::Prismatic(a) => (frame.rotation * a.into_inner()).dot(&f),
-                Motion::Fixed => 0.0,
-            };
-            out.joint_offset[j] += c * load;
-        }
+    /// The payload acts through the other models' response to its mass.
+    fn perturb(&self, _state: &StaticState<'_>, _values: &[f64], _out: &mut Perturbation) {}
+
+    fn adjusts_loads(&self) -> bool {
+        true
+    }
+
+    fn adjust_loads(&self, values: &[f64], loads: &mut Loads) {
+        loads.payload_mass = (1.0 + values[1]) * loads.payload_mass + values[0];
     }
 
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {

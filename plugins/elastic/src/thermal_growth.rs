@@ -67,7 +67,8 @@ impl ErrorModelSpec for ThermalGrowthSpec {
                 .iter()
                 .map(|p| own_frame_translation(&p.local))
                 .collect(),
-            // Structural metals grow by 10–25e-6 per kelvin, carbon fibre slightly shrinks.
+            // Structural metals grow by 10–25e-6 per kelvin, moulded or printed plastics (scale
+            // models) by up to 2e-4, carbon fibre slightly shrinks.
             params: vec![
                 ParamInfo::new(
                     "thermal_growth.coefficient",
@@ -75,7 +76,7 @@ impl ErrorModelSpec for ThermalGrowthSpec {
                     self.coefficient,
                     1e-5,
                 )
-                .with_plausible(-2e-6, 30e-6),
+                .with_plausible(-2e-6, 2e-4),
             ],
         }))
     }

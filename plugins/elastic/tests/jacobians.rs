@@ -75,7 +75,6 @@ type = "base_tilt"
 [[error_models]]
 type = "payload_mass_error"
 mass = 1.0
-compliance = { j2 = 1.0e-6, j4 = 2.0e-6 }
 [[error_models]]
 type = "transmission_scale"
 scale = { j1 = 0.001, j3 = -0.002 }
@@ -193,9 +192,64 @@ fn thermal_growth() {
 fn base_tilt() {
     check_model(7, &Q, None);
 }
+/// The payload error and the base tilt change the loads every elastic model sees: the arm
+/// with them is the arm whose file declares the corrected payload, or gravity turned by the
+/// tilt (and the base turned with it), computed by the other models alone.
 #[test]
-fn payload_mass_error() {
-    check_model(8, &Q, None);
+fn load_adjusting_models_are_the_loads_every_elastic_model_sees() {
+    let keep = |drop: &[&str], replace: &[(&str, &str)]| {
+        let mut text = ARM.to_string();
+        for (from, to) in replace {
+            assert!(text.contains(from), "{from}");
+            text = text.replacen(from, to, 1);
+        }
+        for block in drop {
+            assert!(text.contains(block), "{block}");
+            text = text.replacen(block, "", 1);
+        }
+        robot(&text)
+    };
+    let payload_error = "[[error_models]]\ntype = \"payload_mass_error\"\nmass = 1.0\n";
+    let tilt = "[[error_models]]\ntype = \"base_tilt\"\n";
+    let tool = |r: &armcomp_core::Robot| r.forward(&Q).unwrap().point[r.tool()].translation.vector;
+    // (1 + 0.25) · 4 kg + 1 kg = 6 kg.
+    let with_error = keep(&[tilt], &[("mass = 1.0\n", "mass = 1.0\nscale = 0.25\n")]);
+    let declared_six = keep(
+        &[tilt, payload_error],
+        &[("[payload]\nmass = 4.0", "[payload]\nmass = 6.0")],
+    );
+    let declared_four = keep(&[tilt, payload_error], &[]);
+    let (a, b, c) = (tool(&with_error), tool(&declared_six), tool(&declared_four));
+    assert!((a - b).norm() < 1e-12, "{a} vs {b}");
+    assert!((a - c).norm() > 1e-6, "the extra 2 kg bend the arm: {a} vs {c}");
+    // A tilt of 2° and -1°: gravity turned back by it in the base frame, the base turned by it.
+    let (tx, ty) = (2f64.to_radians(), -1f64.to_radians());
+    let turn = nalgebra::UnitQuaternion::from_scaled_axis(nalgebra::Vector3::new(tx, ty, 0.0));
+    let g = turn.inverse_transform_vector(&nalgebra::Vector3::new(0.4, -0.9, -9.7));
+    let tilted = keep(
+        &[payload_error],
+        &[(
+            "type = \"base_tilt\"\n",
+            &format!("type = \"base_tilt\"\ntilt = [{tx}, {ty}]\n"),
+        )],
+    );
+    let by_hand = keep(
+        &[payload_error, tilt],
+        &[
+            (
+                "gravity = [0.4, -0.9, -9.7]",
+                &format!("gravity = [{}, {}, {}]", g.x, g.y, g.z),
+            ),
+            (
+                "type = \"geometric_offsets\"\n",
+                &format!("type = \"geometric_offsets\"\nbase = [0, 0, 0, {tx}, {ty}, 0]\n"),
+            ),
+        ],
+    );
+    let level = keep(&[payload_error], &[]);
+    let (a, b, c) = (tool(&tilted), tool(&by_hand), tool(&level));
+    assert!((a - b).norm() < 1e-12, "{a} vs {b}");
+    assert!((a - c).norm() > 1e-4, "{a} vs {c}");
 }
 #[test]
 fn transmission_scale() {
