@@ -419,3 +419,66 @@ fn a_residual_predictor_learns_several_points_and_compensates_the_tool() {
         assert!(c.mismatch < 1e-6, "{}", c.mismatch);
     }
 }
+
+/// A model without a `[predictor]` table (a calibrated bare URDF has none) learns with
+/// `--predictor TYPE`, which also becomes its table; without either, `learn` says how.
+#[test]
+fn learn_fits_the_predictor_named_on_the_command_line() {
+    let dir = Scratch::new("learn-predictor");
+    let truth = robot("rock-drill-truth.toml");
+    let model = root().join("robots/rock-drill-deflection.toml");
+    let data = simulate(
+        &truth,
+        &random_configurations(&truth, 200, 21),
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 1,
+        },
+    )
+    .unwrap();
+    let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.file.units));
+    let fitted = dir.0.join("fitted.toml");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "learn",
+            "--model",
+            model.to_str().unwrap(),
+            "--data",
+            data_path.to_str().unwrap(),
+            "--out",
+            fitted.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        armcomp(&args)
+    };
+    let (code, _, err) = run(&[]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--predictor") && err.contains("[predictor]"), "{err}");
+    assert!(!fitted.exists());
+    let (code, _, err) = run(&["--predictor", "ridge"]);
+    assert_eq!(code, 0, "{err}");
+    let fitted_robot = armcomp_core::Robot::from_path(&fitted).unwrap();
+    let spec = serde_json::to_value(fitted_robot.predictor_spec().expect("the table is written")).unwrap();
+    assert_eq!(spec["type"], "ridge");
+    assert!(fitted_robot.predictor().is_some());
+    let fresh = simulate(
+        &truth,
+        &random_configurations(&truth, 50, 22),
+        SimulateParams {
+            noise_std: 0.0,
+            seed: 2,
+        },
+    )
+    .unwrap();
+    let alone = ErrorStats::from_errors(&position_errors(&robot("rock-drill-deflection.toml"), &fresh.samples));
+    let with = ErrorStats::from_errors(&position_errors(&fitted_robot, &fresh.samples));
+    assert!(
+        with.mean_mm < 0.8 * alone.mean_mm,
+        "{} vs {}",
+        with.mean_mm,
+        alone.mean_mm
+    );
+    let (code, _, err) = run(&["--predictor", "nope"]);
+    assert_ne!(code, 0);
+    assert!(err.contains("nope") && err.contains("gp"), "{err}");
+}

@@ -7,15 +7,22 @@ use crate::errors::IntoPy;
 use crate::measurements::PyMeasurements;
 use crate::robot::PyRobot;
 
-/// Fits the predictor `model`'s `[predictor]` table describes on `data`; returns the model
-/// with the fitted predictor and `(seconds, before, after)` with the training errors of the
-/// model alone and with the predictor as JSON text.
+/// Fits `predictor` (a type with its default settings), or the predictor `model`'s
+/// `[predictor]` table describes, on `data`; returns the model with the fitted predictor and
+/// `(seconds, before, after)` with the training errors of the model alone and with the
+/// predictor as JSON text.
 #[pyfunction]
+#[pyo3(signature = (model, data, predictor = None))]
 pub fn learn(
     py: Python<'_>,
     model: PyRef<'_, PyRobot>,
     data: PyRef<'_, PyMeasurements>,
+    predictor: Option<&str>,
 ) -> PyResult<(PyRobot, String)> {
+    let predictor = predictor
+        .map(armcomp::ops::learn::default_predictor)
+        .transpose()
+        .map_err(|e| crate::errors::input_error(&e.to_string(), None, None, Some("predictor")))?;
     let robot = model.robot.clone();
     let set = data.resolve(&robot)?;
     // The model's own description, every field kept (the command line re-reads its file).
@@ -23,7 +30,7 @@ pub fn learn(
     let file: RobotFile = serde_json::from_value(value)
         .map_err(|e| armcomp_core::Error::Input(format!("the model description does not read back: {e}")))
         .py()?;
-    let run = crate::interrupt::run(py, || armcomp::ops::learn::run(&robot, file, &set.samples))?.py()?;
+    let run = crate::interrupt::run(py, || armcomp::ops::learn::run(&robot, file, &set.samples, predictor))?.py()?;
     let json = serde_json::json!({"seconds": run.seconds, "before": run.before, "after": run.after});
     Ok((PyRobot::wrap(run.robot), json.to_string()))
 }

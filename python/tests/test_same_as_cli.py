@@ -130,6 +130,14 @@ def test_learn_writes_the_same_model(simulated, tmp_path):
     fitted.save(tmp_path / "py.toml")
     assert (tmp_path / "py.toml").read_bytes() == (tmp_path / "cli.toml").read_bytes()
     assert report.after.mean_mm <= report.before.mean_mm
+    # Without a table, the predictor named in the call; the same bytes as with the table.
+    bare = tmp_path / "bare.toml"
+    model.save(bare)
+    cli("learn", "--model", bare, "--data", tmp / "cli.csv", "--predictor", "ridge", "--out", tmp_path / "cli-named.toml")
+    named, _ = armcomp.learn(model, data, predictor="ridge")
+    named.save(tmp_path / "py-named.toml")
+    assert (tmp_path / "py-named.toml").read_bytes() == (tmp_path / "cli-named.toml").read_bytes()
+    assert (tmp_path / "cli-named.toml").read_bytes() == (tmp_path / "cli.toml").read_bytes()
 
 
 def test_compensate_gives_the_command_line_joint_commands(simulated, tmp_path):

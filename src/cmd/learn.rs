@@ -9,9 +9,14 @@ use super::{check_output, read_measurements};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The model (e.g. written by `armcomp calibrate`) whose `[predictor]` table says what to fit.
+    /// The model (e.g. written by `armcomp calibrate`); its `[predictor]` table says what to
+    /// fit unless `--predictor` does.
     #[arg(long)]
     model: PathBuf,
+    /// Fit this predictor type with its default settings (gp, mlp, ssa_bp, ridge, knn; see
+    /// `armcomp plugins`), replacing the model's `[predictor]` table.
+    #[arg(long)]
+    predictor: Option<String>,
     /// Measurement CSV to learn the model's residual from (one or several points).
     #[arg(long)]
     data: PathBuf,
@@ -26,9 +31,14 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
-    if robot.predictor_spec().is_none() {
+    let predictor = args
+        .predictor
+        .as_deref()
+        .map(armcomp::ops::learn::default_predictor)
+        .transpose()?;
+    if predictor.is_none() && robot.predictor_spec().is_none() {
         bail!(
-            "{}: no [predictor] table; add one (e.g. `[predictor]` with `type = \"gp\"`) to say what to fit",
+            "{}: no [predictor] table; name one with --predictor (e.g. gp) or add a `[predictor]` table",
             args.model.display()
         );
     }
@@ -36,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     // The written file is the model's own text re-read, so everything in it is kept.
     let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
-    let run = armcomp::ops::learn::run(&robot, file, &data.samples)?;
+    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor)?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);
     write_atomic(&args.out, run.robot.file.to_text_for(&args.out)?.as_bytes())?;
     println!(

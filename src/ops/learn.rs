@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, model_errors, position_errors};
 use armcomp_core::measurement::Sample;
-use armcomp_core::{Error, Robot, RobotFile};
+use armcomp_core::{Error, PredictorSpec, Robot, RobotFile};
 
 /// A model with its fitted predictor and how much the predictor removes on the training data.
 #[derive(Debug)]
@@ -19,13 +19,29 @@ pub struct LearnRun {
     pub seconds: f64,
 }
 
-/// Fits the predictor `robot`'s `[predictor]` table describes on `samples` and stores it in
-/// `file`, the model's own description (re-read from its file by the command line, so that
-/// everything in it is kept).
-pub fn run(robot: &Robot, mut file: RobotFile, samples: &[Sample]) -> armcomp_core::Result<LearnRun> {
-    let Some(spec) = robot.predictor_spec() else {
+/// A predictor type with its default settings (`gp`, `mlp`, `ssa_bp`, `ridge`, `knn`, as
+/// `armcomp plugins` lists them).
+pub fn default_predictor(type_name: &str) -> armcomp_core::Result<Box<dyn PredictorSpec>> {
+    serde_json::from_value(serde_json::json!({ "type": type_name }))
+        .map_err(|e| Error::Input(format!("predictor `{type_name}`: {e}")))
+}
+
+/// Fits `predictor`, or else the predictor `robot`'s `[predictor]` table describes, on
+/// `samples` and stores it in `file`, the model's own description (re-read from its file by
+/// the command line, so that everything in it is kept); a given `predictor` becomes the
+/// model's `[predictor]` table.
+pub fn run(
+    robot: &Robot,
+    mut file: RobotFile,
+    samples: &[Sample],
+    predictor: Option<Box<dyn PredictorSpec>>,
+) -> armcomp_core::Result<LearnRun> {
+    if let Some(spec) = predictor {
+        file.predictor = Some(spec);
+    }
+    let Some(spec) = file.predictor.as_deref() else {
         return Err(Error::Input(
-            "the model has no [predictor] table; add one (e.g. `[predictor]` with `type = \"gp\"`) to say what to fit"
+            "the model has no [predictor] table; name a predictor (e.g. gp) or add a `[predictor]` table with its type and settings"
                 .into(),
         ));
     };

@@ -194,10 +194,11 @@ def diagnose(
     return model, from_json(DiagnosisReport, text)
 
 
-def learn(model: Robot, data: Measurements) -> Tuple[Robot, LearnReport]:
-    """Fits the residual predictor ``model``'s ``[predictor]`` table describes on ``data``,
-    as ``armcomp learn`` does; returns the model with it and the training errors."""
-    fitted, text = _native.learn(model, data)
+def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, LearnReport]:
+    """Fits ``predictor`` (gp, mlp, ssa_bp, ridge or knn with default settings), or else the
+    residual predictor ``model``'s ``[predictor]`` table describes, on ``data``, as
+    ``armcomp learn`` does; returns the model with it and the training errors."""
+    fitted, text = _native.learn(model, data, predictor=predictor)
     return fitted, from_json(LearnReport, text)
 
 
