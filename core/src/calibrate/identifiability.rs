@@ -1,0 +1,318 @@
+//! Which combinations of parameters the data cannot determine, and what holds them.
+
+use nalgebra::{DMatrix, DVector, SymmetricEigen};
+
+use crate::error::{Error, Result};
+use crate::measurement::Sample;
+use crate::robot::Robot;
+
+use super::*;
+
+/// The parameters of `free` with a prior that the data barely determine: with the data their
+/// standard deviation (linearised at the start, `jac` holding the columns of `selected`) is
+/// still above half their prior's, so the data adds less than three times the prior's
+/// information. A model error can push such a parameter far along a direction the data hardly
+/// sees (a prismatic joint's length against a marker); its prior then bounds it.
+pub(super) fn barely_seen(
+    space: &ParameterSpace,
+    jac: &DMatrix<f64>,
+    selected: &[usize],
+    free: &[usize],
+) -> Vec<usize> {
+    let cols: Vec<usize> = free
+        .iter()
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
+        .collect();
+    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    let Some(chol) = a.cholesky() else {
+        return Vec::new();
+    };
+    let inv = chol.inverse();
+    free.iter()
+        .enumerate()
+        .filter(|&(c, &k)| {
+            let sigma = space.params[k].info.sigma;
+            sigma.is_finite() && inv[(c, c)].sqrt() > 0.5 * sigma
+        })
+        .map(|(_, &k)| k)
+        .collect()
+}
+
+/// Finds the directions the data cannot determine and decides what to fix (see the module
+/// documentation). `jac` holds the columns of `free`.
+pub(super) fn analyse(
+    space: &ParameterSpace,
+    jac: &DMatrix<f64>,
+    free: &[usize],
+    tol: f64,
+) -> (IdentifiabilityReport, Vec<usize>) {
+    let norms: Vec<f64> = (0..jac.ncols()).map(|c| jac.column(c).norm()).collect();
+    let has_prior = |c: usize| space.params[free[c]].info.sigma.is_finite();
+    let name = |c: usize| space.params[free[c]].info.name.clone();
+    let mut fixed: Vec<usize> = Vec::new(); // column positions
+    let mut deficiencies = Vec::new();
+    // Scaled normal matrix over a set of columns, its eigen-decomposition, and the null basis.
+    let null_space = |cols: &[usize]| -> (SymmetricEigen<f64, nalgebra::Dyn>, Vec<usize>, f64) {
+        let scaled = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| {
+            let n = norms[cols[c]];
+            if n > 0.0 { jac[(r, cols[c])] / n } else { 0.0 }
+        });
+        let eig = SymmetricEigen::new(scaled.transpose() * &scaled);
+        let max = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+        let null = (0..cols.len())
+            .filter(|&i| eig.eigenvalues[i] <= tol * tol * max)
+            .collect();
+        (eig, null, max)
+    };
+    let all: Vec<usize> = (0..free.len()).collect();
+    let (eig_all, null_all, max_all) = null_space(&all);
+    let min_all = eig_all.eigenvalues.iter().copied().fold(f64::INFINITY, f64::min);
+    let rank = free.len() - null_all.len();
+    let condition_number = if null_all.is_empty() && min_all > 0.0 {
+        (max_all / min_all).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    // Fix, one at a time, the dominant parameter of a null direction no prior holds.
+    loop {
+        let active: Vec<usize> = all.iter().copied().filter(|c| !fixed.contains(c)).collect();
+        if active.is_empty() {
+            break;
+        }
+        let (eig, null, _) = null_space(&active);
+        if null.is_empty() {
+            break;
+        }
+        // Null basis rows of the parameters with priors; a combination of basis vectors that
+        // vanishes there is a direction nothing holds.
+        let basis = DMatrix::from_fn(active.len(), null.len(), |r, c| eig.eigenvectors[(r, null[c])]);
+        let prior_rows: Vec<usize> = (0..active.len()).filter(|&r| has_prior(active[r])).collect();
+        let free_direction = if prior_rows.is_empty() {
+            Some(basis.column(0).into_owned())
+        } else {
+            let sub = DMatrix::from_fn(prior_rows.len(), null.len(), |r, c| basis[(prior_rows[r], c)]);
+            // Eigenvectors of subᵀ·sub with (numerically) zero eigenvalue span them.
+            let gram = (sub.transpose() * &sub).symmetric_eigen();
+            (0..null.len())
+                .find(|&i| gram.eigenvalues[i] <= 1e-12)
+                .map(|i| &basis * gram.eigenvectors.column(i))
+        };
+        let Some(direction) = free_direction else {
+            // Every remaining null direction involves a prior: report them as regularised.
+            for v in sparse_basis(&basis) {
+                deficiencies.push(Deficiency {
+                    combination: combination(&v, &active, &name),
+                    action: "regularised".into(),
+                    fixed: None,
+                });
+            }
+            break;
+        };
+        let (pos, _) = direction
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .expect("a direction has entries");
+        let col = active[pos];
+        deficiencies.push(Deficiency {
+            combination: combination(&direction, &active, &name),
+            action: "fixed".into(),
+            fixed: Some(name(col)),
+        });
+        fixed.push(col);
+    }
+    let mut message = String::new();
+    let n_equations = jac.nrows();
+    if n_equations < free.len() {
+        message.push_str(&format!(
+            "{} measured positions give {n_equations} equations for {} parameters, too few to determine them all. ",
+            n_equations / 3,
+            free.len()
+        ));
+    }
+    if !deficiencies.is_empty() {
+        // The largest combinations first: they say most about how the parameters trade off.
+        let mut shown: Vec<&Deficiency> = deficiencies.iter().collect();
+        shown.sort_by_key(|d| std::cmp::Reverse(d.combination.len()));
+        let list: Vec<String> = shown
+            .iter()
+            .take(10)
+            .map(|d| {
+                let names: Vec<&str> = d.combination.iter().map(|(n, _)| n.as_str()).collect();
+                match &d.fixed {
+                    Some(f) => format!("{{{}}} (fixed {f})", names.join(", ")),
+                    None => format!("{{{}}} (held by priors)", names.join(", ")),
+                }
+            })
+            .collect();
+        let held = deficiencies.iter().filter(|d| d.fixed.is_none()).count();
+        let more = deficiencies.len().saturating_sub(list.len());
+        message.push_str(&format!(
+            "The data cannot determine {} combination(s) of parameters ({} held by priors, {} fixed){}: {}{}.",
+            deficiencies.len(),
+            held,
+            deficiencies.len() - held,
+            if more > 0 { "; the largest" } else { "" },
+            list.join("; "),
+            if more > 0 {
+                format!("; and {more} more (the JSON report lists all)")
+            } else {
+                String::new()
+            }
+        ));
+    }
+    let report = IdentifiabilityReport {
+        n_equations,
+        n_params: free.len(),
+        rank,
+        condition_number,
+        condition_number_free: f64::NAN,
+        deficiencies,
+        held_by_priors: Vec::new(),
+        message,
+    };
+    (report, fixed.iter().map(|&c| free[c]).collect())
+}
+
+/// A basis of the column space of `basis` (one null direction per column) that is as sparse as
+/// Gauss–Jordan elimination with full pivoting makes it: each vector has one pivot parameter
+/// that no other vector contains, so the combinations read like "these few move together"
+/// rather than eigenvectors mixing everything.
+pub(super) fn sparse_basis(basis: &DMatrix<f64>) -> Vec<DVector<f64>> {
+    let mut m = basis.transpose(); // one direction per row
+    let (rows, cols) = m.shape();
+    let mut used_cols = vec![false; cols];
+    for r in 0..rows {
+        let mut best = (r, 0, 0.0);
+        for i in r..rows {
+            for c in (0..cols).filter(|&c| !used_cols[c]) {
+                if m[(i, c)].abs() > best.2 {
+                    best = (i, c, m[(i, c)].abs());
+                }
+            }
+        }
+        let (i, c, v) = best;
+        if v == 0.0 {
+            break;
+        }
+        m.swap_rows(r, i);
+        used_cols[c] = true;
+        let pivot = m[(r, c)];
+        let row = m.row(r) / pivot;
+        m.set_row(r, &row);
+        for k in (0..rows).filter(|&k| k != r) {
+            let f = m[(k, c)];
+            if f != 0.0 {
+                let updated = m.row(k) - row.clone() * f;
+                m.set_row(k, &updated);
+            }
+        }
+    }
+    (0..rows).map(|r| m.row(r).transpose()).collect()
+}
+
+/// The entries of a null direction worth naming (at least a tenth of the largest), largest
+/// first, normalised so that the largest is ±1.
+pub(super) fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize) -> String) -> Vec<(String, f64)> {
+    let max = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let sign = v.iter().find(|x| x.abs() == max).map_or(1.0, |x| x.signum());
+    let mut out: Vec<(String, f64)> = v
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| x.abs() >= 0.1 * max)
+        .map(|(i, x)| (name(cols[i]), x * sign / max))
+        .collect();
+    out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    out
+}
+
+/// The identifiability of the parameters `selected` from the Jacobian `jac` (residuals in units
+/// of the noise, columns of `selected`): what cannot be determined (fixed or held by priors)
+/// and what is barely determined, with the report saying so.
+pub(super) fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], tol: f64) -> Assessment {
+    let (mut report, fixed) = analyse(space, jac, selected, tol);
+    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let held = barely_seen(space, jac, selected, &free);
+    if !held.is_empty() {
+        report.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
+        let sep = if report.message.is_empty() { "" } else { " " };
+        report.message.push_str(&format!(
+            "{sep}{} parameter(s) the data barely determine are kept within {PRIOR_BOX} prior standard deviations \
+             of their start: {}.",
+            held.len(),
+            report.held_by_priors.join(", ")
+        ));
+    }
+    Assessment { report, free, held }
+}
+
+/// The condition number of the normal matrix `a` (priors included) after scaling it to a unit
+/// diagonal, and the diagonal of its inverse (infinite when singular).
+pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
+    let n = a.nrows();
+    let scale = DVector::from_iterator(n, (0..n).map(|c| a[(c, c)].sqrt().max(1e-300)));
+    let scaled = DMatrix::from_fn(n, n, |i, k| a[(i, k)] / (scale[i] * scale[k]));
+    let eig = scaled.clone().symmetric_eigen();
+    let (emin, emax) = eig
+        .eigenvalues
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+    let condition = if emin > 0.0 {
+        (emax / emin).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    let inv_diag = match scaled.try_inverse() {
+        Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
+        None => vec![f64::INFINITY; n],
+    };
+    (condition, inv_diag)
+}
+
+/// How well measurements at the configurations of `samples` (their measured positions are not
+/// used) would determine the parameters `params.identify` selects, before any fit: the
+/// identifiability report [`calibrate`] starts from (linearised at the robot's values, the
+/// measurement frame as the robot file guesses it), with the condition number over the free
+/// parameters with their priors. For judging a set of poses before measuring it.
+pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -> Result<IdentifiabilityReport> {
+    if samples.is_empty() {
+        return Err(Error::Input("an identifiability report needs at least one pose".into()));
+    }
+    let space = prior_space(robot, params);
+    let selected = space.select(robot, &params.identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples,
+        sigma: params.measurement_std,
+    };
+    let theta = space.initial();
+    let (d, e, _) = problem.predict(&theta)?;
+    let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
+    let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
+    let cols: Vec<usize> = free
+        .iter()
+        .map(|k| {
+            selected
+                .iter()
+                .position(|s| s == k)
+                .expect("free parameters are selected")
+        })
+        .collect();
+    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    report.condition_number_free = normal_equations(&a).0;
+    Ok(report)
+}

@@ -1,0 +1,637 @@
+//! Calibration: Levenberg–Marquardt identification of the chain, error-model, measurement-frame
+//! and marker parameters from measured positions.
+//!
+//! The problem is weighted least squares with priors:
+//! `min ½ Σ ‖(p̂(θ, qᵢ) − pᵢ) / σ‖² + ½ Σ ((θₖ − θₖ⁰) / σₖ)²`, where `p̂` is the full model
+//! (chain + error models) seen through `T_meas_base`, `σ` the tracker noise and `σₖ` each
+//! parameter's prior. Jacobian columns are exact for markers (a rotation), cheap forward
+//! differences for the base frame (no kinematics re-run), first-order twists at the joint
+//! frames for geometry (on deformed robots with the deformation held while the fit makes
+//! progress, then differences of the full model), differences of the deformed kinematics for
+//! error-model parameters (of the whole model for load-adjusting ones), computed in parallel.
+//!
+//! Files: `space` (the parameters by name, the robot with a parameter vector written in),
+//! `jacobian` (evaluation and columns), `identifiability` (what the data cannot determine),
+//! `solver` (the Levenberg–Marquardt stages, bounded steps, convergence tests), `registration`
+//! (the measurement frame in closed form, mislabelled units); the driver [`calibrate`] and the
+//! report types are here.
+//!
+//! Before iterating, the scaled Jacobian is decomposed to find directions the data cannot
+//! determine. Each is named; it is left to the priors when one of its parameters has a prior,
+//! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
+//!
+//! The Levenberg–Marquardt loop is written here rather than taken from a crate because it needs
+//! bounds, priors, parameter fixing and a best-so-far result on non-convergence together, and
+//! the available crates pull in another nalgebra version.
+
+use nalgebra::{Isometry3, Matrix3, Vector3, Vector6};
+use rand::SeedableRng;
+use rand::rngs::StdRng;
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::evaluate::ErrorStats;
+use crate::measurement::Sample;
+use crate::param::{ParamInfo, Quantity};
+use crate::robot::Robot;
+use crate::tree::KinematicTree;
+
+mod identifiability;
+mod jacobian;
+mod registration;
+mod solver;
+mod space;
+
+pub use identifiability::identifiability;
+use identifiability::*;
+use jacobian::*;
+pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
+use registration::*;
+use space::*;
+pub(crate) use space::{name_matches, setup_param_names};
+
+/// Which part of the model a parameter belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(tag = "kind", content = "index", rename_all = "snake_case")]
+pub enum ParamGroup {
+    /// The kinematic convention's geometry (index into the chain's parameters).
+    Geometry,
+    /// Error model `i` (index into the robot's error models).
+    ErrorModel(usize),
+    /// The robot base pose in the measurement frame.
+    Base,
+    /// Marker `i` (index into [`Robot::markers`]).
+    Marker(usize),
+}
+
+/// One parameter of a [`ParameterSpace`]: what calibration may change.
+#[derive(Debug, Clone, Serialize)]
+pub struct SpaceParam {
+    /// Name, quantity, starting value, prior and bounds.
+    pub info: ParamInfo,
+    /// What it belongs to.
+    pub group: ParamGroup,
+    /// Type name of the error model it belongs to (empty otherwise).
+    pub model_type: String,
+}
+
+/// Every parameter of a robot calibration can touch, in a fixed order: chain, error models,
+/// base frame (`base.x … base.yaw`), markers (`marker.<point>.x|y|z`).
+#[derive(Debug, Clone)]
+pub struct ParameterSpace {
+    /// The parameters.
+    pub params: Vec<SpaceParam>,
+    n_chain: usize,
+    error_offsets: Vec<usize>,
+    base_offset: usize,
+    marker_offset: usize,
+}
+
+/// Base-frame parameters, in the order of [`xyz_rpy`].
+const BASE_NAMES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+
+/// A parameter vector made ready for evaluation.
+#[derive(Debug, Clone)]
+struct Decoded {
+    tree: KinematicTree,
+    errors: Vec<Vec<f64>>,
+    t_meas_base: Isometry3<f64>,
+}
+
+/// Per-sample intermediate results: the point in the robot base frame and the rotation that
+/// maps a marker offset into it.
+struct Evaluation {
+    world: Vec<Vector3<f64>>,
+    marker_rot: Vec<Matrix3<f64>>,
+}
+
+/// Settings of [`calibrate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrationParams {
+    /// What to identify (see [`ParameterSpace::select`]); empty for the default.
+    pub identify: Vec<String>,
+    /// Standard deviation of the tracker noise per axis (m); weighs data against priors.
+    pub measurement_std: f64,
+    /// Most Levenberg–Marquardt iterations, over all stages of the fit.
+    pub max_iterations: usize,
+    /// Converged when an accepted step lowers the cost by less than this fraction.
+    pub tolerance: f64,
+    /// Converged when an accepted step lowers `½χ²` (residuals in units of the noise) by less
+    /// than this: such a change moves no parameter by a meaningful part of its uncertainty.
+    pub min_improvement: f64,
+    /// Converged when an accepted step moves every parameter by less than this fraction of
+    /// its standard deviation (creeping along directions the data barely determines).
+    pub min_step: f64,
+    /// Directions whose singular value is below this fraction of the largest (scaled
+    /// Jacobian) count as not identifiable.
+    pub rank_tolerance: f64,
+    /// Whether the parameters' priors regularise the fit; without them every direction the
+    /// data cannot determine is fixed.
+    pub use_priors: bool,
+    /// Factor on every prior standard deviation of the robot file (chain and error models):
+    /// below 1 holds the parameters closer to their starting values, infinite drops the
+    /// priors. [`choose_prior_scale`] picks it by cross-validation.
+    pub prior_scale: f64,
+    /// Fits that end more than [`RESTART_ABOVE_NOISE`] times above the noise are repeated
+    /// this many times from perturbed starts, keeping the lowest cost: every parameter with a
+    /// prior moved by a normal draw of its prior standard deviation, and parameters along
+    /// which the cost has several minima ([`ParamInfo::multimodal`]: backlash, scales) by
+    /// their typical size as well.
+    pub restarts: usize,
+    /// Seed of the restarts' perturbations; the same seed gives the same fit.
+    pub seed: u64,
+}
+
+/// A fit whose RMS is this many times what the declared noise gives is restarted (see
+/// [`CalibrationParams::restarts`]); below it the fit explains the data to within its noise.
+pub const RESTART_ABOVE_NOISE: f64 = 1.5;
+
+impl Default for CalibrationParams {
+    fn default() -> Self {
+        CalibrationParams {
+            identify: Vec::new(),
+            measurement_std: 1e-4,
+            max_iterations: 100,
+            tolerance: 1e-10,
+            min_improvement: 1e-4,
+            min_step: 1e-2,
+            rank_tolerance: 1e-5,
+            use_priors: true,
+            prior_scale: 1.0,
+            restarts: 2,
+            seed: 0,
+        }
+    }
+}
+
+/// One Levenberg–Marquardt iteration, for progress display.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IterationInfo {
+    /// Iteration number (1-based).
+    pub iteration: usize,
+    /// Most iterations allowed.
+    pub max_iterations: usize,
+    /// RMS of the 3-D position residual after the iteration (m).
+    pub rms: f64,
+    /// Damping after the iteration.
+    pub lambda: f64,
+}
+
+/// A combination of parameters the data cannot determine, and what was done about it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Deficiency {
+    /// The parameters involved with their weights in the null direction (columns scaled to
+    /// unit norm; the largest weight is ±1).
+    pub combination: Vec<(String, f64)>,
+    /// `regularised` (a prior holds it) or `fixed` (the named parameter keeps its start value).
+    pub action: String,
+    /// The parameter fixed, for `fixed`.
+    pub fixed: Option<String>,
+}
+
+/// How well the selected parameters are determined by the data.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct IdentifiabilityReport {
+    /// Number of scalar equations (3 per measured position).
+    pub n_equations: usize,
+    /// Number of selected parameters.
+    pub n_params: usize,
+    /// Numerical rank of the column-scaled measurement Jacobian.
+    pub rank: usize,
+    /// Its condition number (largest over smallest singular value; infinite when deficient).
+    pub condition_number: f64,
+    /// Condition number over the parameters left free after fixing.
+    pub condition_number_free: f64,
+    /// The combinations it cannot determine.
+    pub deficiencies: Vec<Deficiency>,
+    /// Parameters the data barely determine (their standard deviation with the data is still
+    /// above half their prior's), kept within [`PRIOR_BOX`] prior standard deviations of
+    /// their start.
+    pub held_by_priors: Vec<String>,
+    /// Plain-language summary of any problem (empty when fully identifiable).
+    pub message: String,
+}
+
+/// One parameter before and after.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamResult {
+    /// Dotted name.
+    pub name: String,
+    /// What it measures.
+    #[serde(skip)]
+    pub quantity: Quantity,
+    /// SI unit of the values.
+    pub unit: &'static str,
+    /// Value before calibration (SI; marker entries are offsets from the file's position).
+    pub initial: f64,
+    /// Identified value (SI).
+    pub value: f64,
+    /// Standard deviation from the linearised covariance (SI); 0 for fixed parameters.
+    pub std: f64,
+    /// Whether it was held at its start value because the data cannot determine it.
+    pub fixed: bool,
+    /// Whether the fit left it on one of its physical bounds (a compliance at 0, ...): the
+    /// data pushed it as far as it may go, so its value says more about the model than about
+    /// the robot.
+    pub at_bound: bool,
+    /// Whether the value lies in the range its model calls physically plausible
+    /// ([`crate::param::ParamInfo::plausible`]); a fit that needs an implausible value is warned about.
+    pub plausible: bool,
+}
+
+/// What calibration did and how well it fits.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CalibrationReport {
+    /// Measured positions used.
+    pub n_samples: usize,
+    /// The joints that move the measured points, base first: the chain whose geometry
+    /// `geometry` and `offsets` select.
+    pub measured_chain: Vec<String>,
+    /// Whether the measurement frame was first registered in closed form.
+    pub registered: bool,
+    /// The factor applied to the robot file's prior standard deviations (none without priors).
+    pub prior_scale: Option<f64>,
+    /// Identifiability of the selected parameters at the start.
+    pub identifiability: IdentifiabilityReport,
+    /// Selected parameters.
+    pub params: Vec<ParamResult>,
+    /// Iterations run.
+    pub iterations: usize,
+    /// Final training RMS (mm) of each restart from a perturbed start, in order; empty when
+    /// the first fit already reached the noise (see [`CalibrationParams::restarts`]).
+    pub restarts_rms_mm: Vec<f64>,
+    /// Whether the cost stopped decreasing within the tolerance.
+    pub converged: bool,
+    /// Why the iteration stopped.
+    pub stop_reason: String,
+    /// Residuals on the calibration data before.
+    pub before: ErrorStats,
+    /// Residuals on the calibration data after.
+    pub after: ErrorStats,
+    /// The 3-D RMS after, over what the declared noise alone gives (`√3 σ`); above
+    /// [`FAR_ABOVE_NOISE`] the model or the data is wrong, not just noisy.
+    pub rms_over_noise: f64,
+    /// Whether the data read in another unit (metres for millimetres, radians for degrees,
+    /// or the reverse) fit the starting model far better than as declared; the warnings say
+    /// which and the fix.
+    pub units_mislabelled: bool,
+    /// What the fit suggests is wrong when it ends far above the noise or the units look
+    /// mislabelled, most likely first.
+    pub warnings: Vec<String>,
+}
+
+/// How many times the RMS its declared noise gives (`√3 σ` in 3-D) a fit's residual may reach
+/// before the report calls it far above the noise: noise mis-declared by a factor of a few
+/// stays below it; wrong units, wrong points or a missing effect of that size do not.
+pub const FAR_ABOVE_NOISE: f64 = 10.0;
+
+impl CalibrationReport {
+    /// Whether the fit ended far above the noise the data declares (see [`FAR_ABOVE_NOISE`]).
+    pub fn far_above_noise(&self) -> bool {
+        self.rms_over_noise.is_nan() || self.rms_over_noise > FAR_ABOVE_NOISE
+    }
+
+    /// Whether the data or the model is wrong, not just noisy: far above the noise, or units
+    /// that look mislabelled.
+    pub fn suspect(&self) -> bool {
+        self.far_above_noise() || self.units_mislabelled
+    }
+}
+
+/// An identified robot and the report of how it was identified.
+#[derive(Debug)]
+pub struct Calibration {
+    /// The robot with the identified values (its [`Robot::to_file`] is the model file).
+    pub robot: Robot,
+    /// The report.
+    pub report: CalibrationReport,
+}
+
+/// State shared by the pieces of one calibration run.
+struct Problem<'a> {
+    robot: &'a Robot,
+    space: &'a ParameterSpace,
+    samples: &'a [Sample],
+    sigma: f64,
+}
+
+/// How the Jacobian treats the deformation of a robot with error models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum JacobianForm {
+    /// Every column exact: geometry differenced through the full deformed model, so the
+    /// deformation's own dependence on the geometry (its moment arms) is included.
+    Exact,
+    /// Geometry columns as first-order twists at the deformed frames with the deformation
+    /// held: a few vector operations per pose and column, off by the relative size of the
+    /// deflections (about 1e-3), which is what an iteration far from the minimum needs.
+    HeldDeformation,
+}
+
+/// How one Jacobian column is computed (see [`Problem::jacobian`]).
+enum ColumnPlan {
+    /// Geometry acting through joint placements and point frames: the twist per unit of the
+    /// parameter at each joint frame and point it moves.
+    Twists {
+        joints: Vec<(usize, Vector6<f64>)>,
+        points: Vec<(usize, Vector6<f64>)>,
+    },
+    /// Geometry that changes a joint's motion: finite differences of the full model.
+    Finite { tree: KinematicTree, h: f64 },
+    /// An error-model parameter: finite differences of the deformed kinematics with that
+    /// model's deformation re-evaluated (the rigid kinematics is reused).
+    /// `values` are the model's parameters with this one stepped by `h`.
+    Model { model: usize, values: Vec<f64>, h: f64 },
+    /// A parameter of a load-adjusting model (a payload mass, a base tilt): finite differences
+    /// of the full model, since every elastic model responds to the load. `errors` are all the
+    /// models' parameters with this one stepped by `h`.
+    Loads { errors: Vec<Vec<f64>>, h: f64 },
+    /// A base-frame parameter: finite differences of `T_meas_base` (no kinematics) between
+    /// the current pose and the one with the parameter stepped by `h`.
+    Base {
+        from: Isometry3<f64>,
+        to: Isometry3<f64>,
+        h: f64,
+    },
+    /// A marker offset along `axis` of its link frame: exact.
+    Marker { point: usize, axis: usize },
+}
+
+/// How many prior standard deviations a parameter the data barely determine may move.
+pub const PRIOR_BOX: f64 = 3.0;
+
+/// What the data determine of the selected parameters, before any fitting.
+struct Assessment {
+    report: IdentifiabilityReport,
+    /// The selected parameters left free (not fixed as undeterminable).
+    free: Vec<usize>,
+    /// The free parameters the data barely determine (see [`barely_seen`]).
+    held: Vec<usize>,
+}
+
+/// Identifies the parameters chosen by `params.identify` from `samples` (measured positions
+/// in the measurement frame). `observer` sees every iteration (for a progress display).
+///
+/// The fit is staged so that a poor guess of the measurement frame cannot leak into the chain:
+/// when the whole base frame is identified it is first registered in closed form (the
+/// measured points against the nominal model's), then the measurement frame and markers are
+/// fitted alone, and only then everything selected, each stage starting where the last ended.
+/// Parameters the data cannot determine are reported and held (see the module documentation);
+/// when the iteration limit is reached the best parameters found are kept and the report says
+/// it did not converge.
+pub fn calibrate(
+    robot: &Robot,
+    samples: &[Sample],
+    params: &CalibrationParams,
+    observer: &mut dyn FnMut(&IterationInfo),
+) -> Result<Calibration> {
+    if samples.is_empty() {
+        return Err(Error::Input("calibration needs at least one measurement".into()));
+    }
+    if !(params.measurement_std.is_finite() && params.measurement_std > 0.0) {
+        return Err(Error::Input(format!(
+            "the measurement noise must be positive, got {} m",
+            params.measurement_std
+        )));
+    }
+    if params.identify.iter().any(|w| w.trim().is_empty()) {
+        return Err(Error::Input(
+            "--identify has an empty entry; name what to identify (base, markers, geometry, offsets, errors, all, \
+             an error model type or a parameter pattern such as `j2.*`)"
+                .into(),
+        ));
+    }
+    if params.prior_scale.is_nan() || params.prior_scale <= 0.0 {
+        return Err(Error::Input(format!(
+            "the prior scale must be positive (or infinite for no priors), got {}",
+            params.prior_scale
+        )));
+    }
+    for (i, s) in samples.iter().enumerate() {
+        robot
+            .tree()
+            .check_q(&s.q)
+            .map_err(|e| Error::Input(format!("sample {}: {e}", i + 1)))?;
+        if s.point >= robot.tree().points().len() {
+            return Err(Error::Input(format!(
+                "sample {}: point index {} does not exist",
+                i + 1,
+                s.point
+            )));
+        }
+    }
+    let space = prior_space(robot, params);
+    let selected = space.select(robot, &params.identify)?;
+    let problem = Problem {
+        robot,
+        space: &space,
+        samples,
+        sigma: params.measurement_std,
+    };
+    // The priors' centre: the robot's values, the measurement frame as registered.
+    let mut theta0 = space.initial();
+    let (_, _, pred) = problem.predict(&theta0)?;
+    // A model whose residuals overflow cannot be fitted; say which value to look at.
+    if let Some(i) = (0..samples.len()).find(|&i| !(pred[i] - samples[i].position).norm_squared().is_finite()) {
+        return Err(Error::Input(format!(
+            "the robot model puts sample {}'s point at {:?} m, too far for a finite residual; a value in the robot \
+             file is out of range",
+            i + 1,
+            pred[i].as_slice()
+        )));
+    }
+    let before = stats(samples, &pred);
+    let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
+    let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
+    let (d, e, _) = problem.predict(&theta0)?;
+
+    // Identifiability at the start decides what is held.
+    let jac0 = problem.jacobian(&theta0, &d, &e, &selected, JacobianForm::Exact)?;
+    let Assessment {
+        report: mut identifiability,
+        free,
+        held,
+    } = assess(&space, &jac0, &selected, params.rank_tolerance);
+    let mut held_space = space.clone();
+    for &k in &held {
+        let info = &mut held_space.params[k].info;
+        info.lower = info.lower.max(theta0[k] - PRIOR_BOX * info.sigma);
+        info.upper = info.upper.min(theta0[k] + PRIOR_BOX * info.sigma);
+    }
+    let problem = Problem {
+        space: &held_space,
+        ..problem
+    };
+    let frames: Vec<usize> = free
+        .iter()
+        .copied()
+        .filter(|&k| matches!(space.params[k].group, ParamGroup::Base | ParamGroup::Marker(_)))
+        .collect();
+    let mut stage = Stage {
+        theta: theta0.clone(),
+        d,
+        e,
+        iterations: 0,
+    };
+    let mut outcome = StageOutcome {
+        converged: free.is_empty(),
+        stop_reason: "nothing to identify".into(),
+    };
+    if !frames.is_empty() && frames.len() < free.len() {
+        problem.levenberg_marquardt(&mut stage, &theta0, &frames, params, observer)?;
+    }
+    if !free.is_empty() {
+        outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
+    }
+    let mut restarts_rms_mm = Vec::new();
+    if !free.is_empty() && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
+        let mut best_cost = problem.cost(&stage, &theta0, &free);
+        let mut rng = StdRng::seed_from_u64(params.seed);
+        for _ in 0..params.restarts {
+            let mut start = stage.theta.clone();
+            for &k in &free {
+                // One draw per parameter whether used or not, so that two fits sharing their
+                // first parameters (a baseline and a candidate) start from the same geometry.
+                let z: f64 = StandardNormal.sample(&mut rng);
+                let info = &held_space.params[k].info;
+                let spread = if info.multimodal {
+                    typical_size(info)
+                } else {
+                    info.sigma
+                };
+                if spread.is_finite() {
+                    start[k] = (start[k] + z * spread).clamp(info.lower, info.upper);
+                }
+            }
+            let Ok((d, e, _)) = problem.predict(&start) else {
+                continue;
+            };
+            let mut trial = Stage {
+                theta: start,
+                d,
+                e,
+                iterations: 0,
+            };
+            let trial_outcome = problem.levenberg_marquardt(&mut trial, &theta0, &free, params, observer)?;
+            restarts_rms_mm.push(problem.rms_over_noise(&trial) * 3f64.sqrt() * params.measurement_std * 1e3);
+            let cost = problem.cost(&trial, &theta0, &free);
+            if cost < best_cost {
+                (best_cost, stage, outcome) = (cost, trial, trial_outcome);
+            }
+        }
+    }
+    let Stage {
+        theta,
+        d,
+        e,
+        iterations,
+    } = stage;
+
+    // Linearised covariance at the solution, scaled by the fit's own residual variance.
+    let pred = to_meas(&d.t_meas_base, &e.world);
+    let r = problem.residuals(&pred);
+    let j = problem.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?;
+    let mut a = j.transpose() * &j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    let dof = (r.len() as f64 - free.len() as f64).max(1.0);
+    let s2 = r.norm_squared() / dof;
+    let (condition_number_free, inv_diag) = normal_equations(&a);
+    identifiability.condition_number_free = condition_number_free;
+    let cov_diag: Vec<f64> = inv_diag.iter().map(|v| s2 * v).collect();
+    let initial = space.initial();
+    let params_out = selected
+        .iter()
+        .map(|&k| {
+            // The bounds the fit kept, the prior's box included.
+            let info = &held_space.params[k].info;
+            let c = free.iter().position(|&f| f == k);
+            ParamResult {
+                name: info.name.clone(),
+                quantity: info.quantity,
+                unit: info.quantity.si_unit(),
+                initial: initial[k],
+                value: theta[k],
+                std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
+                fixed: c.is_none(),
+                at_bound: c.is_some() && (theta[k] <= info.lower || theta[k] >= info.upper),
+                plausible: info.is_plausible(theta[k]),
+            }
+        })
+        .collect();
+
+    let after = stats(samples, &pred);
+    let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
+    // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
+    // can shrink the arm onto positions read a thousand times too small.
+    let unit_mistake = unit_mistake(&problem, &theta0)?;
+    let mut warnings = Vec::new();
+    if rms_over_noise > FAR_ABOVE_NOISE || rms_over_noise.is_nan() {
+        warnings.push(format!(
+            "the fit's RMS ({:.4} mm) is {rms_over_noise:.0} times what the declared noise ({} mm per axis) gives \
+             (√3·σ = {:.4} mm)",
+            after.rms_mm,
+            params.measurement_std * 1e3,
+            3f64.sqrt() * params.measurement_std * 1e3
+        ));
+        if unit_mistake.is_none() {
+            warnings.push(
+                "likely causes: wrong units in the data or the robot file, measurements of another point than the \
+                 markers (or rows mixed up), the noise declared too small, or an effect the model lacks (try \
+                 `armcomp diagnose`)"
+                    .into(),
+            );
+        }
+    }
+    let units_mislabelled = unit_mistake.is_some();
+    warnings.extend(unit_mistake);
+    // A value no real robot has says the model explains the data with the wrong effect.
+    warnings.extend(
+        selected
+            .iter()
+            .filter(|&&k| free.contains(&k))
+            .filter_map(|&k| held_space.params[k].info.implausibility(theta[k])),
+    );
+    let calibrated = apply(robot, &space, &theta)?;
+    Ok(Calibration {
+        robot: calibrated,
+        report: CalibrationReport {
+            n_samples: samples.len(),
+            measured_chain: robot.measured_joint_names(),
+            registered,
+            prior_scale: params.use_priors.then_some(params.prior_scale),
+            identifiability,
+            params: params_out,
+            iterations,
+            restarts_rms_mm,
+            converged: outcome.converged,
+            stop_reason: outcome.stop_reason,
+            before,
+            after,
+            rms_over_noise,
+            units_mislabelled,
+            warnings,
+        },
+    })
+}
+
+/// Where a fit stands: parameters, what they decode to, and the iterations so far.
+struct Stage {
+    theta: Vec<f64>,
+    d: Decoded,
+    e: Evaluation,
+    iterations: usize,
+}
+
+/// How a Levenberg–Marquardt run ended.
+struct StageOutcome {
+    converged: bool,
+    stop_reason: String,
+}
+
+fn stats(samples: &[Sample], predicted: &[Vector3<f64>]) -> ErrorStats {
+    let errors: Vec<Vector3<f64>> = samples.iter().zip(predicted).map(|(s, p)| s.position - p).collect();
+    ErrorStats::from_errors(&errors)
+}

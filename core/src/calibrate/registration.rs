@@ -1,0 +1,144 @@
+//! Closed-form registration of the measurement frame, and the check for mislabelled units.
+
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+use crate::error::Result;
+use crate::measurement::Sample;
+
+use super::*;
+
+/// Registers the measurement frame in closed form: the rigid transform that best maps the
+/// model's points (robot base frame) onto the measured ones (see [`rigid_fit`]). Writes it
+/// into the base parameters of `theta` and returns true, or leaves `theta` alone and returns
+/// false when the points do not span a plane (a rotation is then not determined).
+pub(super) fn register_base(
+    space: &ParameterSpace,
+    theta: &mut [f64],
+    samples: &[Sample],
+    measured_now: &[Vector3<f64>],
+) -> bool {
+    // `measured_now` are the model's points seen through the current base frame; map them
+    // back into the base frame.
+    let t_now = space.base_pose(theta);
+    let model: Vec<Vector3<f64>> = measured_now
+        .iter()
+        .map(|p| t_now.inverse_transform_point(&(*p).into()).coords)
+        .collect();
+    let measured: Vec<Vector3<f64>> = samples.iter().map(|s| s.position).collect();
+    let Some((rotation, v)) = rigid_fit(&model, &measured) else {
+        return false;
+    };
+    let (r, p, y) = rotation.euler_angles();
+    let values = [v.x, v.y, v.z, r, p, y];
+    theta[space.base_offset..space.base_offset + 6].copy_from_slice(&values);
+    true
+}
+
+/// The rigid transform (rotation, then translation) that best maps `model` onto `measured` in
+/// least squares, by the SVD of their cross-covariance (Kabsch/Umeyama, no scale); none when
+/// the points do not span a plane.
+pub(super) fn rigid_fit(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Option<(Rotation3<f64>, Vector3<f64>)> {
+    let n = model.len() as f64;
+    let cm = model.iter().sum::<Vector3<f64>>() / n;
+    let cs = measured.iter().sum::<Vector3<f64>>() / n;
+    let mut h = Matrix3::zeros();
+    for (m, s) in model.iter().zip(measured) {
+        h += (m - cm) * (s - cs).transpose();
+    }
+    let svd = h.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut sv: Vec<f64> = svd.singular_values.iter().copied().collect();
+    sv.sort_by(|a, b| b.total_cmp(a));
+    if sv[1].is_nan() || sv[1] <= 1e-9 * sv[0].max(1e-300) {
+        return None;
+    }
+    let v = v_t.transpose();
+    let d = (v * u.transpose()).determinant().signum();
+    let rotation = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    let rotation = Rotation3::from_matrix_unchecked(rotation);
+    Some((rotation, cs - rotation * cm))
+}
+
+/// RMS (m) of `measured` against `model` after the best rigid registration; infinite when
+/// none is determined.
+pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> f64 {
+    let Some((rotation, translation)) = rigid_fit(model, measured) else {
+        return f64::INFINITY;
+    };
+    let sum: f64 = model
+        .iter()
+        .zip(measured)
+        .map(|(m, s)| (rotation * m + translation - s).norm_squared())
+        .sum();
+    (sum / model.len() as f64).sqrt()
+}
+
+/// A unit mistake the data give away: the starting model registered rigidly onto the measured
+/// points fits ten times better once the positions or the revolute joint values are read in
+/// the other unit. The message names the mistake and the fix.
+pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Option<String>> {
+    let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
+        let p = Problem { samples, ..*problem };
+        Ok(p.predict(theta0)?.1.world)
+    };
+    let measured: Vec<Vector3<f64>> = problem.samples.iter().map(|s| s.position).collect();
+    let model = model_points(problem.samples)?;
+    let as_declared = registered_rms(&model, &measured);
+    let revolute: Vec<bool> = problem
+        .robot
+        .tree()
+        .coordinate_is_prismatic()
+        .iter()
+        .map(|p| !p)
+        .collect();
+    let rescaled_angles = |f: f64| -> Result<f64> {
+        let samples: Vec<Sample> = problem
+            .samples
+            .iter()
+            .map(|s| {
+                let mut s = s.clone();
+                s.q.iter_mut()
+                    .zip(&revolute)
+                    .filter(|(_, r)| **r)
+                    .for_each(|(q, _)| *q *= f);
+                s
+            })
+            .collect();
+        Ok(registered_rms(&model_points(&samples)?, &measured))
+    };
+    let deg = 180.0 / std::f64::consts::PI;
+    let scaled = |f: f64| registered_rms(&model, &measured.iter().map(|p| p * f).collect::<Vec<_>>());
+    let hypotheses = [
+        (
+            scaled(1e3),
+            "the positions look like metres declared as millimetres: read 1000 times larger they fit",
+            "declare the position columns in metres (`x[m]`, `y[m]`, `z[m]`)",
+        ),
+        (
+            scaled(1e-3),
+            "the positions look like millimetres declared as metres: read 1000 times smaller they fit",
+            "declare the position columns in millimetres (`x[mm]`, `y[mm]`, `z[mm]`)",
+        ),
+        (
+            rescaled_angles(deg)?,
+            "the revolute joint values look like radians declared as degrees: read as radians they fit",
+            "declare the joint columns in radians (`j1[rad]`, ...)",
+        ),
+        (
+            rescaled_angles(1.0 / deg)?,
+            "the revolute joint values look like degrees declared as radians: read as degrees they fit",
+            "declare the joint columns in degrees (`j1[deg]`, ...)",
+        ),
+    ];
+    let best = hypotheses
+        .iter()
+        .filter(|(rms, _, _)| *rms < 0.1 * as_declared)
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    Ok(best.map(|(rms, what, fix)| {
+        format!(
+            "{what} (the starting model registered onto them leaves {:.3} mm instead of {:.3} mm); {fix}",
+            rms * 1e3,
+            as_declared * 1e3
+        )
+    }))
+}

@@ -1,0 +1,312 @@
+//! The parameter space: every parameter calibration can touch, by name, and the robot with
+//! a parameter vector written into its description.
+
+use nalgebra::{Isometry3, Vector3};
+
+use crate::error::{Error, Result};
+use crate::geom::xyz_rpy;
+use crate::param::{ParamInfo, Quantity};
+use crate::robot::Robot;
+use crate::tree::{KinematicTree, Motion};
+
+use super::*;
+
+impl ParameterSpace {
+    /// The parameters of `robot`, starting at its current values.
+    pub fn new(robot: &Robot) -> Self {
+        let mut params = Vec::new();
+        for (info, v) in robot.chain_params().iter().zip(robot.chain_values()) {
+            let mut info = info.clone();
+            info.nominal = *v;
+            params.push(SpaceParam {
+                info,
+                group: ParamGroup::Geometry,
+                model_type: String::new(),
+            });
+        }
+        let n_chain = params.len();
+        let mut error_offsets = Vec::new();
+        for (i, (m, values)) in robot.error_models().iter().zip(robot.error_values()).enumerate() {
+            error_offsets.push(params.len());
+            let model_type = model_type_name(robot, i);
+            for (info, v) in m.params().iter().zip(values) {
+                let mut info = info.clone();
+                info.nominal = *v;
+                params.push(SpaceParam {
+                    info,
+                    group: ParamGroup::ErrorModel(i),
+                    model_type: model_type.clone(),
+                });
+            }
+        }
+        let base_offset = params.len();
+        let (xyz, rpy) = base_xyz_rpy(&robot.t_meas_base());
+        let mut setup = setup_param_names(robot).into_iter();
+        for k in 0..BASE_NAMES.len() {
+            let (quantity, value) = if k < 3 {
+                (Quantity::Length, xyz[k])
+            } else {
+                (Quantity::Angle, rpy[k - 3])
+            };
+            params.push(SpaceParam {
+                info: ParamInfo::new(
+                    setup.next().expect("one name per base parameter"),
+                    quantity,
+                    value,
+                    f64::INFINITY,
+                ),
+                group: ParamGroup::Base,
+                model_type: String::new(),
+            });
+        }
+        let marker_offset = params.len();
+        for i in 0..robot.markers().len() {
+            for _ in 0..3 {
+                params.push(SpaceParam {
+                    info: ParamInfo::new(
+                        setup.next().expect("three names per marker"),
+                        Quantity::Length,
+                        0.0,
+                        f64::INFINITY,
+                    ),
+                    group: ParamGroup::Marker(i),
+                    model_type: String::new(),
+                });
+            }
+        }
+        ParameterSpace {
+            params,
+            n_chain,
+            error_offsets,
+            base_offset,
+            marker_offset,
+        }
+    }
+
+    /// Starting values of every parameter (SI; marker entries are offsets from the file's).
+    pub fn initial(&self) -> Vec<f64> {
+        self.params.iter().map(|p| p.info.nominal).collect()
+    }
+
+    /// Indices of the parameters named by `identify`: group words `base`, `markers`,
+    /// `geometry` (of the measured chain: the joints that move a marker), `offsets` (its
+    /// joint-value offsets: `θ` of revolute and `d` of prismatic joints, `offset` of URDF
+    /// joints), `errors` (every error model), `all`, an error model's type name
+    /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
+    /// Empty means `base, markers, geometry, errors`. What the robot file's `fixed` names is
+    /// left out.
+    pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
+        let default = ["base", "markers", "geometry", "errors"].map(String::from);
+        let words: &[String] = if identify.is_empty() { &default } else { identify };
+        // Geometry words mean the chain the markers hang from: a joint elsewhere (another
+        // limb, a wheel, a sensor mount) cannot move what was measured.
+        let measured = robot.measured_joints();
+        let on_measured_chain = |name: &str| {
+            name.rsplit_once('.')
+                .and_then(|(joint, _)| robot.tree().joint_index(joint))
+                .is_none_or(|j| measured[j])
+        };
+        let mut chosen = vec![false; self.params.len()];
+        for word in words {
+            let word = word.trim();
+            let mut any = false;
+            for (k, p) in self.params.iter().enumerate() {
+                let hit = match word {
+                    "all" => true,
+                    "base" => p.group == ParamGroup::Base,
+                    "markers" => matches!(p.group, ParamGroup::Marker(_)),
+                    "geometry" => p.group == ParamGroup::Geometry && on_measured_chain(&p.info.name),
+                    "errors" => matches!(p.group, ParamGroup::ErrorModel(_)),
+                    "offsets" => {
+                        p.group == ParamGroup::Geometry
+                            && on_measured_chain(&p.info.name)
+                            && is_joint_offset(robot.tree(), &p.info.name)
+                    }
+                    w if w.contains('*') => glob_match(w, &p.info.name),
+                    w => p.model_type == w || p.info.name == w,
+                };
+                if hit {
+                    chosen[k] = true;
+                    any = true;
+                }
+            }
+            if !any && !identify.is_empty() {
+                let types: Vec<String> = (0..robot.error_models().len())
+                    .map(|i| model_type_name(robot, i))
+                    .collect();
+                let types = if types.is_empty() {
+                    "it has none".to_string()
+                } else {
+                    types.join(", ")
+                };
+                return Err(Error::Input(format!(
+                    "--identify `{word}` matches no parameter; use base, markers, geometry, offsets, errors, all, \
+                     an error model of this robot ({types}), or a name pattern such as `j2.*`"
+                )));
+            }
+        }
+        // What the robot file fixes is known: never refitted, whatever the words select.
+        let fixed = &robot.file.fixed;
+        Ok((0..self.params.len())
+            .filter(|&k| chosen[k] && !fixed.iter().any(|f| name_matches(f, &self.params[k].info.name)))
+            .collect())
+    }
+
+    /// Decodes a full parameter vector into what forward kinematics needs.
+    pub(super) fn decode(&self, robot: &Robot, theta: &[f64]) -> Result<Decoded> {
+        let errors = self
+            .error_offsets
+            .iter()
+            .zip(robot.error_values())
+            .map(|(&o, v)| theta[o..o + v.len()].to_vec())
+            .collect();
+        Ok(Decoded {
+            tree: self.tree(robot, theta)?,
+            errors,
+            t_meas_base: self.base_pose(theta),
+        })
+    }
+
+    /// The tree of the chain parameters of `theta` with the markers moved by their offsets:
+    /// error models see the points where the model file will put them (a payload hanging at a
+    /// marker, a point on a bending link).
+    pub(super) fn tree(&self, robot: &Robot, theta: &[f64]) -> Result<KinematicTree> {
+        let mut tree = robot.tree_for(&theta[..self.n_chain])?;
+        for (i, &m) in robot.markers().iter().enumerate() {
+            let o = self.marker_offset + 3 * i;
+            let delta = Vector3::new(theta[o], theta[o + 1], theta[o + 2]);
+            if delta != Vector3::zeros() {
+                let point = &tree.points()[m];
+                let mut local = point.local;
+                // Offsets are in the body's convention frame, as the file's coordinates.
+                local.translation.vector += tree.bodies()[point.body].convention_frame.rotation * delta;
+                tree.set_point_local(m, local);
+            }
+        }
+        Ok(tree)
+    }
+
+    pub(super) fn base_pose(&self, theta: &[f64]) -> Isometry3<f64> {
+        let b = &theta[self.base_offset..self.base_offset + 6];
+        xyz_rpy([b[0], b[1], b[2]], [b[3], b[4], b[5]])
+    }
+}
+
+/// Names of the measurement-setup parameters of `robot`, in [`ParameterSpace`] order: the base
+/// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`).
+pub(crate) fn setup_param_names(robot: &Robot) -> Vec<String> {
+    let base = BASE_NAMES.iter().map(|n| format!("base.{n}"));
+    let markers = robot.markers().iter().flat_map(|&m| {
+        let name = &robot.tree().points()[m].name;
+        ["x", "y", "z"].map(|a| format!("marker.{name}.{a}"))
+    });
+    base.chain(markers).collect()
+}
+
+/// The `type` of error model `i` as written in the robot file.
+pub(super) fn model_type_name(robot: &Robot, i: usize) -> String {
+    serde_json::to_value(&robot.file.error_models[i])
+        .ok()
+        .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
+        .unwrap_or_default()
+}
+
+/// Whether chain parameter `name` (`<joint>.<suffix>`) adds to its joint's value.
+pub(super) fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
+    let Some((joint, suffix)) = name.rsplit_once('.') else {
+        return false;
+    };
+    match tree.joint_index(joint).map(|j| &tree.joints()[j].motion) {
+        Some(Motion::Revolute(_)) => suffix == "theta" || suffix == "offset",
+        Some(Motion::Prismatic(_)) => suffix == "d" || suffix == "offset",
+        _ => false,
+    }
+}
+
+/// Whether parameter `name` is `pattern`, or matches it when it has `*` wildcards.
+pub(crate) fn name_matches(pattern: &str, name: &str) -> bool {
+    pattern == name || (pattern.contains('*') && glob_match(pattern, name))
+}
+
+/// `*` matches any run of characters (`pattern` has at least one); everything else matches
+/// itself.
+pub(super) fn glob_match(pattern: &str, name: &str) -> bool {
+    let parts: Vec<&str> = pattern.split('*').collect();
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if !name.starts_with(first) || name.len() < first.len() + last.len() || !name.ends_with(last) {
+        return false;
+    }
+    let mut rest = &name[first.len()..name.len() - last.len()];
+    for part in &parts[1..parts.len() - 1] {
+        match rest.find(part) {
+            Some(i) => rest = &rest[i + part.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+pub(super) fn base_xyz_rpy(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
+    let (r, p, y) = t.rotation.euler_angles();
+    let v = t.translation.vector;
+    ([v.x, v.y, v.z], [r, p, y])
+}
+
+/// The robot's parameter space with the priors `params` asks for (scaled by its
+/// `prior_scale`, or none).
+pub(super) fn prior_space(robot: &Robot, params: &CalibrationParams) -> ParameterSpace {
+    let mut space = ParameterSpace::new(robot);
+    for p in &mut space.params {
+        p.info.sigma = if params.use_priors {
+            p.info.sigma * params.prior_scale
+        } else {
+            f64::INFINITY
+        };
+    }
+    space
+}
+
+impl ParameterSpace {
+    /// The robot with every parameter of `theta` (a full vector, as [`initial`](Self::initial))
+    /// written into its description.
+    pub fn apply(&self, robot: &Robot, theta: &[f64]) -> Result<Robot> {
+        apply(robot, self, theta)
+    }
+
+    /// Index of the parameter called `name`.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.params.iter().position(|p| p.info.name == name)
+    }
+}
+
+pub(super) fn apply(robot: &Robot, space: &ParameterSpace, theta: &[f64]) -> Result<Robot> {
+    if theta.len() != space.params.len() {
+        return Err(Error::Dimension {
+            what: "calibration parameters".into(),
+            expected: space.params.len(),
+            got: theta.len(),
+        });
+    }
+    let errors: Vec<Vec<f64>> = space
+        .error_offsets
+        .iter()
+        .zip(robot.error_values())
+        .map(|(&o, v)| theta[o..o + v.len()].to_vec())
+        .collect();
+    let mut file = robot.file_with(&theta[..space.n_chain], &errors);
+    let units = file.units;
+    let b = &theta[space.base_offset..space.base_offset + 6];
+    let measurement = file.measurement.get_or_insert_with(Default::default);
+    measurement.base_xyz = [b[0], b[1], b[2]].map(|v| units.len_out(v));
+    measurement.base_rpy = [b[3], b[4], b[5]].map(|v| units.ang_out(v));
+    for (i, &m) in robot.markers().iter().enumerate() {
+        let name = &robot.tree().points()[m].name;
+        let o = space.marker_offset + 3 * i;
+        if let Some(p) = file.points.iter_mut().find(|p| &p.name == name) {
+            for a in 0..3 {
+                p.xyz[a] += units.len_out(theta[o + a]);
+            }
+        }
+    }
+    robot.rebuild(file)
+}
