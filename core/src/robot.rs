@@ -140,255 +140,15 @@ impl Robot {
 
         check_joint_names(&file, &base_tree, &mut issues);
 
-        // Points.
-        let mut points = Vec::new();
-        let mut point_names = std::collections::HashSet::new();
-        for (i, p) in file.points.iter().enumerate() {
-            let path = format!("points[{i}]");
-            if !point_names.insert(p.name.as_str()) {
-                issues.push(format!("{path}.name"), format!("point `{}` is defined twice", p.name));
-            }
-            if let Err(m) = check_column_name(&p.name, false) {
-                issues.push(
-                    format!("{path}.name"),
-                    format!("point name `{}` {m}", p.name.escape_debug()),
-                );
-            }
-            if p.xyz.iter().chain(p.rpy.iter()).any(|v| !v.is_finite()) {
-                issues.push(format!("{path}.xyz"), "expected finite numbers");
-                continue;
-            }
-            match base_tree.body_index(&p.link) {
-                Some(body) => {
-                    let local = xyz_rpy(units.len3(p.xyz), units.ang3(p.rpy));
-                    points.push(ResolvedPoint {
-                        name: p.name.clone(),
-                        body,
-                        local,
-                    });
-                }
-                None => issues.push(
-                    format!("{path}.link"),
-                    format!(
-                        "point `{}` is on link `{}`, which does not exist; links are: {}",
-                        p.name,
-                        p.link,
-                        body_names(&base_tree)
-                    ),
-                ),
-            }
-        }
-        let tool = points.iter().position(|p| p.name == file.tool);
-        if tool.is_none() && !file.points.iter().any(|p| p.name == file.tool) {
-            issues.push(
-                "tool",
-                format!(
-                    "the tool point `{}` is not among the points ([[points]] with name = \"{}\")",
-                    file.tool, file.tool
-                ),
-            );
-        }
+        let (points, tool) = resolve_points(&file, &base_tree, &units, &mut issues);
 
-        // Mass model and shapes: the convention's own (URDF inertials and collision
-        // elements) first, then the file's links override them.
-        let mut mass = MassModel::massless(base_tree.bodies().len());
-        let mut shapes = Vec::new();
-        for l in chain.links() {
-            let Some(body) = base_tree.body_index(&l.name) else {
-                continue;
-            };
-            if let Some((m, com)) = l.mass {
-                mass.bodies[body].mass = m;
-                mass.bodies[body].com = com;
-            }
-            shapes.extend(l.shapes.iter().map(|(local, shape)| BodyShape {
-                body,
-                local: *local,
-                shape: *shape,
-            }));
-        }
-        for (i, l) in file.links.iter().enumerate() {
-            let path = format!("links[{i}]");
-            if let Some(k) = file.links[..i].iter().position(|o| o.name == l.name) {
-                issues.push(
-                    format!("{path}.name"),
-                    format!(
-                        "link `{}` is described twice (also links[{k}]); merge the two entries",
-                        l.name
-                    ),
-                );
-                continue;
-            }
-            let Some(body) = base_tree.body_index(&l.name) else {
-                issues.push(
-                    format!("{path}.name"),
-                    format!(
-                        "link `{}` does not exist; links are: {}",
-                        l.name,
-                        body_names(&base_tree)
-                    ),
-                );
-                continue;
-            };
-            let frame = base_tree.bodies()[body].convention_frame;
-            if let Some(m) = l.mass
-                && !(m.is_finite() && m > 0.0)
-            {
-                issues.push(
-                    format!("{path}.mass"),
-                    format!("expected a positive mass in kg, got {m}"),
-                );
-            }
-            if let Some(c) = l.com
-                && c.iter().any(|v| !v.is_finite())
-            {
-                issues.push(format!("{path}.com"), "expected three finite numbers");
-            }
-            if !l.shapes.is_empty() {
-                shapes.retain(|s| s.body != body);
-                for (k, s) in l.shapes.iter().enumerate() {
-                    let spath = format!("{path}.shapes[{k}]");
-                    if let Some(shape) = placed_shape(&s.geometry, s.xyz, s.rpy, &units, &spath, &mut issues) {
-                        if shape.1 == Shape::Plane {
-                            issues.push(
-                                format!("{spath}.geometry"),
-                                "a plane is unbounded: declare it as a fixture",
-                            );
-                            continue;
-                        }
-                        shapes.push(BodyShape {
-                            body,
-                            local: frame * shape.0,
-                            shape: shape.1,
-                        });
-                    }
-                }
-            }
-            let from_density = match (l.density, l.mass) {
-                (Some(_), Some(_)) => {
-                    issues.push(
-                        format!("{path}.density"),
-                        "give either `mass` or `density` (with shapes), not both",
-                    );
-                    None
-                }
-                (Some(rho), None) if !(rho.is_finite() && rho > 0.0) => {
-                    issues.push(
-                        format!("{path}.density"),
-                        format!("expected a positive density in kg/m³, got {rho}"),
-                    );
-                    None
-                }
-                (Some(rho), None) => {
-                    let solids = shapes
-                        .iter()
-                        .filter(|s| s.body == body)
-                        .filter_map(|s| Some(s.shape.mass_properties(rho)?.transformed(&s.local)))
-                        .reduce(|a, b| a.combined(&b));
-                    if solids.is_none() {
-                        issues.push(
-                            format!("{path}.density"),
-                            "a density needs the link's `shapes` (or URDF collision elements) to give a volume",
-                        );
-                    }
-                    solids
-                }
-                (None, _) => None,
-            };
-            let body_mass = &mut mass.bodies[body];
-            if let Some(m) = l.mass {
-                body_mass.mass = m;
-            }
-            if let Some(solid) = from_density {
-                body_mass.mass = solid.mass;
-                body_mass.com = solid.com;
-            }
-            if let Some(c) = l.com {
-                body_mass.com = frame.transform_point(&units.len3(c).into()).coords;
-            }
-            body_mass.beam = l
-                .beam
-                .as_ref()
-                .and_then(|b| beam_rigidity(b, units.length.to_si(), &format!("{path}.beam"), &mut issues));
-        }
+        let (mut mass, shapes) = mass_and_shapes(&file, chain.as_ref(), &base_tree, &units, &mut issues);
         let collision = collision_geometry(&file, &base_tree, shapes, &mut issues);
         let warnings = chain.warnings().to_vec();
 
-        // Payload; without one, a payload given per measurement hangs at the tool.
-        let mut payload_point = tool;
-        if let Some(p) = &file.payload {
-            if !(p.mass.is_finite() && p.mass >= 0.0) {
-                issues.push(
-                    "payload.mass",
-                    format!("expected a mass of zero or more kg, got {}", p.mass),
-                );
-            }
-            let name = p.point.as_deref().unwrap_or(&file.tool);
-            match points.iter().find(|q| q.name == name) {
-                Some(q) => {
-                    let local = base_tree.bodies()[q.body].convention_frame * q.local;
-                    mass.payload = Some(Payload {
-                        mass: p.mass,
-                        body: q.body,
-                        com: local.translation.vector,
-                    });
-                    payload_point = points.iter().position(|r| r.name == name);
-                }
-                None => issues.push("payload.point", format!("point `{name}` does not exist")),
-            }
-        }
+        let payload_point = resolve_payload(&file, &points, tool, &base_tree, &mut mass, &mut issues);
 
-        // Measurement setup.
-        let (t_meas_base, marker_names) = match &file.measurement {
-            Some(m) => (
-                xyz_rpy(units.len3(m.base_xyz), units.ang3(m.base_rpy)),
-                m.markers.clone(),
-            ),
-            None => (Isometry3::identity(), Vec::new()),
-        };
-        let names = base_tree.coordinate_names();
-        let mut hold = vec![None; names.len()];
-        for (name, v) in file.measurement.iter().flat_map(|m| &m.hold) {
-            let field = format!("measurement.hold.{name}");
-            match names.iter().position(|n| n == name) {
-                Some(c) if v.is_finite() => {
-                    hold[c] = Some(if base_tree.coordinate_is_prismatic()[c] {
-                        units.len(*v)
-                    } else {
-                        units.ang(*v)
-                    })
-                }
-                Some(_) => issues.push(field, "expected a finite number"),
-                None => issues.push(
-                    field,
-                    format!(
-                        "`{name}` is not an independent joint (expected one of: {})",
-                        names.join(", ")
-                    ),
-                ),
-            }
-        }
-        let point_index: std::collections::HashMap<&str, usize> = points
-            .iter()
-            .enumerate()
-            .rev()
-            .map(|(k, p)| (p.name.as_str(), k))
-            .collect();
-        let mut markers = Vec::new();
-        for (i, name) in marker_names.iter().enumerate() {
-            match point_index.get(name.as_str()).copied() {
-                Some(k) => markers.push(k),
-                None => issues.push(
-                    format!("measurement.markers[{i}]"),
-                    format!("point `{name}` does not exist"),
-                ),
-            }
-        }
-        if markers.is_empty()
-            && let Some(t) = tool
-        {
-            markers.push(t);
-        }
+        let (t_meas_base, markers, hold) = measurement_setup(&file, &base_tree, &points, tool, &units, &mut issues);
 
         if !issues.is_empty() {
             return Err(issues.0);
@@ -424,60 +184,7 @@ impl Robot {
             p.com = site.1;
         }
 
-        // Error models see the finished tree and mass model.
-        let mut models = Vec::new();
-        for (i, spec) in robot.file.error_models.iter().enumerate() {
-            let path = format!("error_models[{i}]");
-            let mctx = ModelContext {
-                build: BuildContext {
-                    units,
-                    base_dir,
-                    path: &path,
-                },
-                tree: &robot.tree,
-                mass: &robot.mass,
-            };
-            match spec.build(&mctx) {
-                Ok(m) => models.push(m),
-                Err(e) => issues.0.extend(e.0),
-            }
-        }
-        // A model listed twice would give two parameters of one name, which calibration and
-        // model files cannot tell apart.
-        let mut owners = std::collections::HashMap::new();
-        for (i, m) in models.iter().enumerate() {
-            for p in m.params() {
-                if let Some(k) = owners.insert(p.name.as_str(), i).filter(|k| *k != i) {
-                    issues.push(
-                        format!("error_models[{i}]"),
-                        format!(
-                            "its parameter `{}` is also a parameter of error_models[{k}]; is the model listed twice?",
-                            p.name
-                        ),
-                    );
-                    break;
-                }
-            }
-        }
-        // Every entry of `fixed` must name a parameter calibration knows.
-        let names: Vec<String> = robot
-            .chain_params()
-            .iter()
-            .chain(models.iter().flat_map(|m| m.params()))
-            .map(|p| p.name.clone())
-            .chain(crate::calibrate::setup_param_names(&robot))
-            .collect();
-        for (i, pattern) in robot.file.fixed.iter().enumerate() {
-            if !names.iter().any(|n| crate::calibrate::name_matches(pattern, n)) {
-                issues.push(
-                    format!("fixed[{i}]"),
-                    format!(
-                        "`{pattern}` matches no parameter of this robot; names are like {}",
-                        names.iter().take(4).cloned().collect::<Vec<_>>().join(", ")
-                    ),
-                );
-            }
-        }
+        let models = build_error_models(&robot, base_dir, &mut issues);
         if !issues.is_empty() {
             return Err(issues.0);
         }
@@ -917,6 +624,350 @@ fn check_column_name(name: &str, header: bool) -> std::result::Result<(), String
         return Err("is the name of a measurement CSV column (point, x, y, z, qw, qx, qy, qz, payload, temperature, tau_<joint>)".into());
     }
     Ok(())
+}
+
+/// The file's points on the links of `tree`, and the index of the tool among them.
+fn resolve_points(
+    file: &RobotFile,
+    base_tree: &KinematicTree,
+    units: &Units,
+    issues: &mut Issues,
+) -> (Vec<ResolvedPoint>, Option<usize>) {
+    // Points.
+    let mut points = Vec::new();
+    let mut point_names = std::collections::HashSet::new();
+    for (i, p) in file.points.iter().enumerate() {
+        let path = format!("points[{i}]");
+        if !point_names.insert(p.name.as_str()) {
+            issues.push(format!("{path}.name"), format!("point `{}` is defined twice", p.name));
+        }
+        if let Err(m) = check_column_name(&p.name, false) {
+            issues.push(
+                format!("{path}.name"),
+                format!("point name `{}` {m}", p.name.escape_debug()),
+            );
+        }
+        if p.xyz.iter().chain(p.rpy.iter()).any(|v| !v.is_finite()) {
+            issues.push(format!("{path}.xyz"), "expected finite numbers");
+            continue;
+        }
+        match base_tree.body_index(&p.link) {
+            Some(body) => {
+                let local = xyz_rpy(units.len3(p.xyz), units.ang3(p.rpy));
+                points.push(ResolvedPoint {
+                    name: p.name.clone(),
+                    body,
+                    local,
+                });
+            }
+            None => issues.push(
+                format!("{path}.link"),
+                format!(
+                    "point `{}` is on link `{}`, which does not exist; links are: {}",
+                    p.name,
+                    p.link,
+                    body_names(base_tree)
+                ),
+            ),
+        }
+    }
+    let tool = points.iter().position(|p| p.name == file.tool);
+    if tool.is_none() && !file.points.iter().any(|p| p.name == file.tool) {
+        issues.push(
+            "tool",
+            format!(
+                "the tool point `{}` is not among the points ([[points]] with name = \"{}\")",
+                file.tool, file.tool
+            ),
+        );
+    }
+    (points, tool)
+}
+
+/// Masses, centres of mass, beams and collision shapes of the links: the convention's own
+/// (URDF inertials and collision elements) first, then the file's links override them.
+fn mass_and_shapes(
+    file: &RobotFile,
+    chain: &dyn Chain,
+    base_tree: &KinematicTree,
+    units: &Units,
+    issues: &mut Issues,
+) -> (MassModel, Vec<BodyShape>) {
+    let mut mass = MassModel::massless(base_tree.bodies().len());
+    let mut shapes = Vec::new();
+    for l in chain.links() {
+        let Some(body) = base_tree.body_index(&l.name) else {
+            continue;
+        };
+        if let Some((m, com)) = l.mass {
+            mass.bodies[body].mass = m;
+            mass.bodies[body].com = com;
+        }
+        shapes.extend(l.shapes.iter().map(|(local, shape)| BodyShape {
+            body,
+            local: *local,
+            shape: *shape,
+        }));
+    }
+    for (i, l) in file.links.iter().enumerate() {
+        let path = format!("links[{i}]");
+        if let Some(k) = file.links[..i].iter().position(|o| o.name == l.name) {
+            issues.push(
+                format!("{path}.name"),
+                format!(
+                    "link `{}` is described twice (also links[{k}]); merge the two entries",
+                    l.name
+                ),
+            );
+            continue;
+        }
+        let Some(body) = base_tree.body_index(&l.name) else {
+            issues.push(
+                format!("{path}.name"),
+                format!("link `{}` does not exist; links are: {}", l.name, body_names(base_tree)),
+            );
+            continue;
+        };
+        let frame = base_tree.bodies()[body].convention_frame;
+        if let Some(m) = l.mass
+            && !(m.is_finite() && m > 0.0)
+        {
+            issues.push(
+                format!("{path}.mass"),
+                format!("expected a positive mass in kg, got {m}"),
+            );
+        }
+        if let Some(c) = l.com
+            && c.iter().any(|v| !v.is_finite())
+        {
+            issues.push(format!("{path}.com"), "expected three finite numbers");
+        }
+        if !l.shapes.is_empty() {
+            shapes.retain(|s| s.body != body);
+            for (k, s) in l.shapes.iter().enumerate() {
+                let spath = format!("{path}.shapes[{k}]");
+                if let Some(shape) = placed_shape(&s.geometry, s.xyz, s.rpy, units, &spath, issues) {
+                    if shape.1 == Shape::Plane {
+                        issues.push(
+                            format!("{spath}.geometry"),
+                            "a plane is unbounded: declare it as a fixture",
+                        );
+                        continue;
+                    }
+                    shapes.push(BodyShape {
+                        body,
+                        local: frame * shape.0,
+                        shape: shape.1,
+                    });
+                }
+            }
+        }
+        let from_density = match (l.density, l.mass) {
+            (Some(_), Some(_)) => {
+                issues.push(
+                    format!("{path}.density"),
+                    "give either `mass` or `density` (with shapes), not both",
+                );
+                None
+            }
+            (Some(rho), None) if !(rho.is_finite() && rho > 0.0) => {
+                issues.push(
+                    format!("{path}.density"),
+                    format!("expected a positive density in kg/m³, got {rho}"),
+                );
+                None
+            }
+            (Some(rho), None) => {
+                let solids = shapes
+                    .iter()
+                    .filter(|s| s.body == body)
+                    .filter_map(|s| Some(s.shape.mass_properties(rho)?.transformed(&s.local)))
+                    .reduce(|a, b| a.combined(&b));
+                if solids.is_none() {
+                    issues.push(
+                        format!("{path}.density"),
+                        "a density needs the link's `shapes` (or URDF collision elements) to give a volume",
+                    );
+                }
+                solids
+            }
+            (None, _) => None,
+        };
+        let body_mass = &mut mass.bodies[body];
+        if let Some(m) = l.mass {
+            body_mass.mass = m;
+        }
+        if let Some(solid) = from_density {
+            body_mass.mass = solid.mass;
+            body_mass.com = solid.com;
+        }
+        if let Some(c) = l.com {
+            body_mass.com = frame.transform_point(&units.len3(c).into()).coords;
+        }
+        body_mass.beam = l
+            .beam
+            .as_ref()
+            .and_then(|b| beam_rigidity(b, units.length.to_si(), &format!("{path}.beam"), issues));
+    }
+    (mass, shapes)
+}
+
+/// The file's payload into `mass`; the point a payload hangs at (without one, a payload given
+/// per measurement hangs at the tool).
+fn resolve_payload(
+    file: &RobotFile,
+    points: &[ResolvedPoint],
+    tool: Option<usize>,
+    base_tree: &KinematicTree,
+    mass: &mut MassModel,
+    issues: &mut Issues,
+) -> Option<usize> {
+    let mut payload_point = tool;
+    if let Some(p) = &file.payload {
+        if !(p.mass.is_finite() && p.mass >= 0.0) {
+            issues.push(
+                "payload.mass",
+                format!("expected a mass of zero or more kg, got {}", p.mass),
+            );
+        }
+        let name = p.point.as_deref().unwrap_or(&file.tool);
+        match points.iter().find(|q| q.name == name) {
+            Some(q) => {
+                let local = base_tree.bodies()[q.body].convention_frame * q.local;
+                mass.payload = Some(Payload {
+                    mass: p.mass,
+                    body: q.body,
+                    com: local.translation.vector,
+                });
+                payload_point = points.iter().position(|r| r.name == name);
+            }
+            None => issues.push("payload.point", format!("point `{name}` does not exist")),
+        }
+    }
+    payload_point
+}
+
+/// The measurement frame's starting pose, the markers (the tool when none is named) and the
+/// values joints outside the measured chain hold (SI).
+fn measurement_setup(
+    file: &RobotFile,
+    base_tree: &KinematicTree,
+    points: &[ResolvedPoint],
+    tool: Option<usize>,
+    units: &Units,
+    issues: &mut Issues,
+) -> (Isometry3<f64>, Vec<usize>, Vec<Option<f64>>) {
+    let (t_meas_base, marker_names) = match &file.measurement {
+        Some(m) => (
+            xyz_rpy(units.len3(m.base_xyz), units.ang3(m.base_rpy)),
+            m.markers.clone(),
+        ),
+        None => (Isometry3::identity(), Vec::new()),
+    };
+    let names = base_tree.coordinate_names();
+    let mut hold = vec![None; names.len()];
+    for (name, v) in file.measurement.iter().flat_map(|m| &m.hold) {
+        let field = format!("measurement.hold.{name}");
+        match names.iter().position(|n| n == name) {
+            Some(c) if v.is_finite() => {
+                hold[c] = Some(if base_tree.coordinate_is_prismatic()[c] {
+                    units.len(*v)
+                } else {
+                    units.ang(*v)
+                })
+            }
+            Some(_) => issues.push(field, "expected a finite number"),
+            None => issues.push(
+                field,
+                format!(
+                    "`{name}` is not an independent joint (expected one of: {})",
+                    names.join(", ")
+                ),
+            ),
+        }
+    }
+    let point_index: std::collections::HashMap<&str, usize> = points
+        .iter()
+        .enumerate()
+        .rev()
+        .map(|(k, p)| (p.name.as_str(), k))
+        .collect();
+    let mut markers = Vec::new();
+    for (i, name) in marker_names.iter().enumerate() {
+        match point_index.get(name.as_str()).copied() {
+            Some(k) => markers.push(k),
+            None => issues.push(
+                format!("measurement.markers[{i}]"),
+                format!("point `{name}` does not exist"),
+            ),
+        }
+    }
+    if markers.is_empty()
+        && let Some(t) = tool
+    {
+        markers.push(t);
+    }
+    (t_meas_base, markers, hold)
+}
+
+/// The file's error models built against the finished tree and mass model of `robot`, with
+/// every parameter name owned once and every `fixed` entry matching a parameter.
+fn build_error_models(robot: &Robot, base_dir: &Path, issues: &mut Issues) -> Vec<Box<dyn ErrorModel>> {
+    let units = robot.file.units;
+    let mut models = Vec::new();
+    for (i, spec) in robot.file.error_models.iter().enumerate() {
+        let path = format!("error_models[{i}]");
+        let mctx = ModelContext {
+            build: BuildContext {
+                units,
+                base_dir,
+                path: &path,
+            },
+            tree: &robot.tree,
+            mass: &robot.mass,
+        };
+        match spec.build(&mctx) {
+            Ok(m) => models.push(m),
+            Err(e) => issues.0.extend(e.0),
+        }
+    }
+    // A model listed twice would give two parameters of one name, which calibration and
+    // model files cannot tell apart.
+    let mut owners = std::collections::HashMap::new();
+    for (i, m) in models.iter().enumerate() {
+        for p in m.params() {
+            if let Some(k) = owners.insert(p.name.as_str(), i).filter(|k| *k != i) {
+                issues.push(
+                    format!("error_models[{i}]"),
+                    format!(
+                        "its parameter `{}` is also a parameter of error_models[{k}]; is the model listed twice?",
+                        p.name
+                    ),
+                );
+                break;
+            }
+        }
+    }
+    // Every entry of `fixed` must name a parameter calibration knows.
+    let names: Vec<String> = robot
+        .chain_params()
+        .iter()
+        .chain(models.iter().flat_map(|m| m.params()))
+        .map(|p| p.name.clone())
+        .chain(crate::calibrate::setup_param_names(robot))
+        .collect();
+    for (i, pattern) in robot.file.fixed.iter().enumerate() {
+        if !names.iter().any(|n| crate::calibrate::name_matches(pattern, n)) {
+            issues.push(
+                format!("fixed[{i}]"),
+                format!(
+                    "`{pattern}` matches no parameter of this robot; names are like {}",
+                    names.iter().take(4).cloned().collect::<Vec<_>>().join(", ")
+                ),
+            );
+        }
+    }
+    models
 }
 
 /// Joint names must be usable as CSV columns; issues point at the joint's entry when the
