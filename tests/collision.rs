@@ -62,7 +62,7 @@ fn q_at_distance(d: f64) -> [f64; 3] {
 #[test]
 fn spheres_overlapping_separated_and_within_margin() {
     let r = cell(0.0, 1000.0);
-    let model = CollisionModel::new(&r);
+    let model = CollisionModel::new(r.tree(), r.collision());
     let mut ws = model.workspace();
     // Check the construction independently: the tip is where the sphere centre should be.
     let q = q_at_distance(0.14);
@@ -84,7 +84,7 @@ fn spheres_overlapping_separated_and_within_margin() {
 
     // With a 2 mm margin the same pose is too close, at a distance of 1 mm.
     let strict = cell(2.0, 1000.0);
-    let model = CollisionModel::new(&strict);
+    let model = CollisionModel::new(strict.tree(), strict.collision());
     let mut ws = model.workspace();
     let c = model.check(&q, &mut ws);
     assert_eq!(c.len(), 1);
@@ -95,7 +95,7 @@ fn spheres_overlapping_separated_and_within_margin() {
 fn adjacent_links_are_ignored_and_the_floor_is_a_fixture() {
     // The j1 box overlaps the base sphere in every pose; they are adjacent, so never reported.
     let r = cell(0.0, 40.0);
-    let model = CollisionModel::new(&r);
+    let model = CollisionModel::new(r.tree(), r.collision());
     // base–j3 and j1–j3 (base–j1 are adjacent), then j1 and j3 against the floor.
     assert_eq!(model.pair_count(), 2 + 2);
     let mut ws = model.workspace();

@@ -1,6 +1,7 @@
 //! Integration tests of whole workflows through the library and the CLI (one test binary).
 
 mod agile_justin;
+mod architecture;
 mod bad_inputs;
 mod calibrate;
 mod cli;

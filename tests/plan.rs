@@ -191,7 +191,7 @@ xyz = [-1.0, 0.3, 0.0]
     );
     let robot_file = dir.file("pendulum.toml", &text);
     let r = robot_from_toml(&text);
-    let collision = CollisionModel::new(&r);
+    let collision = CollisionModel::new(r.tree(), r.collision());
     let mut ws = collision.workspace();
     let (degrees, csv) = pendulum_grid();
     let colliding: Vec<f64> = degrees

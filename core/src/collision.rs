@@ -1,6 +1,6 @@
 //! Collision checking of a robot against itself and the fixtures of its cell, with parry.
 //!
-//! A [`CollisionModel`] is built once from a [`Robot`]: the link shapes, the fixtures and the
+//! A [`CollisionModel`] is built once from a tree and its [`CollisionGeometry`]: the link shapes, the fixtures and the
 //! list of shape pairs worth testing. Pairs on the same link, on links joined only by fixed
 //! joints and on adjacent links (one moving joint apart, fixed joints aside) are left out, since
 //! they touch by design; so are fixtures against the links fixed to the base, which is mounted
@@ -12,7 +12,6 @@ use parry3d_f64::math::Pose;
 use parry3d_f64::query;
 use parry3d_f64::shape::SharedShape;
 
-use crate::robot::Robot;
 use crate::shape::{Shape, from_vec, to_pose};
 use crate::tree::{KinematicTree, Motion};
 use crate::workspace::TreeWorkspace;
@@ -98,13 +97,9 @@ pub struct CollisionWorkspace {
 }
 
 impl CollisionModel {
-    /// The collision model of `robot` at its current parameters.
-    pub fn new(robot: &Robot) -> CollisionModel {
-        CollisionModel::from_geometry(robot.tree(), robot.collision())
-    }
-
-    /// The collision model of a tree with the given shapes and fixtures.
-    pub fn from_geometry(tree: &KinematicTree, geometry: &CollisionGeometry) -> CollisionModel {
+    /// The collision model of a tree with the given shapes and fixtures (a robot's:
+    /// `CollisionModel::new(robot.tree(), robot.collision())`).
+    pub fn new(tree: &KinematicTree, geometry: &CollisionGeometry) -> CollisionModel {
         let rigid = rigid_groups(tree);
         let shapes: Vec<LinkShape> = geometry
             .shapes

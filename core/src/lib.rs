@@ -25,6 +25,7 @@ pub mod perturbation;
 pub mod plan;
 pub mod plugin;
 pub mod prior_choice;
+pub mod registry;
 pub mod residuals;
 pub mod robot;
 pub mod robot_file;
@@ -46,8 +47,9 @@ pub use param::{ParamInfo, Quantity};
 pub use perturbation::Perturbation;
 pub use plugin::{
     BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, Loads, ModelContext,
-    PluginInfo, PredictorSpec, Role, StaticState, TrainingSet,
+    PredictorSpec, StaticState, TrainingSet,
 };
+pub use registry::{PluginInfo, Role};
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};
 pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};

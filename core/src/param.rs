@@ -138,3 +138,26 @@ impl ParamInfo {
         self
     }
 }
+
+/// Whether parameter `name` is `pattern`, or matches it when it has `*` wildcards.
+pub fn name_matches(pattern: &str, name: &str) -> bool {
+    pattern == name || (pattern.contains('*') && glob_match(pattern, name))
+}
+
+/// `*` matches any run of characters (`pattern` has at least one); everything else matches
+/// itself.
+fn glob_match(pattern: &str, name: &str) -> bool {
+    let parts: Vec<&str> = pattern.split('*').collect();
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if !name.starts_with(first) || name.len() < first.len() + last.len() || !name.ends_with(last) {
+        return false;
+    }
+    let mut rest = &name[first.len()..name.len() - last.len()];
+    for part in &parts[1..parts.len() - 1] {
+        match rest.find(part) {
+            Some(i) => rest = &rest[i + part.len()..],
+            None => return false,
+        }
+    }
+    true
+}

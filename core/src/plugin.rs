@@ -1,4 +1,4 @@
-//! The three plugin roles and the registry entry every plugin provides.
+//! The three plugin roles' traits (the registry entry is in [`crate::registry`]).
 //!
 //! Each role is a pair, in the linfa/pinocchio spirit: a serialisable *spec* read from the robot
 //! file through `typetag` (its `type` field names the plugin), and the built object the
@@ -8,9 +8,7 @@ use std::fmt::Debug;
 use std::path::Path;
 
 use nalgebra::{Isometry3, Vector3};
-use schemars::{Schema, SchemaGenerator};
 
-use crate::candidate::CandidateFn;
 use crate::error::{Issues, Result};
 use crate::mass::MassModel;
 use crate::param::ParamInfo;
@@ -19,56 +17,6 @@ use crate::shape::Shape;
 use crate::tree::{KinematicTree, Limits};
 use crate::units::Units;
 use crate::workspace::TreeWorkspace;
-
-/// What a plugin is for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    /// A kinematic convention (`kinematics = { type = ... }`).
-    Kinematics,
-    /// A physical error model (`[[error_models]]`).
-    ErrorModel,
-    /// A residual predictor (`[predictor]`).
-    Predictor,
-}
-
-impl Role {
-    /// The robot-file field the role's specs appear in.
-    pub fn field(self) -> &'static str {
-        match self {
-            Role::Kinematics => "kinematics",
-            Role::ErrorModel => "error_models",
-            Role::Predictor => "predictor",
-        }
-    }
-}
-
-/// A registry entry: what `armcomp plugins` lists and `armcomp schema` composes.
-#[derive(Clone, Copy)]
-pub struct PluginInfo {
-    /// The stable `type` name used in robot files.
-    pub type_name: &'static str,
-    /// Its role.
-    pub role: Role,
-    /// One line saying what it is.
-    pub doc: &'static str,
-    /// Whether the diagnosis workflow may try it as a missing effect.
-    pub diagnosis_candidate: bool,
-    /// The instances of the effect worth trying on a robot (per joint, per link or global),
-    /// for the diagnosis workflow; `None` for plugins it cannot instantiate.
-    pub candidates: Option<&'static CandidateFn>,
-    /// Generates the JSON Schema of its spec (without the `type` field).
-    pub schema: fn(&mut SchemaGenerator) -> Schema,
-}
-
-impl Debug for PluginInfo {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PluginInfo")
-            .field("type_name", &self.type_name)
-            .field("role", &self.role)
-            .finish()
-    }
-}
 
 /// What a spec needs to know about the file it came from.
 #[derive(Debug, Clone, Copy)]

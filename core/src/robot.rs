@@ -91,6 +91,10 @@ pub struct RobotWorkspace {
     gravity: Vector3<f64>,
 }
 
+/// Names of the base frame's six parameters (`base.<name>`), in the order of
+/// [`xyz_rpy`](crate::geom::xyz_rpy): position, then roll, pitch, yaw.
+pub(crate) const BASE_NAMES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
+
 impl Robot {
     /// Reads, checks and builds a robot file; every problem names the file, line and field.
     pub fn from_path(path: &Path) -> Result<Robot> {
@@ -354,12 +358,23 @@ impl Robot {
     pub fn warnings(&self) -> &[String] {
         &self.warnings
     }
+    /// Names of the measurement-setup parameters, in [`ParameterSpace`](crate::calibrate::ParameterSpace) order: the base
+    /// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`).
+    pub fn setup_param_names(&self) -> Vec<String> {
+        let base = BASE_NAMES.iter().map(|n| format!("base.{n}"));
+        let markers = self.markers().iter().flat_map(|&m| {
+            let name = &self.tree().points()[m].name;
+            ["x", "y", "z"].map(|a| format!("marker.{name}.{a}"))
+        });
+        base.chain(markers).collect()
+    }
+
     /// The residual predictor the robot file configures (hyper-parameters), if any.
-    pub fn predictor_spec(&self) -> Option<&dyn crate::PredictorSpec> {
+    pub fn predictor_spec(&self) -> Option<&dyn crate::plugin::PredictorSpec> {
         self.file.predictor.as_deref()
     }
     /// The predictor fitted to this robot's residuals (a model file written by `learn`), if any.
-    pub fn predictor(&self) -> Option<&dyn crate::FittedPredictor> {
+    pub fn predictor(&self) -> Option<&dyn crate::plugin::FittedPredictor> {
         self.file.fitted_predictor.as_deref()
     }
 
@@ -954,10 +969,10 @@ fn build_error_models(robot: &Robot, base_dir: &Path, issues: &mut Issues) -> Ve
         .iter()
         .chain(models.iter().flat_map(|m| m.params()))
         .map(|p| p.name.clone())
-        .chain(crate::calibrate::setup_param_names(robot))
+        .chain(robot.setup_param_names())
         .collect();
     for (i, pattern) in robot.file.fixed.iter().enumerate() {
-        if !names.iter().any(|n| crate::calibrate::name_matches(pattern, n)) {
+        if !names.iter().any(|n| crate::param::name_matches(pattern, n)) {
             issues.push(
                 format!("fixed[{i}]"),
                 format!(

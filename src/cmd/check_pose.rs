@@ -25,7 +25,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     let q = super::fk::parse_q(&robot, &args.q, args.deg)?;
-    let model = CollisionModel::new(&robot);
+    let model = CollisionModel::new(robot.tree(), robot.collision());
     let mut ws = model.workspace();
     let contacts = model.check(&q, &mut ws);
     if args.json {

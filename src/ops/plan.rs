@@ -129,7 +129,7 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
         .unwrap_or_else(|| if p.next.is_some() { "uncertainty" } else { "sobol" }.to_string());
     let n = p.next.unwrap_or(p.n);
     // Poses in collision (self-collision or fixtures) are never planned.
-    let collision = CollisionModel::new(robot);
+    let collision = CollisionModel::new(robot.tree(), robot.collision());
     let collision_ws = RefCell::new(collision.workspace());
     let accept = |q: &[f64]| !collision.collides(q, &mut collision_ws.borrow_mut());
     let pool_sampler = Sampler::parse(&p.pool_sampler)?;

@@ -50,7 +50,6 @@ use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
 use space::*;
-pub(crate) use space::{name_matches, setup_param_names};
 
 /// Which part of the model a parameter belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -88,9 +87,6 @@ pub struct ParameterSpace {
     base_offset: usize,
     marker_offset: usize,
 }
-
-/// Base-frame parameters, in the order of [`xyz_rpy`].
-const BASE_NAMES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
 
 /// A parameter vector made ready for evaluation.
 #[derive(Debug, Clone)]

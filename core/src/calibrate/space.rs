@@ -41,8 +41,8 @@ impl ParameterSpace {
         }
         let base_offset = params.len();
         let (xyz, rpy) = base_xyz_rpy(&robot.t_meas_base());
-        let mut setup = setup_param_names(robot).into_iter();
-        for k in 0..BASE_NAMES.len() {
+        let mut setup = robot.setup_param_names().into_iter();
+        for k in 0..crate::robot::BASE_NAMES.len() {
             let (quantity, value) = if k < 3 {
                 (Quantity::Length, xyz[k])
             } else {
@@ -122,7 +122,7 @@ impl ParameterSpace {
                             && on_measured_chain(&p.info.name)
                             && is_joint_offset(robot.tree(), &p.info.name)
                     }
-                    w if w.contains('*') => glob_match(w, &p.info.name),
+                    w if w.contains('*') => crate::param::name_matches(w, &p.info.name),
                     w => p.model_type == w || p.info.name == w,
                 };
                 if hit {
@@ -148,7 +148,12 @@ impl ParameterSpace {
         // What the robot file fixes is known: never refitted, whatever the words select.
         let fixed = &robot.file.fixed;
         Ok((0..self.params.len())
-            .filter(|&k| chosen[k] && !fixed.iter().any(|f| name_matches(f, &self.params[k].info.name)))
+            .filter(|&k| {
+                chosen[k]
+                    && !fixed
+                        .iter()
+                        .any(|f| crate::param::name_matches(f, &self.params[k].info.name))
+            })
             .collect())
     }
 
@@ -192,17 +197,6 @@ impl ParameterSpace {
     }
 }
 
-/// Names of the measurement-setup parameters of `robot`, in [`ParameterSpace`] order: the base
-/// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`).
-pub(crate) fn setup_param_names(robot: &Robot) -> Vec<String> {
-    let base = BASE_NAMES.iter().map(|n| format!("base.{n}"));
-    let markers = robot.markers().iter().flat_map(|&m| {
-        let name = &robot.tree().points()[m].name;
-        ["x", "y", "z"].map(|a| format!("marker.{name}.{a}"))
-    });
-    base.chain(markers).collect()
-}
-
 /// The `type` of error model `i` as written in the robot file.
 pub(super) fn model_type_name(robot: &Robot, i: usize) -> String {
     serde_json::to_value(&robot.file.error_models[i])
@@ -221,29 +215,6 @@ pub(super) fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
         Some(Motion::Prismatic(_)) => suffix == "d" || suffix == "offset",
         _ => false,
     }
-}
-
-/// Whether parameter `name` is `pattern`, or matches it when it has `*` wildcards.
-pub(crate) fn name_matches(pattern: &str, name: &str) -> bool {
-    pattern == name || (pattern.contains('*') && glob_match(pattern, name))
-}
-
-/// `*` matches any run of characters (`pattern` has at least one); everything else matches
-/// itself.
-pub(super) fn glob_match(pattern: &str, name: &str) -> bool {
-    let parts: Vec<&str> = pattern.split('*').collect();
-    let (first, last) = (parts[0], parts[parts.len() - 1]);
-    if !name.starts_with(first) || name.len() < first.len() + last.len() || !name.ends_with(last) {
-        return false;
-    }
-    let mut rest = &name[first.len()..name.len() - last.len()];
-    for part in &parts[1..parts.len() - 1] {
-        match rest.find(part) {
-            Some(i) => rest = &rest[i + part.len()..],
-            None => return false,
-        }
-    }
-    true
 }
 
 pub(super) fn base_xyz_rpy(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
