@@ -1,6 +1,7 @@
 //! The diagnosis report folder: an HTML page with the steps table and rankings, the JSON
 //! report, and SVG plots of the held-out RMS per step and of the held-out error histograms.
 
+use crate::html::{escape, page_start};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -121,18 +122,8 @@ fn cells(s: &ErrorStats) -> String {
     )
 }
 
-/// Escapes text for HTML.
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}
-
 fn html(r: &DiagnosisReport) -> String {
-    let mut h = String::from(
-        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>armcomp diagnosis</title>\
-         <style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}\
-         td,th{border:1px solid #aaa;padding:2px 8px;text-align:right}td:first-child,th:first-child{text-align:left}</style>\
-         </head><body>\n<h1>Diagnosis</h1>\n",
-    );
+    let mut h = page_start("armcomp diagnosis", "Diagnosis");
     let _ = writeln!(
         h,
         "<p>{} measured positions, {}-fold held-out scores in mm.</p>",
@@ -149,7 +140,7 @@ fn html(r: &DiagnosisReport) -> String {
             h,
             "<tr><td>{}</td><td>{}</td>{}<td>{:.1}%</td></tr>",
             i + 1,
-            esc(&s.label),
+            escape(&s.label),
             cells(&s.heldout_after),
             100.0 * s.share_removed
         );
@@ -160,8 +151,8 @@ fn html(r: &DiagnosisReport) -> String {
             h,
             "<h2>Step {}: {}</h2>\n<p>{}</p>",
             i + 1,
-            esc(&s.label),
-            esc(&s.summary)
+            escape(&s.label),
+            escape(&s.summary)
         );
         h.push_str("<table><tr><th>candidate</th><th>params (determined / added)</th><th>held-out RMS (mm)</th><th>removed</th><th>earns its parameters</th><th>data cannot tell it from the first</th></tr>\n");
         for c in &s.ranking {
@@ -171,7 +162,7 @@ fn html(r: &DiagnosisReport) -> String {
             let _ = writeln!(
                 h,
                 "<tr><td>{}</td><td>{} / {}</td><td>{rms}</td><td>{:.1}%</td><td>{}</td><td>{}</td></tr>",
-                esc(&c.label),
+                escape(&c.label),
                 c.identified_params,
                 c.n_params,
                 100.0 * c.share_removed,
@@ -185,7 +176,7 @@ fn html(r: &DiagnosisReport) -> String {
         let _ = writeln!(
             h,
             "<h2>Learnable residual</h2><p>{}: held-out RMS {:.4} → {:.4} mm ({:.0}% unexplained but learnable).</p>",
-            esc(&l.predictor),
+            escape(&l.predictor),
             l.heldout_before.rms_mm,
             l.heldout_after.rms_mm,
             100.0 * l.share_learnable

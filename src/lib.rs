@@ -6,6 +6,7 @@ pub mod agile_justin;
 pub mod config;
 pub mod demos;
 pub mod diagnosis_report;
+pub mod html;
 pub mod learning_curve;
 pub mod load;
 pub mod ops;

@@ -2,6 +2,7 @@
 //! (bars of the rows, error histograms before and after compensation, per-axis errors at the
 //! test targets), every file written atomically.
 
+use crate::html::{escape, page_start};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -45,11 +46,6 @@ pub fn stem(index: usize, table: &Table) -> String {
     format!("{}-{}", index + 1, words.join("-"))
 }
 
-/// Escapes text for HTML.
-fn esc(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
-}
-
 /// Whether a file belongs in a demo report folder.
 fn is_report_file(name: &str) -> bool {
     name == "index.html" || name.ends_with(".svg")
@@ -70,12 +66,7 @@ pub fn write(dir: &Path, tables: &[Table]) -> Result<PathBuf> {
 /// [`write`] with learning curves after the tables: each a table of its sizes and a plot.
 pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<PathBuf> {
     let mut files: Vec<(String, Vec<u8>)> = Vec::new();
-    let mut html = String::from(
-        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>armcomp demo</title>\
-         <style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}\
-         td,th{border:1px solid #aaa;padding:2px 8px;text-align:right}td:first-child,th:first-child{text-align:left}</style>\
-         </head><body>\n<h1>armcomp demo</h1>\n",
-    );
+    let mut html = page_start("armcomp demo", "armcomp demo");
     for (i, t) in tables.iter().enumerate() {
         let stem = stem(i, t);
         let plots: [(&str, &str, plots::Plot); 3] = [
@@ -94,8 +85,8 @@ pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<Path
         let _ = writeln!(
             html,
             "<h2>{}</h2>\n<p>{}. Measurement noise {:.3} mm per axis (mean |z| of the noise alone {:.3} mm).</p>",
-            esc(&t.title),
-            esc(&t.setup),
+            escape(&t.title),
+            escape(&t.setup),
             t.noise_mm,
             t.noise_mean_abs_z_mm
         );
@@ -118,7 +109,7 @@ pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<Path
             let _ = writeln!(
                 html,
                 "<tr><td>{}</td><td>{}</td><td>{:.2}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{:.3}</td><td>{paper}</td></tr>",
-                esc(&r.name),
+                escape(&r.name),
                 r.training_poses,
                 r.training_s,
                 r.mean_abs_z_mm,
@@ -148,7 +139,7 @@ pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<Path
             html,
             "<h2>{}</h2>\n<p>{} training poses, {} held out; the held-out 3-D {} error of the model fitted on the \
              poses the tool chose from the training poses, and on random subsets of them ({} seeded draws).</p>",
-            esc(&c.report.title),
+            escape(&c.report.title),
             c.report.train_poses,
             c.report.test_poses,
             if c.metric == "rms" { "RMS" } else { "mean" },
