@@ -131,6 +131,24 @@ pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Ve
 }
 
 /// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
+
+/// The 1-based line of the record a csv reader read at `position` in `text` (0 when
+/// unknown). The reader's own line count leaves out comment lines, and its position is where
+/// it started reading, before the comment and blank lines it skipped: those are skipped here.
+pub fn line_at(text: &str, position: Option<&csv::Position>) -> usize {
+    position.map_or(0, |p| {
+        let start = (p.byte() as usize).min(text.len());
+        let mut line = 1 + text.as_bytes()[..start].iter().filter(|&&b| b == b'\n').count();
+        for l in text.get(start..).unwrap_or_default().lines() {
+            if !(l.trim().is_empty() || l.starts_with('#')) {
+                break;
+            }
+            line += 1;
+        }
+        line
+    })
+}
+
 /// `x1`, ...): measurements rather than joint configurations alone.
 pub fn has_positions(text: &str) -> bool {
     let mut reader = csv::ReaderBuilder::new()
@@ -166,8 +184,14 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         .from_reader(text.as_bytes());
     let headers = reader
         .headers()
-        .map_err(|e| err(Some(1), format!("cannot read the header: {e}")))?
+        .map_err(|e| {
+            err(
+                Some(line_at(text, e.position())),
+                format!("cannot read the header: {e}"),
+            )
+        })?
         .clone();
+    let header_line = line_at(text, headers.position());
     let names = tree.coordinate_names();
     let mut columns = Vec::new();
     let mut seen: Vec<String> = Vec::new();
@@ -175,7 +199,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     for h in headers.iter() {
         let (name, unit) = split_header(h);
         if seen.iter().any(|s| s == name) {
-            return Err(err(Some(1), format!("column `{name}` appears twice")));
+            return Err(err(Some(header_line), format!("column `{name}` appears twice")));
         }
         seen.push(name.to_string());
         let length = |u: Option<&str>| -> Result<f64> {
@@ -183,7 +207,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 None => Ok(units.length.to_si()),
                 Some(u) => LengthUnit::parse(u).map(LengthUnit::to_si).ok_or_else(|| {
                     err(
-                        Some(1),
+                        Some(header_line),
                         format!("column `{h}`: unknown length unit `{u}` (expected m, cm, mm or in)"),
                     )
                 }),
@@ -196,7 +220,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 match unit {
                     None => units.angle.to_si(),
                     Some(u) => AngleUnit::parse(u).map(AngleUnit::to_si).ok_or_else(|| {
-                        err(Some(1), format!("column `{h}`: joint `{name}` is revolute; expected an angle unit (rad or deg), got `{u}`"))
+                        err(Some(header_line), format!("column `{h}`: joint `{name}` is revolute; expected an angle unit (rad or deg), got `{u}`"))
                     })?,
                 }
             };
@@ -208,7 +232,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             if slot >= layout.points.len() {
                 let measured: Vec<&str> = layout.points.iter().map(|&p| tree.points()[p].name.as_str()).collect();
                 return Err(err(
-                    Some(1),
+                    Some(header_line),
                     format!(
                         "column `{h}`: the robot measures {} point(s) ({}); numbered columns x1, x2, ... are the robot file's `[measurement] markers` in order",
                         measured.len(),
@@ -237,7 +261,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     Some("g") => 1e-3,
                     Some(u) => {
                         return Err(err(
-                            Some(1),
+                            Some(header_line),
                             format!("column `{h}`: expected a mass unit (kg or g), got `{u}`"),
                         ));
                     }
@@ -245,11 +269,21 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 "temperature" => Column::Temperature(match unit {
                     None | Some("C") | Some("degC") => 0.0,
                     Some("K") => -273.15,
-                    Some(u) => return Err(err(Some(1), format!("column `{h}`: expected C or K, got `{u}`"))),
+                    Some(u) => {
+                        return Err(err(
+                            Some(header_line),
+                            format!("column `{h}`: expected C or K, got `{u}`"),
+                        ));
+                    }
                 }),
                 n if n.starts_with("tau_") => match names.iter().position(|j| j == &n[4..]) {
                     Some(c) => Column::Torque(c),
-                    None => return Err(err(Some(1), format!("column `{h}`: `{}` is not a joint", &n[4..]))),
+                    None => {
+                        return Err(err(
+                            Some(header_line),
+                            format!("column `{h}`: `{}` is not a joint", &n[4..]),
+                        ));
+                    }
                 },
                 _ => {
                     ignored.push(h);
@@ -270,7 +304,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         .collect();
     if !missing.is_empty() {
         return Err(err(
-            Some(1),
+            Some(header_line),
             format!(
                 "missing column(s) for {} joint(s) that move the measured points: {}",
                 missing.len(),
@@ -294,19 +328,19 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     if with_positions {
         if slots.is_empty() {
             return Err(err(
-                Some(1),
+                Some(header_line),
                 "missing columns `x`, `y`, `z` (measured position, e.g. `x[mm]`; or `x1, y1, z1`, ... for several points)".into(),
             ));
         }
         if slots.contains(&None) && slots.len() > 1 {
             return Err(err(
-                Some(1),
+                Some(header_line),
                 "plain `x, y, z` and numbered `x1, y1, z1` columns cannot be mixed".into(),
             ));
         }
         if slots.iter().any(Option::is_some) && has(&|k| matches!(k, Column::Point)) {
             return Err(err(
-                Some(1),
+                Some(header_line),
                 "a `point` column goes with plain `x, y, z`; numbered columns name their point already".into(),
             ));
         }
@@ -315,7 +349,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             for (axis, a) in ["x", "y", "z"].iter().enumerate() {
                 if !has(&|k| matches!(k, Column::Position { slot: s, axis: x, .. } if s == slot && *x == axis)) {
                     return Err(err(
-                        Some(1),
+                        Some(header_line),
                         format!("missing column `{a}{suffix}` (measured position, e.g. `{a}{suffix}[mm]`)"),
                     ));
                 }
@@ -325,13 +359,13 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     let nquat = columns.iter().filter(|c| matches!(c, Column::Quat(_))).count();
     if nquat != 0 && nquat != 4 {
         return Err(err(
-            Some(1),
+            Some(header_line),
             "an orientation needs all four columns qw, qx, qy, qz".into(),
         ));
     }
     if nquat == 4 && slots.len() > 1 {
         return Err(err(
-            Some(1),
+            Some(header_line),
             "an orientation (qw, qx, qy, qz) goes with one measured point, not several".into(),
         ));
     }
@@ -349,13 +383,8 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     let mut outside: Vec<(usize, usize, f64)> = vec![(0, 0, 0.0); names.len()];
     let mut rows_without_point = 0;
     for (row, record) in reader.records().enumerate() {
-        let record = record.map_err(|e| {
-            err(
-                e.position().map(|p| p.line() as usize),
-                format!("cannot read the row: {e}"),
-            )
-        })?;
-        let line = record.position().map_or(0, |p| p.line() as usize);
+        let record = record.map_err(|e| err(Some(line_at(text, e.position())), format!("cannot read the row: {e}")))?;
+        let line = line_at(text, record.position());
         if record.len() != columns.len() {
             return Err(err(
                 Some(line),

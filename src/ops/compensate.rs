@@ -141,18 +141,26 @@ pub fn orientation(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
 /// numbers, erroring with file, line and column.
 pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Target)>> {
     let text = armcomp_core::io::read_text(path)?;
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let Some((header_line, header)) = lines.next() else {
+    // The same reading rules as measurement files: `#` comments, blank lines skipped, cells
+    // trimmed, quoted cells allowed.
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let line_of = |r: &csv::StringRecord| armcomp_core::measurement::line_at(&text, r.position());
+    let header = reader
+        .headers()
+        .with_context(|| format!("{}: the header is not readable CSV", path.display()))?
+        .clone();
+    if header.iter().all(str::is_empty) {
         bail!("{}: empty; expected a header `x[mm],y[mm],z[mm]`", path.display());
-    };
+    }
+    let header_line = line_of(&header);
     // Columns 0..3 are x, y, z (with their scale to m), 3..7 are qw, qx, qy, qz (scale 1).
     let mut columns: [Option<(usize, f64)>; 7] = [None; 7];
     let mut n_columns = 0;
-    for (c, h) in header.split(',').enumerate() {
+    for (c, h) in header.iter().enumerate() {
         n_columns += 1;
         let (name, unit) = split_header(h);
         let Some(slot) = ["x", "y", "z", "qw", "qx", "qy", "qz"].iter().position(|n| *n == name) else {
@@ -194,8 +202,10 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
         ),
     };
     let mut targets = Vec::new();
-    for (line, row) in lines {
-        let cells: Vec<&str> = row.split(',').map(str::trim).collect();
+    for record in reader.records() {
+        let row = record.with_context(|| format!("{}: a row is not readable CSV", path.display()))?;
+        let line = line_of(&row);
+        let cells: Vec<&str> = row.iter().collect();
         if cells.len() != n_columns {
             bail!(
                 "{}:{line}: {} values, the header has {n_columns}",
