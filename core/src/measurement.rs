@@ -130,8 +130,6 @@ pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Ve
         .collect())
 }
 
-/// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
-
 /// The 1-based line of the record a csv reader read at `position` in `text` (0 when
 /// unknown). The reader's own line count leaves out comment lines, and its position is where
 /// it started reading, before the comment and blank lines it skipped: those are skipped here.
@@ -149,6 +147,7 @@ pub fn line_at(text: &str, position: Option<&csv::Position>) -> usize {
     })
 }
 
+/// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
 /// `x1`, ...): measurements rather than joint configurations alone.
 pub fn has_positions(text: &str) -> bool {
     let mut reader = csv::ReaderBuilder::new()
