@@ -1,6 +1,7 @@
 //! armcomp: the library behind the `armcomp` command. It gathers the built-in plugins into one
 //! registry, composes the robot-file JSON Schema from their specs, and checks robot files
 //! (schema first, then semantics), reporting every problem with file, line and field.
+#![warn(missing_docs)]
 
 pub mod agile_justin;
 pub mod config;

@@ -3,6 +3,7 @@
 //! Everything inside is SI (m, rad, kg, N); units are converted where files are read.
 //! The model/workspace split follows Pinocchio: [`KinematicTree`] is immutable, all buffers
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
+#![warn(missing_docs)]
 
 pub mod batch;
 pub mod calibrate;

@@ -1,6 +1,7 @@
 //! The native part of the `armcomp` Python package (`armcomp._armcomp`): robots, measurements
 //! and the operations of the command line, with numpy arrays in and out. The Python layer
 //! (`pysrc/armcomp`) turns the JSON reports into dataclasses and raises `NotConverged`.
+#![warn(missing_docs)]
 
 mod arrays;
 mod calibrate;

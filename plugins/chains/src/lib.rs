@@ -1,6 +1,7 @@
 //! Kinematic conventions for armcomp: classic DH, modified DH (Craig, with Hayati's beta) and
 //! the product of exponentials. Each compiles to armcomp-core's kinematic tree and exposes its
 //! geometric parameters for identification.
+#![warn(missing_docs)]
 
 mod common;
 pub mod dh;

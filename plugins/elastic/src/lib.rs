@@ -8,6 +8,7 @@
 //! [`payload_mass_error`], [`transmission_scale`]. [`equilibrium`] iterates the loads on the
 //! deformed arm for very elastic arms. Every model reads its loads from the mass model and
 //! gravity of the static state and writes small twists into the chain (paper Eq. 1–3).
+#![warn(missing_docs)]
 
 mod candidates;
 mod common;

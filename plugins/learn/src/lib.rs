@@ -10,6 +10,7 @@
 //! - [`mlp`]: the same network trained by Adam or Levenberg–Marquardt alone;
 //! - [`gp`]: Gaussian process regression with an ARD RBF kernel, with predictive uncertainty;
 //! - [`ridge`] and [`knn`]: baselines.
+#![warn(missing_docs)]
 
 /// `From<$fitted> for $model` and `$fitted::model()`, for fitted predictors that wrap the checked
 /// form they are stored in.

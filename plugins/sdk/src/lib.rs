@@ -20,6 +20,7 @@
 //!     },
 //! }
 //! ```
+#![warn(missing_docs)]
 
 pub mod abi;
 #[doc(hidden)]

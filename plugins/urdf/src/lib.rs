@@ -1,6 +1,7 @@
 //! URDF robots for armcomp: the `urdf` kinematics plugin (URDF joint origins and axes as
 //! identifiable parameters, inertials and collision elements as link data), bare URDF files
 //! as robots, and calibrated URDFs written back.
+#![warn(missing_docs)]
 
 mod bare;
 mod chain;
