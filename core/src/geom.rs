@@ -71,6 +71,30 @@ pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
     Isometry3::from_parts(Translation3::from(vmat * v), rot)
 }
 
+/// The body-frame twist by which [`exp_twist`] moves when its argument moves: with
+/// `exp(ξ + δ) = exp(ξ) · exp(J_r(ξ) δ + O(δ²))`, returns `J_r(ξ) δ`, the right Jacobian
+/// `Σ (−ad_ξ)^k / (k+1)!` applied to `δ`. The series is cut after the fifth power, which is
+/// exact to |ξ|⁶/5040 relative, ample for the small deformation twists it is used on.
+pub fn exp_twist_right_jacobian(xi: &Vector6<f64>, delta: &Vector6<f64>) -> Vector6<f64> {
+    let (v, w) = (xi.fixed_rows::<3>(0).into_owned(), xi.fixed_rows::<3>(3).into_owned());
+    // ad_ξ x = (w × x_v + v × x_w, w × x_w), with translation first.
+    let ad = |x: &Vector6<f64>| -> Vector6<f64> {
+        let (xv, xw) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
+        let a = w.cross(&xv) + v.cross(&xw);
+        let b = w.cross(&xw);
+        Vector6::new(a.x, a.y, a.z, b.x, b.y, b.z)
+    };
+    let mut term = *delta;
+    let mut sum = *delta;
+    let mut factorial = 1.0;
+    for k in 1..=5 {
+        factorial *= (k + 1) as f64;
+        term = -ad(&term);
+        sum += term / factorial;
+    }
+    sum
+}
+
 /// A unit vector, or `None` when `v` is (numerically) zero.
 pub fn unit(v: Vector3<f64>) -> Option<Unit<Vector3<f64>>> {
     Unit::try_new(v, 1e-12)
@@ -87,6 +111,35 @@ pub fn rotation_z_to(dir: &Unit<Vector3<f64>>) -> UnitQuaternion<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exp_twist_right_jacobian_is_the_derivative_of_the_exponential() {
+        // A deformation-sized twist and a direction; exp(ξ)⁻¹ exp(ξ + hδ) against
+        // exp(h J_r δ) by central differences of the matrix entries.
+        let xi = Vector6::new(0.02, -0.01, 0.03, 0.15, -0.08, 0.1);
+        let delta = Vector6::new(0.3, 0.5, -0.2, 0.7, -0.4, 0.9);
+        let h = 1e-6;
+        let rel = |s: f64| (exp_twist(&xi).inverse() * exp_twist(&(xi + delta * s))).to_homogeneous();
+        let fd = (rel(h) - rel(-h)) / (2.0 * h);
+        let j = exp_twist_right_jacobian(&xi, &delta);
+        let mut expected = nalgebra::Matrix4::zeros();
+        expected
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&skew(&Vector3::new(j[3], j[4], j[5])));
+        expected
+            .fixed_view_mut::<3, 1>(0, 3)
+            .copy_from(&Vector3::new(j[0], j[1], j[2]));
+        assert!((fd - expected).norm() < 1e-8, "{fd} vs {expected}");
+        // The plain δ is off by the first-order term, far above that tolerance.
+        let mut plain = nalgebra::Matrix4::zeros();
+        plain
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&skew(&Vector3::new(delta[3], delta[4], delta[5])));
+        plain
+            .fixed_view_mut::<3, 1>(0, 3)
+            .copy_from(&Vector3::new(delta[0], delta[1], delta[2]));
+        assert!((fd - plain).norm() > 1e-2);
+    }
 
     #[test]
     fn xyz_rpy_matches_urdf_fixed_axis_convention() {

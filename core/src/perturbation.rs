@@ -36,6 +36,32 @@ impl Perturbation {
         self.point_twist.iter_mut().for_each(|t| *t = Vector6::zeros());
     }
 
+    /// Sets `self` to `(a − b) · scale`, entry by entry (a difference quotient of two
+    /// deformations), without reallocating.
+    pub fn set_difference(&mut self, a: &Perturbation, b: &Perturbation, scale: f64) {
+        for (o, (x, y)) in self
+            .joint_twist
+            .iter_mut()
+            .zip(a.joint_twist.iter().zip(&b.joint_twist))
+        {
+            *o = (x - y) * scale;
+        }
+        for (o, (x, y)) in self
+            .joint_offset
+            .iter_mut()
+            .zip(a.joint_offset.iter().zip(&b.joint_offset))
+        {
+            *o = (x - y) * scale;
+        }
+        for (o, (x, y)) in self
+            .point_twist
+            .iter_mut()
+            .zip(a.point_twist.iter().zip(&b.point_twist))
+        {
+            *o = (x - y) * scale;
+        }
+    }
+
     /// True when every entry is exactly zero.
     pub fn is_zero(&self) -> bool {
         self.joint_twist.iter().all(|t| t.iter().all(|v| *v == 0.0))

@@ -425,11 +425,27 @@ impl Robot {
         conditions: Conditions,
         ws: &mut RobotWorkspace,
     ) {
-        tree.forward_into(q, &mut ws.rigid);
         if self.error_models.is_empty() {
+            tree.forward_into(q, &mut ws.rigid);
             ws.frames.clone_from(&ws.rigid);
             return;
         }
+        self.deformation_into(tree, error_values, q, conditions, ws);
+        tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+    }
+
+    /// The first half of [`forward_with_into`](Robot::forward_with_into): the rigid frames
+    /// into `ws.rigid` and the error models' deformation into `ws.perturbation`, without the
+    /// deformed frames (`ws.frames` is left as it was).
+    pub fn deformation_into(
+        &self,
+        tree: &KinematicTree,
+        error_values: &[Vec<f64>],
+        q: &[f64],
+        conditions: Conditions,
+        ws: &mut RobotWorkspace,
+    ) {
+        tree.forward_into(q, &mut ws.rigid);
         ws.perturbation.clear();
         let (own_mass, gravity) = self.loads_into(conditions, tree, error_values, &mut ws.mass);
         ws.own_mass = own_mass;
@@ -445,7 +461,6 @@ impl Robot {
         for (m, v) in self.error_models.iter().zip(error_values) {
             m.perturb(&state, v, &mut ws.perturbation);
         }
-        tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
     }
 
     /// The loads under `conditions` with the points of `tree` and error-model `values`:

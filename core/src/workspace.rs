@@ -2,7 +2,7 @@
 
 use nalgebra::{Isometry3, Matrix3xX, Matrix6xX, Point3, Vector3};
 
-use crate::geom::exp_twist;
+use crate::geom::{exp_twist, exp_twist_right_jacobian};
 use crate::perturbation::Perturbation;
 use crate::tree::{Coordinate, KinematicTree, Motion};
 
@@ -74,6 +74,39 @@ impl KinematicTree {
             }
             ws.point[i] = pose;
         }
+    }
+
+    /// First-order change of point `p`'s world position (m) when `deformation`, the
+    /// perturbation of the last evaluation in `ws`, changes by `change`: twists at the joint
+    /// frames and the point (through the twist exponential's right Jacobian), joint offsets
+    /// along the joint axes, all at the deformed frames. The derivative of
+    /// [`forward_perturbed_into`](Self::forward_perturbed_into) along `change`, without a second
+    /// forward pass.
+    pub fn point_perturbation_effect(
+        &self,
+        ws: &TreeWorkspace,
+        deformation: &Perturbation,
+        p: usize,
+        change: &Perturbation,
+    ) -> Vector3<f64> {
+        let pos = ws.point[p].translation.vector;
+        let mut dp = Vector3::zeros();
+        for &j in &self.support[self.points[p].body] {
+            let frame = &ws.joint_frame[j];
+            if change.joint_twist[j] != nalgebra::Vector6::zeros() {
+                let xi = exp_twist_right_jacobian(&deformation.joint_twist[j], &change.joint_twist[j]);
+                let v = frame.rotation * xi.fixed_rows::<3>(0);
+                let w = frame.rotation * xi.fixed_rows::<3>(3);
+                dp += v + w.cross(&(pos - frame.translation.vector));
+            }
+            if change.joint_offset[j] != 0.0
+                && let Some((lin, _)) = self.joint_velocity(ws, j, &pos)
+            {
+                dp += lin * change.joint_offset[j];
+            }
+        }
+        let xi = exp_twist_right_jacobian(&deformation.point_twist[p], &change.point_twist[p]);
+        dp + ws.point[p].rotation * xi.fixed_rows::<3>(0)
     }
 
     /// Allocating convenience: world positions of every point (m).

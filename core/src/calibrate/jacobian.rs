@@ -1,9 +1,11 @@
 //! Evaluating the model on the samples and its Jacobian: twists for geometry, exact columns
-//! for markers, differences of the deformed model for error models.
+//! for markers, the first-order effect of the change of deformation for error models (and,
+//! in the exact form, for geometry, whose moment arms the deformation depends on).
 
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3, Vector6};
 
 use crate::error::Result;
+use crate::geom::exp_twist;
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::perturbation::Perturbation;
@@ -117,11 +119,8 @@ impl Problem<'_> {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
                         let tree = space.tree(self.robot, &t)?;
-                        if form == JacobianForm::Exact && !self.robot.error_models().is_empty() {
-                            ColumnPlan::Finite { tree, h }
-                        } else {
-                            geometry_plan(&d.tree, tree, h)
-                        }
+                        let deformed = form == JacobianForm::Exact && !self.robot.error_models().is_empty();
+                        geometry_plan(&d.tree, tree, h, deformed)
                     }
                 })
             })
@@ -131,11 +130,13 @@ impl Problem<'_> {
     /// Jacobian of the measurement residuals with respect to the parameters `free`.
     ///
     /// Geometry that moves joint placements and point frames is differentiated through
-    /// first-order twists at the joint frames: a few vector operations per sample instead of a
-    /// forward kinematics run; on deformed robots that holds the deformation, and the exact
-    /// `form` differences the full model instead. Error-model parameters are differenced
-    /// through the deformed kinematics only (the model's share of the deformation re-evaluated,
-    /// the rigid frames reused).
+    /// first-order twists at the placed frames: a few vector operations per sample instead of a
+    /// forward kinematics run. On deformed robots the held `form` keeps the deformation as it
+    /// is; the exact form adds the deformation's change (the models re-evaluated on the
+    /// stepped rigid kinematics, no deformed forward pass), mapped to the point at the deformed
+    /// frames ([`KinematicTree::point_perturbation_effect`]). Error-model parameters are
+    /// mapped the same way from the change of that model's deformation alone. Geometry that
+    /// changes a joint's motion and load-adjusting models difference the full model.
     pub(super) fn jacobian(
         &self,
         theta: &[f64],
@@ -159,10 +160,12 @@ impl Problem<'_> {
                         self.robot.workspace(),
                         self.robot.workspace(),
                         vec![pert.clone(); n_models],
+                        pert.clone(),
                         pert,
+                        vec![Isometry3::identity(); d.tree.joints().len()],
                     )
                 },
-                |(ws, ws_fd, base_perts, scratch), (s_idx, s)| {
+                |(ws, ws_fd, base_perts, scratch, stepped, placed), (s_idx, s)| {
                     let cond = Conditions::of(s);
                     self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
                     for (i, bp) in base_perts.iter_mut().enumerate() {
@@ -172,14 +175,27 @@ impl Problem<'_> {
                     let body = d.tree.points()[s.point].body;
                     let support = d.tree.support(body);
                     let p = e.world[s_idx];
+                    // Geometry moves a joint's placement, which the deformation's twist
+                    // follows: its twist acts at the placed frame before that twist (and a
+                    // point's before its own), not at the deformed one.
                     let frames = &ws.frames;
-                    let twist_effect = |j: usize, xi: &Vector6<f64>| -> Vector3<f64> {
-                        let f = &frames.joint_frame[j];
+                    let deformation = &ws.perturbation;
+                    for &j in support {
+                        placed[j] = frames.joint_frame[j];
+                        if n_models > 0 {
+                            placed[j] *= exp_twist(&deformation.joint_twist[j]).inverse();
+                        }
+                    }
+                    let point_frame = if n_models > 0 {
+                        frames.point[s.point] * exp_twist(&deformation.point_twist[s.point]).inverse()
+                    } else {
+                        frames.point[s.point]
+                    };
+                    let effect_at = |f: &Isometry3<f64>, xi: &Vector6<f64>| -> Vector3<f64> {
                         let v = f.rotation * xi.fixed_rows::<3>(0);
                         let w = f.rotation * xi.fixed_rows::<3>(3);
                         v + w.cross(&(p - f.translation.vector))
                     };
-                    let point_rot = frames.point[s.point].rotation;
                     let mut row = vec![0.0; 3 * ncols];
                     for (c, plan) in plans.iter().enumerate() {
                         let dp_meas = match plan {
@@ -192,16 +208,30 @@ impl Problem<'_> {
                             ColumnPlan::Base { from, to, h } => {
                                 (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h
                             }
-                            ColumnPlan::Twists { joints, points } => {
+                            ColumnPlan::Twists {
+                                joints,
+                                points,
+                                deformation,
+                            } => {
                                 let mut dp = Vector3::zeros();
+                                if let Some((tree, h)) = deformation {
+                                    self.robot.deformation_into(tree, &d.errors, &s.q, cond, ws_fd);
+                                    scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
+                                    dp += d.tree.point_perturbation_effect(
+                                        &ws.frames,
+                                        &ws.perturbation,
+                                        s.point,
+                                        scratch,
+                                    );
+                                }
                                 for (j, xi) in joints {
                                     if support.contains(j) {
-                                        dp += twist_effect(*j, xi);
+                                        dp += effect_at(&placed[*j], xi);
                                     }
                                 }
                                 for (i, xi) in points {
                                     if *i == s.point {
-                                        dp += point_rot * xi.fixed_rows::<3>(0);
+                                        dp += effect_at(&point_frame, xi);
                                     }
                                 }
                                 r_meas * dp
@@ -222,17 +252,13 @@ impl Problem<'_> {
                                 r_meas * dp
                             }
                             ColumnPlan::Model { model, values, h } => {
-                                // Total deformation with this model's share re-evaluated at
-                                // the stepped value; the rigid frames stay as they are.
-                                scratch.clone_from(&ws.perturbation);
-                                subtract(scratch, &base_perts[*model]);
+                                stepped.clear();
                                 self.robot
-                                    .model_perturbation_into(*model, &d.tree, values, s, ws, scratch);
-                                d.tree.forward_perturbed_into(&s.q, scratch, &mut ws_fd.frames);
-                                let dp = (ws_fd.frames.point[s.point].translation.vector
-                                    - ws.frames.point[s.point].translation.vector)
-                                    / *h;
-                                r_meas * dp
+                                    .model_perturbation_into(*model, &d.tree, values, s, ws, stepped);
+                                scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
+                                r_meas
+                                    * d.tree
+                                        .point_perturbation_effect(&ws.frames, &ws.perturbation, s.point, scratch)
                             }
                         };
                         for a in 0..3 {
@@ -255,24 +281,9 @@ impl Problem<'_> {
     }
 }
 
-/// `out -= other`, entry by entry.
-pub(super) fn subtract(out: &mut Perturbation, other: &Perturbation) {
-    out.joint_twist
-        .iter_mut()
-        .zip(&other.joint_twist)
-        .for_each(|(a, b)| *a -= b);
-    out.joint_offset
-        .iter_mut()
-        .zip(&other.joint_offset)
-        .for_each(|(a, b)| *a -= b);
-    out.point_twist
-        .iter_mut()
-        .zip(&other.point_twist)
-        .for_each(|(a, b)| *a -= b);
-}
-
-/// The column plan of a geometry parameter whose step `h` turns `tree` into `stepped`.
-pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64) -> ColumnPlan {
+/// The column plan of a geometry parameter whose step `h` turns `tree` into `stepped`; with
+/// `deformed`, the exact form that adds the deformation's change.
+pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64, deformed: bool) -> ColumnPlan {
     let same_motion = tree
         .joints()
         .iter()
@@ -302,7 +313,11 @@ pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64
         .enumerate()
         .filter_map(|(i, (a, b))| twist(&a.local, &b.local).map(|xi| (i, xi)))
         .collect();
-    ColumnPlan::Twists { joints, points }
+    ColumnPlan::Twists {
+        joints,
+        points,
+        deformation: deformed.then_some((stepped, h)),
+    }
 }
 
 /// The size a parameter of this kind typically has when it matters (SI): 10 mm, 0.6°, 1 %,

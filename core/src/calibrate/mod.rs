@@ -328,16 +328,19 @@ enum JacobianForm {
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
 enum ColumnPlan {
     /// Geometry acting through joint placements and point frames: the twist per unit of the
-    /// parameter at each joint frame and point it moves.
+    /// parameter at each joint frame and point it moves. With `deformation` (the stepped tree
+    /// and the step), the exact form: the change of the error models' deformation the step
+    /// causes (its moment arms) is added, to first order at the deformed frames.
     Twists {
         joints: Vec<(usize, Vector6<f64>)>,
         points: Vec<(usize, Vector6<f64>)>,
+        deformation: Option<(KinematicTree, f64)>,
     },
     /// Geometry that changes a joint's motion: finite differences of the full model.
     Finite { tree: KinematicTree, h: f64 },
-    /// An error-model parameter: finite differences of the deformed kinematics with that
-    /// model's deformation re-evaluated (the rigid kinematics is reused).
-    /// `values` are the model's parameters with this one stepped by `h`.
+    /// An error-model parameter: the difference of that model's deformation at `values` (the
+    /// model's parameters with this one stepped by `h`), to first order at the deformed
+    /// frames (the rigid kinematics and the other models' share are reused).
     Model { model: usize, values: Vec<f64>, h: f64 },
     /// A parameter of a load-adjusting model (a payload mass, a base tilt): finite differences
     /// of the full model, since every elastic model responds to the load. `errors` are all the

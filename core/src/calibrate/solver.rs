@@ -107,10 +107,25 @@ impl Problem<'_> {
                     lambda *= 10.0;
                     continue;
                 };
+                // Stop at the first bound the step meets: a scaled damped step still lowers
+                // the linear model, where clipping each parameter to its bound distorts the
+                // step (rejected, the damping grows, the solver crawls). The parameter that
+                // landed on its bound is held there by the next step if it pushes outward.
+                let alpha = free.iter().enumerate().fold(1.0f64, |alpha, (c, &k)| {
+                    let b = &space.params[k].info;
+                    let to = theta[k] + delta[c];
+                    if to < b.lower {
+                        alpha.min((b.lower - theta[k]) / delta[c])
+                    } else if to > b.upper {
+                        alpha.min((b.upper - theta[k]) / delta[c])
+                    } else {
+                        alpha
+                    }
+                });
                 let mut trial = theta.clone();
                 for (c, &k) in free.iter().enumerate() {
                     let b = &space.params[k].info;
-                    trial[k] = (theta[k] + delta[c]).clamp(b.lower, b.upper);
+                    trial[k] = (theta[k] + alpha * delta[c]).clamp(b.lower, b.upper);
                 }
                 let Ok((d1, e1, pred1)) = self.predict(&trial) else {
                     lambda *= 4.0;

@@ -278,3 +278,76 @@ fn every_plugin_is_registered_with_a_schema() {
         assert!(s.as_object().is_some_and(|o| !o.is_empty()), "{}", p.type_name);
     }
 }
+
+/// `KinematicTree::point_perturbation_effect`, which the calibration's exact Jacobian uses:
+/// at the rigid frames it is Eq. 5's displacement (an independent formula through adjoints);
+/// at a deformed configuration it is the derivative of the perturbed forward kinematics along
+/// a change of the deformation, by central differences.
+#[test]
+fn point_perturbation_effect_is_eq5_and_the_derivative_of_perturbed_fk() {
+    let r = robot(ARM);
+    let tool = r.tool();
+    let tree = r.tree();
+    // The whole deformation of every model at its file values, and a change made of model 1
+    // (joint offsets) and model 2 (joint twists) at other values, plus a point twist.
+    let all = |values: &dyn Fn(usize) -> Vec<f64>| {
+        let mut total = armcomp_core::Perturbation::zeros(tree);
+        for m in 0..r.error_models().len() {
+            let (p, _) = perturbation_of(&r, m, &values(m), &Q, Some(35.0));
+            add_scaled(&mut total, &p, 1.0);
+        }
+        total
+    };
+    let defaults = r.error_values();
+    let base = all(&|m| defaults[m].clone());
+    let mut change = all(&|m| match m {
+        1 | 2 => defaults[m].iter().map(|v| 3.0 * v + 1e-6).collect(),
+        _ => vec![0.0; defaults[m].len()],
+    });
+    change.point_twist[tool] = Vector6::new(1e-4, -2e-4, 3e-4, 2e-3, -1e-3, 4e-3);
+    assert!(!base.is_zero() && !change.is_zero());
+
+    // Rigid frames: Eq. 5.
+    let (_, rigid) = perturbation_of(&r, 0, &defaults[0], &Q, None);
+    let (eq5, _) = tool_differential_world(tree, &rigid, &change, tool);
+    let none = armcomp_core::Perturbation::zeros(tree);
+    let effect = tree.point_perturbation_effect(&rigid, &none, tool, &change);
+    assert!((effect - eq5).norm() <= 1e-12 * eq5.norm(), "{effect} vs Eq. 5 {eq5}");
+
+    // Deformed frames: central differences of the perturbed forward kinematics.
+    let mut ws = TreeWorkspace::new(tree);
+    tree.forward_perturbed_into(&Q, &base, &mut ws);
+    let effect = tree.point_perturbation_effect(&ws, &base, tool, &change);
+    let at = |s: f64| {
+        let mut p = base.clone();
+        add_scaled(&mut p, &change, s);
+        let mut w = TreeWorkspace::new(tree);
+        tree.forward_perturbed_into(&Q, &p, &mut w);
+        w.point[tool].translation.vector
+    };
+    let h = 1e-3;
+    let fd = (at(h) - at(-h)) / (2.0 * h);
+    let size = base.joint_twist.iter().map(|t| t.norm()).fold(0.0, f64::max);
+    assert!(size > 1e-5, "deformation size {size}");
+    let err = (effect - fd).norm() / fd.norm();
+    assert!(err < 1e-7, "{effect} vs finite differences {fd} (relative {err:e})");
+    // Not the rigid-frame value: the deformed frames matter at this tolerance.
+    let rigid_effect = tree.point_perturbation_effect(&rigid, &none, tool, &change);
+    assert!((rigid_effect - fd).norm() > 1e2 * (effect - fd).norm());
+}
+
+/// `a += s · b`, entry by entry.
+fn add_scaled(a: &mut armcomp_core::Perturbation, b: &armcomp_core::Perturbation, s: f64) {
+    a.joint_twist
+        .iter_mut()
+        .zip(&b.joint_twist)
+        .for_each(|(x, y)| *x += y * s);
+    a.joint_offset
+        .iter_mut()
+        .zip(&b.joint_offset)
+        .for_each(|(x, y)| *x += y * s);
+    a.point_twist
+        .iter_mut()
+        .zip(&b.point_twist)
+        .for_each(|(x, y)| *x += y * s);
+}
