@@ -4,12 +4,12 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use armcomp::twins::Twin;
 use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::evaluate::fit_residual_predictor;
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_learn::GpSpec;
+use armcomp_repro::twins::Twin;
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn bench(c: &mut Criterion) {

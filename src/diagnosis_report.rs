@@ -1,13 +1,14 @@
 //! The diagnosis report folder: an HTML page with the steps table and rankings, the JSON
 //! report, and SVG plots of the held-out RMS per step and of the held-out error histograms.
 
-use crate::html::{escape, page_start};
 use std::fmt::Write as _;
 use std::path::Path;
 
 use armcomp_core::diagnose::DiagnosisReport;
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::io::{check_report_folder, write_folder_atomic};
+use armcomp_report::histogram::bin_counts;
+use armcomp_report::html::{escape, page_start};
 use plotters::prelude::*;
 
 /// Whether a file belongs in a diagnosis report folder.
@@ -77,14 +78,7 @@ fn histogram(r: &DiagnosisReport) -> anyhow::Result<String> {
     let max = first.iter().chain(&last).copied().fold(0.0, f64::max) + 1e-9;
     let bins = 20;
     let width = max / bins as f64;
-    let count = |v: &[f64]| {
-        let mut c = vec![0usize; bins];
-        for x in v {
-            c[((x / width) as usize).min(bins - 1)] += 1;
-        }
-        c
-    };
-    let (c0, c1) = (count(&first), count(&last));
+    let (c0, c1) = (bin_counts(&first, width, bins), bin_counts(&last, width, bins));
     let top = c0.iter().chain(&c1).copied().max().unwrap_or(1) as f64 * 1.1;
     let mut svg = String::new();
     {

@@ -3,12 +3,8 @@
 //! (schema first, then semantics), reporting every problem with file, line and field.
 #![warn(missing_docs)]
 
-pub mod agile_justin;
 pub mod config;
-pub mod demos;
 pub mod diagnosis_report;
-pub mod html;
-pub mod learning_curve;
 pub mod load;
 pub mod ops;
 pub mod registry;
@@ -17,4 +13,3 @@ pub mod validate;
 pub use load::{load_robot, read_robot};
 pub use registry::{plugins, robot_schema, schema_text};
 pub use validate::{Diagnostic, Validation, check_file, validate_file};
-pub mod twins;

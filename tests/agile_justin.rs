@@ -3,13 +3,13 @@
 
 use std::path::Path;
 
-use armcomp::agile_justin::{
-    MEASUREMENTS, STEPS, diagnose_from_frames, half_split, kfold_errors, parse_measurements, step_table,
-};
 use armcomp_core::Robot;
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::split::subset;
+use armcomp_repro::agile_justin::{
+    MEASUREMENTS, STEPS, diagnose_from_frames, half_split, kfold_errors, parse_measurements, step_table,
+};
 
 use crate::common::{Scratch, robot};
 
@@ -88,7 +88,7 @@ fn reader_names_the_line_of_bad_input() {
 fn frames_only(r: &Robot, samples: &[armcomp_core::measurement::Sample]) -> Robot {
     let params = CalibrationParams {
         identify: STEPS[0].identify.iter().map(|s| s.to_string()).collect(),
-        measurement_std: armcomp::agile_justin::MEASUREMENT_STD,
+        measurement_std: armcomp_repro::agile_justin::MEASUREMENT_STD,
         ..CalibrationParams::default()
     };
     calibrate(r, samples, &params, &mut |_| {}).unwrap().robot
@@ -113,7 +113,7 @@ fn frames_only_fit_matches_the_paper() {
     assert_eq!(position_errors(&fitted, &samples), position_errors(&again, &samples));
 }
 
-fn held_out_means(steps: &[armcomp::agile_justin::Step]) -> Vec<f64> {
+fn held_out_means(steps: &[armcomp_repro::agile_justin::Step]) -> Vec<f64> {
     let r = justin();
     let samples = parse_measurements(MEASUREMENTS, Path::new("m.csv"), &r).unwrap();
     let split = half_split(&samples, 1).unwrap();
@@ -187,7 +187,7 @@ fn report_shows_each_step_beside_the_paper() {
     let split = half_split(&samples, 1).unwrap();
     let steps = step_table(&r, &samples, &split, &STEPS[..2], None).unwrap();
     let folds = kfold_errors(&r, &samples, 2, 1, &STEPS[..2], None).unwrap();
-    let tables = armcomp::demos::agile_justin::tables(500, 250, 1, &steps, Some((2, &folds)));
+    let tables = armcomp_repro::demos::agile_justin::tables(500, 250, 1, &steps, Some((2, &folds)));
     assert_eq!(tables.len(), 2);
     let (fixed, kfold) = (&tables[0], &tables[1]);
     assert_eq!(fixed.rows.len(), 2);
@@ -215,7 +215,7 @@ fn report_shows_each_step_beside_the_paper() {
     }
 
     let dir = Scratch::new("agile-justin-report");
-    let page = armcomp::demos::report::write(&dir.0, &tables).unwrap();
+    let page = armcomp_repro::demos::report::write(&dir.0, &tables).unwrap();
     let html = std::fs::read_to_string(&page).unwrap();
     for t in &tables {
         assert!(html.contains(&t.title), "{html}");
@@ -235,7 +235,7 @@ fn report_shows_each_step_beside_the_paper() {
         }
     }
     for (i, t) in tables.iter().enumerate() {
-        let stem = armcomp::demos::report::stem(i, t);
+        let stem = armcomp_repro::demos::report::stem(i, t);
         for kind in ["bars", "histogram", "axes"] {
             let name = format!("{stem}-{kind}.svg");
             assert!(html.contains(&format!("src=\"{name}\"")), "{name}");

@@ -6,9 +6,9 @@
 //! the orderings of the ANN paper that hold on its twin. A sweep over seeds summarises the runs
 //! of its seeds.
 
-use armcomp::demos::industrial;
-use armcomp::demos::rock_drill::{Config, claims, collection_order, paper_grid, run, sweep};
 use armcomp_learn::SparrowParams;
+use armcomp_repro::demos::industrial;
+use armcomp_repro::demos::rock_drill::{Config, claims, collection_order, paper_grid, run, sweep};
 
 use crate::common::Scratch;
 use rand::SeedableRng;
@@ -63,7 +63,7 @@ fn rock_drill_demo_orders_the_pipelines_as_claimed() {
     // The nominal deflection model removes a minor share: servo scales and zeros, geometry and
     // joint compliance dominate the error and change sign over the workspace (the paper's
     // Table I: 13 % of the mean, 4 % of the variance).
-    let total = |name: &str, of: fn(&armcomp::demos::Row) -> f64| -> f64 {
+    let total = |name: &str, of: fn(&armcomp_repro::demos::Row) -> f64| -> f64 {
         tables.iter().map(|t| of(t.row(name).unwrap())).sum()
     };
     assert!(
@@ -180,7 +180,7 @@ fn industrial_demo_orders_the_pipelines_as_claimed() {
     // Every test target is in every row, and the report plots the table.
     assert!(table.rows.iter().all(|r| r.errors_mm.len() == config.targets));
     let dir = Scratch::new("industrial-report");
-    let page = armcomp::demos::report::write(&dir.0, std::slice::from_ref(&table)).unwrap();
+    let page = armcomp_repro::demos::report::write(&dir.0, std::slice::from_ref(&table)).unwrap();
     let html = std::fs::read_to_string(page).unwrap();
     for (kind, shows) in [
         ("bars", "POE identification"),

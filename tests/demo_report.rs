@@ -2,9 +2,9 @@
 //! plots show follows from the table's values (bar lengths in proportion, value labels, histogram
 //! counts worked out by hand, per-axis curves an affine image of the errors).
 
-use armcomp::demos::plots::{AFTER_COLOR, BEFORE_COLOR, MEASURED_COLOR, PAPER_COLOR};
-use armcomp::demos::report::write;
-use armcomp::demos::{PaperMetric, PaperValue, Row, Table};
+use armcomp_repro::demos::plots::{AFTER_COLOR, BEFORE_COLOR, MEASURED_COLOR, PAPER_COLOR};
+use armcomp_repro::demos::report::write;
+use armcomp_repro::demos::{PaperMetric, PaperValue, Row, Table};
 use plotters::style::RGBColor;
 
 use crate::common::Scratch;

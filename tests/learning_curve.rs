@@ -6,14 +6,14 @@
 
 use std::path::Path;
 
-use armcomp::agile_justin::{MEASUREMENTS, STEPS, half_split, parse_measurements, step_table};
-use armcomp::demos::report::{Curve, write_page};
-use armcomp::learning_curve::{CurveParams, agile_justin_curve, learning_curve, talos_curves};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::design::{Criterion, SelectionParams, select_poses};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::{RowSelection, Sample, read_csv};
 use armcomp_core::{Result, Robot};
+use armcomp_repro::agile_justin::{MEASUREMENTS, STEPS, half_split, parse_measurements, step_table};
+use armcomp_repro::demos::report::{Curve, write_page};
+use armcomp_repro::learning_curve::{CurveParams, agile_justin_curve, learning_curve, talos_curves};
 
 use crate::common::{Scratch, robot, root};
 

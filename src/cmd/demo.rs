@@ -1,8 +1,8 @@
 use std::process::ExitCode;
 
 use anyhow::bail;
-use armcomp::twins::{TWINS, Twin};
 use armcomp_core::Robot;
+use armcomp_repro::twins::{TWINS, Twin};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -111,7 +111,7 @@ fn describe(twin: &Twin) -> anyhow::Result<Robot> {
 }
 
 /// `--seeds N` on the rock drill.
-fn sweep(config: &armcomp::demos::rock_drill::Config, n: usize, args: &Args) -> anyhow::Result<ExitCode> {
+fn sweep(config: &armcomp_repro::demos::rock_drill::Config, n: usize, args: &Args) -> anyhow::Result<ExitCode> {
     if args.report.is_some() {
         bail!("--report draws one seed's run; leave out --seeds, or --report");
     }
@@ -119,7 +119,7 @@ fn sweep(config: &armcomp::demos::rock_drill::Config, n: usize, args: &Args) -> 
     bar.set_style(
         indicatif::ProgressStyle::with_template("seeds {bar:30} {pos}/{len}  {msg}").expect("the template is valid"),
     );
-    let sweep = armcomp::demos::rock_drill::sweep(config, n, &|seed| {
+    let sweep = armcomp_repro::demos::rock_drill::sweep(config, n, &|seed| {
         bar.set_message(format!("seed {seed} done"));
         bar.inc(1);
     });
@@ -128,7 +128,7 @@ fn sweep(config: &armcomp::demos::rock_drill::Config, n: usize, args: &Args) -> 
     if args.json {
         println!("{}", serde_json::to_string_pretty(&sweep)?);
     } else {
-        sweep.print();
+        print!("{sweep}");
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -138,26 +138,27 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bail!("--seeds runs the rock-drill demo only, not `{}`", args.twin);
     }
     if let (Some(dir), None) = (&args.report, args.seeds) {
-        armcomp::demos::report::check(dir)?;
+        armcomp_repro::demos::report::check(dir)?;
     }
     match args.twin.as_str() {
         "rock-drill" => {
             if !args.json {
                 describe(Twin::get("rock-drill").expect("built in"))?;
             }
-            let config = armcomp::demos::rock_drill::Config {
+            let config = armcomp_repro::demos::rock_drill::Config {
                 grouped: !args.random_poses,
-                ..armcomp::demos::rock_drill::Config::paper(args.seed)
+                ..armcomp_repro::demos::rock_drill::Config::paper(args.seed)
             };
             if let Some(n) = args.seeds {
                 return sweep(&config, n, &args);
             }
-            let table = armcomp::demos::rock_drill::run(&config)?;
+            let table = armcomp_repro::demos::rock_drill::run(&config)?;
             super::demo_output::emit(&[table], args.json, args.report.as_deref())?;
         }
         "industrial" => {
             if args.json {
-                let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
+                let table =
+                    armcomp_repro::demos::industrial::run(&armcomp_repro::demos::industrial::Config::paper(args.seed))?;
                 super::demo_output::emit(&[table], true, args.report.as_deref())?;
                 return Ok(ExitCode::SUCCESS);
             }
@@ -173,7 +174,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 }
                 println!("   {other}: tool differs from the MDH form by at most {:.3e} m", worst);
             }
-            let table = armcomp::demos::industrial::run(&armcomp::demos::industrial::Config::paper(args.seed))?;
+            let table =
+                armcomp_repro::demos::industrial::run(&armcomp_repro::demos::industrial::Config::paper(args.seed))?;
             super::demo_output::emit(&[table], false, args.report.as_deref())?;
         }
         "agile-justin" | "talos" if args.learning_curve || args.twin == "talos" => {

@@ -1,16 +1,16 @@
 //! `armcomp demo agile-justin --learning-curve` and `armcomp demo talos`: held-out error
 //! against the number of training poses, for the poses `armcomp plan` chooses and for random
-//! subsets, on real measurements (the curves are `armcomp::learning_curve`'s).
+//! subsets, on real measurements (the curves are `armcomp_repro::learning_curve`'s).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
-use armcomp::demos::report::Curve;
-use armcomp::learning_curve::{LearningCurveReport, agile_justin_curve, talos_curves};
 use armcomp_core::design::Criterion;
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::measurement::read_csv;
+use armcomp_repro::demos::report::Curve;
+use armcomp_repro::learning_curve::{LearningCurveReport, agile_justin_curve, talos_curves};
 
 /// CurveParams of the learning-curve demos.
 pub struct CurveParams {
@@ -155,7 +155,7 @@ pub fn talos(opts: &CurveParams, robot_path: &Path, data_path: &Path) -> anyhow:
 /// Prints the curves (text or JSON) and writes the report.
 fn emit(curves: &[Curve], opts: &CurveParams) -> anyhow::Result<()> {
     if let Some(dir) = &opts.report {
-        let page = armcomp::demos::report::write_page(dir, &[], curves)?;
+        let page = armcomp_repro::demos::report::write_page(dir, &[], curves)?;
         eprintln!("wrote {}", page.display());
     }
     if opts.json {

@@ -4,15 +4,15 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-use armcomp::agile_justin::{
-    GROUPS, STEPS, StepResult, diagnose_from_frames, half_split, kfold_errors, leave_one_out, parse_measurements,
-    step_table,
-};
-use armcomp::agile_justin::{MEASUREMENTS, MEASUREMENTS_PATH};
-use armcomp::twins::Twin;
 use armcomp_core::PredictorSpec;
 use armcomp_core::diagnose::DiagnosisReport;
 use armcomp_core::evaluate::ErrorStats;
+use armcomp_repro::agile_justin::{
+    GROUPS, STEPS, StepResult, diagnose_from_frames, half_split, kfold_errors, leave_one_out, parse_measurements,
+    step_table,
+};
+use armcomp_repro::agile_justin::{MEASUREMENTS, MEASUREMENTS_PATH};
+use armcomp_repro::twins::Twin;
 use serde::Serialize;
 
 /// JustinParams of `armcomp demo agile-justin`.
@@ -106,14 +106,14 @@ pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
         None
     };
     if let Some(dir) = &opts.report {
-        let tables = armcomp::demos::agile_justin::tables(
+        let tables = armcomp_repro::demos::agile_justin::tables(
             samples.len() / 2,
             split.train.len() / 2,
             opts.seed,
             &steps,
             (opts.folds > 0).then_some((opts.folds, kfold.as_slice())),
         );
-        let page = armcomp::demos::report::write(dir, &tables)?;
+        let page = armcomp_repro::demos::report::write(dir, &tables)?;
         eprintln!("wrote {}", page.display());
     }
     let out = Output {

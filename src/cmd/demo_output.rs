@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use armcomp::demos::Table;
+use armcomp_repro::demos::Table;
 
 /// Prints `tables` (JSON with `json`) and writes the HTML report when asked.
 pub fn emit(tables: &[Table], json: bool, report: Option<&Path>) -> anyhow::Result<()> {
@@ -10,11 +10,11 @@ pub fn emit(tables: &[Table], json: bool, report: Option<&Path>) -> anyhow::Resu
         println!("{}", serde_json::to_string_pretty(tables)?);
     } else {
         for t in tables {
-            t.print();
+            print!("{t}");
         }
     }
     if let Some(dir) = report {
-        let page = armcomp::demos::report::write(dir, tables)?;
+        let page = armcomp_repro::demos::report::write(dir, tables)?;
         eprintln!("wrote {}", page.display());
     }
     Ok(())

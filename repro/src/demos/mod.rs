@@ -8,6 +8,7 @@ pub mod report;
 pub mod rock_drill;
 pub mod seed_sweep;
 
+use std::fmt;
 use std::time::Instant;
 
 use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
@@ -84,19 +85,23 @@ impl Table {
     pub fn row(&self, name: &str) -> Option<&Row> {
         self.rows.iter().find(|r| r.name == name)
     }
+}
 
-    /// Prints the table with the paper's values beside the measured ones.
-    pub fn print(&self) {
-        println!("== {}", self.title);
-        println!("   {}", self.setup);
-        println!(
+/// The table as text, the paper's values beside the measured ones (one line per row).
+impl fmt::Display for Table {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "== {}", self.title)?;
+        writeln!(f, "   {}", self.setup)?;
+        writeln!(
+            f,
             "   measurement noise {:.2} mm per axis (mean |z| of the noise alone {:.3} mm)",
             self.noise_mm, self.noise_mean_abs_z_mm
-        );
-        println!(
+        )?;
+        writeln!(
+            f,
             "   {:<50} {:>6} {:>9} {:>10} {:>10} {:>9} {:>9} {:>14}",
             "pipeline", "poses", "train s", "mean|z|", "variance", "3-D mean", "3-D max", "paper"
-        );
+        )?;
         for r in &self.rows {
             let paper = match r.paper {
                 Some(PaperValue {
@@ -106,11 +111,13 @@ impl Table {
                 Some(PaperValue { mean_mm, .. }) => format!("{mean_mm:.2}"),
                 None => String::new(),
             };
-            println!(
+            writeln!(
+                f,
                 "   {:<50} {:>6} {:>9.2} {:>10.3} {:>10.3} {:>9.3} {:>9.3} {:>14}",
                 r.name, r.training_poses, r.training_s, r.mean_abs_z_mm, r.variance_mm2, r.mean_mm, r.max_mm, paper
-            );
+            )?;
         }
+        Ok(())
     }
 }
 

@@ -20,7 +20,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 
 /// The published measurements, unchanged.
-pub const MEASUREMENTS: &str = include_str!("../data/agile-justin/measurements.csv");
+pub const MEASUREMENTS: &str = include_str!("../../data/agile-justin/measurements.csv");
 
 /// Where [`MEASUREMENTS`] lives in the repository (used in messages).
 pub const MEASUREMENTS_PATH: &str = "data/agile-justin/measurements.csv";

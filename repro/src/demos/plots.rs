@@ -2,6 +2,7 @@
 //! histograms of the 3-D errors before and after compensation, and the per-axis errors at every
 //! test target.
 
+use armcomp_report::histogram::bin_counts;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
@@ -47,15 +48,6 @@ fn norms(row: &Row) -> Vec<f64> {
         .iter()
         .map(|e| (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
         .collect()
-}
-
-/// Counts of `values` in `bins` bins of `width` from zero; the last bin takes the overflow.
-fn bin_counts(values: &[f64], width: f64, bins: usize) -> Vec<usize> {
-    let mut counts = vec![0usize; bins];
-    for v in values {
-        counts[((v / width) as usize).min(bins - 1)] += 1;
-    }
-    counts
 }
 
 /// Horizontal bars of every row: mean |z| and mean 3-D error, each with the paper's value where

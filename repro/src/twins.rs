@@ -20,42 +20,42 @@ pub const TWINS: &[Twin] = &[
     Twin {
         name: "rock-drill",
         path: "robots/rock-drill.toml",
-        text: include_str!("../robots/rock-drill.toml"),
+        text: include_str!("../../robots/rock-drill.toml"),
     },
     Twin {
         name: "rock-drill-deflection",
         path: "robots/rock-drill-deflection.toml",
-        text: include_str!("../robots/rock-drill-deflection.toml"),
+        text: include_str!("../../robots/rock-drill-deflection.toml"),
     },
     Twin {
         name: "rock-drill-truth",
         path: "robots/rock-drill-truth.toml",
-        text: include_str!("../robots/rock-drill-truth.toml"),
+        text: include_str!("../../robots/rock-drill-truth.toml"),
     },
     Twin {
         name: "industrial",
         path: "robots/industrial-6dof.toml",
-        text: include_str!("../robots/industrial-6dof.toml"),
+        text: include_str!("../../robots/industrial-6dof.toml"),
     },
     Twin {
         name: "industrial-truth",
         path: "robots/industrial-6dof-truth.toml",
-        text: include_str!("../robots/industrial-6dof-truth.toml"),
+        text: include_str!("../../robots/industrial-6dof-truth.toml"),
     },
     Twin {
         name: "industrial-dh",
         path: "robots/industrial-6dof-dh.toml",
-        text: include_str!("../robots/industrial-6dof-dh.toml"),
+        text: include_str!("../../robots/industrial-6dof-dh.toml"),
     },
     Twin {
         name: "industrial-poe",
         path: "robots/industrial-6dof-poe.toml",
-        text: include_str!("../robots/industrial-6dof-poe.toml"),
+        text: include_str!("../../robots/industrial-6dof-poe.toml"),
     },
     Twin {
         name: "agile-justin",
         path: "robots/agile-justin.toml",
-        text: include_str!("../robots/agile-justin.toml"),
+        text: include_str!("../../robots/agile-justin.toml"),
     },
 ];
 

@@ -3,6 +3,8 @@
 //! and network initialisation; a claim about a method is only as good as the share of draws it
 //! survives.
 
+use std::fmt;
+
 use serde::Serialize;
 
 use super::{PaperValue, Table};
@@ -103,32 +105,38 @@ impl SeedSweep {
             tables,
         }
     }
+}
 
-    /// Prints the spread of every row and the claims' counts.
-    pub fn print(&self) {
+/// The spread of every row and the claims' counts as text.
+impl fmt::Display for SeedSweep {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let seeds = match (self.seeds.first(), self.seeds.last()) {
             (Some(a), Some(b)) => format!("seeds {a} to {b}"),
             _ => "no seeds".into(),
         };
-        println!("== {} over {} ({} runs)", self.title, seeds, self.seeds.len());
-        println!(
+        writeln!(f, "== {} over {} ({} runs)", self.title, seeds, self.seeds.len())?;
+        writeln!(
+            f,
             "   mean |z| error in mm over the seeds (mean |z| of the noise alone {:.3} mm)",
             self.noise_mean_abs_z_mm
-        );
-        println!(
+        )?;
+        writeln!(
+            f,
             "   {:<50} {:>9} {:>9} {:>9} {:>9} {:>8}",
             "pipeline", "mean", "median", "min", "max", "paper"
-        );
+        )?;
         for r in &self.rows {
             let paper = r.paper.map_or(String::new(), |p| format!("{:.2}", p.mean_mm));
-            println!(
+            writeln!(
+                f,
                 "   {:<50} {:>9.3} {:>9.3} {:>9.3} {:>9.3} {:>8}",
                 r.name, r.mean_mm, r.median_mm, r.min_mm, r.max_mm, paper
-            );
+            )?;
         }
-        println!("   claims, seeds on which each held:");
+        writeln!(f, "   claims, seeds on which each held:")?;
         for c in &self.claims {
-            println!("   {:>3}/{:<3} {}", c.held, c.of, c.claim);
+            writeln!(f, "   {:>3}/{:<3} {}", c.held, c.of, c.claim)?;
         }
+        Ok(())
     }
 }

@@ -2,7 +2,7 @@
 //! (bars of the rows, error histograms before and after compensation, per-axis errors at the
 //! test targets), every file written atomically.
 
-use crate::html::{escape, page_start};
+use armcomp_report::html::{escape, page_start};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

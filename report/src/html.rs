@@ -1,4 +1,4 @@
-//! The HTML shared by the report pages (demo, diagnosis): escaping and the page's head.
+//! The HTML of the report pages: escaping and the page's head.
 
 /// `s` as HTML text or attribute value.
 pub fn escape(s: &str) -> String {
