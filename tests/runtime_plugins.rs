@@ -10,8 +10,9 @@ use armcomp_core::diagnose::{DiagnoseParams, diagnose};
 use armcomp_core::robot_file::SourceFile;
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
-use armcomp_core::{Error, Robot, RobotFile};
+use armcomp_core::{Error, Perturbation, Robot, RobotFile, StaticState, TreeWorkspace};
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 use crate::common::{Scratch, random_configurations, root};
 
@@ -115,6 +116,59 @@ fn runtime_plugin_matches_the_linked_model_bit_for_bit() {
             assert_eq!(ws_rt.perturbation, ws_ln.perturbation, "q = {q:?}");
             assert_eq!(ws_rt.frames.point, ws_ln.frames.point, "q = {q:?}");
             assert_eq!(ws_rt.frames.body, ws_ln.frames.body, "q = {q:?}");
+        }
+    }
+}
+
+/// Calibration evaluates a run-time model for many samples at once (rayon over samples), each
+/// thread with its own parameter values; the plugin handle is shared and no lock orders the
+/// calls. Every result must be the one the model gives alone, bit for bit, and the one the same
+/// model gives linked in.
+#[test]
+fn runtime_plugin_evaluated_from_many_threads_at_once_matches_one_thread_bit_for_bit() {
+    let (_scratch, path) = example_folder("rt-threads");
+    let runtime = Robot::from_path(&path).unwrap();
+    let linked = linked_robot(2.5);
+    let configurations = random_configurations(&linked, 400, 13);
+    // Sample i: its own hose mass per length (kg/m) and, every other one, a temperature.
+    let evaluate = |robot: &Robot, i: usize, q: &[f64]| -> Perturbation {
+        let tree = robot.tree();
+        let mut frames = TreeWorkspace::new(tree);
+        tree.forward_into(q, &mut frames);
+        let state = StaticState {
+            q,
+            tree,
+            frames: &frames,
+            mass: robot.mass(),
+            gravity: robot.gravity(),
+            temperature: (i % 2 == 1).then_some(25.0),
+        };
+        let mut out = Perturbation::zeros(tree);
+        robot.error_models()[0].perturb(&state, &[0.5 + 0.01 * i as f64], &mut out);
+        out
+    };
+    let one_thread: Vec<Perturbation> = configurations
+        .iter()
+        .enumerate()
+        .map(|(i, q)| evaluate(&runtime, i, q))
+        .collect();
+    for (i, q) in configurations.iter().enumerate() {
+        assert_eq!(one_thread[i], evaluate(&linked, i, q), "sample {i}");
+        assert!(!one_thread[i].is_zero(), "sample {i}: the hose bends the boom");
+    }
+    // More threads than cores, so calls interleave on every core; several rounds, since a race
+    // need not show in one.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(6).build().unwrap();
+    for round in 0..5 {
+        let many_threads: Vec<Perturbation> = pool.install(|| {
+            configurations
+                .par_iter()
+                .enumerate()
+                .map(|(i, q)| evaluate(&runtime, i, q))
+                .collect()
+        });
+        for (i, (many, one)) in many_threads.iter().zip(&one_thread).enumerate() {
+            assert_eq!(many, one, "round {round}, sample {i}");
         }
     }
 }
@@ -376,7 +430,7 @@ fn a_plugin_returning_the_wrong_number_of_values_is_rejected() {
         &e,
         60,
         "error_models[1]",
-        "perturb returned 4 joint offsets, expected 3",
+        "perturb: the model returned 4 joint offsets, expected 3",
     );
 }
 
