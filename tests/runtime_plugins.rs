@@ -10,8 +10,14 @@ use armcomp_core::diagnose::{DiagnoseParams, diagnose};
 use armcomp_core::robot_file::SourceFile;
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
-use armcomp_core::{Error, Robot, RobotFile};
+use armcomp_core::{
+    Error, FittedPredictor, Perturbation, PredictorSpec, Robot, RobotFile, StaticState, TrainingSet, TreeWorkspace,
+};
+use armcomp_learn::gp::GpSpec;
 use nalgebra::Vector3;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
 
 use crate::common::{Scratch, random_configurations, root};
 
@@ -117,6 +123,130 @@ fn runtime_plugin_matches_the_linked_model_bit_for_bit() {
             assert_eq!(ws_rt.frames.body, ws_ln.frames.body, "q = {q:?}");
         }
     }
+}
+
+/// Calibration evaluates a run-time model for many samples at once (rayon over samples), each
+/// thread with its own parameter values; the plugin handle is shared and no lock orders the
+/// calls. Every result must be the one the model gives alone, bit for bit, and the one the same
+/// model gives linked in.
+#[test]
+fn runtime_plugin_evaluated_from_many_threads_at_once_matches_one_thread_bit_for_bit() {
+    let (_scratch, path) = example_folder("rt-threads");
+    let runtime = Robot::from_path(&path).unwrap();
+    let linked = linked_robot(2.5);
+    let configurations = random_configurations(&linked, 400, 13);
+    // Sample i: its own hose mass per length (kg/m) and, every other one, a temperature.
+    let evaluate = |robot: &Robot, i: usize, q: &[f64]| -> Perturbation {
+        let tree = robot.tree();
+        let mut frames = TreeWorkspace::new(tree);
+        tree.forward_into(q, &mut frames);
+        let state = StaticState {
+            q,
+            tree,
+            frames: &frames,
+            mass: robot.mass(),
+            gravity: robot.gravity(),
+            temperature: (i % 2 == 1).then_some(25.0),
+        };
+        let mut out = Perturbation::zeros(tree);
+        robot.error_models()[0].perturb(&state, &[0.5 + 0.01 * i as f64], &mut out);
+        out
+    };
+    let one_thread: Vec<Perturbation> = configurations
+        .iter()
+        .enumerate()
+        .map(|(i, q)| evaluate(&runtime, i, q))
+        .collect();
+    for (i, q) in configurations.iter().enumerate() {
+        assert_eq!(one_thread[i], evaluate(&linked, i, q), "sample {i}");
+        assert!(!one_thread[i].is_zero(), "sample {i}: the hose bends the boom");
+    }
+    // More threads than cores, so calls interleave on every core; several rounds, since a race
+    // need not show in one.
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(6).build().unwrap();
+    for round in 0..5 {
+        let many_threads: Vec<Perturbation> = pool.install(|| {
+            configurations
+                .par_iter()
+                .enumerate()
+                .map(|(i, q)| evaluate(&runtime, i, q))
+                .collect()
+        });
+        for (i, (many, one)) in many_threads.iter().zip(&one_thread).enumerate() {
+            assert_eq!(many, one, "round {round}, sample {i}");
+        }
+    }
+}
+
+/// A run-time predictor (the Gaussian process of armcomp-learn, exported by the SDK's
+/// `gp_plugin` example) fitted and queried through the ABI gives what the same predictor linked
+/// in gives, bit for bit: one thread or six at once on one handle, mean and predictive standard
+/// deviation, and after a round trip through a model file.
+#[test]
+fn runtime_predictor_matches_the_linked_one_from_many_threads_bit_for_bit() {
+    allow_plugins();
+    let scratch = Scratch::new("rt-predictor");
+    let lib = library_file("gp_plugin");
+    std::fs::copy(built_plugins().join("examples").join(&lib), scratch.0.join(&lib)).unwrap();
+    // Two joint-like inputs, two outputs: smooth functions of them, 80 seeded rows.
+    let mut rng = StdRng::seed_from_u64(4);
+    let rows = |rng: &mut StdRng, n: usize| -> Vec<f64> { (0..2 * n).map(|_| rng.random_range(-1.5..1.5)).collect() };
+    let inputs = rows(&mut rng, 80);
+    let targets: Vec<f64> = inputs
+        .chunks_exact(2)
+        .flat_map(|x| [1e-3 * (x[0].sin() + 0.5 * x[1]), 2e-3 * (x[0] * x[1]).cos()])
+        .collect();
+    let data = TrainingSet {
+        inputs: &inputs,
+        targets: &targets,
+        n_inputs: 2,
+        n_outputs: 2,
+        input_ranges: &[],
+    };
+    let linked = GpSpec {
+        restarts: 0,
+        max_iterations: 20,
+        ..GpSpec::default()
+    }
+    .fit(&data)
+    .unwrap();
+    let runtime = armcomp_sdk::PluginPredictorSpec {
+        library: scratch.0.join(&lib).to_string_lossy().into_owned(),
+        model: "gp".into(),
+        config: serde_json::json!({ "restarts": 0, "max_iterations": 20 }),
+    }
+    .fit(&data)
+    .unwrap();
+    assert_eq!((runtime.n_inputs(), runtime.n_outputs()), (2, 2));
+    let queries = rows(&mut rng, 300);
+    // Mean and standard deviation of each query, four numbers.
+    let predict = |p: &dyn FittedPredictor, x: &[f64]| -> [f64; 4] {
+        let (mut mean, mut std, mut scratch) = ([0.0; 2], [0.0; 2], Vec::new());
+        p.predict_into(x, &mut mean, &mut scratch);
+        assert!(
+            p.predict_std_into(x, &mut std, &mut scratch),
+            "a GP has a predictive std"
+        );
+        [mean[0], mean[1], std[0], std[1]]
+    };
+    let reference: Vec<[f64; 4]> = queries.chunks_exact(2).map(|x| predict(linked.as_ref(), x)).collect();
+    let one_thread: Vec<[f64; 4]> = queries.chunks_exact(2).map(|x| predict(runtime.as_ref(), x)).collect();
+    assert_eq!(one_thread, reference);
+    assert!(reference.iter().all(|r| r[2] > 0.0 && r[3] > 0.0));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(6).build().unwrap();
+    for round in 0..5 {
+        let many: Vec<[f64; 4]> = pool.install(|| {
+            queries
+                .par_chunks_exact(2)
+                .map(|x| predict(runtime.as_ref(), x))
+                .collect()
+        });
+        assert_eq!(many, reference, "round {round}");
+    }
+    let stored = serde_json::to_string(&runtime).unwrap();
+    let reloaded: Box<dyn FittedPredictor> = serde_json::from_str(&stored).unwrap();
+    let again: Vec<[f64; 4]> = queries.chunks_exact(2).map(|x| predict(reloaded.as_ref(), x)).collect();
+    assert_eq!(again, reference);
 }
 
 #[test]
@@ -376,7 +506,7 @@ fn a_plugin_returning_the_wrong_number_of_values_is_rejected() {
         &e,
         60,
         "error_models[1]",
-        "perturb returned 4 joint offsets, expected 3",
+        "perturb: the model returned 4 joint offsets, expected 3",
     );
 }
 

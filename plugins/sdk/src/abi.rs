@@ -22,7 +22,7 @@
 //! | `armcomp_model_create` | `(type: u32, config_json: AbiStr, ctx: *const AbiModelContext, out: *mut *mut c_void) -> i32` |
 //! | `armcomp_model_param_count` | `(model: *mut c_void) -> u32` |
 //! | `armcomp_model_param` | `(model: *mut c_void, index: u32, out: *mut AbiParam) -> i32` |
-//! | `armcomp_model_perturb` | `(model: *mut c_void, state: *const AbiState, values: *const f64, n_values: usize, out: *mut AbiPerturbation) -> i32` |
+//! | `armcomp_model_perturb` | `(model: *mut c_void, state: *const AbiState, values: *const f64, n_values: usize, out: *const AbiPerturbation) -> i32` |
 //! | `armcomp_model_spec_with` | `(model: *mut c_void, values: *const f64, n_values: usize, out_json: *mut AbiStr) -> i32` |
 //! | `armcomp_model_destroy` | `(model: *mut c_void)` |
 //! | `armcomp_predictor_fit` | `(type: u32, config_json: AbiStr, data: *const AbiTrainingSet, out: *mut *mut c_void) -> i32` |
@@ -35,17 +35,27 @@
 //! Every function but the destroyers returns a status: [`STATUS_OK`], [`STATUS_ERROR`] (the
 //! message is in `armcomp_last_error`), [`STATUS_ISSUES`] (the last error is a JSON array of
 //! `{"path": ..., "message": ...}` naming fields of the config) or [`STATUS_UNSUPPORTED`].
-//! Strings and arrays a plugin hands back stay valid until the next call with the same handle
-//! (or, for `armcomp_last_error`, the next call on the same thread). A handle is used by one
-//! thread at a time; the host serialises calls on it.
+//!
+//! Threads (since version 4): once created, a handle is only read. The host calls any entry
+//! point but the destroyers on one handle from several threads at once: calibration evaluates
+//! `armcomp_model_perturb` for many samples in parallel, and `armcomp_predictor_predict` is
+//! called the same way. These two write only into the buffers the host passes in; whatever
+//! scratch memory a plugin needs is its own per thread. Strings a plugin hands back stay valid
+//! until the next call into the library on the same thread. A destroyer is called once, when
+//! no other call on that handle runs, and the handle is not used afterwards. The SDK's export
+//! side ([`export_plugins!`](crate::export_plugins)) meets this by construction: the core
+//! traits require `Send + Sync`, a handle is only ever borrowed shared, and the buffers a call
+//! reuses are thread-local.
 
 use std::os::raw::c_void;
 
-/// The ABI version this crate speaks. Bumped on any change of a layout or a signature.
+/// The ABI version this crate speaks. Bumped on any change of a layout, a signature or a
+/// contract.
 ///
 /// Version 2 added [`AbiTypeInfo::candidate_template`]; version 3 the input ranges of
-/// [`AbiTrainingSet`].
-pub const ABI_VERSION: u32 = 3;
+/// [`AbiTrainingSet`]; version 4 made calls on one handle concurrent (see the module docs), so
+/// [`AbiPerturbation`] is now buffers the host owns and the plugin fills.
+pub const ABI_VERSION: u32 = 4;
 
 /// The call succeeded.
 pub const STATUS_OK: i32 = 0;
@@ -243,21 +253,24 @@ pub struct AbiState {
     pub mass: AbiMass,
 }
 
-/// A model's deformation, in buffers the plugin owns (valid until its next call).
+/// Where a model writes its deformation: buffers the host owns, sized by the host for the tree
+/// the model was built against. The plugin checks the counts against its own and writes every
+/// entry (the host fills the buffers with NaN before the call, so an entry left out is
+/// reported as a non-finite value).
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct AbiPerturbation {
     /// Twist of each joint's placement, `6 × n_joint_twists`.
-    pub joint_twists: *const f64,
-    /// Number of joint twists (must equal the number of joints).
+    pub joint_twists: *mut f64,
+    /// Number of joint twists (the number of joints).
     pub n_joint_twists: usize,
     /// Offset added to each joint value, `n_joint_offsets`.
-    pub joint_offsets: *const f64,
-    /// Number of joint offsets (must equal the number of joints).
+    pub joint_offsets: *mut f64,
+    /// Number of joint offsets (the number of joints).
     pub n_joint_offsets: usize,
     /// Twist of each point's pose on its body, `6 × n_point_twists`.
-    pub point_twists: *const f64,
-    /// Number of point twists (must equal the number of points).
+    pub point_twists: *mut f64,
+    /// Number of point twists (the number of points).
     pub n_point_twists: usize,
 }
 
@@ -319,7 +332,7 @@ pub mod signatures {
     pub type ModelParam = unsafe extern "C" fn(*mut c_void, u32, *mut AbiParam) -> i32;
     /// `armcomp_model_perturb`
     pub type ModelPerturb =
-        unsafe extern "C" fn(*mut c_void, *const AbiState, *const f64, usize, *mut AbiPerturbation) -> i32;
+        unsafe extern "C" fn(*mut c_void, *const AbiState, *const f64, usize, *const AbiPerturbation) -> i32;
     /// `armcomp_model_spec_with`
     pub type ModelSpecWith = unsafe extern "C" fn(*mut c_void, *const f64, usize, *mut AbiStr) -> i32;
     /// `armcomp_model_destroy`, `armcomp_predictor_destroy`

@@ -3,9 +3,13 @@
 //! Each entry point reads the host's flat arguments back into core types, runs the plugin's own
 //! Rust implementation of the core traits inside `catch_unwind`, and turns every failure (an
 //! error, rejected config, a panic) into a status code with a message for
-//! `armcomp_last_error`. Buffers live in the handles and are reused between calls.
+//! `armcomp_last_error`.
+//!
+//! Calls on one handle may run on several threads at once (ABI version 4): a handle is only
+//! ever borrowed shared, what it holds is `Send + Sync` (checked below at compile time), and the
+//! buffers a call reuses, like the strings it hands back, are per thread.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::os::raw::c_void;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
@@ -25,7 +29,8 @@ use serde::de::DeserializeOwned;
 use crate::abi::*;
 
 // The `export_plugins!` expansion builds candidate templates with `json!`.
-use crate::flat::{abi_str, frames_into, mass_into, slice, text, tree_from_abi};
+use crate::flat::{abi_str, frames_into, mass_into, slice, slice_mut, text, tree_from_abi};
+use crate::per_thread::with_buffers;
 pub use serde_json;
 
 /// Why a call failed, before it becomes a status code.
@@ -44,6 +49,13 @@ impl From<String> for Failure {
 
 thread_local! {
     static LAST_ERROR: RefCell<String> = const { RefCell::new(String::new()) };
+    /// The last string a call on this thread handed back (`spec_with`, `save`).
+    static HANDED_BACK: RefCell<String> = const { RefCell::new(String::new()) };
+}
+
+/// The string in `key`; it stays there until the next write on this thread.
+fn view(key: &'static std::thread::LocalKey<RefCell<String>>) -> AbiStr {
+    key.with(|s| abi_str(&s.borrow()))
 }
 
 fn set_last_error(message: String) {
@@ -52,14 +64,13 @@ fn set_last_error(message: String) {
 
 /// `armcomp_last_error`: the message of the last failed call on this thread.
 pub fn last_error() -> AbiStr {
-    LAST_ERROR.with(|e| {
-        let e = e.borrow();
-        // The String stays in the thread-local until the next failure on this thread.
-        AbiStr {
-            ptr: e.as_ptr(),
-            len: e.len(),
-        }
-    })
+    view(&LAST_ERROR)
+}
+
+/// Keeps `text` for the host until the next call on this thread hands back another string.
+fn hand_back(text: String) -> AbiStr {
+    HANDED_BACK.with(|s| *s.borrow_mut() = text);
+    view(&HANDED_BACK)
 }
 
 fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
@@ -237,16 +248,75 @@ pub unsafe fn type_info(
     })
 }
 
-/// An error model behind the ABI, with the buffers its calls reuse.
+/// An error model behind the ABI, with the tree it was built against; only read after creation.
 struct ModelHandle {
     model: Box<dyn ErrorModel>,
     tree: KinematicTree,
-    mass: MassModel,
+}
+
+/// A fitted predictor behind the ABI; only read after creation.
+struct PredictorHandle {
+    predictor: Box<dyn FittedPredictor>,
+}
+
+// ABI version 4 lets the host call one handle from several threads at once: what a handle
+// holds must be shareable, and the entry points only borrow it shared.
+const _: () = {
+    const fn shareable<T: Send + Sync>() {}
+    shareable::<ModelHandle>();
+    shareable::<PredictorHandle>();
+};
+
+/// What a perturb call fills on the plugin side, reused by the calls of one thread.
+struct PerturbBuffers {
     frames: TreeWorkspace,
+    mass: MassModel,
     perturbation: Perturbation,
-    joint_twists: Vec<f64>,
-    point_twists: Vec<f64>,
-    spec_json: String,
+}
+
+impl Default for PerturbBuffers {
+    fn default() -> Self {
+        PerturbBuffers {
+            frames: TreeWorkspace {
+                body: Vec::new(),
+                joint_frame: Vec::new(),
+                point: Vec::new(),
+                joint_value: Vec::new(),
+            },
+            mass: MassModel::massless(0),
+            perturbation: Perturbation {
+                joint_twist: Vec::new(),
+                joint_offset: Vec::new(),
+                point_twist: Vec::new(),
+            },
+        }
+    }
+}
+
+impl PerturbBuffers {
+    /// Sizes the buffers for `tree` and zeroes the perturbation; allocates only when a model of
+    /// another tree (or one that resized its perturbation) used them last.
+    fn fit(&mut self, tree: &KinematicTree) {
+        let f = &self.frames;
+        if (f.body.len(), f.joint_frame.len(), f.point.len())
+            != (tree.bodies().len(), tree.joints().len(), tree.points().len())
+        {
+            self.frames = TreeWorkspace::new(tree);
+        }
+        let p = &self.perturbation;
+        if (p.joint_twist.len(), p.joint_offset.len(), p.point_twist.len())
+            == (tree.joints().len(), tree.joints().len(), tree.points().len())
+        {
+            self.perturbation.clear();
+        } else {
+            self.perturbation = Perturbation::zeros(tree);
+        }
+    }
+}
+
+thread_local! {
+    static PERTURB_BUFFERS: Cell<Option<PerturbBuffers>> = const { Cell::new(None) };
+    static PREDICT_SCRATCH: Cell<Option<Vec<f64>>> = const { Cell::new(None) };
 }
 
 /// `armcomp_model_create`.
@@ -295,29 +365,20 @@ pub unsafe fn model_create(
             mass: &mass,
         };
         let model = create(config, &mctx).map_err(Failure::Issues)?;
-        let handle = Box::new(ModelHandle {
-            model,
-            frames: TreeWorkspace::new(&tree),
-            perturbation: Perturbation::zeros(&tree),
-            joint_twists: vec![0.0; TWIST_LEN * tree.joints().len()],
-            point_twists: vec![0.0; TWIST_LEN * tree.points().len()],
-            tree,
-            mass,
-            spec_json: String::new(),
-        });
+        let handle = Box::new(ModelHandle { model, tree });
         // SAFETY: the caller guarantees `out` is valid for one write.
         unsafe { out.write(Box::into_raw(handle).cast()) };
         Ok(STATUS_OK)
     })
 }
 
-/// The handle behind a model pointer.
+/// The handle behind a model pointer, shared: other threads may be reading it too.
 ///
 /// # Safety
-/// `model` must come from [`model_create`], not yet destroyed, used by one thread at a time.
-unsafe fn model_handle<'a>(model: *mut c_void) -> Result<&'a mut ModelHandle, Failure> {
-    // SAFETY: forwarded from the caller.
-    unsafe { model.cast::<ModelHandle>().as_mut() }.ok_or_else(|| Failure::Message("null model handle".into()))
+/// `model` must come from [`model_create`] and not be destroyed before `'a` ends.
+unsafe fn model_handle<'a>(model: *mut c_void) -> Result<&'a ModelHandle, Failure> {
+    // SAFETY: forwarded from the caller; nothing writes to a handle after its creation.
+    unsafe { model.cast::<ModelHandle>().as_ref() }.ok_or_else(|| Failure::Message("null model handle".into()))
 }
 
 /// `armcomp_model_param_count`.
@@ -371,23 +432,28 @@ pub unsafe fn model_param(model: *mut c_void, index: u32, out: *mut AbiParam) ->
     })
 }
 
-/// `armcomp_model_perturb`: the model's deformation alone, in the handle's buffers.
+/// `armcomp_model_perturb`: the model's deformation alone, into the host's buffers.
 ///
 /// # Safety
 /// As [`model_handle`]; `*state` valid as documented on [`AbiState`], `values` valid for
-/// `n_values` reads, `out` for one write.
+/// `n_values` reads, the buffers of `*out` for the counts it declares, and no other call
+/// reading or writing them.
 pub unsafe fn model_perturb(
     model: *mut c_void,
     state: *const AbiState,
     values: *const f64,
     n_values: usize,
-    out: *mut AbiPerturbation,
+    out: *const AbiPerturbation,
 ) -> i32 {
     guard(|| {
         // SAFETY: forwarded from the caller.
         let h = unsafe { model_handle(model) }?;
-        // SAFETY: the caller guarantees a valid state for this call.
-        let s = unsafe { state.as_ref() }.ok_or_else(|| "null state".to_string())?;
+        // SAFETY: the caller guarantees a valid state and output description for this call.
+        let (s, out) = unsafe { (state.as_ref(), out.as_ref()) };
+        let (s, out) = (
+            s.ok_or_else(|| "null state".to_string())?,
+            out.ok_or_else(|| "null output".to_string())?,
+        );
         // SAFETY: arrays of the state and `values` are valid for their declared lengths.
         let (q, values) = unsafe { (slice(s.q, s.n_q)?, slice(values, n_values)?) };
         if q.len() != h.tree.nq() || values.len() != h.model.params().len() {
@@ -400,46 +466,51 @@ pub unsafe fn model_perturb(
             )
             .into());
         }
-        // SAFETY: as above.
-        unsafe {
-            frames_into(s, &mut h.frames)?;
-            mass_into(&s.mass, &mut h.mass)?;
-        }
-        let state = StaticState {
-            q,
-            tree: &h.tree,
-            frames: &h.frames,
-            mass: &h.mass,
-            gravity: Vector3::from(s.gravity),
-            temperature: (!s.temperature.is_nan()).then_some(s.temperature),
-        };
-        h.perturbation.clear();
-        h.model.perturb(&state, values, &mut h.perturbation);
-        for (dst, t) in h
-            .joint_twists
-            .chunks_exact_mut(TWIST_LEN)
-            .zip(&h.perturbation.joint_twist)
-        {
-            dst.copy_from_slice(t.as_slice());
-        }
-        for (dst, t) in h
-            .point_twists
-            .chunks_exact_mut(TWIST_LEN)
-            .zip(&h.perturbation.point_twist)
-        {
-            dst.copy_from_slice(t.as_slice());
-        }
-        let view = AbiPerturbation {
-            joint_twists: h.joint_twists.as_ptr(),
-            n_joint_twists: h.perturbation.joint_twist.len(),
-            joint_offsets: h.perturbation.joint_offset.as_ptr(),
-            n_joint_offsets: h.perturbation.joint_offset.len(),
-            point_twists: h.point_twists.as_ptr(),
-            n_point_twists: h.perturbation.point_twist.len(),
-        };
-        // SAFETY: the caller guarantees `out` is valid for one write.
-        unsafe { out.write(view) };
-        Ok(STATUS_OK)
+        with_buffers(&PERTURB_BUFFERS, |b| {
+            b.fit(&h.tree);
+            // SAFETY: as above.
+            unsafe {
+                frames_into(s, &mut b.frames)?;
+                mass_into(&s.mass, &mut b.mass)?;
+            }
+            let state = StaticState {
+                q,
+                tree: &h.tree,
+                frames: &b.frames,
+                mass: &b.mass,
+                gravity: Vector3::from(s.gravity),
+                temperature: (!s.temperature.is_nan()).then_some(s.temperature),
+            };
+            h.model.perturb(&state, values, &mut b.perturbation);
+            let p = &b.perturbation;
+            let counts = [
+                ("joint twists", p.joint_twist.len(), out.n_joint_twists),
+                ("joint offsets", p.joint_offset.len(), out.n_joint_offsets),
+                ("point twists", p.point_twist.len(), out.n_point_twists),
+            ];
+            for (what, got, expected) in counts {
+                if got != expected {
+                    return Err(format!("the model returned {got} {what}, expected {expected}").into());
+                }
+            }
+            // SAFETY: the host's buffers hold the counts it declared, which the caller
+            // guarantees no one else touches during the call.
+            let (joint_twists, joint_offsets, point_twists) = unsafe {
+                (
+                    slice_mut(out.joint_twists, TWIST_LEN * out.n_joint_twists)?,
+                    slice_mut(out.joint_offsets, out.n_joint_offsets)?,
+                    slice_mut(out.point_twists, TWIST_LEN * out.n_point_twists)?,
+                )
+            };
+            for (dst, t) in joint_twists.chunks_exact_mut(TWIST_LEN).zip(&p.joint_twist) {
+                dst.copy_from_slice(t.as_slice());
+            }
+            joint_offsets.copy_from_slice(&p.joint_offset);
+            for (dst, t) in point_twists.chunks_exact_mut(TWIST_LEN).zip(&p.point_twist) {
+                dst.copy_from_slice(t.as_slice());
+            }
+            Ok(STATUS_OK)
+        })
     })
 }
 
@@ -466,9 +537,8 @@ pub unsafe fn model_spec_with(model: *mut c_void, values: *const f64, n_values: 
         if let Some(map) = json.as_object_mut() {
             map.remove("type");
         }
-        h.spec_json = json.to_string();
         // SAFETY: the caller guarantees `out_json` is valid for one write.
-        unsafe { out_json.write(abi_str(&h.spec_json)) };
+        unsafe { out_json.write(hand_back(json.to_string())) };
         Ok(STATUS_OK)
     })
 }
@@ -487,21 +557,10 @@ pub unsafe fn model_destroy(model: *mut c_void) {
     }
 }
 
-/// A fitted predictor behind the ABI.
-struct PredictorHandle {
-    predictor: Box<dyn FittedPredictor>,
-    scratch: Vec<f64>,
-    json: String,
-}
-
 /// # Safety
 /// `out` must be valid for one write.
 unsafe fn give_predictor(predictor: Box<dyn FittedPredictor>, out: *mut *mut c_void) -> Result<i32, Failure> {
-    let handle = Box::new(PredictorHandle {
-        predictor,
-        scratch: Vec::new(),
-        json: String::new(),
-    });
+    let handle = Box::new(PredictorHandle { predictor });
     // SAFETY: forwarded from the caller.
     unsafe { out.write(Box::into_raw(handle).cast()) };
     Ok(STATUS_OK)
@@ -574,12 +633,14 @@ pub unsafe fn predictor_load(types: &[TypeEntry], index: u32, fitted_json: AbiSt
     })
 }
 
+/// The handle behind a predictor pointer, shared: other threads may be reading it too.
+///
 /// # Safety
-/// `predictor` must come from [`predictor_fit`] or [`predictor_load`], not yet destroyed, used
-/// by one thread at a time.
-unsafe fn predictor_handle<'a>(predictor: *mut c_void) -> Result<&'a mut PredictorHandle, Failure> {
-    // SAFETY: forwarded from the caller.
-    unsafe { predictor.cast::<PredictorHandle>().as_mut() }
+/// `predictor` must come from [`predictor_fit`] or [`predictor_load`] and not be destroyed
+/// before `'a` ends.
+unsafe fn predictor_handle<'a>(predictor: *mut c_void) -> Result<&'a PredictorHandle, Failure> {
+    // SAFETY: forwarded from the caller; nothing writes to a handle after its creation.
+    unsafe { predictor.cast::<PredictorHandle>().as_ref() }
         .ok_or_else(|| Failure::Message("null predictor handle".into()))
 }
 
@@ -605,7 +666,7 @@ pub unsafe fn predictor_shape(predictor: *mut c_void, n_inputs: *mut usize, n_ou
 ///
 /// # Safety
 /// As [`predictor_handle`]; `input` valid for `n_inputs` reads, `out` (and `out_std` when
-/// `with_std = 1`) for `n_outputs` writes.
+/// `with_std = 1`) for `n_outputs` writes, which no other call touches meanwhile.
 pub unsafe fn predictor_predict(
     predictor: *mut c_void,
     input: *const f64,
@@ -633,15 +694,17 @@ pub unsafe fn predictor_predict(
         }
         // SAFETY: non-null and valid for `n_outputs` writes, by the caller's guarantee.
         let out = unsafe { std::slice::from_raw_parts_mut(out, n_outputs) };
-        h.predictor.predict_into(input, out, &mut h.scratch);
-        if with_std == 1 {
-            // SAFETY: as for `out`.
-            let out_std = unsafe { std::slice::from_raw_parts_mut(out_std, n_outputs) };
-            if !h.predictor.predict_std_into(input, out_std, &mut h.scratch) {
-                return Ok(STATUS_UNSUPPORTED);
+        with_buffers(&PREDICT_SCRATCH, |scratch| {
+            h.predictor.predict_into(input, out, scratch);
+            if with_std == 1 {
+                // SAFETY: as for `out`.
+                let out_std = unsafe { std::slice::from_raw_parts_mut(out_std, n_outputs) };
+                if !h.predictor.predict_std_into(input, out_std, scratch) {
+                    return Ok(STATUS_UNSUPPORTED);
+                }
             }
-        }
-        Ok(STATUS_OK)
+            Ok(STATUS_OK)
+        })
     })
 }
 
@@ -653,9 +716,9 @@ pub unsafe fn predictor_save(predictor: *mut c_void, out_json: *mut AbiStr) -> i
     guard(|| {
         // SAFETY: forwarded from the caller.
         let h = unsafe { predictor_handle(predictor) }?;
-        h.json = serde_json::to_string(&h.predictor).map_err(|e| format!("the predictor does not serialise: {e}"))?;
+        let json = serde_json::to_string(&h.predictor).map_err(|e| format!("the predictor does not serialise: {e}"))?;
         // SAFETY: the caller guarantees `out_json` is valid for one write.
-        unsafe { out_json.write(abi_str(&h.json)) };
+        unsafe { out_json.write(hand_back(json)) };
         Ok(STATUS_OK)
     })
 }

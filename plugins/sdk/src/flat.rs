@@ -261,6 +261,22 @@ pub(crate) unsafe fn slice<'a, T>(ptr: *const T, len: usize) -> Result<&'a [T], 
     Ok(unsafe { std::slice::from_raw_parts(ptr, len) })
 }
 
+/// A mutable slice of `len` items at `ptr` (empty when `len` is 0, whatever `ptr` is).
+///
+/// # Safety
+/// When `len > 0`, `ptr` must point to `len` initialised items that nothing else reads or
+/// writes during `'a`.
+pub(crate) unsafe fn slice_mut<'a, T>(ptr: *mut T, len: usize) -> Result<&'a mut [T], String> {
+    if len == 0 {
+        return Ok(&mut []);
+    }
+    if ptr.is_null() {
+        return Err(format!("null pointer for {len} values"));
+    }
+    // SAFETY: non-null, and the caller guarantees `len` valid items, exclusively, for `'a`.
+    Ok(unsafe { std::slice::from_raw_parts_mut(ptr, len) })
+}
+
 /// The text of an [`AbiStr`].
 ///
 /// # Safety

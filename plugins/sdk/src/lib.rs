@@ -28,6 +28,7 @@ pub mod export;
 pub mod flat;
 #[cfg(feature = "host")]
 pub mod host;
+mod per_thread;
 
 #[cfg(feature = "host")]
 pub use host::{
