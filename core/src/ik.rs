@@ -33,7 +33,7 @@ pub enum IkTarget {
 pub enum IkMethod {
     /// Newton–Raphson with the minimum-norm (pseudo-inverse) step and step halving.
     NewtonRaphson,
-    /// Damped least squares with adaptive damping.
+    /// Damped least squares (Levenberg–Marquardt) with damping `½|e|² + μ`, `μ` adapted.
     #[default]
     DampedLeastSquares,
 }
@@ -86,7 +86,8 @@ pub struct IkParams {
     pub orientation_tolerance: f64,
     /// Metres per radian when position and orientation errors are weighed together.
     pub orientation_weight: f64,
-    /// Initial damping `μ` of damped least squares (m²).
+    /// Initial value of the adaptive part `μ` of the damping `½|e|² + μ` of damped least
+    /// squares (m²).
     pub damping: f64,
     /// Largest change of one joint in one step (rad or m).
     pub max_step: f64,
@@ -397,9 +398,13 @@ pub(crate) fn solve_from(
             let scale = 1.0 + jjt.trace();
             let mut accepted = false;
             for _attempt in 0..(12 + n) {
+                // Damping grows with the error (Sugihara 2011, λ = ½|e|² + μ): large steps
+                // are damped far from the target and near singular configurations, where
+                // a fixed small μ lets a step overshoot into another branch or a limit, and
+                // the damping vanishes as the error does, so the end is Gauss–Newton's.
                 let reg = match opts.method {
                     IkMethod::NewtonRaphson => 1e-14 * scale,
-                    IkMethod::DampedLeastSquares => mu + 1e-14 * scale,
+                    IkMethod::DampedLeastSquares => mu + 0.5 * cost + 1e-14 * scale,
                 };
                 let Some(y) = solve_normal(&jjt, reg, &e, pose_target) else {
                     mu = (mu * 10.0).max(1e-12 * scale);

@@ -60,6 +60,11 @@ fn bench_robot(c: &mut Criterion, name: &str, r: &Robot, pose: bool) {
     };
     let mut ik = IkWorkspace::new(r);
     let opts = IkParams::default();
+    let report = solve_ik(r, tool, &target, &q, &opts, &mut ik).expect("reachable");
+    eprintln!(
+        "{name}: IK in {} iterations, position error {:.1e} m, orientation error {:.1e} rad",
+        report.iterations, report.position_error, report.orientation_error
+    );
     c.bench_function(&format!("{name}/ik"), |b| {
         b.iter(|| solve_ik(r, tool, black_box(&target), &q, &opts, &mut ik).expect("reachable"))
     });
@@ -68,6 +73,8 @@ fn bench_robot(c: &mut Criterion, name: &str, r: &Robot, pose: bool) {
 fn benches(c: &mut Criterion) {
     let boom = build(&robots::rock_drill(robots::ROCK_DRILL_MODELS));
     bench_robot(c, "rock_drill_7", &boom, false);
+    let rigid = build(&robots::six_axis(""));
+    bench_robot(c, "six_axis_rigid", &rigid, true);
     let arm = build(&robots::six_axis(robots::SIX_AXIS_MODELS));
     bench_robot(c, "six_axis", &arm, true);
 }
