@@ -10,6 +10,7 @@ use armcomp_core::diagnose::{DiagnoseParams, diagnose};
 use armcomp_core::robot_file::SourceFile;
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::subtree_loads::SubtreeLoads;
 use armcomp_core::{
     Error, FittedPredictor, Perturbation, PredictorSpec, Robot, RobotFile, StaticState, TrainingSet, TreeWorkspace,
 };
@@ -140,11 +141,13 @@ fn runtime_plugin_evaluated_from_many_threads_at_once_matches_one_thread_bit_for
         let tree = robot.tree();
         let mut frames = TreeWorkspace::new(tree);
         tree.forward_into(q, &mut frames);
+        let loads = SubtreeLoads::of(tree, &frames, robot.mass());
         let state = StaticState {
             q,
             tree,
             frames: &frames,
             mass: robot.mass(),
+            loads: &loads,
             gravity: robot.gravity(),
             temperature: (i % 2 == 1).then_some(25.0),
         };

@@ -34,6 +34,7 @@ pub mod sampling;
 pub mod shape;
 pub mod simulate;
 pub mod split;
+pub mod subtree_loads;
 pub mod tree;
 pub mod units;
 pub mod workspace;

@@ -14,6 +14,7 @@ use crate::mass::MassModel;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::shape::Shape;
+use crate::subtree_loads::SubtreeLoads;
 use crate::tree::{KinematicTree, Limits};
 use crate::units::Units;
 use crate::workspace::TreeWorkspace;
@@ -98,6 +99,8 @@ pub struct StaticState<'a> {
     pub frames: &'a TreeWorkspace,
     /// Mass model, payload included.
     pub mass: &'a MassModel,
+    /// The subtree loads of `mass` at `frames` (see [`SubtreeLoads::update`]).
+    pub loads: &'a SubtreeLoads,
     /// Gravity in the base frame (m/s²).
     pub gravity: Vector3<f64>,
     /// Ambient temperature (°C), when the measurement gives one.

@@ -6,7 +6,7 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::gravity::{Subtrees, joint_gravity_load};
+use crate::gravity::joint_gravity_load;
 use crate::measurement::Sample;
 use crate::plugin::StaticState;
 use crate::robot::{Conditions, Robot};
@@ -120,23 +120,25 @@ pub fn describe_residuals(robot: &Robot, samples: &[Sample], residuals: &[Vector
 /// moves, payload included, at each sample of the rigid model; one entry per tree joint.
 pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
     let tree = robot.tree();
-    let subtrees = Subtrees::new(tree);
     let mut ws = robot.workspace();
     samples
         .iter()
         .map(|s| {
             let conditions = Conditions::of(s);
             tree.forward_into(&s.q, &mut ws.rigid);
+            let mass = robot.mass_under(conditions, tree, &mut ws.mass);
+            ws.loads.update(tree, &ws.rigid, mass);
             let state = StaticState {
                 q: &s.q,
                 tree,
                 frames: &ws.rigid,
-                mass: robot.mass_under(conditions, tree, &mut ws.mass),
+                mass,
+                loads: &ws.loads,
                 gravity: robot.gravity(),
                 temperature: conditions.temperature,
             };
             (0..tree.joints().len())
-                .map(|j| joint_gravity_load(&state, &subtrees, j))
+                .map(|j| joint_gravity_load(&state, j))
                 .collect()
         })
         .collect()

@@ -14,6 +14,7 @@ use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
 use crate::robot_file::{BeamSpec, RobotFile, SourceFile};
 use crate::shape::{Geometry, Shape};
+use crate::subtree_loads::SubtreeLoads;
 use crate::tree::KinematicTree;
 use crate::units::Units;
 use crate::workspace::TreeWorkspace;
@@ -85,6 +86,8 @@ pub struct RobotWorkspace {
     pub frames: TreeWorkspace,
     /// The mass model with a per-evaluation payload applied.
     pub mass: MassModel,
+    /// The subtree loads of the last evaluation's rigid frames.
+    pub loads: SubtreeLoads,
     /// Whether the last evaluation's loads were the robot's own mass model (otherwise `mass`)
     /// and its gravity, as load-adjusting error models left them.
     own_mass: bool,
@@ -399,6 +402,7 @@ impl Robot {
             perturbation: Perturbation::zeros(&self.tree),
             frames: TreeWorkspace::new(&self.tree),
             mass: self.mass.clone(),
+            loads: SubtreeLoads::default(),
             own_mass: true,
             gravity: self.gravity,
         }
@@ -431,7 +435,7 @@ impl Robot {
             return;
         }
         self.deformation_into(tree, error_values, q, conditions, ws);
-        tree.forward_perturbed_into(q, &ws.perturbation, &mut ws.frames);
+        tree.forward_perturbed_from_rigid_into(q, &ws.perturbation, &ws.rigid, &mut ws.frames);
     }
 
     /// The first half of [`forward_with_into`](Robot::forward_with_into): the rigid frames
@@ -450,11 +454,14 @@ impl Robot {
         let (own_mass, gravity) = self.loads_into(conditions, tree, error_values, &mut ws.mass);
         ws.own_mass = own_mass;
         ws.gravity = gravity;
+        let mass = if own_mass { &self.mass } else { &ws.mass };
+        ws.loads.update(tree, &ws.rigid, mass);
         let state = StaticState {
             q,
             tree,
             frames: &ws.rigid,
-            mass: if own_mass { &self.mass } else { &ws.mass },
+            mass,
+            loads: &ws.loads,
             gravity,
             temperature: conditions.temperature,
         };
@@ -563,6 +570,7 @@ impl Robot {
             tree,
             frames: &ws.rigid,
             mass: if ws.own_mass { &self.mass } else { &ws.mass },
+            loads: &ws.loads,
             gravity: ws.gravity,
             temperature: conditions.temperature,
         };

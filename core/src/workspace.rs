@@ -41,18 +41,39 @@ impl KinematicTree {
     /// Rigid forward kinematics of every body, joint frame and point, with the base at the
     /// origin. `q` must hold [`nq`](KinematicTree::nq) values (see [`check_q`](KinematicTree::check_q)).
     pub fn forward_into(&self, q: &[f64], ws: &mut TreeWorkspace) {
-        self.forward_impl(q, None, ws);
+        self.forward_impl(q, None, 0, ws);
     }
 
     /// Forward kinematics of the chain deformed by `pert` (Eq. 1–2 composed along the tree).
     pub fn forward_perturbed_into(&self, q: &[f64], pert: &Perturbation, ws: &mut TreeWorkspace) {
-        self.forward_impl(q, Some(pert), ws);
+        self.forward_impl(q, Some(pert), 0, ws);
     }
 
-    fn forward_impl(&self, q: &[f64], pert: Option<&Perturbation>, ws: &mut TreeWorkspace) {
+    /// [`forward_perturbed_into`](Self::forward_perturbed_into) given `rigid`, the rigid
+    /// evaluation of the same `q`: the joints before the first one `pert` moves are copied from
+    /// it rather than recomputed. The same bits as the full evaluation.
+    pub fn forward_perturbed_from_rigid_into(
+        &self,
+        q: &[f64],
+        pert: &Perturbation,
+        rigid: &TreeWorkspace,
+        ws: &mut TreeWorkspace,
+    ) {
+        let first = (0..self.joints.len())
+            .find(|&j| pert.joint_offset[j] != 0.0 || pert.joint_twist[j] != nalgebra::Vector6::zeros())
+            .unwrap_or(self.joints.len());
+        // Body `first` hangs from joint `first − 1`, which the deformation leaves alone.
+        ws.body[..=first].copy_from_slice(&rigid.body[..=first]);
+        ws.joint_frame[..first].copy_from_slice(&rigid.joint_frame[..first]);
+        ws.joint_value[..first].copy_from_slice(&rigid.joint_value[..first]);
+        self.forward_impl(q, Some(pert), first, ws);
+    }
+
+    /// Evaluates joints `start..` (the ones before are in `ws` already) and every point.
+    fn forward_impl(&self, q: &[f64], pert: Option<&Perturbation>, start: usize, ws: &mut TreeWorkspace) {
         debug_assert_eq!(q.len(), self.nq());
         ws.body[0] = Isometry3::identity();
-        for (j, joint) in self.joints.iter().enumerate() {
+        for (j, joint) in self.joints.iter().enumerate().skip(start) {
             let mut value = self.joint_value(j, q);
             let mut frame = ws.body[joint.parent] * joint.placement;
             if let Some(p) = pert {

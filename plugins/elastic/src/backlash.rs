@@ -12,7 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{check_positive, resolve_joint_table};
-use armcomp_core::gravity::{Subtrees, joint_gravity_load};
+use armcomp_core::gravity::joint_gravity_load;
 
 fn default_smoothing() -> f64 {
     1.0
@@ -35,7 +35,6 @@ pub struct BacklashModel {
     spec: BacklashSpec,
     units: armcomp_core::Units,
     joints: Vec<(usize, bool)>,
-    subtrees: Subtrees,
     params: Vec<ParamInfo>,
 }
 
@@ -93,7 +92,6 @@ impl ErrorModelSpec for BacklashSpec {
             spec: self.clone(),
             units: u,
             joints,
-            subtrees: Subtrees::new(tree),
             params,
         }))
     }
@@ -106,7 +104,7 @@ impl ErrorModel for BacklashModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         for (&(j, _), &b) in self.joints.iter().zip(values) {
-            let tau = joint_gravity_load(state, &self.subtrees, j);
+            let tau = joint_gravity_load(state, j);
             out.joint_offset[j] += b * (tau / self.spec.smoothing).tanh();
         }
     }

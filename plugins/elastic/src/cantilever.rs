@@ -37,7 +37,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{check_positive, name_list, world_motion_to_twist};
-use armcomp_core::gravity::{Subtrees, subtree_wrench};
+use armcomp_core::gravity::subtree_wrench;
 
 /// Links below this free length (m) are treated as rigid.
 const MIN_LENGTH: f64 = 1e-9;
@@ -217,7 +217,6 @@ struct BeamLink {
 pub struct CantileverModel {
     spec: CantileverSpec,
     links: Vec<BeamLink>,
-    subtrees: Subtrees,
     params: Vec<ParamInfo>,
 }
 
@@ -348,7 +347,6 @@ impl ErrorModelSpec for CantileverSpec {
         Ok(Box::new(CantileverModel {
             spec: self.clone(),
             links,
-            subtrees: Subtrees::new(tree),
             params,
         }))
     }
@@ -401,7 +399,7 @@ impl CantileverModel {
         }
         for &c in &l.children {
             let seat = state.frames.joint_frame[c].translation.vector;
-            let (force, moment) = subtree_wrench(state, &self.subtrees, c + 1, &seat);
+            let (force, moment) = subtree_wrench(state, c + 1, &seat);
             add_offset_load(beam, s, &seat, &force, &moment, &mut u, &mut th);
         }
         if let Some(pl) = &state.mass.payload

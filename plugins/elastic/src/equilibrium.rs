@@ -108,11 +108,14 @@ pub fn solve_equilibrium(
             robot.error_values(),
             &mut ws.mass,
         );
+        let mass = if own_mass { robot.mass() } else { &ws.mass };
+        ws.loads.update(tree, &ws.frames, mass);
         let state = StaticState {
             q,
             tree,
             frames: &ws.frames,
-            mass: if own_mass { robot.mass() } else { &ws.mass },
+            mass,
+            loads: &ws.loads,
             gravity,
             temperature,
         };

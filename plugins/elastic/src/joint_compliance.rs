@@ -20,7 +20,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::resolve_joint_table;
-use armcomp_core::gravity::{Subtrees, joint_gravity_load};
+use armcomp_core::gravity::joint_gravity_load;
 
 /// Checks a compliance: finite and not negative.
 pub(crate) fn check_compliance(issues: &mut Issues, path: &str, v: f64) -> bool {
@@ -70,7 +70,6 @@ struct CompliantJoint {
 pub struct JointComplianceModel {
     spec: JointComplianceSpec,
     joints: Vec<CompliantJoint>,
-    subtrees: Subtrees,
     params: Vec<ParamInfo>,
 }
 
@@ -135,7 +134,6 @@ impl ErrorModelSpec for JointComplianceSpec {
                     followers: followers(ctx.tree, joint),
                 })
                 .collect(),
-            subtrees: Subtrees::new(ctx.tree),
             params,
         }))
     }
@@ -148,9 +146,9 @@ impl ErrorModel for JointComplianceModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         for (cj, &c) in self.joints.iter().zip(values) {
-            let mut load = joint_gravity_load(state, &self.subtrees, cj.joint);
+            let mut load = joint_gravity_load(state, cj.joint);
             for &(m, k) in &cj.followers {
-                load += k * joint_gravity_load(state, &self.subtrees, m);
+                load += k * joint_gravity_load(state, m);
             }
             let dq = c * load;
             out.joint_offset[cj.joint] += dq;

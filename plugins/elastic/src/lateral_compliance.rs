@@ -14,7 +14,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{check_finite, name_list};
-use armcomp_core::gravity::{Subtrees, subtree_wrench};
+use armcomp_core::gravity::subtree_wrench;
 
 /// Lateral compliance as written in the robot file.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
@@ -37,7 +37,6 @@ struct LateralJoint {
 pub struct LateralComplianceModel {
     spec: LateralComplianceSpec,
     joints: Vec<LateralJoint>,
-    subtrees: Subtrees,
     params: Vec<ParamInfo>,
 }
 
@@ -115,7 +114,6 @@ impl ErrorModelSpec for LateralComplianceSpec {
         Ok(Box::new(LateralComplianceModel {
             spec: self.clone(),
             joints: joints.into_iter().map(|(_, l, _)| l).collect(),
-            subtrees: Subtrees::new(tree),
             params,
         }))
     }
@@ -130,7 +128,7 @@ impl ErrorModel for LateralComplianceModel {
         for (i, l) in self.joints.iter().enumerate() {
             let frame = &state.frames.joint_frame[l.joint];
             let origin = frame.translation.vector;
-            let (_, m) = subtree_wrench(state, &self.subtrees, l.joint + 1, &origin);
+            let (_, m) = subtree_wrench(state, l.joint + 1, &origin);
             let m_local = frame.rotation.inverse_transform_vector(&m);
             let d = l.u * (values[2 * i] * l.u.dot(&m_local)) + l.v * (values[2 * i + 1] * l.v.dot(&m_local));
             out.joint_twist[l.joint] += Vector6::new(0.0, 0.0, 0.0, d.x, d.y, d.z);

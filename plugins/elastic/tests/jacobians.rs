@@ -351,3 +351,72 @@ fn add_scaled(a: &mut armcomp_core::Perturbation, b: &armcomp_core::Perturbation
         .zip(&b.point_twist)
         .for_each(|(x, y)| *x += y * s);
 }
+
+/// The subtree loads of one backward pass against the weight of each subtree summed body by
+/// body (bodies found through the tree's support lists, the payload at its body), about an
+/// arbitrary point, at a configuration away from zero.
+#[test]
+fn subtree_loads_are_the_sums_over_each_subtree() {
+    let r = robot(ARM);
+    let tree = r.tree();
+    let mut frames = TreeWorkspace::new(tree);
+    tree.forward_into(&Q, &mut frames);
+    let loads = armcomp_core::subtree_loads::SubtreeLoads::of(tree, &frames, r.mass());
+    let g = r.gravity();
+    let about = nalgebra::Vector3::new(0.3, -0.2, 0.5);
+    let payload = r.mass().payload.as_ref().expect("the arm carries a payload");
+    for c in 0..tree.bodies().len() {
+        let in_subtree = |k: usize| k == c || c == 0 || tree.support(k).contains(&(c - 1));
+        let (mut force, mut moment) = (nalgebra::Vector3::zeros(), nalgebra::Vector3::zeros());
+        let mut add = |body: usize, mass: f64, com: &nalgebra::Vector3<f64>| {
+            let at = frames.body[body].transform_point(&(*com).into()).coords;
+            force += g * mass;
+            moment += (at - about).cross(&(g * mass));
+        };
+        for (k, b) in r.mass().bodies.iter().enumerate().filter(|(k, _)| in_subtree(*k)) {
+            add(k, b.mass, &b.com);
+        }
+        if in_subtree(payload.body) {
+            add(payload.body, payload.mass, &payload.com);
+        }
+        let (f, m) = loads.wrench(c, &g, &about);
+        assert!(
+            (f - force).norm() <= 1e-12 * force.norm().max(1.0),
+            "body {c}: {f} vs {force}"
+        );
+        assert!(
+            (m - moment).norm() <= 1e-12 * moment.norm().max(1.0),
+            "body {c}: {m} vs {moment}"
+        );
+    }
+    assert!(loads.mass(0) > payload.mass);
+}
+
+/// The deformed evaluation that copies the joints before the first perturbed one from the
+/// rigid evaluation gives the same bits as the full one, for deformations starting at each
+/// joint of the arm.
+#[test]
+fn perturbed_fk_from_the_rigid_frames_is_the_full_evaluation() {
+    let r = robot(ARM);
+    let tree = r.tree();
+    let mut rigid = TreeWorkspace::new(tree);
+    tree.forward_into(&Q, &mut rigid);
+    let (mut full, mut from_rigid) = (TreeWorkspace::new(tree), TreeWorkspace::new(tree));
+    for first in 0..tree.joints().len() {
+        let mut pert = armcomp_core::Perturbation::zeros(tree);
+        for j in first..tree.joints().len() {
+            pert.joint_twist[j] = Vector6::new(1e-4, -2e-4, 3e-4, 1e-3, 2e-3, -1e-3) * (j + 1) as f64;
+            pert.joint_offset[j] = 1e-3 * j as f64;
+        }
+        pert.point_twist[r.tool()] = Vector6::new(0.0, 1e-4, 0.0, 0.0, 0.0, 2e-3);
+        tree.forward_perturbed_into(&Q, &pert, &mut full);
+        // Whatever the workspace held before (another configuration) must not survive.
+        tree.forward_into(&[0.1, -0.2, 0.05, 0.3], &mut from_rigid);
+        tree.forward_perturbed_from_rigid_into(&Q, &pert, &rigid, &mut from_rigid);
+        assert_eq!(from_rigid.body, full.body, "first perturbed joint {first}");
+        assert_eq!(from_rigid.joint_frame, full.joint_frame);
+        assert_eq!(from_rigid.point, full.point);
+        assert_eq!(from_rigid.joint_value, full.joint_value);
+        assert_ne!(full.point[r.tool()], rigid.point[r.tool()]);
+    }
+}

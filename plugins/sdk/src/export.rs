@@ -16,6 +16,7 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use armcomp_core::mass::MassModel;
+use armcomp_core::subtree_loads::SubtreeLoads;
 use armcomp_core::{
     AngleUnit, BuildContext, CandidateTemplate, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree,
     LengthUnit, Limits, ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace,
@@ -271,6 +272,7 @@ const _: () = {
 struct PerturbBuffers {
     frames: TreeWorkspace,
     mass: MassModel,
+    loads: SubtreeLoads,
     perturbation: Perturbation,
 }
 
@@ -284,6 +286,7 @@ impl Default for PerturbBuffers {
                 joint_value: Vec::new(),
             },
             mass: MassModel::massless(0),
+            loads: SubtreeLoads::default(),
             perturbation: Perturbation {
                 joint_twist: Vec::new(),
                 joint_offset: Vec::new(),
@@ -473,11 +476,13 @@ pub unsafe fn model_perturb(
                 frames_into(s, &mut b.frames)?;
                 mass_into(&s.mass, &mut b.mass)?;
             }
+            b.loads.update(&h.tree, &b.frames, &b.mass);
             let state = StaticState {
                 q,
                 tree: &h.tree,
                 frames: &b.frames,
                 mass: &b.mass,
+                loads: &b.loads,
                 gravity: Vector3::from(s.gravity),
                 temperature: (!s.temperature.is_nan()).then_some(s.temperature),
             };

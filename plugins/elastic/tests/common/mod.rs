@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use armcomp_core::subtree_loads::SubtreeLoads;
 use armcomp_core::{Perturbation, Robot, RobotFile, StaticState, TreeWorkspace};
 use nalgebra::Vector3;
 
@@ -37,11 +38,13 @@ pub fn perturbation_of(
     let mut rigid = TreeWorkspace::new(tree);
     tree.forward_into(q, &mut rigid);
     let mut pert = Perturbation::zeros(tree);
+    let loads = SubtreeLoads::of(tree, &rigid, robot.mass());
     let state = StaticState {
         q,
         tree,
         frames: &rigid,
         mass: robot.mass(),
+        loads: &loads,
         gravity: robot.gravity(),
         temperature,
     };

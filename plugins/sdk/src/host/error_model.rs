@@ -5,6 +5,7 @@ use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
 
+use armcomp_core::subtree_loads::SubtreeLoads;
 use armcomp_core::{
     ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, Role, StaticState,
     TreeWorkspace,
@@ -226,12 +227,14 @@ impl PluginErrorModel {
         tree.forward_into(&q, &mut frames);
         let values: Vec<f64> = self.params.iter().map(|p| p.nominal).collect();
         let mut out = Perturbation::zeros(tree);
+        let loads = SubtreeLoads::of(tree, &frames, ctx.mass);
         for temperature in [None, Some(30.0)] {
             let state = StaticState {
                 q: &q,
                 tree,
                 frames: &frames,
                 mass: ctx.mass,
+                loads: &loads,
                 gravity: Vector3::new(0.0, 0.0, -9.81),
                 temperature,
             };
