@@ -1067,3 +1067,31 @@ fn restarts_are_seeded_and_keep_the_lowest_cost() {
         assert!(r.after.rms_mm <= once.report.after.rms_mm * (1.0 + 1e-9));
     }
 }
+
+/// A compliance about an axis gravity never loads (the rock drill's j2 lateral axis `u` is
+/// vertical) cannot be seen in any data: its Jacobian column is round-off. Calibration fixes
+/// it at its start rather than fitting noise with it, and still fits the loaded axis `v`.
+#[test]
+fn a_compliance_no_load_reaches_is_fixed_not_fitted() {
+    let base = robot("rock-drill.toml");
+    let mut file = base.to_file();
+    let lateral = serde_json::json!({"type": "lateral_compliance", "compliance": {"j2": [1e-3, 1e-3]}});
+    file.error_models.push(serde_json::from_value(lateral).unwrap());
+    let nominal = base.rebuild(file).unwrap();
+    let (truth, _) = truth_of(&nominal, &[("lateral_compliance.j2.v", 1.5e-3)]);
+    let data = measure(&truth, 80, 8);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let cal = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap();
+    let param = |name: &str| cal.report.params.iter().find(|p| p.name == name).unwrap();
+    let (u, v) = (param("lateral_compliance.j2.u"), param("lateral_compliance.j2.v"));
+    assert!(u.fixed && u.value == 1e-3, "{u:?}");
+    assert!(!v.fixed && v.value != 1e-3, "{v:?}");
+    assert!(
+        cal.report.converged && cal.report.rms_over_noise < 1.2,
+        "{:?}",
+        cal.report.after
+    );
+}

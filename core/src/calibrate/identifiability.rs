@@ -8,6 +8,11 @@ use crate::robot::Robot;
 
 use super::*;
 
+/// See [`analyse`]: below this many noise standard deviations over all the data, a typical
+/// change of a parameter is not seen. Real columns are many orders of magnitude above it
+/// (0.2 and more on the diagnosis sweep's robots), unseen ones at round-off (1e-13).
+const UNSEEN: f64 = 1e-6;
+
 /// The parameters of `free` with a prior that the data barely determine: with the data their
 /// standard deviation (linearised at the start, `jac` holding the columns of `selected`) is
 /// still above half their prior's, so the data adds less than three times the prior's
@@ -55,7 +60,20 @@ pub(super) fn analyse(
     free: &[usize],
     tol: f64,
 ) -> (IdentifiabilityReport, Vec<usize>) {
-    let norms: Vec<f64> = (0..jac.ncols()).map(|c| jac.column(c).norm()).collect();
+    // A column whose parameter, moved by its typical size, changes the predictions by less
+    // than UNSEEN noise standard deviations over all the data is no column: the data cannot
+    // see the parameter (a compliance about an axis gravity never loads: its moment is
+    // round-off). Scaled to unit norm like the others, it would look independent of them.
+    let norms: Vec<f64> = (0..jac.ncols())
+        .map(|c| {
+            let n = jac.column(c).norm();
+            if n * typical_scale(&space.params[free[c]].info) < UNSEEN {
+                0.0
+            } else {
+                n
+            }
+        })
+        .collect();
     let has_prior = |c: usize| space.params[free[c]].info.sigma.is_finite();
     let name = |c: usize| space.params[free[c]].info.name.clone();
     let mut fixed: Vec<usize> = Vec::new(); // column positions

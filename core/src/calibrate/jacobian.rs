@@ -333,6 +333,16 @@ pub(super) fn typical_size(info: &ParamInfo) -> f64 {
     }
 }
 
+/// The scale a parameter's changes are judged at: its prior's standard deviation, or its
+/// kind's [`typical_size`] when it has none.
+pub(super) fn typical_scale(info: &ParamInfo) -> f64 {
+    if info.sigma.is_finite() {
+        info.sigma
+    } else {
+        typical_size(info)
+    }
+}
+
 /// A copy of `theta` and a forward-difference step for parameter `k`, signed to stay within
 /// the upper bound. Steps are 1e-6 of the value or of a typical scale, whichever is larger.
 ///
@@ -342,12 +352,7 @@ pub(super) fn typical_size(info: &ParamInfo) -> f64 {
 /// compliance stepped by 1e-13 rad/(N m) under the 0.1 N m of a lateral moment moves it by
 /// 1e-14 m, which the identifiability analysis cannot tell from zero.
 pub(super) fn step(theta: &[f64], k: usize, p: &SpaceParam) -> (Vec<f64>, f64) {
-    let typical = if p.info.sigma.is_finite() {
-        p.info.sigma
-    } else {
-        typical_size(&p.info)
-    };
-    let mut h = 1e-6 * theta[k].abs().max(typical);
+    let mut h = 1e-6 * theta[k].abs().max(typical_scale(&p.info));
     if theta[k] + h > p.info.upper {
         h = -h;
     }
