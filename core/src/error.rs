@@ -281,4 +281,95 @@ mod tests {
             "invalid model: j1: expected a number; expected a number"
         );
     }
+
+    /// Each typed variant's message names every field it carries, in words a user reads.
+    #[test]
+    fn typed_variants_name_their_fields() {
+        let cases = [
+            (
+                Error::InputAt {
+                    location: Location {
+                        line: Some(12),
+                        column: Some(3),
+                        ..Location::file("poses.csv")
+                    },
+                    message: "column `x[mm]`: `abc` is not a number".into(),
+                },
+                "poses.csv:12:3: column `x[mm]`: `abc` is not a number",
+            ),
+            (
+                Error::InputAt {
+                    location: Location::file("missing.csv"),
+                    message: "does not exist".into(),
+                },
+                "missing.csv: does not exist",
+            ),
+            (
+                Error::InvalidArgument {
+                    what: "measurement noise".into(),
+                    reason: "must be positive, got -1 m".into(),
+                },
+                "measurement noise: must be positive, got -1 m",
+            ),
+            (
+                Error::Degenerate {
+                    what: "ridge".into(),
+                    reason: "the 10 features are linearly dependent".into(),
+                },
+                "ridge: the 10 features are linearly dependent",
+            ),
+            (
+                Error::NotConverged {
+                    what: "IK".into(),
+                    iterations: 240,
+                    best: "closest point is 2.000e-3 m from the target".into(),
+                },
+                "IK did not converge after 240 iterations: closest point is 2.000e-3 m from the target",
+            ),
+            (
+                Error::UnknownPlugin {
+                    role: Role::ErrorModel,
+                    name: "sag".into(),
+                    known: vec!["cable_sag".into(), "hose".into()],
+                    provider: "libcable_sag.so".into(),
+                },
+                "libcable_sag.so has no error model named `sag`; it has: `cable_sag`, `hose`",
+            ),
+            (
+                Error::UnknownPlugin {
+                    role: Role::Predictor,
+                    name: "gp".into(),
+                    known: Vec::new(),
+                    provider: "libcable_sag.so".into(),
+                },
+                "libcable_sag.so has no predictor named `gp`; it has: none",
+            ),
+            (
+                Error::AbiMismatch {
+                    library: PathBuf::from("plugins/libold.so"),
+                    expected: 4,
+                    found: 3,
+                },
+                "plugins/libold.so speaks plugin ABI version 3, this armcomp speaks version 4; rebuild the plugin \
+                 against this armcomp-sdk",
+            ),
+            (
+                Error::Plugin {
+                    library: PathBuf::from("plugins/libx.so"),
+                    message: "does not export `armcomp_type_info`".into(),
+                },
+                "plugin library plugins/libx.so: does not export `armcomp_type_info`",
+            ),
+        ];
+        for (err, expected) in cases {
+            assert_eq!(err.to_string(), expected);
+        }
+        let refused = Error::PluginNotAllowed {
+            library: PathBuf::from("/opt/libx.so"),
+        }
+        .to_string();
+        // Callers holding only the message tell a refused library by its beginning.
+        assert!(refused.starts_with(NOT_ALLOWED), "{refused}");
+        assert!(refused.contains("loading /opt/libx.so would run its code"), "{refused}");
+    }
 }
