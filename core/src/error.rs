@@ -120,7 +120,7 @@ pub enum Error {
         /// What the operating system said, or why the file is refused.
         message: String,
     },
-    /// A robot file is not valid: every problem, each with its field and line.
+    /// A robot (or URDF) file is not valid: every problem, each with its field and line.
     #[error("{}", render_issues(file, issues))]
     InvalidFile {
         /// The file.

@@ -9,7 +9,7 @@ use armcomp_core::{Error, PredictorSpec, Robot, RobotFile, Role};
 /// A model with its fitted predictor and how much the predictor removes on the training data.
 #[derive(Debug)]
 pub struct LearnRun {
-    /// The model with the fitted predictor (its `file` is the model file).
+    /// The model with the fitted predictor (built from the model file; `to_text_for` writes it).
     pub robot: Robot,
     /// Training errors of the model alone.
     pub before: ErrorStats,
