@@ -47,7 +47,7 @@ fn big_inputs(c: &mut Criterion) {
     )
     .unwrap();
     let data = dir.path().join("data.csv");
-    std::fs::write(&data, write_csv(&set, robot.tree(), robot.file.units)).unwrap();
+    std::fs::write(&data, write_csv(&set, robot.tree(), robot.units())).unwrap();
     let layout = robot.csv_layout();
     c.bench_function("evaluate, 100 000 rows", |b| {
         b.iter(|| {

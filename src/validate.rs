@@ -43,6 +43,12 @@ fn from_error(file: &Path, e: Error) -> Vec<Diagnostic> {
                 message: i.message,
             })
             .collect(),
+        Error::InputAt { location, message } => vec![Diagnostic {
+            file: location.file,
+            line: location.line,
+            path: String::new(),
+            message,
+        }],
         other => {
             let message = other.to_string();
             // The diagnostic names the file already.

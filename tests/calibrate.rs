@@ -333,7 +333,7 @@ fn calibrate_and_evaluate_on_the_command_line() {
             samples: samples.to_vec(),
             ..Default::default()
         };
-        let text = armcomp_core::measurement::write_csv(&set, truth.tree(), truth.file.units);
+        let text = armcomp_core::measurement::write_csv(&set, truth.tree(), truth.units());
         dir.file(name, &text)
     };
     let train = write("train.csv", &measure(&truth, 120, 11));
@@ -782,7 +782,7 @@ fn calibrate_exit_codes_for_nonsense_inputs() {
     };
     let units = armcomp_core::units::Units {
         length: armcomp_core::units::LengthUnit::M,
-        ..truth.file.units
+        ..truth.units()
     };
     let text = armcomp_core::measurement::write_csv(&set, truth.tree(), units);
     let mislabelled = text.replacen("x[m],y[m],z[m]", "x[mm],y[mm],z[mm]", 1);
@@ -851,7 +851,7 @@ fn parameters_the_robot_file_fixes_are_not_refitted() {
         ParameterSpace::new(&held).initial()[space.index("j2.d").unwrap()]
     );
     // Kept in the model file, so a second calibration holds it too.
-    assert_eq!(cal.robot.file.fixed, ["joint_compliance.j2", "j2.d"]);
+    assert_eq!(cal.robot.fixed(), ["joint_compliance.j2", "j2.d"]);
 
     let mut file = nominal.to_file();
     file.fixed = vec!["joint_compliance.j9".into()];

@@ -164,7 +164,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         },
     )
     .unwrap();
-    let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.file.units));
+    let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.units()));
     let fitted = dir.0.join("fitted.toml");
     let (code, _, err) = armcomp(&[
         "learn",
@@ -218,7 +218,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         // The joint columns read back as poses; command the truth with them.
         let commands = read_csv(
             &out,
-            &armcomp_core::measurement::CsvLayout::strict(truth.tree(), truth.file.units, truth.tool()),
+            &armcomp_core::measurement::CsvLayout::strict(truth.tree(), truth.units(), truth.tool()),
         );
         assert!(commands.is_err(), "commands carry no measured x, y, z");
         let poses = armcomp_core::measurement::parse_poses(
@@ -436,7 +436,7 @@ fn learn_fits_the_predictor_named_on_the_command_line() {
         },
     )
     .unwrap();
-    let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.file.units));
+    let data_path = dir.file("data.csv", &write_csv(&data, truth.tree(), truth.units()));
     let fitted = dir.0.join("fitted.toml");
     let run = |extra: &[&str]| {
         let mut args = vec![

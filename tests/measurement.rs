@@ -17,7 +17,7 @@ fn parse(text: &str) -> Result<MeasurementSet, String> {
     parse_csv(
         text,
         Path::new("m.csv"),
-        &CsvLayout::strict(r.tree(), r.file.units, r.tool()),
+        &CsvLayout::strict(r.tree(), r.units(), r.tool()),
     )
     .map_err(|e| e.to_string())
 }

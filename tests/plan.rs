@@ -362,7 +362,7 @@ fn retrospective_selection_names_rows_that_calibrate_reads() {
     let train = all.select_rows(&"even".parse().unwrap());
     let pool = dir.file(
         "train.csv",
-        &armcomp_core::measurement::write_csv(&train, r.tree(), r.file.units),
+        &armcomp_core::measurement::write_csv(&train, r.tree(), r.units()),
     );
     let out = dir.0.join("chosen.csv");
     let output = Command::new(bin)

@@ -395,7 +395,7 @@ fn a_file_that_is_not_a_library_is_rejected() {
         &e,
         62,
         "error_models[1].library",
-        "garbage.so is not a loadable shared library",
+        "garbage.so: not a loadable shared library",
     );
 }
 

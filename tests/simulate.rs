@@ -121,7 +121,7 @@ fn simulate_is_byte_identical_for_a_seed_and_reads_back() {
     let set = parse_csv(
         std::str::from_utf8(&a).unwrap(),
         std::path::Path::new("a.csv"),
-        &armcomp_core::measurement::CsvLayout::strict(r.tree(), r.file.units, r.tool()),
+        &armcomp_core::measurement::CsvLayout::strict(r.tree(), r.units(), r.tool()),
     )
     .unwrap();
     assert_eq!(set.samples.len(), 50);

@@ -32,9 +32,10 @@ impl Robot {
         }
         let q = |i: usize| &qs[i * nq..(i + 1) * nq];
         for i in 0..n {
-            self.tree()
-                .check_q(q(i))
-                .map_err(|e| Error::Input(format!("configuration {}: {e}", i + 1)))?;
+            self.tree().check_q(q(i)).map_err(|e| Error::InvalidArgument {
+                what: format!("configuration {}", i + 1),
+                reason: e.to_string(),
+            })?;
         }
         for i in 0..n {
             self.forward_into(q(i), None, ws);

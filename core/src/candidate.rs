@@ -58,20 +58,21 @@ pub struct CandidateTemplate {
 impl CandidateTemplate {
     /// Reads a template from its JSON text and checks that it is complete.
     pub fn from_json(text: &str) -> Result<CandidateTemplate> {
-        let template: CandidateTemplate =
-            serde_json::from_str(text).map_err(|e| Error::Input(format!("candidate template: {e}")))?;
+        let invalid = |reason: String| Error::InvalidArgument {
+            what: "candidate template".into(),
+            reason,
+        };
+        let template: CandidateTemplate = serde_json::from_str(text).map_err(|e| invalid(e.to_string()))?;
         if template.label.trim().is_empty() {
-            return Err(Error::Input("candidate template: `label` is empty".into()));
+            return Err(invalid("`label` is empty".into()));
         }
         match (template.per, &template.field) {
-            (CandidateScope::Global, Some(f)) => Err(Error::Input(format!(
-                "candidate template: a global candidate has no `field` (got `{f}`)"
-            ))),
-            (CandidateScope::Joint | CandidateScope::Link, None) => Err(Error::Input(
-                "candidate template: a per-joint or per-link candidate needs the `field` that takes the name".into(),
+            (CandidateScope::Global, Some(f)) => Err(invalid(format!("a global candidate has no `field` (got `{f}`)"))),
+            (CandidateScope::Joint | CandidateScope::Link, None) => Err(invalid(
+                "a per-joint or per-link candidate needs the `field` that takes the name".into(),
             )),
-            (_, Some(f)) if template.config.contains_key(f) => Err(Error::Input(format!(
-                "candidate template: `config` must not set `{f}`, which takes the joint or link name"
+            (_, Some(f)) if template.config.contains_key(f) => Err(invalid(format!(
+                "`config` must not set `{f}`, which takes the joint or link name"
             ))),
             _ => Ok(template),
         }

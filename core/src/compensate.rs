@@ -119,12 +119,15 @@ impl<'a> Compensator<'a> {
         let nq = robot.tree().nq();
         let n_inputs = predictor.map_or(nq, |p| p.n_inputs());
         if let Some(p) = predictor.filter(|p| !(p.n_inputs() == nq || p.n_inputs() == nq + 3) || p.n_outputs() != 3) {
-            return Err(Error::Input(format!(
-                "the fitted predictor takes {} inputs and gives {} outputs; compensating `{}` needs {nq} joint values (and the point's position, 3) in and a position residual (3) out",
-                p.n_inputs(),
-                p.n_outputs(),
-                robot.file.name
-            )));
+            return Err(Error::InvalidArgument {
+                what: "fitted predictor".into(),
+                reason: format!(
+                    "takes {} inputs and gives {} outputs; compensating `{}` needs {nq} joint values (and the point's position, 3) in and a position residual (3) out",
+                    p.n_inputs(),
+                    p.n_outputs(),
+                    robot.name()
+                ),
+            });
         }
         Ok(Compensator {
             robot,

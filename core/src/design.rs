@@ -68,6 +68,15 @@ impl std::str::FromStr for Criterion {
     }
 }
 
+/// A design whose information matrix cannot be factored: the parameters are not all
+/// identifiable from the poses (and priors) given.
+fn not_positive_definite() -> Error {
+    Error::Degenerate {
+        what: "pose selection".into(),
+        reason: "the information matrix is not positive definite".into(),
+    }
+}
+
 /// Prior information on parameters without a prior, relative to the unit root-mean-square
 /// sensitivity of one measured coordinate: small enough not to count, large enough to keep
 /// `M` invertible.
@@ -110,8 +119,7 @@ impl Design {
     /// The criterion's value for `set`: `log det M` (D-optimal, larger is better) or
     /// `trace(A M⁻¹)` (the others, smaller is better).
     pub fn value(&self, set: &[usize], criterion: Criterion) -> Result<f64> {
-        let chol = Cholesky::new(self.information(set))
-            .ok_or_else(|| Error::Input("the information matrix is not positive definite".into()))?;
+        let chol = Cholesky::new(self.information(set)).ok_or_else(not_positive_definite)?;
         Ok(match criterion {
             Criterion::DOptimal => 2.0 * chol.l().diagonal().map(f64::ln).sum(),
             _ => (&self.weight * chol.inverse()).trace(),
@@ -140,8 +148,7 @@ struct DesignState {
 
 impl DesignState {
     fn new(design: &Design, set: &[usize], criterion: Criterion) -> Result<Self> {
-        let chol = Cholesky::new(design.information(set))
-            .ok_or_else(|| Error::Input("the information matrix is not positive definite".into()))?;
+        let chol = Cholesky::new(design.information(set)).ok_or_else(not_positive_definite)?;
         let w = chol.solve(&design.rows.transpose());
         let v = match criterion {
             Criterion::DOptimal => DMatrix::zeros(0, 0),
@@ -170,9 +177,10 @@ impl DesignState {
         let ji = design.rows.rows(o, r);
         let wi = self.w.columns(o, r).into_owned();
         let s = DMatrix::identity(r, r) + (ji * &wi) * sign;
-        let s_inv = s
-            .try_inverse()
-            .ok_or_else(|| Error::Input("a rank update of the information is singular".into()))?;
+        let s_inv = s.try_inverse().ok_or_else(|| Error::Degenerate {
+            what: "pose selection".into(),
+            reason: "a rank update of the information is singular".into(),
+        })?;
         let k = s_inv * (ji * &self.w);
         self.w -= (&wi * &k) * sign;
         if criterion != Criterion::DOptimal {
@@ -200,7 +208,10 @@ impl DesignState {
 pub fn optimal_subset(design: &Design, n: usize, criterion: Criterion, exchange_passes: usize) -> Result<SubsetReport> {
     let nc = design.candidates();
     if n > nc {
-        return Err(Error::Input(format!("cannot pick {n} poses from a pool of {nc}")));
+        return Err(Error::InvalidArgument {
+            what: "poses to pick".into(),
+            reason: format!("cannot pick {n} from a pool of {nc}"),
+        });
     }
     let mut taken = vec![false; nc];
     let mut chosen = Vec::with_capacity(n);
@@ -330,13 +341,16 @@ pub fn select_poses(
     params: &SelectionParams,
 ) -> Result<SelectionReport> {
     if !(params.measurement_std.is_finite() && params.measurement_std > 0.0) {
-        return Err(Error::Input(format!(
-            "the measurement noise must be positive, got {} m",
-            params.measurement_std
-        )));
+        return Err(Error::InvalidArgument {
+            what: "measurement noise".into(),
+            reason: format!("must be positive, got {} m", params.measurement_std),
+        });
     }
-    if pool.iter().any(Vec::is_empty) {
-        return Err(Error::Input("a candidate pose measures no point".into()));
+    if let Some(i) = pool.iter().position(Vec::is_empty) {
+        return Err(Error::InvalidArgument {
+            what: format!("candidate pose {}", i + 1),
+            reason: "measures no point".into(),
+        });
     }
     let flat: Vec<Sample> = pool.iter().flatten().cloned().collect();
     let (jac, names) = samples_jacobian(robot, &flat, &params.identify)?;
@@ -406,7 +420,7 @@ pub fn select_poses(
     let posterior = |set: &[usize]| -> Result<DMatrix<f64>> {
         Cholesky::new(design.information(set))
             .map(|c| c.inverse())
-            .ok_or_else(|| Error::Input("the information matrix is not positive definite".into()))
+            .ok_or_else(not_positive_definite)
     };
     let before = posterior(&[])?;
     let after = posterior(&subset.chosen)?;

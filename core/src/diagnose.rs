@@ -53,9 +53,10 @@ use crate::evaluate::{ErrorStats, position_errors};
 use crate::measurement::Sample;
 use crate::param::Quantity;
 use crate::plugin::{ErrorModelSpec, PredictorSpec, TrainingSet};
-use crate::registry::{PluginInfo, Role};
+use crate::registry::PluginInfo;
 use crate::residuals::{ResidualDescription, describe_residuals};
 use crate::robot::Robot;
+use crate::role::Role;
 use crate::split::{Split, kfold, subset};
 
 /// Paired z-score of the held-out squared errors below which a candidate counts as explaining
@@ -243,10 +244,10 @@ pub fn diagnose(
     params: &DiagnoseParams,
 ) -> Result<Diagnosis> {
     if !(params.min_rms_reduction.is_finite() && (0.0..1.0).contains(&params.min_rms_reduction)) {
-        return Err(Error::Input(format!(
-            "the smallest RMS reduction must be between 0 and 1, got {}",
-            params.min_rms_reduction
-        )));
+        return Err(Error::InvalidArgument {
+            what: "smallest RMS reduction".into(),
+            reason: format!("must be between 0 and 1, got {}", params.min_rms_reduction),
+        });
     }
     let splits = kfold(samples, params.folds, params.seed)?;
     let given = robot.error_models().len();
@@ -398,12 +399,14 @@ fn offers(robot: &Robot, plugins: &[PluginInfo]) -> Vec<Offer> {
 
 /// `model` with the offered effect added.
 fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
-    let spec: Box<dyn ErrorModelSpec> = serde_json::from_value(offer.candidate.spec.clone()).map_err(|e| {
-        Error::Input(format!(
-            "the `{}` plugin offered a candidate spec it cannot read ({}): {e}",
-            offer.effect, offer.candidate.label
-        ))
-    })?;
+    let spec: Box<dyn ErrorModelSpec> =
+        serde_json::from_value(offer.candidate.spec.clone()).map_err(|e| Error::InvalidArgument {
+            what: format!("the `{}` plugin", offer.effect),
+            reason: format!(
+                "offered a candidate spec it cannot read ({}): {e}",
+                offer.candidate.label
+            ),
+        })?;
     let mut file = model.to_file();
     file.error_models.push(spec);
     model.rebuild(file)

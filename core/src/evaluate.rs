@@ -116,7 +116,10 @@ pub fn fit_residual_predictor(
     samples: &[Sample],
 ) -> Result<Box<dyn FittedPredictor>> {
     let Some(first) = samples.first() else {
-        return Err(Error::Input("no measurements to learn the residual from".into()));
+        return Err(Error::InvalidArgument {
+            what: "measurements".into(),
+            reason: "none to learn the residual from".into(),
+        });
     };
     let nq = robot.tree().nq();
     let n_inputs = if samples.iter().any(|s| s.point != first.point) {

@@ -17,6 +17,7 @@
 
 use nalgebra::{Cholesky, Isometry3, Matrix3, Matrix3xX, Matrix6, Matrix6xX, Vector3, Vector6};
 
+use crate::error::Error;
 use crate::robot::{Robot, RobotWorkspace};
 
 /// What to reach.
@@ -145,8 +146,32 @@ pub enum IkError {
         iterations: usize,
     },
     /// The request itself cannot be used.
-    #[error("{0}")]
-    Input(String),
+    #[error(transparent)]
+    Input(#[from] Error),
+}
+
+/// A target not reached is the core's [`Error::NotConverged`] (the closest configuration is
+/// dropped); a bad request is the core error it carries.
+impl From<IkError> for Error {
+    fn from(e: IkError) -> Self {
+        match e {
+            IkError::Unreachable {
+                closest_point,
+                distance,
+                orientation_error,
+                iterations,
+                ..
+            } => Error::NotConverged {
+                what: "IK".into(),
+                iterations,
+                best: format!(
+                    "closest point [{:.6}, {:.6}, {:.6}] m is {distance:.3e} m from the target (orientation error {orientation_error:.3e} rad)",
+                    closest_point.x, closest_point.y, closest_point.z
+                ),
+            },
+            IkError::Input(e) => e,
+        }
+    }
 }
 
 /// Buffers of the solver, made once per robot and thread; solving allocates nothing per
@@ -317,35 +342,49 @@ pub(crate) fn solve_from(
     let tree = robot.tree();
     let n = tree.nq();
     if ws.q.len() != n {
-        return Err(IkError::Input("IK workspace was made for another robot".into()));
+        return Err(Error::InvalidArgument {
+            what: "IK workspace".into(),
+            reason: format!("made for a robot with {} joint values, this one has {n}", ws.q.len()),
+        }
+        .into());
     }
     match start_at {
         Start::Given(q0) => {
-            tree.check_q(q0).map_err(|e| IkError::Input(e.to_string()))?;
+            tree.check_q(q0)?;
             ws.start.copy_from_slice(q0);
         }
         Start::Previous => ws.start.copy_from_slice(&ws.q),
     }
     if point >= tree.points().len() {
-        return Err(IkError::Input(format!(
-            "point {point} does not exist; the robot has {} points",
-            tree.points().len()
-        )));
+        return Err(Error::InvalidArgument {
+            what: format!("point {point}"),
+            reason: format!("does not exist; the robot has {} points", tree.points().len()),
+        }
+        .into());
     }
     let finite = match target {
         IkTarget::Position(p) => p.iter().all(|v| v.is_finite()),
         IkTarget::Pose(t) => t.to_homogeneous().iter().all(|v| v.is_finite()),
     };
     if !finite {
-        return Err(IkError::Input("the IK target is not finite".into()));
+        return Err(Error::InvalidArgument {
+            what: "IK target".into(),
+            reason: "not finite".into(),
+        }
+        .into());
     }
     if let Some(o) = offset
         && (o.q_ref.len() != n || o.jacobian.ncols() != n)
     {
-        return Err(IkError::Input(format!(
-            "the linear offset is made for {} joint values, the robot has {n}",
-            o.q_ref.len()
-        )));
+        return Err(Error::InvalidArgument {
+            what: "linear offset".into(),
+            reason: format!(
+                "made for {} joint values and {} Jacobian columns, the robot has {n} joint values",
+                o.q_ref.len(),
+                o.jacobian.ncols()
+            ),
+        }
+        .into());
     }
     let pose_target = matches!(target, IkTarget::Pose(_));
     let w = opts.orientation_weight;

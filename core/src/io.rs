@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Location, Result};
 
 /// The input size cap when none is configured: 256 MiB.
 pub const DEFAULT_MAX_INPUT_BYTES: u64 = 256 << 20;
@@ -122,7 +122,10 @@ pub fn check_input_file(path: &Path) -> std::result::Result<(), String> {
 /// Reads a whole input file: a regular file of at most [`max_input_bytes`]; recorded for
 /// [`recording_reads`].
 pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
-    let input = |message: String| Error::Input(format!("{}: {message}", path.display()));
+    let input = |message: String| Error::InputAt {
+        location: Location::file(path),
+        message,
+    };
     check_input_file(path).map_err(input)?;
     let limit = max_input_bytes();
     let file = std::fs::File::open(path).map_err(|e| input(format!("cannot read: {e}")))?;
@@ -148,10 +151,10 @@ pub fn read_text(path: &Path) -> Result<String> {
     let mut text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
         let line = e.as_bytes()[..at].iter().filter(|b| **b == b'\n').count() + 1;
-        Error::Input(format!(
-            "{}:{line}: not UTF-8 text (byte {at} cannot be decoded)",
-            path.display()
-        ))
+        Error::InputAt {
+            location: Location::line(path, line),
+            message: format!("not UTF-8 text (byte {at} cannot be decoded)"),
+        }
     })?;
     if text.starts_with('\u{feff}') {
         text.drain(..'\u{feff}'.len_utf8());
@@ -232,12 +235,20 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// The error for an output `path` that may not be written, and why.
+fn refusal(path: &Path) -> impl Fn(String) -> Error + '_ {
+    move |message| Error::Io {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
 /// Checks, before any work, that `out` may be written as an output: its folder exists and the
 /// user may create files there; it is absent or a regular file (not a symbolic link, FIFO,
 /// device or folder) that is not read-only, that the user owns or could give back to its owner
 /// and that is none of `inputs`.
 pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
-    let refuse = |message: String| Error::Input(format!("{}: {message}", out.display()));
+    let refuse = refusal(out);
     if out.file_name().is_none() {
         return Err(refuse("not a file name".into()));
     }
@@ -265,7 +276,7 @@ pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
 
 /// The metadata of an existing output target, refusing anything but a writable regular file.
 fn existing_target(out: &Path) -> Result<Option<std::fs::Metadata>> {
-    let refuse = |message: String| Error::Input(format!("{}: {message}", out.display()));
+    let refuse = refusal(out);
     let m = match std::fs::symlink_metadata(out) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -343,13 +354,13 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         message: e.to_string(),
     };
     if path.file_name().is_none() {
-        return Err(Error::Input(format!("{}: not a file name", path.display())));
+        return Err(refusal(path)("not a file name".into()));
     }
     let existing = existing_target(path)?;
     let mut tmp = temporary_in(path, existing.as_ref()).map_err(io)?;
     let _pending = Pending::new(tmp.path());
     if let Some(m) = &existing {
-        keep_owner(tmp.as_file(), m).map_err(|m| Error::Input(format!("{}: {m}", path.display())))?;
+        keep_owner(tmp.as_file(), m).map_err(refusal(path))?;
     }
     tmp.write_all(bytes).map_err(io)?;
     tmp.as_file().sync_all().map_err(io)?;
@@ -362,7 +373,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// absent, or a folder (not a link) holding only files a report writes (`is_report_file`), and
 /// none of `inputs` lies in it.
 pub fn check_report_folder(dir: &Path, is_report_file: &dyn Fn(&str) -> bool, inputs: &[PathBuf]) -> Result<()> {
-    let refuse = |message: String| Error::Input(format!("{}: {message}", dir.display()));
+    let refuse = refusal(dir);
     if dir.file_name().is_none() {
         return Err(refuse("not a folder name; name the report's own folder".into()));
     }

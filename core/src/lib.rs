@@ -30,6 +30,7 @@ pub mod registry;
 pub mod residuals;
 pub mod robot;
 pub mod robot_file;
+pub mod role;
 pub mod sampling;
 pub mod shape;
 pub mod simulate;
@@ -51,9 +52,10 @@ pub use plugin::{
     BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, Loads, ModelContext,
     PredictorSpec, StaticState, TrainingSet,
 };
-pub use registry::{PluginInfo, Role};
+pub use registry::PluginInfo;
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};
+pub use role::Role;
 pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
 pub use units::{AngleUnit, LengthUnit, Units};
 pub use workspace::TreeWorkspace;

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Location, Result};
 use crate::tree::KinematicTree;
 use crate::units::{AngleUnit, LengthUnit, Units};
 
@@ -172,9 +172,12 @@ fn numbered_position(name: &str) -> Option<(usize, usize)> {
 
 fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: bool) -> Result<MeasurementSet> {
     let (tree, units) = (layout.tree, layout.units);
-    let err = |line: Option<usize>, msg: String| {
-        let at = line.map(|l| format!(":{l}")).unwrap_or_default();
-        Error::Input(format!("{}{at}: {msg}", path.display()))
+    let err = |line: Option<usize>, message: String| Error::InputAt {
+        location: Location {
+            line,
+            ..Location::file(path)
+        },
+        message,
     };
     let mut reader = csv::ReaderBuilder::new()
         .flexible(true)
@@ -555,12 +558,17 @@ enum RowRange {
 }
 
 impl std::str::FromStr for RowSelection {
-    type Err = String;
+    type Err = Error;
 
-    fn from_str(text: &str) -> std::result::Result<Self, String> {
+    fn from_str(text: &str) -> Result<Self> {
+        let invalid = |item: &str, reason: &str| Error::InvalidArgument {
+            what: format!("row selection `{item}`"),
+            reason: reason.into(),
+        };
         let bad = |item: &str| {
-            format!(
-                "row selection `{item}`: expected `even`, `odd`, a row number or a range `A..B`, `A..`, `..B` (rows 0-based)"
+            invalid(
+                item,
+                "expected `even`, `odd`, a row number or a range `A..B`, `A..`, `..B` (rows 0-based)",
             )
         };
         let number = |t: &str, item: &str| t.trim().parse::<usize>().map_err(|_| bad(item));
@@ -580,7 +588,7 @@ impl std::str::FromStr for RowSelection {
                                 Some(number(b, item)?)
                             };
                             if end.is_some_and(|e| e <= start) {
-                                return Err(format!("row selection `{item}`: the range is empty"));
+                                return Err(invalid(item, "the range is empty"));
                             }
                             RowRange::Span(start, end)
                         }
@@ -591,7 +599,7 @@ impl std::str::FromStr for RowSelection {
                     },
                 })
             })
-            .collect::<std::result::Result<Vec<_>, String>>()?;
+            .collect::<Result<Vec<_>>>()?;
         Ok(RowSelection(items))
     }
 }
@@ -646,26 +654,32 @@ fn check_magnitudes(
     });
     // No arm measured by a tracker sits 50 m from it; such numbers are millimetres.
     if pos_scale == Some(1.0) && median > 50.0 {
-        return Err(Error::Input(format!(
-            "{}: positions are declared in metres but their median distance is {median:.0} m; they look like millimetres (write `x[mm]`)",
-            path.display()
-        )));
+        return Err(Error::InputAt {
+            location: Location::file(path),
+            message: format!(
+                "positions are declared in metres but their median distance is {median:.0} m; they look like millimetres (write `x[mm]`)"
+            ),
+        });
     }
     for (col, head) in columns.iter().zip(headers.iter()) {
         if let Column::Joint { coord, scale } = *col {
             let max = set.samples.iter().map(|s| s.q[coord].abs()).fold(0.0, f64::max);
             let prismatic = tree.coordinate_is_prismatic()[coord];
             if !prismatic && scale == 1.0 && max > 4.0 * std::f64::consts::PI {
-                return Err(Error::Input(format!(
-                    "{}: column `{head}` is in radians but reaches {max:.1}; it looks like degrees (write `[deg]`)",
-                    path.display()
-                )));
+                return Err(Error::InputAt {
+                    location: Location::file(path),
+                    message: format!(
+                        "column `{head}` is in radians but reaches {max:.1}; it looks like degrees (write `[deg]`)"
+                    ),
+                });
             }
             if prismatic && scale == 1.0 && max > 50.0 {
-                return Err(Error::Input(format!(
-                    "{}: column `{head}` is in metres but reaches {max:.1}; it looks like millimetres (write `[mm]`)",
-                    path.display()
-                )));
+                return Err(Error::InputAt {
+                    location: Location::file(path),
+                    message: format!(
+                        "column `{head}` is in metres but reaches {max:.1}; it looks like millimetres (write `[mm]`)"
+                    ),
+                });
             }
         }
     }

@@ -150,14 +150,20 @@ pub fn trajectory_similar(
     per_point: usize,
 ) -> Result<Vec<usize>> {
     if trajectory.is_empty() {
-        return Err(Error::Input("the trajectory has no configurations".into()));
+        return Err(Error::InvalidArgument {
+            what: "trajectory".into(),
+            reason: "has no configurations".into(),
+        });
     }
     if points * per_point > pool_positions.len() {
-        return Err(Error::Input(format!(
-            "{points} trajectory points × {per_point} neighbours need {} pool poses; the pool has {}",
-            points * per_point,
-            pool_positions.len()
-        )));
+        return Err(Error::InvalidArgument {
+            what: "pool".into(),
+            reason: format!(
+                "{points} trajectory points × {per_point} neighbours need {} pool poses; the pool has {}",
+                points * per_point,
+                pool_positions.len()
+            ),
+        });
     }
     let mut ws = robot.workspace();
     let mut path = Vec::with_capacity(trajectory.len());

@@ -55,7 +55,10 @@ pub fn choose_prior_scale(
     seed: u64,
 ) -> Result<PriorChoice> {
     if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
-        return Err(Error::Input("the prior scales to try must be positive".into()));
+        return Err(Error::InvalidArgument {
+            what: "prior scales to try".into(),
+            reason: format!("expected positive numbers, got {grid:?}"),
+        });
     }
     let splits = kfold(samples, folds, seed)?;
     let jobs: Vec<(usize, usize)> = (0..grid.len())

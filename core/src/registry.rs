@@ -6,29 +6,7 @@ use std::fmt::Debug;
 use schemars::{Schema, SchemaGenerator};
 
 use crate::candidate::CandidateFn;
-
-/// What a plugin is for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    /// A kinematic convention (`kinematics = { type = ... }`).
-    Kinematics,
-    /// A physical error model (`[[error_models]]`).
-    ErrorModel,
-    /// A residual predictor (`[predictor]`).
-    Predictor,
-}
-
-impl Role {
-    /// The robot-file field the role's specs appear in.
-    pub fn field(self) -> &'static str {
-        match self {
-            Role::Kinematics => "kinematics",
-            Role::ErrorModel => "error_models",
-            Role::Predictor => "predictor",
-        }
-    }
-}
+use crate::role::Role;
 
 /// A registry entry: what `armcomp plugins` lists and `armcomp schema` composes.
 #[derive(Clone, Copy)]

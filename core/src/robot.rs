@@ -30,8 +30,9 @@ struct ResolvedPoint {
 /// A robot ready to evaluate: built once from a [`RobotFile`], then used read-only.
 #[derive(Debug)]
 pub struct Robot {
-    /// The description it was built from.
-    pub file: RobotFile,
+    /// The description it was built from (its values are not updated by
+    /// [`set_chain_values`](Robot::set_chain_values); [`to_file`](Robot::to_file) writes them back).
+    file: RobotFile,
     /// Where the description was read from, if from a file.
     pub source: Option<PathBuf>,
     chain: Box<dyn Chain>,
@@ -247,6 +248,41 @@ impl Robot {
         files
     }
 
+    /// The description it was built from, as given: parameter values as read (see
+    /// [`to_file`](Robot::to_file) for the current ones), its `[predictor]` table and fitted
+    /// predictor.
+    pub fn built_from(&self) -> &RobotFile {
+        &self.file
+    }
+    /// The robot's name.
+    pub fn name(&self) -> &str {
+        &self.file.name
+    }
+    /// Its free-text description, if the file has one.
+    pub fn description(&self) -> Option<&str> {
+        self.file.description.as_deref()
+    }
+    /// The units its file is written in, which its outputs use too.
+    pub fn units(&self) -> Units {
+        self.file.units
+    }
+    /// Parameter name patterns the file fixes: calibration never refits them.
+    pub fn fixed(&self) -> &[String] {
+        &self.file.fixed
+    }
+    /// The `type` of each error model, as robot files write it.
+    pub fn error_model_types(&self) -> Vec<String> {
+        self.file
+            .error_models
+            .iter()
+            .map(|m| {
+                serde_json::to_value(m)
+                    .ok()
+                    .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
+                    .unwrap_or_default()
+            })
+            .collect()
+    }
     /// The compiled kinematic convention.
     pub fn chain(&self) -> &dyn Chain {
         self.chain.as_ref()
@@ -332,7 +368,7 @@ impl Robot {
             .collect();
         CsvLayout {
             tree: &self.tree,
-            units: self.file.units,
+            units: self.units(),
             points: if self.markers.is_empty() {
                 vec![self.tool]
             } else {
@@ -605,12 +641,24 @@ impl Robot {
         self.file_with(&self.chain_values, &self.error_values)
     }
 
+    /// The model's text for `path` (JSON for `.json`, else TOML). With a fitted predictor it is
+    /// the description the robot was built from, whose values the predictor was fitted to (as
+    /// `armcomp learn` writes a model); else the current values written back into it (as
+    /// `armcomp calibrate` does).
+    pub fn to_text_for(&self, path: &Path) -> Result<String> {
+        if self.predictor().is_some() {
+            self.file.to_text_for(path)
+        } else {
+            self.to_file().to_text_for(path)
+        }
+    }
+
     /// The description with other chain and error-model values written back (file units).
     pub fn file_with(&self, chain_values: &[f64], error_values: &[Vec<f64>]) -> RobotFile {
         let mut out = RobotFile {
             name: self.file.name.clone(),
             description: self.file.description.clone(),
-            units: self.file.units,
+            units: self.units(),
             gravity: self.file.gravity,
             kinematics: self.chain.spec_with(chain_values),
             links: self.file.links.clone(),
@@ -951,7 +999,7 @@ fn measurement_setup(
 /// The file's error models built against the finished tree and mass model of `robot`, with
 /// every parameter name owned once and every `fixed` entry matching a parameter.
 fn build_error_models(robot: &Robot, base_dir: &Path, issues: &mut Issues) -> Vec<Box<dyn ErrorModel>> {
-    let units = robot.file.units;
+    let units = robot.units();
     let mut models = Vec::new();
     for (i, spec) in robot.file.error_models.iter().enumerate() {
         let path = format!("error_models[{i}]");

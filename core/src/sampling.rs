@@ -27,9 +27,10 @@ impl Sampler {
             "halton" => Ok(Sampler::Halton),
             "random" => Ok(Sampler::Random),
             "grid" => Ok(Sampler::Grid),
-            other => Err(Error::Input(format!(
-                "unknown sampler `{other}`; expected sobol, halton, random or grid"
-            ))),
+            other => Err(Error::InvalidArgument {
+                what: "sampler".into(),
+                reason: format!("unknown sampler `{other}`; expected sobol, halton, random or grid"),
+            }),
         }
     }
 }
@@ -57,10 +58,10 @@ pub fn unit_points(sampler: Sampler, n: usize, dim: usize, seed: u64) -> Result<
         }
         Sampler::Halton => {
             if dim > PRIMES.len() {
-                return Err(Error::Input(format!(
-                    "the Halton sampler supports up to {} dimensions, not {dim}",
-                    PRIMES.len()
-                )));
+                return Err(Error::InvalidArgument {
+                    what: "dimensions".into(),
+                    reason: format!("the Halton sampler supports up to {}, not {dim}", PRIMES.len()),
+                });
             }
             // Index 0 is the origin in every base; start at 1.
             Ok((1..=n)
@@ -81,9 +82,10 @@ pub fn unit_points(sampler: Sampler, n: usize, dim: usize, seed: u64) -> Result<
                 .find(|k: &usize| k.checked_pow(dim as u32).is_none_or(|t| t >= n))
                 .unwrap_or(2)
                 .max(2);
-            let total = levels
-                .checked_pow(dim as u32)
-                .ok_or_else(|| Error::Input("grid too large".into()))?;
+            let total = levels.checked_pow(dim as u32).ok_or_else(|| Error::InvalidArgument {
+                what: "grid".into(),
+                reason: format!("{levels} levels in {dim} dimensions overflow the point count"),
+            })?;
             Ok((0..n)
                 .map(|i| {
                     let mut idx = i * total / n;
@@ -109,10 +111,10 @@ pub fn configurations(tree: &KinematicTree, sampler: Sampler, n: usize, seed: u6
             (Some(l), _) => (l.lower, l.upper),
             (None, false) => (-std::f64::consts::PI, std::f64::consts::PI),
             (None, true) => {
-                return Err(Error::Input(format!(
-                    "prismatic joint `{}` has no limits; sampling needs a range",
-                    tree.coordinate_names()[i]
-                )));
+                return Err(Error::InvalidArgument {
+                    what: format!("prismatic joint `{}`", tree.coordinate_names()[i]),
+                    reason: "has no limits; sampling needs a range".into(),
+                });
             }
         });
     }

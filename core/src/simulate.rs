@@ -21,12 +21,15 @@ pub struct SimulateParams {
 /// through the full model (chain and error models), plus Gaussian noise per axis.
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
     if !(params.noise_std.is_finite() && params.noise_std >= 0.0) {
-        return Err(Error::Input(format!(
-            "noise must be zero or positive, got {} m",
-            params.noise_std
-        )));
+        return Err(Error::InvalidArgument {
+            what: "noise".into(),
+            reason: format!("must be zero or positive, got {} m", params.noise_std),
+        });
     }
-    let normal = Normal::new(0.0, params.noise_std).map_err(|e| Error::Input(format!("noise: {e}")))?;
+    let normal = Normal::new(0.0, params.noise_std).map_err(|e| Error::InvalidArgument {
+        what: "noise".into(),
+        reason: e.to_string(),
+    })?;
     let mut rng = StdRng::seed_from_u64(params.seed);
     let mut ws = truth.workspace();
     let t = truth.t_meas_base();

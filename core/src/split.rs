@@ -47,16 +47,17 @@ fn flatten(groups: &[Vec<usize>]) -> Vec<usize> {
 /// Holds out `test_fraction` of the poses (rounded, at least one on each side), chosen by `seed`.
 pub fn holdout(samples: &[Sample], test_fraction: f64, seed: u64) -> Result<Split> {
     if !(test_fraction > 0.0 && test_fraction < 1.0) {
-        return Err(Error::Input(format!(
-            "the held-out fraction must be between 0 and 1 (exclusive), got {test_fraction}"
-        )));
+        return Err(Error::InvalidArgument {
+            what: "held-out fraction".into(),
+            reason: format!("must be between 0 and 1 (exclusive), got {test_fraction}"),
+        });
     }
     let groups = shuffled_groups(samples, seed);
     if groups.len() < 2 {
-        return Err(Error::Input(format!(
-            "a train/test split needs at least 2 poses, the data has {}",
-            groups.len()
-        )));
+        return Err(Error::InvalidArgument {
+            what: "poses".into(),
+            reason: format!("a train/test split needs at least 2, the data has {}", groups.len()),
+        });
     }
     let n_test = ((groups.len() as f64 * test_fraction).round() as usize).clamp(1, groups.len() - 1);
     Ok(Split {
@@ -69,10 +70,10 @@ pub fn holdout(samples: &[Sample], test_fraction: f64, seed: u64) -> Result<Spli
 pub fn kfold(samples: &[Sample], k: usize, seed: u64) -> Result<Vec<Split>> {
     let groups = shuffled_groups(samples, seed);
     if k < 2 || k > groups.len() {
-        return Err(Error::Input(format!(
-            "k-fold needs 2 ≤ k ≤ number of poses ({}), got k = {k}",
-            groups.len()
-        )));
+        return Err(Error::InvalidArgument {
+            what: "folds".into(),
+            reason: format!("k-fold needs 2 ≤ k ≤ number of poses ({}), got k = {k}", groups.len()),
+        });
     }
     Ok((0..k)
         .map(|fold| {

@@ -178,9 +178,10 @@ impl KinematicTree {
     ) -> Result<usize> {
         let name = name.into();
         if let Some((i, _)) = coupling.terms.iter().find(|(i, _)| *i >= self.coord_names.len()) {
-            return Err(Error::Input(format!(
-                "mimic joint `{name}` follows coordinate {i}, which does not exist yet"
-            )));
+            return Err(Error::InvalidArgument {
+                what: format!("mimic joint `{name}`"),
+                reason: format!("the coordinate {i} it follows does not exist yet"),
+            });
         }
         let joint = Joint {
             name,
@@ -194,12 +195,14 @@ impl KinematicTree {
 
     fn push_joint(&mut self, joint: Joint, child: String) -> Result<usize> {
         if joint.parent >= self.bodies.len() {
-            return Err(Error::Input(format!(
-                "joint `{}` has parent body {} but only {} bodies exist (topological order required)",
-                joint.name,
-                joint.parent,
-                self.bodies.len()
-            )));
+            return Err(Error::InvalidArgument {
+                what: format!("joint `{}`", joint.name),
+                reason: format!(
+                    "parent body {} does not exist; only {} do (topological order required)",
+                    joint.parent,
+                    self.bodies.len()
+                ),
+            });
         }
         let mut support = self.support[joint.parent].clone();
         support.push(self.joints.len());
@@ -220,7 +223,10 @@ impl KinematicTree {
         let mut new_of_old = vec![usize::MAX; n];
         for (k, &old) in order.iter().enumerate() {
             if old >= n || new_of_old[old] != usize::MAX {
-                return Err(Error::Input(format!("{order:?} is not a permutation of 0..{n}")));
+                return Err(Error::InvalidArgument {
+                    what: "coordinate order".into(),
+                    reason: format!("{order:?} is not a permutation of 0..{n}"),
+                });
             }
             new_of_old[old] = k;
         }
@@ -253,9 +259,10 @@ impl KinematicTree {
     pub fn add_point(&mut self, name: impl Into<String>, body: usize, local: Isometry3<f64>) -> Result<usize> {
         let name = name.into();
         if body >= self.bodies.len() {
-            return Err(Error::Input(format!(
-                "point `{name}` is on body {body}, which does not exist"
-            )));
+            return Err(Error::InvalidArgument {
+                what: format!("point `{name}`"),
+                reason: format!("body {body} does not exist"),
+            });
         }
         self.points.push(Point { name, body, local });
         Ok(self.points.len() - 1)
@@ -346,11 +353,10 @@ impl KinematicTree {
             });
         }
         if let Some(i) = q.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Input(format!(
-                "joint value {} (`{}`) is not finite",
-                i + 1,
-                self.coord_names[i]
-            )));
+            return Err(Error::InvalidArgument {
+                what: format!("joint value {} (`{}`)", i + 1, self.coord_names[i]),
+                reason: format!("{} is not a finite number", q[i]),
+            });
         }
         Ok(())
     }

@@ -1,6 +1,8 @@
 //! Rust errors as the package's Python exceptions (defined in `armcomp/_errors.py`): bad input
-//! is `armcomp.InputError` with `file`, `line` and `field` when known, an interruption is
-//! `KeyboardInterrupt`, an unreadable file `OSError`.
+//! (files, arguments, plugin names and libraries) is `armcomp.InputError` with `file`, `line`
+//! and `field` when known, an interruption is `KeyboardInterrupt`, a file that cannot be
+//! written (or read by the system) `OSError`, a solver that gave up or data without a unique
+//! answer `armcomp.ArmcompError`.
 
 use std::path::Path;
 
@@ -33,17 +35,16 @@ pub fn input_error(message: &str, file: Option<&Path>, line: Option<usize>, fiel
     })
 }
 
-/// `file:line: ` at the start of a message, as the CSV and URDF readers write them.
-fn file_and_line(message: &str) -> (Option<&Path>, Option<usize>) {
-    let Some((head, _)) = message.split_once(": ") else {
-        return (None, None);
-    };
-    match head.rsplit_once(':') {
-        Some((file, line)) if line.bytes().all(|b| b.is_ascii_digit()) && !line.is_empty() => {
-            (Some(Path::new(file)), line.parse().ok())
-        }
-        _ => (None, None),
-    }
+/// An `armcomp.ArmcompError`: a failure that is not the input's fault (a solver that did not
+/// converge, data that leave no unique answer).
+fn armcomp_error(message: &str) -> PyErr {
+    Python::attach(|py| {
+        let build = || -> PyResult<PyErr> {
+            let class = py.import("armcomp._errors")?.getattr("ArmcompError")?;
+            Ok(PyErr::from_value(class.call1((message,))?))
+        };
+        build().unwrap_or_else(|e| e)
+    })
 }
 
 /// The column a reader's message names (`column \`x[mm]\``), as the field.
@@ -72,11 +73,19 @@ pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
             let field = issues.first().map(|i| i.path.as_str()).filter(|p| !p.is_empty());
             input_error(&message, None, None, field)
         }
-        Error::Dimension { what, .. } => input_error(&message, None, None, Some(what)),
-        Error::Input(m) => {
-            let (file, line) = file_and_line(m);
-            input_error(&message, file, line, column(m))
+        Error::InputAt { location, message: m } => {
+            input_error(&message, Some(&location.file), location.line, column(m))
         }
+        Error::Dimension { what, .. } | Error::InvalidArgument { what, .. } => {
+            input_error(&message, None, None, Some(what))
+        }
+        Error::UnknownPlugin { role, .. } => input_error(&message, None, None, Some(role.field())),
+        Error::AbiMismatch { library, .. } | Error::PluginNotAllowed { library } | Error::Plugin { library, .. } => {
+            input_error(&message, Some(library), None, None)
+        }
+        Error::Input(_) => input_error(&message, None, None, None),
+        // Not converged, degenerate, and kinds added later: armcomp's own error.
+        _ => armcomp_error(&message),
     }
 }
 

@@ -26,9 +26,12 @@ pub fn learn(
     let robot = model.robot.clone();
     let set = data.resolve(&robot)?;
     // The model's own description, every field kept (the command line re-reads its file).
-    let value = serde_json::to_value(&robot.file).expect("a robot file serialises");
+    let value = serde_json::to_value(robot.built_from()).expect("a robot file serialises");
     let file: RobotFile = serde_json::from_value(value)
-        .map_err(|e| armcomp_core::Error::Input(format!("the model description does not read back: {e}")))
+        .map_err(|e| armcomp_core::Error::InvalidArgument {
+            what: "model".into(),
+            reason: format!("its description does not read back: {e}"),
+        })
         .py()?;
     let run = crate::interrupt::run(py, || armcomp::ops::learn::run(&robot, file, &set.samples, predictor))?.py()?;
     let json = serde_json::json!({"seconds": run.seconds, "before": run.before, "after": run.after});

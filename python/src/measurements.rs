@@ -180,7 +180,10 @@ fn map_by_name(
         };
         let q: Vec<f64> = columns.iter().map(|c| c.map_or_else(|v| v, |c| s.q[c])).collect();
         tree.check_q(&q)
-            .map_err(|e| armcomp_core::Error::Input(format!("sample {}: {e}", i + 1)))
+            .map_err(|e| armcomp_core::Error::InvalidArgument {
+                what: format!("sample {}", i + 1),
+                reason: e.to_string(),
+            })
             .py()?;
         samples.push(Sample {
             q,
@@ -346,7 +349,7 @@ impl PyMeasurements {
     /// atomically, never over a file the robot was read from.
     fn save(&self, path: PathBuf, robot: PyRef<'_, PyRobot>) -> PyResult<()> {
         let set = self.resolve(&robot.robot)?;
-        let text = write_csv(&set, robot.robot.tree(), robot.robot.file.units);
+        let text = write_csv(&set, robot.robot.tree(), robot.robot.units());
         write_output(&robot.robot, &path, &text)
     }
 

@@ -38,17 +38,6 @@ impl PyRobot {
         Ok(PyRobot { robot: Arc::new(robot) })
     }
 
-    /// The description `save` writes: the robot's own when it carries a fitted predictor
-    /// (fitted to exactly these values, as `armcomp learn` writes it), else its values written
-    /// back into its file (as `armcomp calibrate` writes a model).
-    fn text_for(&self, path: &Path) -> PyResult<String> {
-        if self.robot.predictor().is_some() {
-            self.robot.file.to_text_for(path).py()
-        } else {
-            self.robot.to_file().to_text_for(path).py()
-        }
-    }
-
     /// Index of the point named `name`, or the tool.
     fn point_index(&self, name: Option<&str>) -> PyResult<usize> {
         let tree = self.robot.tree();
@@ -114,7 +103,7 @@ impl PyRobot {
     /// The robot's name.
     #[getter]
     fn name(&self) -> String {
-        self.robot.file.name.clone()
+        self.robot.name().to_string()
     }
 
     /// Names of the independent joints: the columns of `q`, in order.
@@ -269,14 +258,14 @@ impl PyRobot {
                 ));
             }
         };
-        self.text_for(Path::new(name))
+        self.robot.to_text_for(Path::new(name)).py()
     }
 
     /// Writes the robot file with this robot's values (a calibrated model, with its fitted
     /// predictor) to `path` atomically: TOML, or JSON for a `.json` extension; never over a
     /// file it was read from.
     fn save(&self, path: PathBuf) -> PyResult<()> {
-        let text = self.text_for(&path)?;
+        let text = self.robot.to_text_for(&path).py()?;
         write_output(&self.robot, &path, &text)
     }
 
@@ -322,7 +311,7 @@ impl PyRobot {
     fn __repr__(&self) -> String {
         format!(
             "Robot({:?}, {} joints, {} points, tool {:?})",
-            self.robot.file.name,
+            self.robot.name(),
             self.robot.tree().nq(),
             self.robot.tree().points().len(),
             self.tool()

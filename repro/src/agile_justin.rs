@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
+use armcomp_core::error::Location;
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::Sample;
 use armcomp_core::split::{Split, holdout, kfold, pose_groups, subset};
@@ -57,7 +58,10 @@ fn numpy_numbers(text: &str) -> std::result::Result<Vec<f64>, String> {
 /// the robot lacks must be zero in every row), the two markers by [`DATA_MARKERS`]. `path`
 /// is used in messages.
 pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<Sample>> {
-    let err = |line: u64, msg: String| Error::Input(format!("{}:{line}: {msg}", path.display()));
+    let err = |line: u64, message: String| Error::InputAt {
+        location: Location::line(path, line as usize),
+        message,
+    };
     let tree = robot.tree();
     let names = tree.coordinate_names();
     let mut coord_of_column = Vec::with_capacity(DATA_JOINTS.len());
@@ -537,11 +541,11 @@ pub fn residual_corrected_errors(
         let mut targets = Vec::new();
         for g in &groups {
             if g.len() != DATA_MARKERS.len() {
-                return Err(Error::Input(format!(
-                    "a pose has {} measured markers, expected {}",
-                    g.len(),
-                    DATA_MARKERS.len()
-                )));
+                return Err(Error::Dimension {
+                    what: format!("markers measured at the pose of sample {}", g[0] + 1),
+                    expected: DATA_MARKERS.len(),
+                    got: g.len(),
+                });
             }
             inputs.extend_from_slice(&samples[g[0]].q);
             for &i in g {

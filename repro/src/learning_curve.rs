@@ -14,7 +14,7 @@ use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample};
 use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 use armcomp_core::split::{pose_groups, subset};
-use armcomp_core::{Error, Result, Robot};
+use armcomp_core::{Result, Robot};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -232,7 +232,7 @@ pub fn talos_curves(
     let mut curves = Vec::new();
     for (split, train_rows, test_rows, figaroh) in TALOS_SPLITS {
         let rows = |spec: &str| -> Result<Vec<Sample>> {
-            let selection: RowSelection = spec.parse().map_err(Error::Input)?;
+            let selection: RowSelection = spec.parse()?;
             Ok(set.select_rows(&selection).samples)
         };
         let (train, test) = (rows(train_rows)?, rows(test_rows)?);

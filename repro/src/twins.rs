@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use armcomp_core::robot_file::{Format, SourceFile};
-use armcomp_core::{Result, Robot};
+use armcomp_core::{Error, Result, Robot};
 
 /// A built-in robot file: its name, its path in the repository and its text.
 pub struct Twin {
@@ -63,6 +63,18 @@ impl Twin {
     /// Finds a built-in robot by its short name.
     pub fn get(name: &str) -> Option<&'static Twin> {
         TWINS.iter().find(|t| t.name == name)
+    }
+
+    /// Builds the built-in robot `name`.
+    pub fn build(name: &str) -> Result<Robot> {
+        let twin = Twin::get(name).ok_or_else(|| Error::InvalidArgument {
+            what: "built-in robot".into(),
+            reason: format!(
+                "there is none named `{name}`; there are {}",
+                TWINS.iter().map(|t| t.name).collect::<Vec<_>>().join(", ")
+            ),
+        })?;
+        twin.robot()
     }
 
     /// Builds the robot.

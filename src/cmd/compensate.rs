@@ -43,7 +43,7 @@ enum Frame {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
-    let units = robot.file.units;
+    let units = robot.units();
     super::check_output(&args.out, &robot, &[&args.targets])?;
     let targets = ops::read_targets(&args.targets, units)?;
     let mode = match args.mode {

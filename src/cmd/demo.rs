@@ -76,9 +76,9 @@ fn describe(twin: &Twin) -> anyhow::Result<Robot> {
     let tree = robot.tree();
     println!(
         "== {} ({}): {}",
-        robot.file.name,
+        robot.name(),
         twin.path,
-        robot.file.description.as_deref().unwrap_or("")
+        robot.description().unwrap_or("")
     );
     println!(
         "   {} joints, {} identifiable chain parameters, {} points",

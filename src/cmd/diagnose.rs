@@ -1,6 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::Context;
 use armcomp::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, RankedCandidate};
@@ -71,7 +72,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for lib in &args.libraries {
-        armcomp_sdk::load_library(lib).map_err(|m| anyhow::anyhow!("--library {}: {m}", lib.display()))?;
+        armcomp_sdk::load_library(lib).with_context(|| format!("--library {}", lib.display()))?;
     }
     let robot = armcomp::load_robot(&args.robot)?;
     let libraries: Vec<PathBuf> = args

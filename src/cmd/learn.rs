@@ -48,7 +48,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
     let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor)?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);
-    write_atomic(&args.out, run.robot.file.to_text_for(&args.out)?.as_bytes())?;
+    write_atomic(&args.out, run.robot.to_text_for(&args.out)?.as_bytes())?;
     println!(
         "fitted in {seconds:.2} s on {} measurements; training error: mean {:.4} mm (model alone) -> {:.4} mm (with the predictor)",
         data.samples.len(),

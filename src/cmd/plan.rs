@@ -146,9 +146,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 samples: samples.clone(),
                 ..MeasurementSet::default()
             };
-            write_csv(&set, robot.tree(), robot.file.units)
+            write_csv(&set, robot.tree(), robot.units())
         }
-        None => write_poses(&run.poses, robot.tree(), robot.file.units),
+        None => write_poses(&run.poses, robot.tree(), robot.units()),
     };
     write_atomic(&args.out, text.as_bytes())?;
     if let Some(report) = &run.selection {

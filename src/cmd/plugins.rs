@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::anyhow;
+use anyhow::Context;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -16,7 +16,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for lib in &args.library {
-        armcomp_sdk::load_library(lib).map_err(|m| anyhow!("--library {}: {m}", lib.display()))?;
+        armcomp_sdk::load_library(lib).with_context(|| format!("--library {}", lib.display()))?;
     }
     let plugins = armcomp::plugins();
     if args.json {

@@ -41,7 +41,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
     let set = armcomp::ops::simulate::run(&truth, &poses, args.noise_mm, args.seed)?;
-    write_atomic(&args.out, write_csv(&set, truth.tree(), truth.file.units).as_bytes())?;
+    write_atomic(&args.out, write_csv(&set, truth.tree(), truth.units()).as_bytes())?;
     eprintln!(
         "wrote {} measurements of {} poses to {} (noise {} mm per axis, seed {})",
         set.samples.len(),

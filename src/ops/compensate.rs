@@ -102,7 +102,7 @@ impl CompensationRun {
     /// The output CSV of `armcomp compensate`: joint commands and corrected targets in the
     /// model's units, with the predictor's standard deviations when every target has one.
     pub fn to_csv(&self, robot: &Robot) -> String {
-        let units = robot.file.units;
+        let units = robot.units();
         let lu = units.length.symbol();
         let mut out = joint_header(robot.tree(), units).join(",");
         // Writing to a String cannot fail.

@@ -61,7 +61,7 @@ impl EvaluationReport {
 
     /// The residuals CSV of `armcomp evaluate --residuals`: one row per sample, in file order.
     pub fn residuals_csv(&self, robot: &Robot, samples: &[Sample]) -> String {
-        let units = robot.file.units;
+        let units = robot.units();
         let lu = units.length.symbol();
         let mut out = format!(
             "sample,point,{},x_err[{lu}],y_err[{lu}],z_err[{lu}],err[{lu}]\n",

@@ -6,24 +6,11 @@ use armcomp_core::measurement::Sample;
 
 /// What of `robot` a URDF cannot express: its error models by type and a fitted predictor.
 pub fn inexpressible(robot: &Robot) -> Vec<String> {
-    robot
-        .file
-        .error_models
-        .iter()
-        .map(|m| {
-            serde_json::to_value(m)
-                .ok()
-                .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
-                .unwrap_or_default()
-        })
-        .chain(
-            robot
-                .file
-                .fitted_predictor
-                .is_some()
-                .then(|| "the fitted residual predictor".to_string()),
-        )
-        .collect()
+    let mut parts = robot.error_model_types();
+    if robot.predictor().is_some() {
+        parts.push("the fitted residual predictor".into());
+    }
+    parts
 }
 
 /// How far (m, largest over `samples`) dropping the error models and predictor moves the

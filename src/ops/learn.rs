@@ -4,12 +4,12 @@ use std::time::Instant;
 
 use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, model_errors, position_errors};
 use armcomp_core::measurement::Sample;
-use armcomp_core::{Error, PredictorSpec, Robot, RobotFile};
+use armcomp_core::{Error, PredictorSpec, Robot, RobotFile, Role};
 
 /// A model with its fitted predictor and how much the predictor removes on the training data.
 #[derive(Debug)]
 pub struct LearnRun {
-    /// The model with the fitted predictor (its `file` is the model file).
+    /// The model with the fitted predictor (built from the model file; `to_text_for` writes it).
     pub robot: Robot,
     /// Training errors of the model alone.
     pub before: ErrorStats,
@@ -22,8 +22,23 @@ pub struct LearnRun {
 /// A predictor type with its default settings (`gp`, `mlp`, `ssa_bp`, `ridge`, `knn`, as
 /// `armcomp plugins` lists them).
 pub fn default_predictor(type_name: &str) -> armcomp_core::Result<Box<dyn PredictorSpec>> {
-    serde_json::from_value(serde_json::json!({ "type": type_name }))
-        .map_err(|e| Error::Input(format!("predictor `{type_name}`: {e}")))
+    let known: Vec<String> = crate::registry::builtin_plugins()
+        .iter()
+        .filter(|p| p.role == Role::Predictor)
+        .map(|p| p.type_name.to_string())
+        .collect();
+    if !known.iter().any(|k| k == type_name) {
+        return Err(Error::UnknownPlugin {
+            role: Role::Predictor,
+            name: type_name.into(),
+            known,
+            provider: "armcomp".into(),
+        });
+    }
+    serde_json::from_value(serde_json::json!({ "type": type_name })).map_err(|e| Error::InvalidArgument {
+        what: format!("predictor `{type_name}`"),
+        reason: e.to_string(),
+    })
 }
 
 /// Fits `predictor`, or else the predictor `robot`'s `[predictor]` table describes, on
@@ -40,10 +55,11 @@ pub fn run(
         file.predictor = Some(spec);
     }
     let Some(spec) = file.predictor.as_deref() else {
-        return Err(Error::Input(
-            "the model has no [predictor] table; name a predictor (e.g. gp) or add a `[predictor]` table with its type and settings"
+        return Err(Error::InvalidArgument {
+            what: "predictor".into(),
+            reason: "the model has no [predictor] table; name a predictor (e.g. gp) or add a `[predictor]` table with its type and settings"
                 .into(),
-        ));
+        });
     };
     let start = Instant::now();
     let fitted = fit_residual_predictor(robot, spec, samples)?;

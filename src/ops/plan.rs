@@ -107,19 +107,29 @@ impl PlanRun {
     }
 }
 
+/// The error of a planning setting `what` that cannot be used, and why.
+fn invalid(what: &str, reason: String) -> Error {
+    Error::InvalidArgument {
+        what: what.into(),
+        reason,
+    }
+}
+
 /// Plans measurement poses for `robot`.
 pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
     let space = match p.space.as_str() {
         "joint" => Space::Joint,
         "cartesian" => Space::Cartesian,
         other => {
-            return Err(Error::Input(format!(
-                "unknown space `{other}`; expected joint or cartesian"
-            )));
+            return Err(invalid(
+                "space",
+                format!("unknown space `{other}`; expected joint or cartesian"),
+            ));
         }
     };
     if p.next.is_some() && p.measured.is_empty() {
-        return Err(Error::Input(
+        return Err(invalid(
+            "next",
             "proposing the next poses needs the poses measured so far".into(),
         ));
     }
@@ -167,20 +177,25 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
         return optimal(robot, p, criterion, n, candidates);
     }
     if p.next.is_some() || !p.measured.is_empty() {
-        return Err(Error::Input(format!(
-            "the next poses and the measured ones go with the methods d-optimal, a-optimal and uncertainty, not `{method}`"
-        )));
+        return Err(invalid(
+            "method",
+            format!(
+                "the next poses and the measured ones go with the methods d-optimal, a-optimal and uncertainty, not `{method}`"
+            ),
+        ));
     }
     let mut warnings = Vec::new();
     let (poses, note) = match method.as_str() {
         "trajectory" => {
             let Some(trajectory) = &p.trajectory else {
-                return Err(Error::Input(
+                return Err(invalid(
+                    "trajectory",
                     "method trajectory needs a trajectory (joint configurations in task order)".into(),
                 ));
             };
             let PlanPool::Sampled(size) = p.pool else {
-                return Err(Error::Input(
+                return Err(invalid(
+                    "pool",
                     "method trajectory samples its pool; give the pool as a number of poses".into(),
                 ));
             };
@@ -266,10 +281,10 @@ fn skipped(colliding: usize) -> String {
 /// The optimal methods: the best `n` of the candidates given the measured samples.
 fn optimal(robot: &Robot, p: &PlanParams, criterion: Criterion, n: usize, candidates: Candidates) -> Result<PlanRun> {
     if candidates.samples.is_empty() {
-        return Err(Error::Input(format!(
-            "the pool has no collision-free pose to pick from ({})",
-            candidates.note
-        )));
+        return Err(invalid(
+            "pool",
+            format!("it has no collision-free pose to pick from ({})", candidates.note),
+        ));
     }
     let params = SelectionParams {
         criterion,

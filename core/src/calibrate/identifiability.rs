@@ -303,7 +303,10 @@ pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
 /// parameters with their priors. For judging a set of poses before measuring it.
 pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -> Result<IdentifiabilityReport> {
     if samples.is_empty() {
-        return Err(Error::Input("an identifiability report needs at least one pose".into()));
+        return Err(Error::InvalidArgument {
+            what: "poses".into(),
+            reason: "an identifiability report needs at least one".into(),
+        });
     }
     let space = prior_space(robot, params);
     let selected = space.select(robot, &params.identify)?;

@@ -386,38 +386,44 @@ pub fn calibrate(
     observer: &mut dyn FnMut(&IterationInfo),
 ) -> Result<Calibration> {
     if samples.is_empty() {
-        return Err(Error::Input("calibration needs at least one measurement".into()));
+        return Err(Error::InvalidArgument {
+            what: "measurements".into(),
+            reason: "calibration needs at least one".into(),
+        });
     }
     if !(params.measurement_std.is_finite() && params.measurement_std > 0.0) {
-        return Err(Error::Input(format!(
-            "the measurement noise must be positive, got {} m",
-            params.measurement_std
-        )));
+        return Err(Error::InvalidArgument {
+            what: "measurement noise".into(),
+            reason: format!("must be positive, got {} m", params.measurement_std),
+        });
     }
     if params.identify.iter().any(|w| w.trim().is_empty()) {
-        return Err(Error::Input(
-            "--identify has an empty entry; name what to identify (base, markers, geometry, offsets, errors, all, \
-             an error model type or a parameter pattern such as `j2.*`)"
+        return Err(Error::InvalidArgument {
+            what: "--identify".into(),
+            reason: "has an empty entry; name what to identify (base, markers, geometry, offsets, errors, all, an \
+                     error model type or a parameter pattern such as `j2.*`)"
                 .into(),
-        ));
+        });
     }
     if params.prior_scale.is_nan() || params.prior_scale <= 0.0 {
-        return Err(Error::Input(format!(
-            "the prior scale must be positive (or infinite for no priors), got {}",
-            params.prior_scale
-        )));
+        return Err(Error::InvalidArgument {
+            what: "prior scale".into(),
+            reason: format!(
+                "must be positive (or infinite for no priors), got {}",
+                params.prior_scale
+            ),
+        });
     }
     for (i, s) in samples.iter().enumerate() {
-        robot
-            .tree()
-            .check_q(&s.q)
-            .map_err(|e| Error::Input(format!("sample {}: {e}", i + 1)))?;
+        robot.tree().check_q(&s.q).map_err(|e| Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: e.to_string(),
+        })?;
         if s.point >= robot.tree().points().len() {
-            return Err(Error::Input(format!(
-                "sample {}: point index {} does not exist",
-                i + 1,
-                s.point
-            )));
+            return Err(Error::InvalidArgument {
+                what: format!("sample {}", i + 1),
+                reason: format!("point index {} does not exist", s.point),
+            });
         }
     }
     let space = prior_space(robot, params);
@@ -433,12 +439,15 @@ pub fn calibrate(
     let (_, _, pred) = problem.predict(&theta0)?;
     // A model whose residuals overflow cannot be fitted; say which value to look at.
     if let Some(i) = (0..samples.len()).find(|&i| !(pred[i] - samples[i].position).norm_squared().is_finite()) {
-        return Err(Error::Input(format!(
-            "the robot model puts sample {}'s point at {:?} m, too far for a finite residual; a value in the robot \
-             file is out of range",
-            i + 1,
-            pred[i].as_slice()
-        )));
+        return Err(Error::InvalidArgument {
+            what: "robot model".into(),
+            reason: format!(
+                "it puts sample {}'s point at {:?} m, too far for a finite residual; a value in the robot file is \
+                 out of range",
+                i + 1,
+                pred[i].as_slice()
+            ),
+        });
     }
     let before = stats(samples, &pred);
     let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();

@@ -26,9 +26,15 @@ impl ParameterSpace {
         }
         let n_chain = params.len();
         let mut error_offsets = Vec::new();
-        for (i, (m, values)) in robot.error_models().iter().zip(robot.error_values()).enumerate() {
+        let types = robot.error_model_types();
+        for (i, ((m, values), model_type)) in robot
+            .error_models()
+            .iter()
+            .zip(robot.error_values())
+            .zip(types)
+            .enumerate()
+        {
             error_offsets.push(params.len());
-            let model_type = model_type_name(robot, i);
             for (info, v) in m.params().iter().zip(values) {
                 let mut info = info.clone();
                 info.nominal = *v;
@@ -131,22 +137,23 @@ impl ParameterSpace {
                 }
             }
             if !any && !identify.is_empty() {
-                let types: Vec<String> = (0..robot.error_models().len())
-                    .map(|i| model_type_name(robot, i))
-                    .collect();
+                let types = robot.error_model_types();
                 let types = if types.is_empty() {
                     "it has none".to_string()
                 } else {
                     types.join(", ")
                 };
-                return Err(Error::Input(format!(
-                    "--identify `{word}` matches no parameter; use base, markers, geometry, offsets, errors, all, \
-                     an error model of this robot ({types}), or a name pattern such as `j2.*`"
-                )));
+                return Err(Error::InvalidArgument {
+                    what: "--identify".into(),
+                    reason: format!(
+                        "`{word}` matches no parameter; use base, markers, geometry, offsets, errors, all, an error \
+                         model of this robot ({types}), or a name pattern such as `j2.*`"
+                    ),
+                });
             }
         }
         // What the robot file fixes is known: never refitted, whatever the words select.
-        let fixed = &robot.file.fixed;
+        let fixed = robot.fixed();
         Ok((0..self.params.len())
             .filter(|&k| {
                 chosen[k]
@@ -195,14 +202,6 @@ impl ParameterSpace {
         let b = &theta[self.base_offset..self.base_offset + 6];
         xyz_rpy([b[0], b[1], b[2]], [b[3], b[4], b[5]])
     }
-}
-
-/// The `type` of error model `i` as written in the robot file.
-pub(super) fn model_type_name(robot: &Robot, i: usize) -> String {
-    serde_json::to_value(&robot.file.error_models[i])
-        .ok()
-        .and_then(|v| v.get("type").and_then(|t| t.as_str()).map(String::from))
-        .unwrap_or_default()
 }
 
 /// Whether chain parameter `name` (`<joint>.<suffix>`) adds to its joint's value.

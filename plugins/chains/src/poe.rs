@@ -110,8 +110,10 @@ impl Chain for PoeChain {
 
     fn tree(&self, values: &[f64]) -> Result<KinematicTree> {
         self.core.tree(values, |j, v| {
-            let axis = unit(Vector3::new(v[0], v[1], v[2]))
-                .ok_or_else(|| Error::Input(format!("joint {}: the POE axis has zero length", j + 1)))?;
+            let axis = unit(Vector3::new(v[0], v[1], v[2])).ok_or_else(|| Error::InvalidArgument {
+                what: format!("joint {}", j + 1),
+                reason: "the POE axis has zero length".into(),
+            })?;
             let r = Vector3::new(v[3], v[4], v[5]);
             Ok(JointGeometry {
                 pre: Isometry3::translation(r.x, r.y, r.z),

@@ -100,7 +100,7 @@ pub(crate) fn cantilever_deflection(robot: &Robot) -> Vec<Candidate> {
     // A link bends what hangs beyond its own joint (body `b` moves on joint `b - 1`).
     let carries_marker = |name: &str| robot.tree().body_index(name).is_some_and(|b| b > 0 && on[b - 1]);
     robot
-        .file
+        .built_from()
         .links
         .iter()
         .filter(|l| l.beam.is_some() && carries_marker(&l.name))

@@ -18,8 +18,8 @@ pub enum ElasticError {
         change: f64,
     },
     /// A caller gave values that cannot be used.
-    #[error("{0}")]
-    Input(String),
+    #[error(transparent)]
+    Input(#[from] armcomp_core::Error),
 }
 
 /// Checks that `v` is finite and strictly positive; records an issue at `path` otherwise.

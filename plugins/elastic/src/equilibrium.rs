@@ -83,13 +83,7 @@ pub fn solve_equilibrium(
     eq: &mut EquilibriumWorkspace,
 ) -> Result<EquilibriumReport, ElasticError> {
     let tree = robot.tree();
-    if q.len() != tree.nq() || q.iter().any(|v| !v.is_finite()) {
-        return Err(ElasticError::Input(format!(
-            "expected {} finite joint values, got {:?}",
-            tree.nq(),
-            q
-        )));
-    }
+    tree.check_q(q)?;
     tree.forward_into(q, &mut ws.rigid);
     ws.frames.clone_from(&ws.rigid);
     eq.previous.clear();

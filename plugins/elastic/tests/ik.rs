@@ -3,7 +3,7 @@
 
 use crate::common::robot;
 use crate::common::robots::{ROCK_DRILL_MODELS, SIX_AXIS_MODELS, rock_drill, six_axis};
-use armcomp_core::{IkError, IkMethod, IkParams, IkTarget, IkWorkspace, Robot, solve_ik};
+use armcomp_core::{Error, IkError, IkMethod, IkParams, IkTarget, IkWorkspace, Robot, solve_ik};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -227,11 +227,15 @@ fn bad_input_is_an_error() {
     let t = IkTarget::Position(nalgebra::Vector3::new(f64::NAN, 0.0, 0.0));
     assert!(matches!(
         solve_ik(&r, r.tool(), &t, &[0.0; 6], &IkParams::default(), &mut ws),
-        Err(IkError::Input(_))
+        Err(IkError::Input(Error::InvalidArgument { what, .. })) if what == "IK target"
     ));
     let t = IkTarget::Position(nalgebra::Vector3::new(0.5, 0.0, 0.0));
     assert!(matches!(
         solve_ik(&r, r.tool(), &t, &[0.0; 5], &IkParams::default(), &mut ws),
-        Err(IkError::Input(_))
+        Err(IkError::Input(Error::Dimension {
+            expected: 6,
+            got: 5,
+            ..
+        }))
     ));
 }

@@ -23,13 +23,13 @@ impl<'a> Samples<'a> {
     pub fn check(data: &TrainingSet<'a>, min_samples: usize) -> Result<Self> {
         let (d, k) = (data.n_inputs, data.n_outputs);
         if d == 0 || k == 0 {
-            return Err(Error::Input(format!(
-                "training set: expected at least one input and one output per row, got {d} inputs and {k} outputs"
+            return Err(invalid_set(format!(
+                "expected at least one input and one output per row, got {d} inputs and {k} outputs"
             )));
         }
         if !data.inputs.len().is_multiple_of(d) {
-            return Err(Error::Input(format!(
-                "training set: {} input values are not a whole number of rows of {d} inputs",
+            return Err(invalid_set(format!(
+                "{} input values are not a whole number of rows of {d} inputs",
                 data.inputs.len()
             )));
         }
@@ -42,14 +42,12 @@ impl<'a> Samples<'a> {
             });
         }
         if n < min_samples {
-            return Err(Error::Input(format!(
-                "training set: expected at least {min_samples} samples, got {n}"
-            )));
+            return Err(invalid_set(format!("expected at least {min_samples} samples, got {n}")));
         }
         for (name, values, width) in [("input", data.inputs, d), ("target", data.targets, k)] {
             if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-                return Err(Error::Input(format!(
-                    "training set: {name} {} of row {} is {}; expected a finite number",
+                return Err(invalid_set(format!(
+                    "{name} {} of row {} is {}; expected a finite number",
                     i % width,
                     i / width,
                     values[i]
@@ -67,8 +65,8 @@ impl<'a> Samples<'a> {
             if let Some(r) = r
                 && !(r.lower.is_finite() && r.upper.is_finite() && r.lower <= r.upper)
             {
-                return Err(Error::Input(format!(
-                    "training set: range of input {j} is [{}, {}]; expected finite bounds, lower ≤ upper",
+                return Err(invalid_set(format!(
+                    "range of input {j} is [{}, {}]; expected finite bounds, lower ≤ upper",
                     r.lower, r.upper
                 )));
             }
@@ -227,14 +225,28 @@ pub(crate) fn split_indices(n: usize, fraction: f64, rng: &mut StdRng) -> (Vec<u
     (train, order)
 }
 
+/// The error of a setting `field` that cannot be used, and why.
+pub(crate) fn invalid(field: &str, reason: String) -> Error {
+    Error::InvalidArgument {
+        what: field.into(),
+        reason,
+    }
+}
+
+/// The error of a training set that cannot be used, and why.
+fn invalid_set(reason: String) -> Error {
+    invalid("training set", reason)
+}
+
 /// Checks that a fraction lies in `[0, max]`, naming the field.
 pub(crate) fn check_fraction(field: &str, value: f64, max: f64) -> Result<()> {
     if (0.0..=max).contains(&value) {
         Ok(())
     } else {
-        Err(Error::Input(format!(
-            "{field}: expected a fraction in [0, {max}], got {value}"
-        )))
+        Err(invalid(
+            field,
+            format!("expected a fraction in [0, {max}], got {value}"),
+        ))
     }
 }
 
@@ -243,7 +255,7 @@ pub(crate) fn check_count(field: &str, value: usize, min: usize) -> Result<()> {
     if value >= min {
         Ok(())
     } else {
-        Err(Error::Input(format!("{field}: expected at least {min}, got {value}")))
+        Err(invalid(field, format!("expected at least {min}, got {value}")))
     }
 }
 
@@ -252,9 +264,10 @@ pub(crate) fn check_positive(field: &str, value: f64) -> Result<()> {
     if value.is_finite() && value > 0.0 {
         Ok(())
     } else {
-        Err(Error::Input(format!(
-            "{field}: expected a finite positive number, got {value}"
-        )))
+        Err(invalid(
+            field,
+            format!("expected a finite positive number, got {value}"),
+        ))
     }
 }
 

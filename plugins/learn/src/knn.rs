@@ -8,7 +8,7 @@ use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Samples, Standardizer, check_count};
+use crate::data::{Samples, Standardizer, check_count, invalid};
 
 /// How the neighbours' targets are averaged.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
@@ -78,13 +78,16 @@ impl TryFrom<KnnModel> for FittedKnn {
             || m.k == 0
             || m.k > n
         {
-            return Err(Error::Input(format!(
-                "knn_fitted: k = {}, {d} inputs and {} outputs do not match {} training values and {} targets",
-                m.k,
-                m.n_outputs,
-                m.train_inputs.len(),
-                m.targets.len()
-            )));
+            return Err(invalid(
+                "knn_fitted",
+                format!(
+                    "k = {}, {d} inputs and {} outputs do not match {} training values and {} targets",
+                    m.k,
+                    m.n_outputs,
+                    m.train_inputs.len(),
+                    m.targets.len()
+                ),
+            ));
         }
         Ok(FittedKnn(m))
     }

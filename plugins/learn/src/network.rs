@@ -7,7 +7,7 @@ use rand::Rng;
 use rand::rngs::StdRng;
 use serde::{Deserialize, Serialize};
 
-use crate::data::Standardizer;
+use crate::data::{Standardizer, invalid};
 
 /// Layer widths `[inputs, hidden..., outputs]`. Parameters are stored layer by layer, each as its
 /// weight matrix (row-major, `out × in`) followed by its biases.
@@ -21,9 +21,10 @@ impl Network {
     /// A network for `n_inputs` → `hidden` → `n_outputs`; one or two hidden layers of width ≥ 1.
     pub fn new(n_inputs: usize, hidden: &[usize], n_outputs: usize) -> Result<Self> {
         if hidden.is_empty() || hidden.len() > 2 || hidden.contains(&0) {
-            return Err(Error::Input(format!(
-                "hidden: expected one or two hidden layer widths of at least 1, got {hidden:?}"
-            )));
+            return Err(invalid(
+                "hidden",
+                format!("expected one or two hidden layer widths of at least 1, got {hidden:?}"),
+            ));
         }
         let mut sizes = vec![n_inputs];
         sizes.extend_from_slice(hidden);
@@ -193,12 +194,15 @@ impl TryFrom<MlpModel> for FittedMlp {
             || m.outputs.mean.len() != s[s.len() - 1]
             || m.outputs.scale.len() != s[s.len() - 1]
         {
-            return Err(Error::Input(format!(
-                "mlp_fitted: layer sizes {s:?} do not match {} parameters and {}/{} standardised columns",
-                m.params.len(),
-                m.inputs.mean.len(),
-                m.outputs.mean.len()
-            )));
+            return Err(invalid(
+                "mlp_fitted",
+                format!(
+                    "layer sizes {s:?} do not match {} parameters and {}/{} standardised columns",
+                    m.params.len(),
+                    m.inputs.mean.len(),
+                    m.outputs.mean.len()
+                ),
+            ));
         }
         Ok(FittedMlp(m))
     }

@@ -6,7 +6,7 @@ use nalgebra::DMatrix;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Samples, Standardizer};
+use crate::data::{Samples, Standardizer, invalid};
 
 /// Ridge regression: `min Σ |y − Fw|² / n + λ |w|²` on standardised features and targets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -106,11 +106,14 @@ impl TryFrom<RidgeModel> for FittedRidge {
             || m.outputs.scale.len() != k
             || m.weights.len() != nf * k
         {
-            return Err(Error::Input(format!(
-                "ridge_fitted: {d} inputs, degree {} and {k} outputs do not match {} weights",
-                m.features.degree,
-                m.weights.len()
-            )));
+            return Err(invalid(
+                "ridge_fitted",
+                format!(
+                    "{d} inputs, degree {} and {k} outputs do not match {} weights",
+                    m.features.degree,
+                    m.weights.len()
+                ),
+            ));
         }
         Ok(FittedRidge(m))
     }
@@ -155,13 +158,13 @@ impl FittedPredictor for FittedRidge {
 impl PredictorSpec for RidgeSpec {
     fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            return Err(Error::Input(format!(
-                "lambda: expected a finite non-negative number, got {}",
-                self.lambda
-            )));
+            return Err(invalid(
+                "lambda",
+                format!("expected a finite non-negative number, got {}", self.lambda),
+            ));
         }
         if !(1..=2).contains(&self.degree) {
-            return Err(Error::Input(format!("degree: expected 1 or 2, got {}", self.degree)));
+            return Err(invalid("degree", format!("expected 1 or 2, got {}", self.degree)));
         }
         let s = Samples::check(data, 2)?;
         let (n, d, k) = (s.n, s.n_inputs, s.n_outputs);
@@ -186,11 +189,15 @@ impl PredictorSpec for RidgeSpec {
             gram[(i, i)] += self.lambda;
         }
         let rhs = f.tr_mul(&y) / n as f64;
-        let w = gram.cholesky().map(|c| c.solve(&rhs)).ok_or_else(|| {
-            Error::Input(format!(
-                "ridge: the {nf} features are linearly dependent on these {n} samples; set lambda > 0 or lower the degree"
-            ))
-        })?;
+        let w = gram
+            .cholesky()
+            .map(|c| c.solve(&rhs))
+            .ok_or_else(|| Error::Degenerate {
+                what: "ridge".into(),
+                reason: format!(
+                    "the {nf} features are linearly dependent on these {n} samples; set lambda > 0 or lower the degree"
+                ),
+            })?;
         let weights = (0..nf)
             .flat_map(|i| (0..k).map(move |c| (i, c)))
             .map(|(i, c)| w[(i, c)])

@@ -1,7 +1,7 @@
 //! The sparrow search algorithm (SSA) of Xue & Shen (2020), a population-based minimiser used
 //! by `ssa_bp` to find starting weights for back-propagation.
 
-use armcomp_core::{Error, Result};
+use armcomp_core::Result;
 use rand::Rng;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -9,7 +9,7 @@ use rand_distr::StandardNormal;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{check_count, check_fraction, check_positive, progress};
+use crate::data::{check_count, check_fraction, check_positive, invalid, progress};
 
 /// Sparrow search settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -51,16 +51,19 @@ impl SparrowParams {
         check_fraction("search.scout_share", self.scout_share, 1.0)?;
         check_positive("search.bound", self.bound)?;
         if !(0.5..=1.0).contains(&self.safety_threshold) {
-            return Err(Error::Input(format!(
-                "search.safety_threshold: expected a value in [0.5, 1], got {}",
-                self.safety_threshold
-            )));
+            return Err(invalid(
+                "search.safety_threshold",
+                format!("expected a value in [0.5, 1], got {}", self.safety_threshold),
+            ));
         }
         if self.producers() >= self.population {
-            return Err(Error::Input(format!(
-                "search.producer_share: {} of {} sparrows leaves no scroungers",
-                self.producer_share, self.population
-            )));
+            return Err(invalid(
+                "search.producer_share",
+                format!(
+                    "{} of {} sparrows leaves no scroungers",
+                    self.producer_share, self.population
+                ),
+            ));
         }
         Ok(())
     }

@@ -2,13 +2,13 @@
 //! sparrow search looks for the weights and biases with the least mean squared error, then
 //! gradient training refines the best sparrow.
 
-use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
+use armcomp_core::{FittedPredictor, PredictorSpec, Result, TrainingSet};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::Samples;
+use crate::data::{Samples, invalid};
 use crate::mlp::default_hidden;
 use crate::network::Network;
 use crate::sparrow::{SparrowParams, sparrow_search};
@@ -58,8 +58,9 @@ impl PredictorSpec for SsaBpSpec {
         self.refine.check(net.n_params())?;
         self.search.check()?;
         if self.fitness_on_validation && self.refine.validation_fraction == 0.0 {
-            return Err(Error::Input(
-                "fitness_on_validation: needs held-out rows, but refine.validation_fraction is 0".into(),
+            return Err(invalid(
+                "fitness_on_validation",
+                "needs held-out rows, but refine.validation_fraction is 0".into(),
             ));
         }
         let mut rng = StdRng::seed_from_u64(self.seed);

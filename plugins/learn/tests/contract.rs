@@ -256,7 +256,7 @@ fn bad_training_sets_are_errors() {
             ..data.set(7, 3)
         };
         assert!(
-            matches!(spec.fit(&ragged), Err(Error::Input(m)) if m.contains("whole number of rows")),
+            matches!(spec.fit(&ragged), Err(Error::InvalidArgument { what, reason }) if what == "training set" && reason.contains("whole number of rows")),
             "{name}"
         );
         let nan = TrainingSet {
@@ -264,14 +264,19 @@ fn bad_training_sets_are_errors() {
             ..data.set(7, 3)
         };
         match spec.fit(&nan) {
-            Err(Error::Input(m)) => assert!(m.contains("input 2 of row 4 is NaN"), "{name}: {m}"),
+            Err(e @ Error::InvalidArgument { .. }) => {
+                assert!(
+                    e.to_string().contains("training set: input 2 of row 4 is NaN"),
+                    "{name}: {e}"
+                )
+            }
             other => panic!("{name}: NaN input gave {other:?}"),
         }
         let none = TrainingSet {
             n_inputs: 0,
             ..data.set(7, 3)
         };
-        assert!(matches!(spec.fit(&none), Err(Error::Input(_))), "{name}");
+        assert!(matches!(spec.fit(&none), Err(Error::InvalidArgument { .. })), "{name}");
         let few_ranges = TrainingSet {
             input_ranges: &ranges[..6],
             ..data.set(7, 3)
@@ -286,7 +291,12 @@ fn bad_training_sets_are_errors() {
             input_ranges: &inverted,
             ..data.set(7, 3)
         }) {
-            Err(Error::Input(m)) => assert!(m.contains("range of input 3 is [1, 0]"), "{name}: {m}"),
+            Err(e @ Error::InvalidArgument { .. }) => {
+                assert!(
+                    e.to_string().contains("training set: range of input 3 is [1, 0]"),
+                    "{name}: {e}"
+                )
+            }
             other => panic!("{name}: an inverted range gave {other:?}"),
         }
     }

@@ -105,13 +105,14 @@ impl UrdfDocument {
     /// element, but not the file: an [`armcomp_core::Error::InvalidFile`] of `path` holds them.
     pub fn load(path: &Path) -> Result<UrdfDocument, Vec<Issue>> {
         let text = armcomp_core::io::read_text(path).map_err(|e| {
-            // The message names the file already; the issue is reported within it.
-            let message = e.to_string();
-            let own = format!("{}: ", path.display());
-            vec![Issue::new(
-                "",
-                message.strip_prefix(&own).unwrap_or(&message).to_string(),
-            )]
+            // The issue is reported within the file, which it need not name again.
+            vec![match e {
+                armcomp_core::Error::InputAt { location, message } => Issue {
+                    line: location.line,
+                    ..Issue::new("", message)
+                },
+                other => Issue::new("", other.to_string()),
+            }]
         })?;
         UrdfDocument::parse(path, text)
     }

@@ -25,27 +25,33 @@ pub struct CalibratedUrdf {
 /// The URDF text of `robot` at its current chain parameters; the robot's kinematics must be
 /// `urdf`.
 pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
+    let invalid = |reason: String| Error::InvalidArgument {
+        what: "kinematics".into(),
+        reason,
+    };
     // The spec is a trait object; its serialised form says which plugin it is.
-    let mut value = serde_json::to_value(&robot.file.kinematics)
-        .map_err(|e| Error::Input(format!("cannot read the kinematics description: {e}")))?;
+    let mut value = serde_json::to_value(robot.chain().spec_with(robot.chain_values()))
+        .map_err(|e| invalid(format!("cannot read the description: {e}")))?;
     let kind = value
         .get("type")
         .and_then(|t| t.as_str())
         .unwrap_or_default()
         .to_string();
     if kind != "urdf" {
-        return Err(Error::Input(format!(
+        return Err(invalid(format!(
             "export-urdf needs a robot whose kinematics is `type = \"urdf\"`; this one is `{kind}`"
         )));
     }
     if let Some(obj) = value.as_object_mut() {
         obj.remove("type");
     }
-    let spec: UrdfSpec =
-        serde_json::from_value(value).map_err(|e| Error::Input(format!("invalid urdf kinematics: {e}")))?;
+    let spec: UrdfSpec = serde_json::from_value(value).map_err(|e| invalid(format!("invalid urdf kinematics: {e}")))?;
     let dir = robot.source.as_deref().and_then(Path::parent).unwrap_or(Path::new("."));
     let path = dir.join(&spec.path);
-    let doc = UrdfDocument::read(&path).map_err(|e| Error::Input(e.join("\n")))?;
+    let doc = UrdfDocument::load(&path).map_err(|issues| Error::InvalidFile {
+        file: path.clone(),
+        issues,
+    })?;
     let identified: Vec<String> = spec.joints.iter().map(|o| o.name.clone()).collect();
     let names: Vec<&str> = identified.iter().map(String::as_str).collect();
     Ok(CalibratedUrdf {

@@ -81,12 +81,6 @@ pub const U_PATH_M: [[f64; 3]; 4] = [
 /// The tilt keeps the wrist away from its singular stretched pose.
 pub const TOOL_TILT_DEG: [f64; 2] = [10.0, 20.0];
 
-fn twin(name: &str) -> Result<Robot> {
-    Twin::get(name)
-        .ok_or_else(|| armcomp_core::Error::Input(format!("no built-in robot `{name}`")))?
-        .robot()
-}
-
 /// The task's tool orientation (base frame).
 fn task_orientation(robot: &Robot) -> Result<UnitQuaternion<f64>> {
     let home = vec![0.0; robot.tree().nq()];
@@ -157,10 +151,13 @@ fn pool(
         .map(|u| Vector3::from_fn(|k, _| workspace[k][0] + u[k] * (workspace[k][1] - workspace[k][0])));
     let poses = inverse(robot, positions, start, n, false)?;
     if poses.q.len() < n {
-        return Err(armcomp_core::Error::Input(format!(
-            "only {} of {n} workspace points are reachable at the task's tool orientation",
-            poses.q.len()
-        )));
+        return Err(armcomp_core::Error::InvalidArgument {
+            what: "task workspace".into(),
+            reason: format!(
+                "only {} of {n} workspace points are reachable at the task's tool orientation",
+                poses.q.len()
+            ),
+        });
     }
     Ok(poses)
 }
@@ -171,22 +168,23 @@ fn along_path(robot: &Robot, n: usize) -> Result<Poses> {
     let start = TASK_START_DEG.map(f64::to_radians);
     let poses = inverse(robot, resample_by_arc_length(&corners, n), &start, n, true)?;
     if poses.q.len() < n {
-        return Err(armcomp_core::Error::Input(
-            "the U path leaves the reachable workspace".into(),
-        ));
+        return Err(armcomp_core::Error::InvalidArgument {
+            what: "task path".into(),
+            reason: "the U path leaves the reachable workspace".into(),
+        });
     }
     Ok(poses)
 }
 
 /// Runs the protocol on the built-in truth and returns the table.
 pub fn run(config: &Config) -> Result<Table> {
-    run_on(&twin("industrial-truth")?, config)
+    run_on(&Twin::build("industrial-truth")?, config)
 }
 
 /// Runs the protocol with `truth` as the arm that is measured and commanded.
 pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
-    let poe = twin("industrial-poe")?;
-    let dh = twin("industrial-dh")?;
+    let poe = Twin::build("industrial-poe")?;
+    let dh = Twin::build("industrial-dh")?;
     let mut rng = StdRng::seed_from_u64(config.seed);
     let noise = |seed: u64| SimulateParams {
         noise_std: config.noise_mm * 1e-3,

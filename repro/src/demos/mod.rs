@@ -181,7 +181,7 @@ impl TestBench<'_> {
                 Ok(_) => commands.push(comp.q().to_vec()),
                 // The closest configuration is what a controller would be sent.
                 Err(armcomp_core::IkError::Unreachable { closest_q, .. }) => commands.push(closest_q),
-                Err(e) => return Err(armcomp_core::Error::Input(e.to_string())),
+                Err(e) => return Err(e.into()),
             }
         }
         let seen = simulate(self.truth, &commands, self.noise)?;

@@ -129,13 +129,6 @@ pub fn collection_order(grid: Vec<Vec<f64>>, rng: &mut StdRng) -> Vec<Vec<f64>> 
         .collect()
 }
 
-/// A built-in robot by name.
-fn twin(name: &str) -> Result<Robot> {
-    Twin::get(name)
-        .ok_or_else(|| armcomp_core::Error::Input(format!("no built-in robot `{name}`")))?
-        .robot()
-}
-
 /// The model this project calibrates: the nominal deflection model plus compliances of the
 /// loaded joints and the angle scales of the servo-driven revolute joints, all of them
 /// identified.
@@ -165,7 +158,7 @@ fn ssa_bp(config: &Config, seed: u64) -> SsaBpSpec {
 /// Runs the protocol on the built-in truth and returns the table (rows in the paper's order,
 /// then this project's).
 pub fn run(config: &Config) -> Result<Table> {
-    run_on(&twin("rock-drill-truth")?, config)
+    run_on(&Twin::build("rock-drill-truth")?, config)
 }
 
 /// The protocol over the `n` seeds from `config.seed` on, several seeds at a time (each run is
@@ -173,7 +166,10 @@ pub fn run(config: &Config) -> Result<Table> {
 /// as it finishes.
 pub fn sweep(config: &Config, n: usize, on_done: &(dyn Fn(u64) + Sync)) -> Result<SeedSweep> {
     if n == 0 {
-        return Err(armcomp_core::Error::Input("seeds: expected at least 1".into()));
+        return Err(armcomp_core::Error::InvalidArgument {
+            what: "seeds".into(),
+            reason: "expected at least 1".into(),
+        });
     }
     let seeds: Vec<u64> = (0..n as u64).map(|k| config.seed.wrapping_add(k)).collect();
     let tables = seeds
@@ -232,8 +228,8 @@ pub fn claims(table: &Table, config: &Config) -> Vec<(String, bool)> {
 
 /// Runs the protocol with `truth` as the boom that is measured and commanded.
 pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
-    let rigid = twin("rock-drill")?;
-    let deflection = twin("rock-drill-deflection")?;
+    let rigid = Twin::build("rock-drill")?;
+    let deflection = Twin::build("rock-drill-deflection")?;
     let mut rng = StdRng::seed_from_u64(config.seed);
     let mut grid = paper_grid();
     if config.grouped {

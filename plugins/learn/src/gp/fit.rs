@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Samples, Standardizer, check_count, progress};
+use crate::data::{Samples, Standardizer, check_count, invalid, progress};
 use crate::lbfgs;
 
 use super::*;
@@ -63,10 +63,10 @@ impl GpSpec {
     pub(super) fn check(&self) -> Result<()> {
         check_count("max_optimization_samples", self.max_optimization_samples, 2)?;
         if !(self.noise_floor.is_finite() && self.noise_floor >= 0.0) {
-            return Err(Error::Input(format!(
-                "noise_floor: expected a finite non-negative variance, got {}",
-                self.noise_floor
-            )));
+            return Err(invalid(
+                "noise_floor",
+                format!("expected a finite non-negative variance, got {}", self.noise_floor),
+            ));
         }
         Ok(())
     }
@@ -88,6 +88,7 @@ impl GpSpec {
         }
         let bar = progress((starts.len() * self.max_iterations) as u64, "gp");
         let mut best: Option<(Vec<f64>, f64)> = None;
+        let mut iterations = 0;
         for start in &starts {
             armcomp_core::interrupt::check()?;
             let (theta, value) = lbfgs::minimize(
@@ -101,15 +102,23 @@ impl GpSpec {
                     }
                     Err(_) => f64::INFINITY,
                 },
-                || bar.inc(1),
+                || {
+                    bar.inc(1);
+                    iterations += 1;
+                },
             );
             if value.is_finite() && best.as_ref().is_none_or(|(_, b)| value < *b) {
                 best = Some((theta, value));
             }
         }
         bar.finish_and_clear();
-        let (theta, _) = best.ok_or_else(|| {
-            Error::Input("gp: the marginal likelihood could not be evaluated at any start (degenerate inputs?)".into())
+        let (theta, _) = best.ok_or_else(|| Error::NotConverged {
+            what: "gp hyper-parameter fit".into(),
+            iterations,
+            best: format!(
+                "the marginal likelihood could not be evaluated at any of the {} starts (degenerate inputs?)",
+                starts.len()
+            ),
         })?;
         Ok(GpHyperParams::from_log_params(&theta, self.noise_floor))
     }
@@ -156,7 +165,10 @@ impl PredictorSpec for GpSpec {
             let (jitter, chol) = std::iter::once(0.0)
                 .chain((0..8).map(|e| sf2 * 1e-10 * 10f64.powi(e)))
                 .find_map(|j| factor(&scaled, d, &hyper, j).map(|c| (j, c)))
-                .ok_or_else(|| Error::Input("gp: kernel matrix is not positive definite even with jitter".into()))?;
+                .ok_or_else(|| Error::Degenerate {
+                    what: "gp".into(),
+                    reason: "kernel matrix is not positive definite even with jitter".into(),
+                })?;
             let all: Vec<usize> = (0..s.n).collect();
             let targets = DMatrix::from_row_slice(s.n, group.len(), &columns(&y, k, &all, &group));
             let mut a = targets;

@@ -4,7 +4,7 @@ use armcomp_core::{Error, FittedPredictor, Result};
 use nalgebra::{DMatrix, DVectorViewMut};
 use serde::{Deserialize, Serialize};
 
-use crate::data::Standardizer;
+use crate::data::{Standardizer, invalid};
 use crate::rbf::{dot, kernel_row};
 
 use super::*;
@@ -104,8 +104,9 @@ impl TryFrom<GpModel> for FittedGp {
             || model.outputs.scale.len() != k
             || !model.train_inputs.len().is_multiple_of(d)
         {
-            return Err(Error::Input(
-                "gp_fitted: standardisation and training inputs disagree in size".into(),
+            return Err(invalid(
+                "gp_fitted",
+                "standardisation and training inputs disagree in size".into(),
             ));
         }
         let n = model.train_inputs.len() / d;
@@ -117,9 +118,10 @@ impl TryFrom<GpModel> for FittedGp {
                 match covered.get_mut(o) {
                     Some(c) if !*c => *c = true,
                     _ => {
-                        return Err(Error::Input(format!(
-                            "gp_fitted: output {o} is missing or predicted twice"
-                        )));
+                        return Err(invalid(
+                            "gp_fitted",
+                            format!("output {o} is missing or predicted twice"),
+                        ));
                     }
                 }
             }
@@ -131,12 +133,12 @@ impl TryFrom<GpModel> for FittedGp {
                 });
             }
             let scaled = scale_inputs(&model.train_inputs, &kernel.hyper.length_scales);
-            let chol = factor(&scaled, d, &kernel.hyper, kernel.jitter)
-                .ok_or_else(|| Error::Input("gp_fitted: kernel matrix is not positive definite".into()))?;
+            let chol =
+                factor(&scaled, d, &kernel.hyper, kernel.jitter).ok_or_else(|| not_positive_definite("gp_fitted"))?;
             caches.push(KernelCache::new(&scaled, d, &kernel.alpha, kernel.outputs.len(), chol));
         }
         if covered.contains(&false) {
-            return Err(Error::Input("gp_fitted: some outputs have no kernel".into()));
+            return Err(invalid("gp_fitted", "some outputs have no kernel".into()));
         }
         Ok(FittedGp { model, caches })
     }

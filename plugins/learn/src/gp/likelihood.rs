@@ -5,7 +5,15 @@ use nalgebra::DMatrix;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Samples, check_positive};
+use crate::data::{Samples, check_positive, invalid};
+
+/// The error of a kernel matrix that cannot be factored, in the computation `what`.
+pub(super) fn not_positive_definite(what: &str) -> Error {
+    Error::Degenerate {
+        what: what.into(),
+        reason: "kernel matrix is not positive definite".into(),
+    }
+}
 
 /// Kernel hyper-parameters in standardised units:
 /// `k(x, x') = σ_f² exp(-½ Σ_d (x_d − x'_d)² / ℓ_d²) + σ_n² δ(x, x')`.
@@ -46,10 +54,10 @@ impl GpHyperParams {
         }
         check_positive("gp signal_std", self.signal_std)?;
         if !(self.noise_std.is_finite() && self.noise_std >= 0.0) {
-            return Err(Error::Input(format!(
-                "gp noise_std: expected a finite non-negative number, got {}",
-                self.noise_std
-            )));
+            return Err(invalid(
+                "gp noise_std",
+                format!("expected a finite non-negative number, got {}", self.noise_std),
+            ));
         }
         Ok(())
     }
@@ -115,9 +123,7 @@ impl<'a> GpLikelihood<'a> {
         for i in 0..n {
             kmat[(i, i)] += hyper.noise_std * hyper.noise_std;
         }
-        let chol = kmat
-            .cholesky()
-            .ok_or_else(|| Error::Input("gp: kernel matrix is not positive definite".into()))?;
+        let chol = kmat.cholesky().ok_or_else(|| not_positive_definite("gp"))?;
         let y = DMatrix::from_row_slice(n, k, self.targets);
         let a = chol.solve(&y);
         let log_det: f64 = 2.0 * chol.l_dirty().diagonal().iter().map(|v| v.ln()).sum::<f64>();

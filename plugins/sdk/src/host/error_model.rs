@@ -7,8 +7,8 @@ use std::sync::Mutex;
 
 use armcomp_core::subtree_loads::SubtreeLoads;
 use armcomp_core::{
-    ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, Role, StaticState,
-    TreeWorkspace,
+    Error, ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, Result, Role,
+    StaticState, TreeWorkspace,
 };
 use nalgebra::{Vector3, Vector6};
 use schemars::JsonSchema;
@@ -56,7 +56,7 @@ fn plugin_issues(lib: &PluginLibrary, status: i32, path: &str, what: &str) -> Is
                 issues.push(i.path, format!("{} ({})", i.message, lib.file_name));
             }
         }
-        _ => issues.push(path, lib.describe_failure(status, what)),
+        _ => issues.push(path, lib.failure(status, what).to_string()),
     }
     issues
 }
@@ -178,11 +178,11 @@ impl PluginErrorModel {
             n_joints: ctx.tree.joints().len(),
             n_points: ctx.tree.points().len(),
         };
-        model.params = model.read_params().map_err(|m| one_issue(config_path, m))?;
+        model.params = model.read_params().map_err(|e| one_issue(config_path, e.to_string()))?;
         Ok(model)
     }
 
-    fn read_params(&self) -> std::result::Result<Vec<ParamInfo>, String> {
+    fn read_params(&self) -> Result<Vec<ParamInfo>> {
         let (lib, raw) = (self.handle.library, self.handle.raw());
         // SAFETY: a live handle of this library.
         let count = unsafe { (lib.api.model_param_count)(raw) };
@@ -198,16 +198,16 @@ impl PluginErrorModel {
             // SAFETY: a live handle; `p` is valid for one write.
             let status = unsafe { (lib.api.model_param)(raw, i, &mut p) };
             if status != STATUS_OK {
-                return Err(lib.describe_failure(status, &format!("parameter {i} cannot be read")));
+                return Err(lib.failure(status, &format!("parameter {i} cannot be read")));
             }
             // SAFETY: the strings are valid until the next call into the library on this thread.
             let (name, unit) = unsafe { (owned(p.name), owned(p.unit)) };
-            let q = quantity(p.quantity, unit).map_err(|m| format!("{}: parameter `{name}`: {m}", lib.file_name))?;
+            let q = quantity(p.quantity, unit).map_err(|m| lib.unusable(format!("parameter `{name}`: {m}")))?;
             if !p.nominal.is_finite() || p.sigma.is_nan() || p.sigma <= 0.0 {
-                return Err(format!(
-                    "{}: parameter `{name}` has nominal value {} and prior sigma {}; expected a finite value and a positive sigma",
-                    lib.file_name, p.nominal, p.sigma
-                ));
+                return Err(lib.unusable(format!(
+                    "parameter `{name}` has nominal value {} and prior sigma {}; expected a finite value and a positive sigma",
+                    p.nominal, p.sigma
+                )));
             }
             params.push(ParamInfo::new(name, q, p.nominal, p.sigma));
         }
@@ -238,14 +238,14 @@ impl PluginErrorModel {
                 gravity: Vector3::new(0.0, 0.0, -9.81),
                 temperature,
             };
-            self.try_perturb(&state, &values, &mut out).map_err(|m| {
+            self.try_perturb(&state, &values, &mut out).map_err(|e| {
                 format!(
-                    "model `{}` fails at mid-range joint values with its nominal parameters: {m}",
+                    "model `{}` fails at mid-range joint values with its nominal parameters: {e}",
                     self.spec.model
                 )
             })?;
         }
-        self.try_spec_with(&values).map(|_| ())
+        self.try_spec_with(&values).map(|_| ()).map_err(|e| e.to_string())
     }
 
     /// The last failure of a `perturb` or `spec_with` call, if any (the trait cannot return it).
@@ -256,19 +256,14 @@ impl PluginErrorModel {
     /// The plugin's deformation added to `out`, after checking its values. Takes no lock: the
     /// plugin may run this on several threads at once (ABI version 4), each with its own
     /// buffers.
-    fn try_perturb(
-        &self,
-        state: &StaticState<'_>,
-        values: &[f64],
-        out: &mut Perturbation,
-    ) -> std::result::Result<(), String> {
+    fn try_perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) -> Result<()> {
         let h = &self.handle;
         if values.len() != self.params.len() {
-            return Err(format!(
-                "{} parameter values for a model with {} parameters",
-                values.len(),
-                self.params.len()
-            ));
+            return Err(Error::Dimension {
+                what: format!("parameter values of model `{}`", h.model),
+                expected: self.params.len(),
+                got: values.len(),
+            });
         }
         with_buffers(&PERTURB_BUFFERS, |b| {
             let abi_state = b.state.fill(state);
@@ -285,7 +280,7 @@ impl PluginErrorModel {
             let status =
                 unsafe { (h.library.api.model_perturb)(h.raw(), &abi_state, values.as_ptr(), values.len(), &view) };
             if status != STATUS_OK {
-                return Err(h.failure_message(status, "perturb"));
+                return Err(h.failure(status, "perturb"));
             }
             for (what, values) in [
                 ("joint twists", &b.joint_twists),
@@ -293,11 +288,9 @@ impl PluginErrorModel {
                 ("point twists", &b.point_twists),
             ] {
                 if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-                    return Err(format!(
-                        "{}: perturb returned {} among the {what} (value {i})",
-                        h.file_name(),
-                        values[i]
-                    ));
+                    return Err(h
+                        .library
+                        .unusable(format!("perturb returned {} among the {what} (value {i})", values[i])));
                 }
             }
             for (t, src) in out.joint_twist.iter_mut().zip(b.joint_twists.chunks_exact(TWIST_LEN)) {
@@ -313,7 +306,7 @@ impl PluginErrorModel {
         })
     }
 
-    fn try_spec_with(&self, values: &[f64]) -> std::result::Result<PluginErrorModelSpec, String> {
+    fn try_spec_with(&self, values: &[f64]) -> Result<PluginErrorModelSpec> {
         let api = &self.handle.library.api;
         let config = self.handle.json("spec_with", |raw, json| {
             // SAFETY: a live handle; `values` and `json` are valid for the call.
@@ -336,9 +329,9 @@ impl ErrorModel for PluginErrorModel {
     ///
     /// [`last_failure`]: PluginErrorModel::last_failure
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
-        if let Err(message) = self.try_perturb(state, values, out) {
+        if let Err(e) = self.try_perturb(state, values, out) {
             out.joint_offset.iter_mut().for_each(|v| *v = f64::NAN);
-            self.handle.record_failure(message);
+            self.handle.record_failure(&e);
         }
     }
 
@@ -349,8 +342,8 @@ impl ErrorModel for PluginErrorModel {
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
         match self.try_spec_with(values) {
             Ok(spec) => Box::new(spec),
-            Err(message) => {
-                self.handle.record_failure(message);
+            Err(e) => {
+                self.handle.record_failure(&e);
                 Box::new(self.spec.clone())
             }
         }

@@ -6,6 +6,8 @@ use std::sync::Mutex;
 
 use serde_json::Value;
 
+use armcomp_core::Error;
+
 use super::{PluginLibrary, lock, owned};
 use crate::abi::{AbiStr, STATUS_OK, signatures};
 use crate::flat::abi_str;
@@ -55,19 +57,14 @@ impl PluginHandle {
         self.raw
     }
 
-    /// The library file's name, for messages.
-    pub(super) fn file_name(&self) -> &str {
-        &self.library.file_name
-    }
-
-    /// The message for a call that returned `status`.
-    pub(super) fn failure_message(&self, status: i32, what: &str) -> String {
-        self.library.describe_failure(status, what)
+    /// The error of a call that returned `status`.
+    pub(super) fn failure(&self, status: i32, what: &str) -> Error {
+        self.library.failure(status, what)
     }
 
     /// Records why a call failed, for [`last_failure`](Self::last_failure).
-    pub(super) fn record_failure(&self, message: String) {
-        *lock(&self.failure) = Some(message);
+    pub(super) fn record_failure(&self, e: &Error) {
+        *lock(&self.failure) = Some(e.to_string());
     }
 
     /// The last recorded failure, if any.
@@ -81,15 +78,15 @@ impl PluginHandle {
         &self,
         what: &str,
         call: impl FnOnce(*mut c_void, &mut AbiStr) -> i32,
-    ) -> std::result::Result<Value, String> {
+    ) -> armcomp_core::Result<Value> {
         let mut text = abi_str("");
         let status = call(self.raw, &mut text);
         if status != STATUS_OK {
-            return Err(self.failure_message(status, what));
+            return Err(self.failure(status, what));
         }
         // SAFETY: the string is valid until the next call into the library on this thread.
         let text = unsafe { owned(text) };
-        serde_json::from_str(&text).map_err(|e| format!("{}: {what} returned invalid JSON: {e}", self.file_name()))
+        serde_json::from_str(&text).map_err(|e| self.library.unusable(format!("{what} returned invalid JSON: {e}")))
     }
 }
 

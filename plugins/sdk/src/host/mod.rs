@@ -30,7 +30,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard, PoisonError, RwLock};
 
-use armcomp_core::{CandidateFn, CandidateScope, CandidateTemplate, Issues, PluginInfo, Role};
+use armcomp_core::{CandidateFn, CandidateScope, CandidateTemplate, Error, Issues, PluginInfo, Result, Role};
 use libloading::Library;
 use schemars::JsonSchema;
 use serde_json::Value;
@@ -121,8 +121,7 @@ static POLICY: RwLock<PluginPolicy> = RwLock::new(PluginPolicy {
 /// Libraries allowed on the command line in this process (canonical paths).
 static NAMED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
-/// How messages about libraries refused by the policy begin.
-pub const NOT_ALLOWED: &str = "run-time plugins are not allowed";
+pub use armcomp_core::error::NOT_ALLOWED;
 
 /// Sets which libraries this process may load; trusted folders that exist are kept by their
 /// canonical paths, so links cannot widen them.
@@ -147,15 +146,22 @@ pub enum Origin<'a> {
     CommandLine,
 }
 
-fn not_allowed(library: &Path) -> String {
-    format!(
-        "{NOT_ALLOWED}: loading {} would run its code; pass --allow-plugins to allow it, or list its folder in `plugin_dirs` of the user config",
-        library.display()
-    )
+fn not_allowed(library: &Path) -> Error {
+    Error::PluginNotAllowed {
+        library: library.to_path_buf(),
+    }
+}
+
+/// A problem with the library at `library`.
+fn unusable(library: &Path, message: String) -> Error {
+    Error::Plugin {
+        library: library.to_path_buf(),
+        message,
+    }
 }
 
 /// Whether the policy lets the library at `canonical` load.
-fn permit(canonical: &Path, origin: Origin<'_>) -> std::result::Result<(), String> {
+fn permit(canonical: &Path, origin: Origin<'_>) -> Result<()> {
     let policy = POLICY.read().unwrap_or_else(PoisonError::into_inner);
     // A library the user named on the command line may then be named by any file (diagnosis
     // candidates name it by its absolute path).
@@ -172,14 +178,19 @@ fn permit(canonical: &Path, origin: Origin<'_>) -> std::result::Result<(), Strin
         } else {
             folder
         };
-        let folder = folder
-            .canonicalize()
-            .map_err(|e| format!("cannot resolve the folder {}: {e}", folder.display()))?;
+        let folder = folder.canonicalize().map_err(|e| {
+            unusable(
+                canonical,
+                format!("cannot resolve the folder {}: {e}", folder.display()),
+            )
+        })?;
         if !canonical.starts_with(&folder) {
-            return Err(format!(
-                "{} lies outside {}; a file may load libraries from its own folder only, unless their folder is listed in `plugin_dirs` of the user config",
-                canonical.display(),
-                folder.display()
+            return Err(unusable(
+                canonical,
+                format!(
+                    "lies outside {}; a file may load libraries from its own folder only, unless their folder is listed in `plugin_dirs` of the user config",
+                    folder.display()
+                ),
             ));
         }
     }
@@ -207,9 +218,9 @@ unsafe fn owned(s: AbiStr) -> String {
 
 impl PluginLibrary {
     /// Loads a library (once per canonical path) if the [`PluginPolicy`] lets a library named
-    /// at `origin` load. The message of an error says what is wrong with the file; the caller
-    /// adds which field named it.
-    pub fn load(path: &Path, origin: Origin<'_>) -> std::result::Result<&'static PluginLibrary, String> {
+    /// at `origin` load. The error says what is wrong with the file; the caller adds which field
+    /// named it.
+    pub fn load(path: &Path, origin: Origin<'_>) -> Result<&'static PluginLibrary> {
         let canonical = match path.canonicalize() {
             Ok(c) => c,
             // Without permission, a missing library is refused as any other: nothing is
@@ -217,14 +228,13 @@ impl PluginLibrary {
             Err(_) if !POLICY.read().unwrap_or_else(PoisonError::into_inner).allow => {
                 return Err(not_allowed(path));
             }
-            Err(e) => return Err(format!("cannot open plugin library {}: {e}", path.display())),
+            Err(e) => return Err(unusable(path, format!("cannot open: {e}"))),
         };
         permit(&canonical, origin)?;
         if let Origin::CommandLine = origin {
             lock(&NAMED).push(canonical.clone());
         }
-        armcomp_core::io::check_input_file(&canonical)
-            .map_err(|m| format!("plugin library {} {m}", canonical.display()))?;
+        armcomp_core::io::check_input_file(&canonical).map_err(|m| unusable(&canonical, m))?;
         armcomp_core::io::note_read(&canonical);
         let mut libraries = lock(&LIBRARIES);
         if let Some(lib) = libraries.get(&canonical) {
@@ -235,7 +245,7 @@ impl PluginLibrary {
         Ok(lib)
     }
 
-    fn open(path: &Path) -> std::result::Result<&'static PluginLibrary, String> {
+    fn open(path: &Path) -> Result<&'static PluginLibrary> {
         let file_name = path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
@@ -243,29 +253,39 @@ impl PluginLibrary {
         // SAFETY: loading runs the library's initialisers; a plugin library is trusted code the
         // user named, and it is never unloaded, so no symbol outlives it.
         let library =
-            unsafe { Library::new(path) }.map_err(|e| format!("{file_name} is not a loadable shared library: {e}"))?;
+            unsafe { Library::new(path) }.map_err(|e| unusable(path, format!("not a loadable shared library: {e}")))?;
         let library: &'static Library = Box::leak(Box::new(library));
         macro_rules! symbol {
             ($name:literal, $ty:ty) => {
                 // SAFETY: the symbol has this signature in every library that reports our ABI
                 // version, which is checked before any other symbol is looked up.
                 *unsafe { library.get::<$ty>(concat!($name, "\0").as_bytes()) }.map_err(|_| {
-                    format!(
-                        "{file_name} does not export `{}`, which plugin ABI version {} requires",
-                        $name, ABI_VERSION
+                    unusable(
+                        path,
+                        format!(
+                            "does not export `{}`, which plugin ABI version {} requires",
+                            $name, ABI_VERSION
+                        ),
                     )
                 })?
             };
         }
         // SAFETY: `armcomp_abi_version` takes nothing and returns a u32 in every ABI version.
-        let version = unsafe { library.get::<abi::signatures::AbiVersion>(b"armcomp_abi_version\0") }
-            .map_err(|_| format!("{file_name} is not an armcomp plugin: it does not export `armcomp_abi_version`"))?;
+        let version =
+            unsafe { library.get::<abi::signatures::AbiVersion>(b"armcomp_abi_version\0") }.map_err(|_| {
+                unusable(
+                    path,
+                    "not an armcomp plugin: it does not export `armcomp_abi_version`".into(),
+                )
+            })?;
         // SAFETY: as above.
         let version = unsafe { version() };
         if version != ABI_VERSION {
-            return Err(format!(
-                "{file_name} speaks plugin ABI version {version}, this armcomp speaks version {ABI_VERSION}; rebuild the plugin against this armcomp-sdk"
-            ));
+            return Err(Error::AbiMismatch {
+                library: path.to_path_buf(),
+                expected: ABI_VERSION,
+                found: version,
+            });
         }
         let type_count = symbol!("armcomp_type_count", abi::signatures::TypeCount);
         let type_info = symbol!("armcomp_type_info", abi::signatures::TypeInfo);
@@ -304,7 +324,7 @@ impl PluginLibrary {
             // SAFETY: `info` is valid for one write.
             let status = unsafe { type_info(index, &mut info) };
             if status != STATUS_OK {
-                return Err(lib.describe_failure(status, &format!("type {index} cannot be described")));
+                return Err(lib.failure(status, &format!("type {index} cannot be described")));
             }
             // SAFETY: the strings are valid until the next call into the library.
             let (name, doc, schema, template) = unsafe {
@@ -318,21 +338,17 @@ impl PluginLibrary {
             let role = match info.role {
                 ROLE_ERROR_MODEL => Role::ErrorModel,
                 ROLE_PREDICTOR => Role::Predictor,
-                other => return Err(format!("{}: type `{name}` has unknown role {other}", lib.file_name)),
+                other => return Err(unusable(path, format!("type `{name}` has unknown role {other}"))),
             };
             let validator = if schema.is_empty() {
                 None
             } else {
-                let value: Value = serde_json::from_str(&schema).map_err(|e| {
-                    format!(
-                        "{}: type `{name}` has a config schema that is not JSON: {e}",
-                        lib.file_name
-                    )
-                })?;
+                let value: Value = serde_json::from_str(&schema)
+                    .map_err(|e| unusable(path, format!("type `{name}` has a config schema that is not JSON: {e}")))?;
                 Some(jsonschema::validator_for(&value).map_err(|e| {
-                    format!(
-                        "{}: type `{name}` has a config schema that does not compile: {e}",
-                        lib.file_name
+                    unusable(
+                        path,
+                        format!("type `{name}` has a config schema that does not compile: {e}"),
                     )
                 })?)
             };
@@ -347,7 +363,7 @@ impl PluginLibrary {
                     }
                 } else {
                     CandidateTemplate::from_json(&template)
-                        .map_err(|e| format!("{}: type `{name}`: {e}", lib.file_name))?
+                        .map_err(|e| unusable(path, format!("type `{name}`: {e}")))?
                 };
                 Some(generic_candidates(path, &name, template))
             } else {
@@ -381,27 +397,20 @@ impl PluginLibrary {
         self.types.iter().map(|t| t.info).collect()
     }
 
-    fn find(&self, name: &str, role: Role) -> std::result::Result<&LoadedType, String> {
+    fn find(&self, name: &str, role: Role) -> Result<&LoadedType> {
         self.types
             .iter()
             .find(|t| t.info.type_name == name && t.info.role == role)
-            .ok_or_else(|| {
-                let names: Vec<_> = self
+            .ok_or_else(|| Error::UnknownPlugin {
+                role,
+                name: name.to_string(),
+                known: self
                     .types
                     .iter()
                     .filter(|t| t.info.role == role)
-                    .map(|t| format!("`{}`", t.info.type_name))
-                    .collect();
-                format!(
-                    "{} has no {} named `{name}`; it has: {}",
-                    self.file_name,
-                    role.field().trim_end_matches('s').replace('_', " "),
-                    if names.is_empty() {
-                        "none".into()
-                    } else {
-                        names.join(", ")
-                    }
-                )
+                    .map(|t| t.info.type_name.to_string())
+                    .collect(),
+                provider: self.file_name.clone(),
             })
     }
 
@@ -416,10 +425,11 @@ impl PluginLibrary {
         config: Option<&Value>,
         field: &str,
     ) -> std::result::Result<(&'static PluginLibrary, &'static LoadedType), Issues> {
-        let lib = PluginLibrary::load(file, origin).map_err(|m| one_issue(format!("{field}.library"), m))?;
+        let lib =
+            PluginLibrary::load(file, origin).map_err(|e| one_issue(format!("{field}.library"), e.to_string()))?;
         let ty = lib
             .find(model, role)
-            .map_err(|m| one_issue(format!("{field}.model"), m))?;
+            .map_err(|e| one_issue(format!("{field}.model"), e.to_string()))?;
         if let (Some(validator), Some(config)) = (&ty.validator, config) {
             let issues = schema_issues(validator, config, &format!("{field}.config"), &lib.file_name);
             if !issues.is_empty() {
@@ -435,11 +445,18 @@ impl PluginLibrary {
         unsafe { owned((self.api.last_error)()) }
     }
 
-    fn describe_failure(&self, status: i32, what: &str) -> String {
-        match status {
-            STATUS_UNSUPPORTED => format!("{}: {what}: not supported", self.file_name),
-            _ => format!("{}: {what}: {}", self.file_name, self.last_error()),
-        }
+    /// The error of a call that returned `status`.
+    fn failure(&self, status: i32, what: &str) -> Error {
+        let reason = match status {
+            STATUS_UNSUPPORTED => "not supported".to_string(),
+            _ => self.last_error(),
+        };
+        self.unusable(format!("{what}: {reason}"))
+    }
+
+    /// A problem with this library.
+    fn unusable(&self, message: String) -> Error {
+        unusable(&self.path, message)
     }
 }
 
@@ -484,7 +501,7 @@ pub fn plugins() -> Vec<PluginInfo> {
 }
 
 /// Loads a library named on the command line to list its types (`armcomp plugins --library`).
-pub fn load_library(path: &Path) -> std::result::Result<Vec<PluginInfo>, String> {
+pub fn load_library(path: &Path) -> Result<Vec<PluginInfo>> {
     Ok(PluginLibrary::load(&platform_library_path(path), Origin::CommandLine)?.plugins())
 }
 

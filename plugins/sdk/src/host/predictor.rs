@@ -44,20 +44,26 @@ impl PredictorSpec for PluginPredictorSpec {
         .map_err(|issues| Error::InvalidModel(issues.0))?;
         let n = data.inputs.len() / data.n_inputs.max(1);
         if data.inputs.len() != n * data.n_inputs || data.targets.len() != n * data.n_outputs {
-            return Err(Error::Input(format!(
-                "training set of {} inputs and {} targets is not {n} rows of {} and {}",
-                data.inputs.len(),
-                data.targets.len(),
-                data.n_inputs,
-                data.n_outputs
-            )));
+            return Err(Error::InvalidArgument {
+                what: "training set".into(),
+                reason: format!(
+                    "{} inputs and {} targets are not {n} rows of {} and {}",
+                    data.inputs.len(),
+                    data.targets.len(),
+                    data.n_inputs,
+                    data.n_outputs
+                ),
+            });
         }
         if !data.input_ranges.is_empty() && data.input_ranges.len() != data.n_inputs {
-            return Err(Error::Input(format!(
-                "training set has {} input ranges for {} inputs; expected one per input or none",
-                data.input_ranges.len(),
-                data.n_inputs
-            )));
+            return Err(Error::InvalidArgument {
+                what: "training set".into(),
+                reason: format!(
+                    "{} input ranges for {} inputs; expected one per input or none",
+                    data.input_ranges.len(),
+                    data.n_inputs
+                ),
+            });
         }
         let ranges: Vec<f64> = data
             .input_ranges
@@ -78,10 +84,7 @@ impl PredictorSpec for PluginPredictorSpec {
         // SAFETY: the arrays of `set` and `config` live for the call; `raw` is valid.
         let status = unsafe { (lib.api.predictor_fit)(ty.index, abi_str(&config), &set, &mut raw) };
         if status != STATUS_OK || raw.is_null() {
-            return Err(Error::Input(lib.describe_failure(
-                status,
-                &format!("predictor `{}` cannot be fitted", self.model),
-            )));
+            return Err(lib.failure(status, &format!("predictor `{}` cannot be fitted", self.model)));
         }
         Ok(Box::new(PluginPredictor::new(lib, self.model.clone(), raw)?))
     }
@@ -116,9 +119,7 @@ impl PluginPredictor {
         let status = unsafe { (library.api.predictor_shape)(raw, &mut n_inputs, &mut n_outputs) };
         if status != STATUS_OK {
             // Dropping `handle` destroys the plugin's predictor.
-            return Err(Error::Input(
-                handle.failure_message(status, &format!("predictor `{}` shape", handle.model)),
-            ));
+            return Err(handle.failure(status, &format!("predictor `{}` shape", handle.model)));
         }
         Ok(PluginPredictor {
             handle,
@@ -127,7 +128,7 @@ impl PluginPredictor {
         })
     }
 
-    fn load(record: PredictorRecord) -> std::result::Result<Self, String> {
+    fn load(record: PredictorRecord) -> Result<Self> {
         let lib = PluginLibrary::load(Path::new(&record.library), Origin::File(Path::new(".")))?;
         let ty = lib.find(&record.model, Role::Predictor)?;
         let json = record.fitted.to_string();
@@ -135,9 +136,9 @@ impl PluginPredictor {
         // SAFETY: `json` lives for the call; `raw` is valid for one write.
         let status = unsafe { (lib.api.predictor_load)(ty.index, abi_str(&json), &mut raw) };
         if status != STATUS_OK || raw.is_null() {
-            return Err(lib.describe_failure(status, &format!("predictor `{}` cannot be loaded", record.model)));
+            return Err(lib.failure(status, &format!("predictor `{}` cannot be loaded", record.model)));
         }
-        PluginPredictor::new(lib, record.model, raw).map_err(|e| e.to_string())
+        PluginPredictor::new(lib, record.model, raw)
     }
 
     /// The last failure of a prediction, if any (the trait's `predict_into` cannot return it).
@@ -148,32 +149,27 @@ impl PluginPredictor {
     /// The prediction into `out`, and its standard deviation into `std` when asked; false when
     /// the plugin has none. Takes no lock: the plugin may run this on several threads at once
     /// (ABI version 4).
-    fn try_predict(
-        &self,
-        input: &[f64],
-        out: &mut [f64],
-        std: Option<&mut [f64]>,
-    ) -> std::result::Result<bool, String> {
+    fn try_predict(&self, input: &[f64], out: &mut [f64], std: Option<&mut [f64]>) -> Result<bool> {
         let h = &self.handle;
-        if input.len() != self.n_inputs || out.len() != self.n_outputs {
-            return Err(format!(
-                "{}: predictor `{}` takes {} inputs and gives {} outputs, got {} and {}",
-                h.file_name(),
-                h.model,
-                self.n_inputs,
+        for (what, expected, got) in [
+            ("inputs", self.n_inputs, input.len()),
+            ("outputs", self.n_outputs, out.len()),
+            (
+                "standard deviations",
                 self.n_outputs,
-                input.len(),
-                out.len()
-            ));
+                std.as_ref().map_or(self.n_outputs, |s| s.len()),
+            ),
+        ] {
+            if got != expected {
+                return Err(Error::Dimension {
+                    what: format!("{what} of predictor `{}`", h.model),
+                    expected,
+                    got,
+                });
+            }
         }
         let (with_std, std_ptr) = match std {
-            Some(s) if s.len() == self.n_outputs => (1, s.as_mut_ptr()),
-            Some(_) => {
-                return Err(format!(
-                    "{}: standard deviation buffer of the wrong size",
-                    h.file_name()
-                ));
-            }
+            Some(s) => (1, s.as_mut_ptr()),
             None => (0, std::ptr::null_mut()),
         };
         // SAFETY: a live handle; `input`, `out` and `std_ptr` hold the sizes passed and are
@@ -192,10 +188,10 @@ impl PluginPredictor {
         match status {
             STATUS_OK => {}
             STATUS_UNSUPPORTED if with_std == 1 => return Ok(false),
-            _ => return Err(h.failure_message(status, "predict")),
+            _ => return Err(h.failure(status, "predict")),
         }
         if let Some(i) = out.iter().position(|v| !v.is_finite()) {
-            return Err(format!("{}: predict returned {} as output {i}", h.file_name(), out[i]));
+            return Err(h.library.unusable(format!("predict returned {} as output {i}", out[i])));
         }
         Ok(true)
     }
@@ -238,9 +234,9 @@ impl FittedPredictor for PluginPredictor {
 
     /// On failure the outputs become NaN and [`PluginPredictor::last_failure`] says why.
     fn predict_into(&self, input: &[f64], out: &mut [f64], _scratch: &mut Vec<f64>) {
-        if let Err(m) = self.try_predict(input, out, None) {
+        if let Err(e) = self.try_predict(input, out, None) {
             out.iter_mut().for_each(|v| *v = f64::NAN);
-            self.handle.record_failure(m);
+            self.handle.record_failure(&e);
         }
     }
 
@@ -249,8 +245,8 @@ impl FittedPredictor for PluginPredictor {
         scratch.resize(self.n_outputs, 0.0);
         match self.try_predict(input, &mut scratch[..self.n_outputs], Some(out)) {
             Ok(has_std) => has_std && out.iter().all(|v| v.is_finite()),
-            Err(m) => {
-                self.handle.record_failure(m);
+            Err(e) => {
+                self.handle.record_failure(&e);
                 false
             }
         }
