@@ -1,8 +1,7 @@
 //! Cantilever deflection against textbook values and a numerical integration of the beam
 //! equation; joint compliance against a known torque; Eq. 5 against the composed chain.
 
-use crate::common::robots::PENDULUM;
-use crate::common::{perturbation_of, rel, robot, robot_issues};
+use crate::common::{PENDULUM, perturbation_of, rel, robot, robot_issues};
 use armcomp_core::geom::skew;
 use armcomp_core::{Perturbation, TreeWorkspace};
 use armcomp_elastic::tool_differential_world;

@@ -1,10 +1,6 @@
 //! Robot files of the test arms: a 6-axis arm (PUMA-560 geometry) and a 7-joint rock-drill
 //! boom (5 revolute + 2 prismatic joints with the deflection paper's joint ranges), each
-//! rigid or with gravity error models; and the robots the workspace's tests share, from
-//! `tests/data/robots/` at its root.
-
-/// A one-joint pendulum in the vertical plane, 10 kg at 0.8 m, the tool at 1 m; no error models.
-pub const PENDULUM: &str = include_str!("../../../../tests/data/robots/pendulum.toml");
+//! rigid or with gravity error models.
 
 /// The 6-axis arm; `models` is appended (error models in TOML).
 pub fn six_axis(models: &str) -> String {
