@@ -643,34 +643,7 @@ fn full_sweep() {
 fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
     // A two-link arm turning in the vertical x-y plane (gravity along −y), a 0.5 kg payload
     // given by the measurement at the tool: τ_i = −g Σ m·x over what joint i carries.
-    let robot = crate::common::robot_from_toml(
-        r#"
-name = "vertical-2r"
-gravity = [0.0, -9.81, 0.0]
-[units]
-length = "m"
-angle = "rad"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-[[kinematics.joints]]
-name = "j2"
-a = 0.7
-[[links]]
-name = "j1"
-mass = 2.0
-com = [0.35, 0.0, 0.0]
-[[links]]
-name = "j2"
-mass = 1.0
-com = [0.2, 0.0, 0.0]
-[[points]]
-name = "tool"
-link = "j2"
-xyz = [0.4, 0.0, 0.0]
-"#,
-    );
+    let robot = crate::common::robot_from_toml(crate::common::robots::PLANAR_2R);
     let g = 9.81;
     let poses = [[0.0, 0.0], [0.4, -1.2], [2.1, 0.7]];
     let samples: Vec<Sample> = poses

@@ -3,24 +3,7 @@
 use std::f64::consts::FRAC_PI_2;
 
 use crate::common::robot_from_toml;
-
-const PLANAR_2R: &str = r#"
-name = "planar-2r"
-[units]
-length = "m"
-angle = "rad"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-[[kinematics.joints]]
-name = "j2"
-a = 0.7
-[[points]]
-name = "tool"
-link = "j2"
-xyz = [0.4, 0.0, 0.0]
-"#;
+use crate::common::robots::PLANAR_2R;
 
 #[test]
 fn planar_two_link_arm_matches_trigonometry() {

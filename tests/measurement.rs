@@ -4,9 +4,10 @@ use std::path::Path;
 
 use armcomp_core::measurement::{CsvLayout, MeasurementSet, Sample, parse_csv, write_csv};
 use armcomp_core::{AngleUnit, LengthUnit, Robot, Units};
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 
-use crate::common::{random_configurations, robot};
+use crate::common::robots::PLANAR_2R;
+use crate::common::{random_configurations, robot, robot_from_toml};
 
 fn drill() -> Robot {
     robot("rock-drill.toml")
@@ -166,4 +167,45 @@ fn unused_columns_are_ignored_with_one_notice() {
     assert!((set.samples[0].position - Vector3::new(1.0, -0.02, 0.3)).norm() < 1e-15);
     assert_eq!(set.warnings.len(), 1, "{:?}", set.warnings);
     assert!(set.warnings[0].contains("`t`, `quality` ignored"), "{:?}", set.warnings);
+}
+
+/// A point whose name holds a comma and quotes is written quoted (`"` doubled, RFC 4180) and
+/// reads back as the same point; every other field is written as it is. Robot files keep
+/// their names free of both, but trees built otherwise (a URDF's link names) need not.
+#[test]
+fn point_names_with_commas_and_quotes_round_trip() {
+    let name = r#"nest, "B""#;
+    let r = robot_from_toml(PLANAR_2R);
+    let mut tree = r.tree().clone();
+    let body = tree.points()[r.tool()].body;
+    let nest = tree.add_point(name, body, Isometry3::identity()).unwrap();
+    let sample = |point, x| Sample {
+        q: vec![0.5, -0.25],
+        point,
+        position: Vector3::new(x, 0.5, 0.0),
+        orientation: None,
+        payload: None,
+        temperature: None,
+        torque: None,
+    };
+    let set = MeasurementSet {
+        samples: vec![sample(r.tool(), 1.0), sample(nest, 0.25)],
+        rows: vec![0, 1],
+        warnings: vec![],
+    };
+    let units = Units {
+        length: LengthUnit::M,
+        angle: AngleUnit::Rad,
+    };
+    let text = write_csv(&set, &tree, units);
+    assert_eq!(
+        text,
+        "j1[rad],j2[rad],point,x[m],y[m],z[m]\n\
+         0.5,-0.25,tool,1,0.5,0\n\
+         0.5,-0.25,\"nest, \"\"B\"\"\",0.25,0.5,0\n"
+    );
+    let back = parse_csv(&text, Path::new("m.csv"), &CsvLayout::strict(&tree, units, r.tool())).unwrap();
+    let points: Vec<usize> = back.samples.iter().map(|s| s.point).collect();
+    assert_eq!(points, [r.tool(), nest]);
+    assert_eq!(back.samples[1].position, Vector3::new(0.25, 0.5, 0.0));
 }

@@ -10,6 +10,7 @@ use armcomp_core::plan::{Space, resample_by_arc_length, spread, trajectory_simil
 use armcomp_core::sampling::{Sampler, configurations};
 use nalgebra::{DMatrix, Vector3};
 
+use crate::common::robots::PENDULUM;
 use crate::common::{Scratch, robot, robot_from_toml, root};
 
 const ALL: fn(&[f64]) -> bool = |_| true;
@@ -58,40 +59,13 @@ fn d_optimal_value_matches_a_direct_determinant_and_beats_sobol() {
     assert!(direct > sobol + 1.0, "D-optimal {direct} vs Sobol {sobol}");
 }
 
-/// A pendulum swinging in a vertical plane (the y axis up): a 1 m link with 10 kg at its tip
-/// on a compliant joint with limits −30° … 180°, the tool at the tip. Joint offset `δ` and
-/// compliance `c` both move the tool along the circle's tangent: by `L δ` and by
-/// `L c τ(q)` with the gravity torque `τ = −m g L cos q`, so the measurement is linear in
+/// The pendulum (a 1 m link swinging in a vertical plane, 10 kg at `r` = 0.8 m, limits
+/// −30° … 180°, the tool at the tip) on a compliant joint, `extra` appended. Joint offset `δ`
+/// and compliance `c` both move the tool along the circle's tangent: by `L δ` and by
+/// `L c τ(q)` with the gravity torque `τ = −m g r cos q`, so the measurement is linear in
 /// `(δ, c)` with regressor `(1, cos q)`.
 fn pendulum(extra: &str) -> String {
-    format!(
-        r#"
-name = "pendulum"
-tool = "tip"
-gravity = [0.0, -9.81, 0.0]
-[units]
-length = "m"
-angle = "deg"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-limits = [-30, 180]
-[[links]]
-name = "j1"
-mass = 10.0
-com = [1.0, 0.0, 0.0]
-shapes = [{{ geometry = {{ shape = "box", size = [0.9, 0.05, 0.05] }}, xyz = [0.5, 0.0, 0.0] }}]
-[[points]]
-name = "tip"
-link = "j1"
-xyz = [1.0, 0.0, 0.0]
-[[error_models]]
-type = "joint_compliance"
-compliance = {{ j1 = 0.0 }}
-{extra}
-"#
-    )
+    format!("{PENDULUM}[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j1 = 0.0 }}\n{extra}")
 }
 
 /// Every 5° over the pendulum's range, as a poses CSV.

@@ -19,6 +19,7 @@ pub mod gravity;
 pub mod ik;
 pub mod interrupt;
 pub mod io;
+pub mod least_squares;
 pub mod mass;
 pub mod measurement;
 pub mod param;

@@ -709,9 +709,7 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
     if with_temp {
         header.push("temperature[C]".into());
     }
-    let mut out = header.join(",");
-    out.push('\n');
-    for s in &set.samples {
+    let rows = set.samples.iter().map(|s| {
         let mut row = joint_row(&s.q, tree, units);
         if several_points {
             row.push(tree.points()[s.point].name.clone());
@@ -726,10 +724,26 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
         if with_temp {
             row.push(format!("{}", s.temperature.unwrap_or(20.0)));
         }
-        out.push_str(&row.join(","));
-        out.push('\n');
+        row
+    });
+    csv_text(std::iter::once(header).chain(rows))
+}
+
+/// CSV text of `records`, the header first, every record as long as the header, through the
+/// csv crate: a field with a comma, a quote or a line break is quoted, lines end in `\n`.
+pub fn csv_text<R, F>(records: impl IntoIterator<Item = R>) -> String
+where
+    R: IntoIterator<Item = F>,
+    F: AsRef<[u8]>,
+{
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    for record in records {
+        writer
+            .write_record(record)
+            .expect("records as long as the header write to memory");
     }
-    out
+    let bytes = writer.into_inner().expect("writing to memory cannot fail");
+    String::from_utf8(bytes).expect("the fields are text")
 }
 
 /// Joint column headers with units (`j2[deg]`, `j3[mm]`).
@@ -753,11 +767,6 @@ pub fn joint_row(q: &[f64], tree: &KinematicTree, units: Units) -> Vec<String> {
 /// Writes joint configurations as a poses CSV (the joint columns of the measurement format),
 /// which [`parse_poses`] and `armcomp simulate --poses` read back.
 pub fn write_poses(poses: &[Vec<f64>], tree: &KinematicTree, units: Units) -> String {
-    let mut out = joint_header(tree, units).join(",");
-    out.push('\n');
-    for q in poses {
-        out.push_str(&joint_row(q, tree, units).join(","));
-        out.push('\n');
-    }
-    out
+    let rows = poses.iter().map(|q| joint_row(q, tree, units));
+    csv_text(std::iter::once(joint_header(tree, units)).chain(rows))
 }

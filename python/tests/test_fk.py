@@ -10,23 +10,8 @@ import pytest
 import armcomp
 from conftest import ROOT
 
-PLANAR_2R = """
-name = "planar-2r"
-[units]
-length = "m"
-angle = "rad"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-[[kinematics.joints]]
-name = "j2"
-a = 0.7
-[[points]]
-name = "tool"
-link = "j2"
-xyz = [0.4, 0.0, 0.0]
-"""
+# The planar two-link arm the Rust tests share (its masses and gravity do not enter FK).
+PLANAR_2R = (ROOT / "tests" / "data" / "robots" / "planar-2r.toml").read_text()
 
 
 def test_planar_two_link_arm_matches_trigonometry():

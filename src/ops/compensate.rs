@@ -1,13 +1,12 @@
 //! `compensate`: joint commands that put the tool on targets, through a model and its
 //! predictor, and the targets CSV they are read from.
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use anyhow::{Context, bail};
 use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::ik::IkTarget;
-use armcomp_core::measurement::{joint_header, joint_row, split_header};
+use armcomp_core::measurement::{csv_text, joint_header, joint_row, split_header};
 use armcomp_core::units::LengthUnit;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
@@ -104,26 +103,26 @@ impl CompensationRun {
     pub fn to_csv(&self, robot: &Robot) -> String {
         let units = robot.units();
         let lu = units.length.symbol();
-        let mut out = joint_header(robot.tree(), units).join(",");
-        // Writing to a String cannot fail.
-        let _ = write!(out, ",x_cmd[{lu}],y_cmd[{lu}],z_cmd[{lu}]");
+        let mut header = joint_header(robot.tree(), units);
+        header.extend(["x_cmd", "y_cmd", "z_cmd"].map(|c| format!("{c}[{lu}]")));
         let with_std = self.std.iter().all(Option::is_some);
         if with_std {
-            let _ = write!(out, ",std_x[{lu}],std_y[{lu}],std_z[{lu}]");
+            header.extend(["std_x", "std_y", "std_z"].map(|c| format!("{c}[{lu}]")));
         }
-        out.push('\n');
-        for ((q, corrected), std) in self.q.iter().zip(&self.corrected).zip(&self.std) {
-            let mut row = joint_row(q, robot.tree(), units);
-            row.extend(corrected.iter().map(|v| units.len_out(*v).to_string()));
-            out.push_str(&row.join(","));
-            if let (true, Some(s)) = (with_std, std) {
-                for v in s.iter() {
-                    let _ = write!(out, ",{}", units.len_out(*v));
+        let rows = self
+            .q
+            .iter()
+            .zip(&self.corrected)
+            .zip(&self.std)
+            .map(|((q, corrected), std)| {
+                let mut row = joint_row(q, robot.tree(), units);
+                row.extend(corrected.iter().map(|v| units.len_out(*v).to_string()));
+                if let (true, Some(s)) = (with_std, std) {
+                    row.extend(s.iter().map(|v| units.len_out(*v).to_string()));
                 }
-            }
-            out.push('\n');
-        }
-        out
+                row
+            });
+        csv_text(std::iter::once(header).chain(rows))
     }
 }
 

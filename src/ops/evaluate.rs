@@ -1,11 +1,10 @@
 //! `evaluate`: position errors of a model on measurements, overall and per measured point.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 
 use armcomp_core::Robot;
 use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::{Sample, joint_header, joint_row};
+use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
 
 /// How far a model is from measurements.
@@ -63,17 +62,15 @@ impl EvaluationReport {
     pub fn residuals_csv(&self, robot: &Robot, samples: &[Sample]) -> String {
         let units = robot.units();
         let lu = units.length.symbol();
-        let mut out = format!(
-            "sample,point,{},x_err[{lu}],y_err[{lu}],z_err[{lu}],err[{lu}]\n",
-            joint_header(robot.tree(), units).join(",")
-        );
-        for (i, (s, e)) in samples.iter().zip(&self.errors).enumerate() {
-            let point = &robot.tree().points()[s.point].name;
-            let joints = joint_row(&s.q, robot.tree(), units).join(",");
-            let [x, y, z, d] = [e.x, e.y, e.z, e.norm()].map(|v| units.len_out(v));
-            // Writing to a String cannot fail.
-            let _ = writeln!(out, "{},{point},{joints},{x},{y},{z},{d}", i + 1);
-        }
-        out
+        let mut header: Vec<String> = vec!["sample".into(), "point".into()];
+        header.extend(joint_header(robot.tree(), units));
+        header.extend(["x_err", "y_err", "z_err", "err"].map(|c| format!("{c}[{lu}]")));
+        let rows = samples.iter().zip(&self.errors).enumerate().map(|(i, (s, e))| {
+            let mut row = vec![(i + 1).to_string(), robot.tree().points()[s.point].name.clone()];
+            row.extend(joint_row(&s.q, robot.tree(), units));
+            row.extend([e.x, e.y, e.z, e.norm()].map(|v| units.len_out(v).to_string()));
+            row
+        });
+        csv_text(std::iter::once(header).chain(rows))
     }
 }

@@ -12,17 +12,14 @@
 //!
 //! Files: `space` (the parameters by name, the robot with a parameter vector written in),
 //! `jacobian` (evaluation and columns), `identifiability` (what the data cannot determine),
-//! `solver` (the Levenberg–Marquardt stages, bounded steps, convergence tests), `registration`
+//! `solver` (a stage as a problem for the shared Levenberg–Marquardt loop of
+//! [`crate::least_squares`]: bounds, priors, the Jacobian forms, progress), `registration`
 //! (the measurement frame in closed form, mislabelled units); the driver [`calibrate`] and the
 //! report types are here.
 //!
 //! Before iterating, the scaled Jacobian is decomposed to find directions the data cannot
 //! determine. Each is named; it is left to the priors when one of its parameters has a prior,
 //! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
-//!
-//! The Levenberg–Marquardt loop is written here rather than taken from a crate because it needs
-//! bounds, priors, parameter fixing and a best-so-far result on non-convergence together, and
-//! the available crates pull in another nalgebra version.
 
 use nalgebra::{Isometry3, Matrix3, Vector3, Vector6};
 use rand::SeedableRng;

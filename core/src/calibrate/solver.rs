@@ -1,10 +1,97 @@
-//! The Levenberg–Marquardt stages: bounded steps, priors, the convergence tests.
+//! A calibration stage as a least-squares problem for the shared Levenberg–Marquardt loop
+//! ([`crate::least_squares`]): the free parameters with their bounds and priors, the fast
+//! Jacobian form while it makes progress, the iterations reported to the observer.
+
+use std::ops::ControlFlow;
 
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::Result;
+use crate::least_squares::{
+    ConvergenceParams, Damping, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, levenberg_marquardt,
+};
 
 use super::*;
+
+/// One stage's fit over the parameters `free` of the full vector `stage.theta`.
+struct StageFit<'s, 'p> {
+    problem: &'s Problem<'p>,
+    stage: &'s mut Stage,
+    free: &'s [usize],
+    /// The priors' centres and standard deviations, and the bounds, of the free parameters.
+    centre: Vec<f64>,
+    sigma: Vec<f64>,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    /// The last point evaluated, kept for the Jacobian if the loop moves there.
+    trial: Option<(Vec<f64>, Decoded, Evaluation)>,
+    /// Iterations before this stage (one budget over all stages).
+    before: usize,
+    params: &'s CalibrationParams,
+    observer: &'s mut dyn FnMut(&IterationInfo),
+}
+
+impl LeastSquares for StageFit<'_, '_> {
+    fn n_params(&self) -> usize {
+        self.free.len()
+    }
+
+    fn n_residuals(&self) -> usize {
+        3 * self.problem.samples.len()
+    }
+
+    fn residuals_into(&mut self, x: &[f64], r: &mut DVector<f64>) -> Result<()> {
+        let mut theta = self.stage.theta.clone();
+        for (&k, &v) in self.free.iter().zip(x) {
+            theta[k] = v;
+        }
+        let (d, e, pred) = self.problem.predict(&theta)?;
+        *r = self.problem.residuals(&pred);
+        self.trial = Some((theta, d, e));
+        Ok(())
+    }
+
+    fn jacobian_into(&mut self, _x: &[f64], approximate: bool, j: &mut DMatrix<f64>) -> Result<()> {
+        let form = if approximate {
+            JacobianForm::HeldDeformation
+        } else {
+            JacobianForm::Exact
+        };
+        let Stage { theta, d, e, .. } = &*self.stage;
+        *j = self.problem.jacobian(theta, d, e, self.free, form)?;
+        Ok(())
+    }
+
+    /// Deformed robots iterate on the fast form while it makes progress, and finish on the
+    /// exact one, so the minimum and the convergence test are those of the true model.
+    fn has_approximate_jacobian(&self) -> bool {
+        !self.problem.robot.error_models().is_empty()
+    }
+
+    fn bounds(&self) -> Option<(&[f64], &[f64])> {
+        Some((&self.lower, &self.upper))
+    }
+
+    fn prior(&self) -> Option<(&[f64], &[f64])> {
+        Some((&self.centre, &self.sigma))
+    }
+
+    fn accept(&mut self, _x: &[f64]) {
+        if let Some((theta, d, e)) = self.trial.take() {
+            (self.stage.theta, self.stage.d, self.stage.e) = (theta, d, e);
+        }
+    }
+
+    fn iteration(&mut self, it: &LmIteration<'_>) -> ControlFlow<()> {
+        (self.observer)(&IterationInfo {
+            iteration: self.before + it.iteration,
+            max_iterations: self.params.max_iterations,
+            rms: (it.residuals.norm_squared() / self.problem.samples.len() as f64).sqrt() * self.params.measurement_std,
+            lambda: it.damping,
+        });
+        ControlFlow::Continue(())
+    }
+}
 
 impl Problem<'_> {
     /// Levenberg–Marquardt over the parameters `free`, from `stage`, with priors centred at
@@ -17,207 +104,72 @@ impl Problem<'_> {
         params: &CalibrationParams,
         observer: &mut dyn FnMut(&IterationInfo),
     ) -> Result<StageOutcome> {
-        let space = self.space;
-        let prior_w: Vec<f64> = free.iter().map(|&k| 1.0 / space.params[k].info.sigma).collect();
-        let cost_of = |theta: &[f64], r: &DVector<f64>| self.cost_of(theta, theta0, free, r);
-        let Stage {
-            theta,
-            d,
-            e,
-            iterations,
-        } = stage;
-        let mut r = self.residuals(&to_meas(&d.t_meas_base, &e.world));
-        let mut cost = cost_of(theta, &r);
-        let mut lambda = 1e-3;
-        let mut converged = false;
-        // Why the last accepted step was small, when it was: the step test. Convergence needs
-        // it and the gradient test at the point the step reached.
-        let mut small_step: Option<String> = None;
-        // Deformed robots iterate on the fast form while it makes progress, and finish on the
-        // exact one, so the minimum and the convergence test are those of the true model.
-        let mut form = if self.robot.error_models().is_empty() {
-            JacobianForm::Exact
-        } else {
-            JacobianForm::HeldDeformation
+        let info = |k: usize| &self.space.params[k].info;
+        let mut x: Vec<f64> = free.iter().map(|&k| stage.theta[k]).collect();
+        let before = stage.iterations;
+        let lm = LmParams {
+            max_iterations: params.max_iterations.saturating_sub(before),
+            damping: Damping::Scaled,
+            initial_damping: 1e-3,
+            damping_increase: 4.0,
+            damping_decrease: 3.0,
+            max_damping: 1e12,
+            // Once a step gains less than the noise can tell apart (½χ² by less than one), the
+            // fast form's error matters more than its speed.
+            exact_jacobian_below: 1.0,
+            convergence: Some(ConvergenceParams {
+                tolerance: params.tolerance,
+                min_improvement: params.min_improvement,
+                min_step: params.min_step,
+            }),
         };
-        let stop_reason = loop {
-            crate::interrupt::check()?;
-            let j = self.jacobian(theta, d, e, free, form)?;
-            let mut a = j.transpose() * &j;
-            let mut g = j.transpose() * &r;
-            for (c, (&k, w)) in free.iter().zip(&prior_w).enumerate() {
-                a[(c, c)] += w * w;
-                g[c] += w * w * (theta[k] - theta0[k]);
-            }
-            let floor = 1e-12 * a.diagonal().max().max(1e-300);
-            // Standard deviations (in units of the noise) from the undamped normal matrix, to
-            // judge whether a step still moves anything that matters.
-            let std: Vec<f64> = match a.clone().cholesky() {
-                Some(c) => {
-                    let inv = c.inverse();
-                    (0..free.len()).map(|i| inv[(i, i)].max(0.0).sqrt()).collect()
-                }
-                None => vec![f64::INFINITY; free.len()],
-            };
-            // The gradient test, made independent of scale and correlation: how far the full
-            // Newton step from here (the bounds respected) would move each parameter, in its
-            // standard deviations. At a minimum it moves nothing that matters; a damped crawl
-            // far from one leaves a large step. Correlated parameters whose gradients cancel
-            // in combination pass, and a parameter held at its bound by the data passes.
-            // Where the matrix is singular, each parameter's gradient over its own curvature.
-            let blocked = |c: usize, step: f64| {
-                let b = &space.params[free[c]].info;
-                let v = theta[free[c]];
-                (v <= b.lower && step < 0.0) || (v >= b.upper && step > 0.0)
-            };
-            let newton = bounded_step(&a, &g, blocked).unwrap_or_else(|| {
-                DVector::from_iterator(free.len(), (0..free.len()).map(|c| g[c] / a[(c, c)].max(floor)))
-            });
-            let gradient = newton
-                .iter()
-                .enumerate()
-                .map(|(c, dc)| {
-                    let sd = if std[c].is_finite() {
-                        std[c]
-                    } else {
-                        1.0 / a[(c, c)].max(floor).sqrt()
-                    };
-                    (dc / sd).abs()
-                })
-                .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) });
-            let gradient_ok = gradient <= params.min_step;
-            if let Some(step) = small_step.as_ref().filter(|_| gradient_ok) {
-                converged = true;
-                break format!("{step}, and the Newton step is {gradient:.1e} standard deviations");
-            }
-            if *iterations >= params.max_iterations {
-                break format!(
-                    "iteration limit ({}) reached; the Newton step is {gradient:.1e} standard deviations",
-                    params.max_iterations
-                );
-            }
-            *iterations += 1;
-            let mut accepted = false;
-            while lambda <= 1e12 {
-                let mut m = a.clone();
-                for c in 0..free.len() {
-                    m[(c, c)] += lambda * a[(c, c)].max(floor);
-                }
-                let Some(delta) = bounded_step(&m, &g, blocked) else {
-                    lambda *= 10.0;
-                    continue;
-                };
-                // Stop at the first bound the step meets: a scaled damped step still lowers
-                // the linear model, where clipping each parameter to its bound distorts the
-                // step (rejected, the damping grows, the solver crawls). The parameter that
-                // landed on its bound is held there by the next step if it pushes outward.
-                let alpha = free.iter().enumerate().fold(1.0f64, |alpha, (c, &k)| {
-                    let b = &space.params[k].info;
-                    let to = theta[k] + delta[c];
-                    if to < b.lower {
-                        alpha.min((b.lower - theta[k]) / delta[c])
-                    } else if to > b.upper {
-                        alpha.min((b.upper - theta[k]) / delta[c])
-                    } else {
-                        alpha
-                    }
-                });
-                let mut trial = theta.clone();
-                for (c, &k) in free.iter().enumerate() {
-                    let b = &space.params[k].info;
-                    trial[k] = (theta[k] + alpha * delta[c]).clamp(b.lower, b.upper);
-                }
-                let Ok((d1, e1, pred1)) = self.predict(&trial) else {
-                    lambda *= 4.0;
-                    continue;
-                };
-                let r1 = self.residuals(&pred1);
-                let cost1 = cost_of(&trial, &r1);
-                if cost1.is_finite() && cost1 < cost {
-                    let improvement = cost - cost1;
-                    let relative = improvement / cost.max(1e-300);
-                    let moved = free
-                        .iter()
-                        .zip(&std)
-                        .map(|(&k, sd)| (trial[k] - theta[k]).abs() / sd)
-                        .fold(0.0, f64::max);
-                    (*theta, *d, *e, r, cost) = (trial, d1, e1, r1, cost1);
-                    lambda = (lambda / 3.0).max(1e-12);
-                    accepted = true;
-                    // Once a step gains less than the noise can tell apart (½χ² by less than
-                    // one), the fast form's error matters more than its speed.
-                    if improvement < 1.0 {
-                        form = JacobianForm::Exact;
-                    }
-                    small_step = if relative < params.tolerance || improvement < params.min_improvement {
-                        Some(format!("the last step improved ½χ² by only {improvement:.2e}"))
-                    } else if moved < params.min_step {
-                        Some(format!(
-                            "the last step moved no parameter by more than {:.1}% of its standard deviation",
-                            100.0 * moved
-                        ))
-                    } else {
-                        None
-                    };
-                    break;
-                }
-                lambda *= 4.0;
-            }
-            observer(&IterationInfo {
-                iteration: *iterations,
-                max_iterations: params.max_iterations,
-                rms: (r.norm_squared() / self.samples.len() as f64).sqrt() * params.measurement_std,
-                lambda,
-            });
-            if !accepted && form == JacobianForm::HeldDeformation {
-                form = JacobianForm::Exact;
-                small_step = None;
-                lambda = 1e-3;
-                continue;
-            }
-            if !accepted {
-                // No step lowers the cost: a minimum if the gradient vanishes there, otherwise
-                // the model cannot be evaluated or differentiated near here.
-                converged = gradient_ok && cost.is_finite();
-                break if converged {
-                    format!("no step lowers the cost further; the Newton step is {gradient:.1e} standard deviations")
-                } else {
-                    format!(
-                        "no step lowers the cost, but the Newton step is {gradient:.1e} standard deviations \
-                         (cost {cost:.3e}): not a minimum"
-                    )
-                };
-            }
+        let mut fit = StageFit {
+            problem: self,
+            stage: &mut *stage,
+            free,
+            centre: free.iter().map(|&k| theta0[k]).collect(),
+            sigma: free.iter().map(|&k| info(k).sigma).collect(),
+            lower: free.iter().map(|&k| info(k).lower).collect(),
+            upper: free.iter().map(|&k| info(k).upper).collect(),
+            trial: None,
+            before,
+            params,
+            observer,
         };
-        Ok(StageOutcome { converged, stop_reason })
-    }
-}
-
-/// The damped step `−m⁻¹g` with the parameters that sit at a bound and would step out of it
-/// held (`blocked(c, step)`): solving for the others alone keeps the step a descent direction
-/// of the free ones, where clipping the full step to the bounds distorts it and leaves the
-/// solver crawling. `None` when the matrix is not positive definite.
-pub(super) fn bounded_step(
-    m: &DMatrix<f64>,
-    g: &DVector<f64>,
-    blocked: impl Fn(usize, f64) -> bool,
-) -> Option<DVector<f64>> {
-    let n = g.len();
-    let mut held = vec![false; n];
-    loop {
-        let mut mm = m.clone();
-        let mut rhs = -g;
-        for c in (0..n).filter(|&c| held[c]) {
-            mm.row_mut(c).fill(0.0);
-            mm.column_mut(c).fill(0.0);
-            mm[(c, c)] = 1.0;
-            rhs[c] = 0.0;
-        }
-        let delta = mm.cholesky()?.solve(&rhs);
-        let newly: Vec<usize> = (0..n).filter(|&c| !held[c] && blocked(c, delta[c])).collect();
-        if newly.is_empty() {
-            return Some(delta);
-        }
-        newly.into_iter().for_each(|c| held[c] = true);
+        let report = levenberg_marquardt(&mut fit, &mut x, &lm)?;
+        stage.iterations += report.iterations;
+        let newton = report.newton_step.unwrap_or(f64::NAN);
+        let stop_reason = match report.stop {
+            LmStop::Converged(step) => {
+                let step = match step {
+                    SmallStep::Improvement(improvement) => {
+                        format!("the last step improved ½χ² by only {improvement:.2e}")
+                    }
+                    SmallStep::Moved(moved) => format!(
+                        "the last step moved no parameter by more than {:.1}% of its standard deviation",
+                        100.0 * moved
+                    ),
+                };
+                format!("{step}, and the Newton step is {newton:.1e} standard deviations")
+            }
+            LmStop::IterationLimit => format!(
+                "iteration limit ({}) reached; the Newton step is {newton:.1e} standard deviations",
+                params.max_iterations
+            ),
+            LmStop::NoDescent if report.converged => {
+                format!("no step lowers the cost further; the Newton step is {newton:.1e} standard deviations")
+            }
+            LmStop::NoDescent => format!(
+                "no step lowers the cost, but the Newton step is {newton:.1e} standard deviations (cost {:.3e}): \
+                 not a minimum",
+                report.cost
+            ),
+            // The observer cannot stop the loop.
+            LmStop::Stopped => "stopped".into(),
+        };
+        Ok(StageOutcome {
+            converged: report.converged,
+            stop_reason,
+        })
     }
 }

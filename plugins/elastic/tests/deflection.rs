@@ -1,7 +1,7 @@
 //! Cantilever deflection against textbook values and a numerical integration of the beam
 //! equation; joint compliance against a known torque; Eq. 5 against the composed chain.
 
-use crate::common::{perturbation_of, rel, robot, robot_issues};
+use crate::common::{PENDULUM, perturbation_of, rel, robot, robot_issues};
 use armcomp_core::geom::skew;
 use armcomp_core::{Perturbation, TreeWorkspace};
 use armcomp_elastic::tool_differential_world;
@@ -9,7 +9,8 @@ use nalgebra::{Matrix3, Vector3, Vector6};
 
 const G: f64 = 9.81;
 
-/// One link along x from a vertical joint, tool at `l`; `extra` appends TOML.
+/// One link along x from a vertical joint, a beam with its cantilever model (error model 0),
+/// tool at `l`; `link` adds to the link's table, `extra` appends TOML.
 fn one_link(l: f64, link: &str, extra: &str, gravity: [f64; 3]) -> String {
     format!(
         r#"
@@ -355,40 +356,20 @@ fn two_link_arm_matches_numerical_beam_integration() {
 // ---------------------------------------------------------------------------------------------
 // Joint compliance.
 
-/// A horizontal revolute joint (alpha = 90 deg turns z onto -y) carrying 15 kg at 0.8 m, with
+/// The pendulum (a joint about z, gravity along −y, 10 kg at 0.8 m, the tool at 1 m) with
 /// joint compliance `c` in rad/(N m).
 fn pendulum(c: f64) -> String {
-    format!(
-        r#"
-name = "pendulum"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-alpha = 1.5707963267948966
-[[links]]
-name = "j1"
-mass = 15.0
-com = [0.8, 0, 0]
-[[points]]
-name = "tool"
-link = "j1"
-xyz = [1.0, 0, 0]
-[[error_models]]
-type = "joint_compliance"
-compliance = {{ j1 = {c:e} }}
-"#
-    )
+    format!("{PENDULUM}[[error_models]]\ntype = \"joint_compliance\"\ncompliance = {{ j1 = {c:e} }}\n")
 }
 
 #[test]
 fn compliance_under_known_torque_gives_expected_angle() {
     let r = robot(&pendulum(2.0e-4));
     let c = 2.0e-4;
-    for q in [0.0, 0.4, -1.1] {
+    for q in [0.0, 0.4, 2.0] {
         let (pert, _) = perturbation_of(&r, 0, &[c], &[q], None);
-        // Torque about the axis (0, -1, 0) of the weight at 0.8 m: τ = -m g r cos q.
-        let tau = -15.0 * G * 0.8 * f64::cos(q);
+        // Torque about the axis z of the weight at 0.8 m: τ = -m g r cos q.
+        let tau = -10.0 * G * 0.8 * f64::cos(q);
         assert!(
             close(pert.joint_offset[0], c * tau, 1e-12),
             "q={q}: {}",
@@ -397,9 +378,9 @@ fn compliance_under_known_torque_gives_expected_angle() {
     }
     // Through the whole model: the tool drops by the rotation of the link.
     let f = r.forward(&[0.0]).unwrap();
-    let angle = c * 15.0 * G * 0.8;
+    let angle = c * 10.0 * G * 0.8;
     let p = f.point[0].translation.vector;
-    assert!((p - Vector3::new(angle.cos(), 0.0, -angle.sin())).norm() < 1e-12, "{p}");
+    assert!((p - Vector3::new(angle.cos(), -angle.sin(), 0.0)).norm() < 1e-12, "{p}");
 }
 
 /// Two parallel horizontal joints, the second coupled to the first as `b = -a` (a parallelogram
@@ -461,27 +442,16 @@ compliance = {{ a = {ca:e}, b = {cb:e} }}
 
 #[test]
 fn lateral_compliance_tilts_with_the_bending_moment() {
-    let src = r#"
-name = "lateral"
-[kinematics]
-type = "mdh"
-[[kinematics.joints]]
-name = "j1"
-[[links]]
-name = "j1"
-mass = 10.0
-com = [0.5, 0, 0]
-[[points]]
-name = "tool"
-link = "j1"
-xyz = [1.0, 0, 0]
-[[error_models]]
-type = "lateral_compliance"
-compliance = { j1 = [1.0e-5, 3.0e-5] }
-"#;
-    let r = robot(src);
+    // The one-link arm (its cantilever model first), 10 kg at 0.5 m, a lateral compliance.
+    let lateral = "[[error_models]]\ntype = \"lateral_compliance\"\ncompliance = { j1 = [1.0e-5, 3.0e-5] }";
+    let r = robot(&one_link(
+        1.0,
+        "mass = 10.0\ncom = [0.5, 0, 0]",
+        lateral,
+        [0.0, 0.0, -G],
+    ));
     for q in [0.0, 0.9] {
-        let (pert, _) = perturbation_of(&r, 0, &[1.0e-5, 3.0e-5], &[q], None);
+        let (pert, _) = perturbation_of(&r, 1, &[1.0e-5, 3.0e-5], &[q], None);
         // Moment of 10 kg at 0.5 m along (cos q, sin q, 0) under -z gravity: r × F.
         let m = Vector3::new(0.5 * q.cos(), 0.5 * q.sin(), 0.0).cross(&Vector3::new(0.0, 0.0, -10.0 * G));
         let want = Vector6::new(0.0, 0.0, 0.0, 1.0e-5 * m.x, 3.0e-5 * m.y, 0.0);
@@ -576,7 +546,7 @@ fn bad_specs_are_reported_with_field_paths() {
 fn equilibrium_solves_the_fixed_point_and_reports_failure() {
     use armcomp_elastic::{ElasticError, EquilibriumParams, EquilibriumWorkspace, solve_equilibrium};
     let r = robot(&pendulum(3.0e-3));
-    let (c, k) = (3.0e-3, 15.0 * G * 0.8);
+    let (c, k) = (3.0e-3, 10.0 * G * 0.8);
     let q = 0.3;
     // Equilibrium: dq = -c k cos(q + dq); solved here by bisection on [-1, 0].
     let f = |d: f64| d + c * k * (q + d).cos();

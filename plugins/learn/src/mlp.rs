@@ -50,8 +50,7 @@ impl PredictorSpec for MlpSpec {
         let mut rng = StdRng::seed_from_u64(self.seed);
         let data = NetData::new(&samples, self.training.validation_fraction, &mut rng);
         let mut params = net.init(&mut rng);
-        train(&net, &mut params, &data, &self.training, &mut rng);
-        armcomp_core::interrupt::check()?;
+        train(&net, &mut params, &data, &self.training, &mut rng)?;
         Ok(Box::new(data.fitted(net, params)?))
     }
 }

@@ -75,8 +75,7 @@ impl PredictorSpec for SsaBpSpec {
             data.mse(&net, w, rows, &mut acts)
         })?;
         let mut params = report.best;
-        train(&net, &mut params, &data, &self.refine, &mut rng);
-        armcomp_core::interrupt::check()?;
+        train(&net, &mut params, &data, &self.refine, &mut rng)?;
         Ok(Box::new(data.fitted(net, params)?))
     }
 }

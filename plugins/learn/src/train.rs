@@ -1,7 +1,12 @@
 //! Gradient training of a [`Network`]: Adam on seeded mini-batches, or Levenberg–Marquardt for
-//! small networks, both with early stopping on a held-out share of the rows.
+//! small networks (core's shared loop, [`armcomp_core::least_squares`]), both with early
+//! stopping on a held-out share of the rows.
 
+use std::ops::ControlFlow;
+
+use armcomp_core::least_squares::{self, Damping, LeastSquares, LmIteration, LmParams};
 use armcomp_core::{Error, Result};
+use indicatif::ProgressBar;
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -171,11 +176,19 @@ impl EarlyStopping {
 
 /// Refines `params` in place by the configured gradient method; the best weights by the
 /// monitored error (held-out rows, or training rows when none are held out) are kept.
-pub(crate) fn train(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, rng: &mut StdRng) {
+/// A stop request ([`armcomp_core::interrupt`]) ends training early with [`Error::Interrupted`].
+pub(crate) fn train(
+    net: &Network,
+    params: &mut [f64],
+    data: &NetData,
+    tp: &TrainingParams,
+    rng: &mut StdRng,
+) -> Result<()> {
     match tp.method {
         GradientMethod::Adam => adam(net, params, data, tp, rng),
-        GradientMethod::LevenbergMarquardt => levenberg_marquardt(net, params, data, tp),
+        GradientMethod::LevenbergMarquardt => levenberg_marquardt(net, params, data, tp)?,
     }
+    armcomp_core::interrupt::check()
 }
 
 fn monitored(data: &NetData) -> &[usize] {
@@ -235,76 +248,99 @@ fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, 
     params.copy_from_slice(&stop.best);
 }
 
-fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams) {
-    let np = params.len();
-    let rows = data.train.len() * data.k;
-    let mut jac = DMatrix::<f64>::zeros(rows, np);
-    let mut res = DVector::<f64>::zeros(rows);
-    let mut acts = vec![0.0; net.n_activations()];
-    let mut deltas = acts.clone();
-    let mut grad_row = vec![0.0; np];
-    let mut unit = vec![0.0; data.k];
-    let mut candidate = params.to_vec();
-    let mut lambda = tp.initial_damping;
-    let mut loss = data.mse(net, params, &data.train, &mut acts);
-    let mut stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
-    let bar = progress(tp.max_epochs as u64, "lm");
-    'iterations: for _ in 0..tp.max_epochs {
-        if armcomp_core::interrupt::requested() {
-            break;
+/// Training on all rows as least squares: the residuals `output − target` of the training
+/// rows, the Jacobian by one back-propagation per output, the held-out error checked after
+/// every iteration.
+struct NetFit<'a> {
+    net: &'a Network,
+    data: &'a NetData,
+    acts: Vec<f64>,
+    deltas: Vec<f64>,
+    grad_row: Vec<f64>,
+    unit: Vec<f64>,
+    stop: EarlyStopping,
+    bar: ProgressBar,
+}
+
+impl LeastSquares for NetFit<'_> {
+    fn n_params(&self) -> usize {
+        self.net.n_params()
+    }
+
+    fn n_residuals(&self) -> usize {
+        self.data.train.len() * self.data.k
+    }
+
+    fn residuals_into(&mut self, params: &[f64], res: &mut DVector<f64>) -> Result<()> {
+        let k = self.data.k;
+        for (r, &i) in self.data.train.iter().enumerate() {
+            let (x, y) = self.data.row(i);
+            self.net.forward(params, x, &mut self.acts);
+            let out = &self.acts[self.acts.len() - k..];
+            for c in 0..k {
+                res[r * k + c] = out[c] - y[c];
+            }
         }
-        // Jacobian of the residuals `output − target` by one back-propagation per output.
-        for (r, &i) in data.train.iter().enumerate() {
-            let (x, y) = data.row(i);
-            net.forward(params, x, &mut acts);
-            for c in 0..data.k {
-                let row = r * data.k + c;
-                res[row] = acts[acts.len() - data.k + c] - y[c];
-                unit.fill(0.0);
-                unit[c] = 1.0;
-                grad_row.fill(0.0);
-                net.backward(params, x, &acts, &unit, &mut grad_row, &mut deltas);
-                for (p, g) in grad_row.iter().enumerate() {
-                    jac[(row, p)] = *g;
+        Ok(())
+    }
+
+    fn jacobian_into(&mut self, params: &[f64], _approximate: bool, jac: &mut DMatrix<f64>) -> Result<()> {
+        let k = self.data.k;
+        for (r, &i) in self.data.train.iter().enumerate() {
+            let x = self.data.row(i).0;
+            self.net.forward(params, x, &mut self.acts);
+            for c in 0..k {
+                self.unit.fill(0.0);
+                self.unit[c] = 1.0;
+                self.grad_row.fill(0.0);
+                self.net
+                    .backward(params, x, &self.acts, &self.unit, &mut self.grad_row, &mut self.deltas);
+                for (p, g) in self.grad_row.iter().enumerate() {
+                    jac[(r * k + c, p)] = *g;
                 }
             }
         }
-        let jtj = jac.tr_mul(&jac);
-        let jtr = jac.tr_mul(&res);
-        loop {
-            let mut a = jtj.clone();
-            for p in 0..np {
-                a[(p, p)] += lambda;
-            }
-            let accepted = a.cholesky().is_some_and(|chol| {
-                let delta = chol.solve(&jtr);
-                for ((c, p), d) in candidate.iter_mut().zip(params.iter()).zip(delta.iter()) {
-                    *c = p - d;
-                }
-                let trial = data.mse(net, &candidate, &data.train, &mut acts);
-                if trial < loss {
-                    loss = trial;
-                    true
-                } else {
-                    false
-                }
-            });
-            if accepted {
-                params.copy_from_slice(&candidate);
-                lambda = (lambda / 10.0).max(1e-12);
-                break;
-            }
-            lambda *= 10.0;
-            if lambda > 1e10 {
-                // No damping makes progress: a minimum of the training error.
-                break 'iterations;
-            }
-        }
-        bar.inc(1);
-        if stop.update(params, data.mse(net, params, monitored(data), &mut acts)) {
-            break;
+        Ok(())
+    }
+
+    fn iteration(&mut self, it: &LmIteration<'_>) -> ControlFlow<()> {
+        self.bar.inc(1);
+        let error = self.data.mse(self.net, it.x, monitored(self.data), &mut self.acts);
+        if self.stop.update(it.x, error) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
         }
     }
-    bar.finish_and_clear();
-    params.copy_from_slice(&stop.best);
+}
+
+fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams) -> Result<()> {
+    let mut acts = vec![0.0; net.n_activations()];
+    let stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
+    let mut fit = NetFit {
+        net,
+        data,
+        deltas: acts.clone(),
+        acts,
+        grad_row: vec![0.0; params.len()],
+        unit: vec![0.0; data.k],
+        stop,
+        bar: progress(tp.max_epochs as u64, "lm"),
+    };
+    let lm = LmParams {
+        max_iterations: tp.max_epochs,
+        damping: Damping::Identity,
+        initial_damping: tp.initial_damping,
+        damping_increase: 10.0,
+        damping_decrease: 10.0,
+        // No damping up to this makes progress: a minimum of the training error.
+        max_damping: 1e10,
+        exact_jacobian_below: 0.0,
+        // Early stopping on the held-out rows decides the end.
+        convergence: None,
+    };
+    let outcome = least_squares::levenberg_marquardt(&mut fit, params, &lm);
+    fit.bar.finish_and_clear();
+    params.copy_from_slice(&fit.stop.best);
+    outcome.map(|_| ())
 }

@@ -6,6 +6,10 @@ use armcomp_core::subtree_loads::SubtreeLoads;
 use armcomp_core::{Perturbation, Robot, RobotFile, StaticState, TreeWorkspace};
 use nalgebra::Vector3;
 
+/// A one-joint pendulum in the vertical plane, 10 kg at 0.8 m, the tool at 1 m, no error
+/// models: one of the robots the workspace's tests share (`tests/data/robots/` at its root).
+pub const PENDULUM: &str = include_str!("../../../../tests/data/robots/pendulum.toml");
+
 /// Builds a robot from a TOML robot file; panics with the issues when it is invalid.
 pub fn robot(src: &str) -> Robot {
     // Link the plugin crates so their typetag registrations are present.
