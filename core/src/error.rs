@@ -225,10 +225,6 @@ pub enum Error {
         /// What is wrong, naming the type or call.
         message: String,
     },
-    /// A message with no structure of its own. Only code not yet moved to the variants above
-    /// uses it; new code picks the variant that says what went wrong.
-    #[error("{0}")]
-    Input(String),
     /// Stopped on request (see [`crate::interrupt`]) before the result was complete.
     #[error("interrupted")]
     Interrupted,

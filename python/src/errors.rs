@@ -83,7 +83,6 @@ pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
         Error::AbiMismatch { library, .. } | Error::PluginNotAllowed { library } | Error::Plugin { library, .. } => {
             input_error(&message, Some(library), None, None)
         }
-        Error::Input(_) => input_error(&message, None, None, None),
         // Not converged, degenerate, and kinds added later: armcomp's own error.
         _ => armcomp_error(&message),
     }

@@ -76,9 +76,12 @@ impl TrainingParams {
         check_positive("training.initial_damping", self.initial_damping)?;
         check_fraction("training.validation_fraction", self.validation_fraction, 0.5)?;
         if self.method == GradientMethod::LevenbergMarquardt && n_params > LM_MAX_PARAMS {
-            return Err(Error::Input(format!(
-                "training.method: levenberg_marquardt is for networks of at most {LM_MAX_PARAMS} weights, this one has {n_params}; use adam or smaller hidden layers"
-            )));
+            return Err(Error::InvalidArgument {
+                what: "training.method".into(),
+                reason: format!(
+                    "levenberg_marquardt is for networks of at most {LM_MAX_PARAMS} weights, this one has {n_params}; use adam or smaller hidden layers"
+                ),
+            });
         }
         Ok(())
     }
