@@ -76,20 +76,40 @@ pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
 /// `Σ (−ad_ξ)^k / (k+1)!` applied to `δ`. The series is cut after the fifth power, which is
 /// exact to |ξ|⁶/5040 relative, ample for the small deformation twists it is used on.
 pub fn exp_twist_right_jacobian(xi: &Vector6<f64>, delta: &Vector6<f64>) -> Vector6<f64> {
-    let (v, w) = (xi.fixed_rows::<3>(0).into_owned(), xi.fixed_rows::<3>(3).into_owned());
     // ad_ξ x = (w × x_v + v × x_w, w × x_w), with translation first.
-    let ad = |x: &Vector6<f64>| -> Vector6<f64> {
+    right_jacobian_series(xi, delta, |v, w, x| {
         let (xv, xw) = (x.fixed_rows::<3>(0), x.fixed_rows::<3>(3));
         let a = w.cross(&xv) + v.cross(&xw);
         let b = w.cross(&xw);
         Vector6::new(a.x, a.y, a.z, b.x, b.y, b.z)
-    };
-    let mut term = *delta;
-    let mut sum = *delta;
+    })
+}
+
+/// `J_r(ξ)ᵀ y`, the transposed series of [`exp_twist_right_jacobian`], for carrying row
+/// vectors (maps from a body twist to a displacement) through it.
+pub fn exp_twist_right_jacobian_transpose(xi: &Vector6<f64>, y: &Vector6<f64>) -> Vector6<f64> {
+    // ad_ξᵀ y = (−w × y_v, −v × y_v − w × y_w).
+    right_jacobian_series(xi, y, |v, w, y| {
+        let (yv, yw) = (y.fixed_rows::<3>(0), y.fixed_rows::<3>(3));
+        let a = -w.cross(&yv);
+        let b = -v.cross(&yv) - w.cross(&yw);
+        Vector6::new(a.x, a.y, a.z, b.x, b.y, b.z)
+    })
+}
+
+/// `Σ (−A)^k x / (k+1)!` for k ≤ 5, `A` the action `ad(v, w, x)` of ξ = (v, w) or its transpose.
+fn right_jacobian_series(
+    xi: &Vector6<f64>,
+    x: &Vector6<f64>,
+    ad: impl Fn(&Vector3<f64>, &Vector3<f64>, &Vector6<f64>) -> Vector6<f64>,
+) -> Vector6<f64> {
+    let (v, w) = (xi.fixed_rows::<3>(0).into_owned(), xi.fixed_rows::<3>(3).into_owned());
+    let mut term = *x;
+    let mut sum = *x;
     let mut factorial = 1.0;
     for k in 1..=5 {
         factorial *= (k + 1) as f64;
-        term = -ad(&term);
+        term = -ad(&v, &w, &term);
         sum += term / factorial;
     }
     sum
@@ -139,6 +159,10 @@ mod tests {
             .fixed_view_mut::<3, 1>(0, 3)
             .copy_from(&Vector3::new(delta[0], delta[1], delta[2]));
         assert!((fd - plain).norm() > 1e-2);
+        // The transposed series is the adjoint: y · (J δ) = (Jᵀ y) · δ.
+        let y = Vector6::new(-0.2, 0.9, 0.4, -0.6, 0.1, 0.8);
+        let (a, b) = (y.dot(&j), exp_twist_right_jacobian_transpose(&xi, &y).dot(&delta));
+        assert!((a - b).abs() < 1e-15, "{a} vs {b}");
     }
 
     #[test]

@@ -59,7 +59,7 @@ pub use robot_file::{RobotFile, SourceFile};
 pub use role::Role;
 pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
 pub use units::{AngleUnit, LengthUnit, Units};
-pub use workspace::TreeWorkspace;
+pub use workspace::{PointSensitivity, TreeWorkspace};
 
 // Plugin crates implement the typetag traits; they re-export these so they need not depend on
 // the macro crates' versions themselves.

@@ -1,8 +1,8 @@
 //! Forward kinematics and Jacobians into a reusable workspace (no allocation per call).
 
-use nalgebra::{Isometry3, Matrix3xX, Matrix6xX, Point3, Vector3};
+use nalgebra::{Isometry3, Matrix3x6, Matrix3xX, Matrix6xX, Point3, Vector3, Vector6};
 
-use crate::geom::{exp_twist, exp_twist_right_jacobian};
+use crate::geom::exp_twist;
 use crate::perturbation::Perturbation;
 use crate::tree::{Coordinate, KinematicTree, Motion};
 
@@ -98,11 +98,8 @@ impl KinematicTree {
     }
 
     /// First-order change of point `p`'s world position (m) when `deformation`, the
-    /// perturbation of the last evaluation in `ws`, changes by `change`: twists at the joint
-    /// frames and the point (through the twist exponential's right Jacobian), joint offsets
-    /// along the joint axes, all at the deformed frames. The derivative of
-    /// [`forward_perturbed_into`](Self::forward_perturbed_into) along `change`, without a second
-    /// forward pass.
+    /// perturbation of the last evaluation in `ws`, changes by `change` (allocating; see
+    /// [`PointSensitivity`] to reuse one point's map for many changes).
     pub fn point_perturbation_effect(
         &self,
         ws: &TreeWorkspace,
@@ -110,24 +107,9 @@ impl KinematicTree {
         p: usize,
         change: &Perturbation,
     ) -> Vector3<f64> {
-        let pos = ws.point[p].translation.vector;
-        let mut dp = Vector3::zeros();
-        for &j in &self.support[self.points[p].body] {
-            let frame = &ws.joint_frame[j];
-            if change.joint_twist[j] != nalgebra::Vector6::zeros() {
-                let xi = exp_twist_right_jacobian(&deformation.joint_twist[j], &change.joint_twist[j]);
-                let v = frame.rotation * xi.fixed_rows::<3>(0);
-                let w = frame.rotation * xi.fixed_rows::<3>(3);
-                dp += v + w.cross(&(pos - frame.translation.vector));
-            }
-            if change.joint_offset[j] != 0.0
-                && let Some((lin, _)) = self.joint_velocity(ws, j, &pos)
-            {
-                dp += lin * change.joint_offset[j];
-            }
-        }
-        let xi = exp_twist_right_jacobian(&deformation.point_twist[p], &change.point_twist[p]);
-        dp + ws.point[p].rotation * xi.fixed_rows::<3>(0)
+        let mut map = PointSensitivity::default();
+        map.update(self, ws, deformation, p);
+        map.effect(change)
     }
 
     /// Allocating convenience: world positions of every point (m).
@@ -194,4 +176,83 @@ impl KinematicTree {
             Coordinate::None => {}
         }
     }
+}
+
+/// How one point's world position responds, to first order, to a change of the deformation
+/// of the last evaluation: per joint it depends on, the displacement per unit of its twist
+/// (through the twist exponential's right Jacobian, at the deformed joint frame) and per unit
+/// of its offset (along or about its axis), and per unit of the point's own twist. Built once
+/// per evaluation, it turns any change into a displacement with a few dot products, the
+/// derivative of [`KinematicTree::forward_perturbed_into`] along that change without a second
+/// forward pass. Buffers are reused across [`update`](Self::update)s.
+#[derive(Debug, Clone, Default)]
+pub struct PointSensitivity {
+    /// `(joint, 3 × 6 map of its twist)`.
+    twists: Vec<(usize, Matrix3x6<f64>)>,
+    /// `(joint, displacement per unit offset)`.
+    offsets: Vec<(usize, Vector3<f64>)>,
+    /// The map of the point's own twist.
+    point_twist: Matrix3x6<f64>,
+    point: usize,
+}
+
+impl PointSensitivity {
+    /// The map of point `p` at the evaluation in `ws` of `tree` deformed by `deformation`.
+    pub fn update(&mut self, tree: &KinematicTree, ws: &TreeWorkspace, deformation: &Perturbation, p: usize) {
+        let pos = ws.point[p].translation.vector;
+        self.twists.clear();
+        self.offsets.clear();
+        self.point = p;
+        for &j in &tree.support[tree.points[p].body] {
+            let frame = &ws.joint_frame[j];
+            let r = frame.rotation.to_rotation_matrix().into_inner();
+            // A body twist (v, w) at the frame moves the point by R v + (R w) × (pos − o).
+            let arm = crate::geom::skew(&(pos - frame.translation.vector));
+            let mut map = Matrix3x6::zeros();
+            map.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+            map.fixed_view_mut::<3, 3>(0, 3).copy_from(&(-arm * r));
+            self.twists
+                .push((j, right_jacobian_rows(&deformation.joint_twist[j], &map)));
+            if let Some((lin, _)) = tree.joint_velocity(ws, j, &pos) {
+                self.offsets.push((j, lin));
+            }
+        }
+        let mut map = Matrix3x6::zeros();
+        map.fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&ws.point[p].rotation.to_rotation_matrix().into_inner());
+        self.point_twist = right_jacobian_rows(&deformation.point_twist[p], &map);
+    }
+
+    /// The displacement of the point (m, world) for the deformation change `change`.
+    pub fn effect(&self, change: &Perturbation) -> Vector3<f64> {
+        let mut dp = self.point_twist * change.point_twist[self.point];
+        for (j, map) in &self.twists {
+            let xi = &change.joint_twist[*j];
+            if *xi != Vector6::zeros() {
+                dp += map * xi;
+            }
+        }
+        for (j, lin) in &self.offsets {
+            dp += lin * change.joint_offset[*j];
+        }
+        dp
+    }
+}
+
+/// `map · J_r(ξ)`: the rows of `map` carried through the right Jacobian of the twist
+/// exponential (see [`crate::geom::exp_twist_right_jacobian`]), each row by the transposed
+/// series. `map` itself when `ξ` is zero.
+fn right_jacobian_rows(xi: &Vector6<f64>, map: &Matrix3x6<f64>) -> Matrix3x6<f64> {
+    if *xi == Vector6::zeros() {
+        return *map;
+    }
+    let mut out = Matrix3x6::zeros();
+    for i in 0..3 {
+        let row = map.row(i).transpose();
+        out.set_row(
+            i,
+            &crate::geom::exp_twist_right_jacobian_transpose(xi, &row).transpose(),
+        );
+    }
+    out
 }

@@ -11,6 +11,7 @@ use crate::param::{ParamInfo, Quantity};
 use crate::perturbation::Perturbation;
 use crate::robot::{Conditions, Robot, RobotWorkspace};
 use crate::tree::KinematicTree;
+use crate::workspace::PointSensitivity;
 
 use super::*;
 
@@ -134,7 +135,7 @@ impl Problem<'_> {
     /// forward kinematics run. On deformed robots the held `form` keeps the deformation as it
     /// is; the exact form adds the deformation's change (the models re-evaluated on the
     /// stepped rigid kinematics, no deformed forward pass), mapped to the point at the deformed
-    /// frames ([`KinematicTree::point_perturbation_effect`]). Error-model parameters are
+    /// frames ([`PointSensitivity`], one per sample). Error-model parameters are
     /// mapped the same way from the change of that model's deformation alone. Geometry that
     /// changes a joint's motion and load-adjusting models difference the full model.
     pub(super) fn jacobian(
@@ -163,14 +164,18 @@ impl Problem<'_> {
                         pert.clone(),
                         pert,
                         vec![Isometry3::identity(); d.tree.joints().len()],
+                        PointSensitivity::default(),
                     )
                 },
-                |(ws, ws_fd, base_perts, scratch, stepped, placed), (s_idx, s)| {
+                |(ws, ws_fd, base_perts, scratch, stepped, placed, sensitivity), (s_idx, s)| {
                     let cond = Conditions::of(s);
                     self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
                     for (i, bp) in base_perts.iter_mut().enumerate() {
                         bp.clear();
                         self.robot.model_perturbation_into(i, &d.tree, &d.errors[i], s, ws, bp);
+                    }
+                    if n_models > 0 {
+                        sensitivity.update(&d.tree, &ws.frames, &ws.perturbation, s.point);
                     }
                     let body = d.tree.points()[s.point].body;
                     let support = d.tree.support(body);
@@ -217,12 +222,7 @@ impl Problem<'_> {
                                 if let Some((tree, h)) = deformation {
                                     self.robot.deformation_into(tree, &d.errors, &s.q, cond, ws_fd);
                                     scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
-                                    dp += d.tree.point_perturbation_effect(
-                                        &ws.frames,
-                                        &ws.perturbation,
-                                        s.point,
-                                        scratch,
-                                    );
+                                    dp += sensitivity.effect(scratch);
                                 }
                                 for (j, xi) in joints {
                                     if support.contains(j) {
@@ -256,9 +256,7 @@ impl Problem<'_> {
                                 self.robot
                                     .model_perturbation_into(*model, &d.tree, values, s, ws, stepped);
                                 scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
-                                r_meas
-                                    * d.tree
-                                        .point_perturbation_effect(&ws.frames, &ws.perturbation, s.point, scratch)
+                                r_meas * sensitivity.effect(scratch)
                             }
                         };
                         for a in 0..3 {
