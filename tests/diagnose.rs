@@ -588,14 +588,18 @@ fn a_seed_gives_the_same_diagnosis_and_the_rest_is_scored_by_a_predictor() {
 fn full_sweep() {
     let mut failures = Vec::new();
     let mut findings = Vec::new();
-    println!("| effect | robot | hidden at | requirement | named first | held-out RMS before → after (mm) |");
-    println!("|---|---|---|---|---|---|");
+    println!(
+        "| effect | robot | hidden at | requirement | named first | held-out RMS before → after (mm) | wall time (s) |"
+    );
+    println!("|---|---|---|---|---|---|---|");
     for c in cases() {
+        // Wall time of the case (data, diagnosis and checks), printed for the table, never asserted.
+        let started = std::time::Instant::now();
         match std::panic::catch_unwind(|| check_case(&c, 120)) {
             Ok(r) => {
                 findings.extend(r.summary.clone());
                 println!(
-                    "| {} | {} | {} | {} | {} | {:.3} → {:.3} |",
+                    "| {} | {} | {} | {} | {} | {:.3} → {:.3} | {:.1} |",
                     c.effect(),
                     c.robot.trim_end_matches(".toml"),
                     match &c.expect {
@@ -609,7 +613,8 @@ fn full_sweep() {
                     },
                     r.named.as_deref().unwrap_or("nothing"),
                     r.before_mm,
-                    r.after_mm
+                    r.after_mm,
+                    started.elapsed().as_secs_f64()
                 )
             }
             Err(e) => {
