@@ -313,8 +313,9 @@ struct Problem<'a> {
 /// How the Jacobian treats the deformation of a robot with error models.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum JacobianForm {
-    /// Every column exact: geometry differenced through the full deformed model, so the
-    /// deformation's own dependence on the geometry (its moment arms) is included.
+    /// Every column exact: geometry columns add the change of the deformation a step causes
+    /// (its moment arms), the models re-evaluated on the stepped rigid kinematics and mapped
+    /// to the point at the deformed frames.
     Exact,
     /// Geometry columns as first-order twists at the deformed frames with the deformation
     /// held: a few vector operations per pose and column, off by the relative size of the

@@ -8,7 +8,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::error::Result;
 use crate::least_squares::{
-    ConvergenceParams, Damping, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, levenberg_marquardt,
+    ConvergenceParams, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, levenberg_marquardt,
 };
 
 use super::*;
@@ -107,21 +107,16 @@ impl Problem<'_> {
         let info = |k: usize| &self.space.params[k].info;
         let mut x: Vec<f64> = free.iter().map(|&k| stage.theta[k]).collect();
         let before = stage.iterations;
+        // The loop's defaults are calibration's (scaled damping, the exact Jacobian once a step
+        // gains less than the noise can tell apart); the budget and tests are the caller's.
         let lm = LmParams {
             max_iterations: params.max_iterations.saturating_sub(before),
-            damping: Damping::Scaled,
-            initial_damping: 1e-3,
-            damping_increase: 4.0,
-            damping_decrease: 3.0,
-            max_damping: 1e12,
-            // Once a step gains less than the noise can tell apart (½χ² by less than one), the
-            // fast form's error matters more than its speed.
-            exact_jacobian_below: 1.0,
             convergence: Some(ConvergenceParams {
                 tolerance: params.tolerance,
                 min_improvement: params.min_improvement,
                 min_step: params.min_step,
             }),
+            ..LmParams::default()
         };
         let mut fit = StageFit {
             problem: self,
