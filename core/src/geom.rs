@@ -61,13 +61,16 @@ pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
     if theta < 1e-12 {
         return Isometry3::from_parts(Translation3::from(v), UnitQuaternion::identity());
     }
-    let rot = UnitQuaternion::from_scaled_axis(w);
+    // One sine and cosine of the half angle serve the quaternion and, through sin θ = 2 sₕcₕ
+    // and 1 − cos θ = 2 sₕ² (free of cancellation at small angles), the left Jacobian.
+    let (sh, ch) = (0.5 * theta).sin_cos();
+    let axis = w * (sh / theta);
+    let rot = UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(ch, axis.x, axis.y, axis.z));
     let k = skew(&w);
     let k2 = k * k;
-    let (s, c) = theta.sin_cos();
     let t2 = theta * theta;
     // Left Jacobian of SO(3): V = I + (1-cos)/θ² K + (θ-sin)/θ³ K².
-    let vmat = Matrix3::identity() + k * ((1.0 - c) / t2) + k2 * ((theta - s) / (t2 * theta));
+    let vmat = Matrix3::identity() + k * (2.0 * sh * sh / t2) + k2 * ((theta - 2.0 * sh * ch) / (t2 * theta));
     Isometry3::from_parts(Translation3::from(vmat * v), rot)
 }
 
@@ -187,6 +190,22 @@ mod tests {
         delta[(2, 3)] = t[2];
         let lin = nalgebra::Matrix4::identity() + delta;
         assert!((e - lin).norm() < 1e-11);
+    }
+
+    /// Against the matrix exponential of the twist's 4 × 4 form, from tiny to large angles.
+    #[test]
+    fn exp_twist_is_the_matrix_exponential() {
+        for (scale, tol) in [(1e-9, 1e-15), (1e-3, 1e-15), (0.3, 1e-14), (2.5, 1e-13)] {
+            let t = Vector6::new(0.4, -0.2, 0.7, 0.3, -0.5, 0.8) * scale;
+            let mut m = nalgebra::Matrix4::zeros();
+            m.fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&skew(&Vector3::new(t[3], t[4], t[5])));
+            m[(0, 3)] = t[0];
+            m[(1, 3)] = t[1];
+            m[(2, 3)] = t[2];
+            let err = (exp_twist(&t).to_homogeneous() - m.exp()).norm();
+            assert!(err < tol, "scale {scale}: {err:e}");
+        }
     }
 
     #[test]

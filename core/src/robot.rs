@@ -486,6 +486,36 @@ impl Robot {
         ws: &mut RobotWorkspace,
     ) {
         tree.forward_into(q, &mut ws.rigid);
+        self.deformation_at_rigid_into(tree, error_values, q, conditions, ws);
+    }
+
+    /// [`deformation_into`](Robot::deformation_into) given `prefix`, an evaluation at the same
+    /// `q` of a tree whose joints before `first` are `tree`'s (see
+    /// [`KinematicTree::forward_from_prefix_into`]); the same bits.
+    #[allow(clippy::too_many_arguments)]
+    pub fn deformation_from_prefix_into(
+        &self,
+        tree: &KinematicTree,
+        error_values: &[Vec<f64>],
+        q: &[f64],
+        conditions: Conditions,
+        prefix: &TreeWorkspace,
+        first: usize,
+        ws: &mut RobotWorkspace,
+    ) {
+        tree.forward_from_prefix_into(q, prefix, first, &mut ws.rigid);
+        self.deformation_at_rigid_into(tree, error_values, q, conditions, ws);
+    }
+
+    /// The error models' deformation at the rigid frames already in `ws.rigid`.
+    fn deformation_at_rigid_into(
+        &self,
+        tree: &KinematicTree,
+        error_values: &[Vec<f64>],
+        q: &[f64],
+        conditions: Conditions,
+        ws: &mut RobotWorkspace,
+    ) {
         ws.perturbation.clear();
         let (own_mass, gravity) = self.loads_into(conditions, tree, error_values, &mut ws.mass);
         ws.own_mass = own_mass;

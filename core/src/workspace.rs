@@ -18,6 +18,9 @@ pub struct TreeWorkspace {
     pub point: Vec<Isometry3<f64>>,
     /// Value of each joint used in the last evaluation (rad or m), offsets included.
     pub joint_value: Vec<f64>,
+    /// Each joint's motion at that value (joint frame to body), kept so that a deformed
+    /// evaluation reuses the rigid one's where the deformation leaves the value alone.
+    pub motion: Vec<Isometry3<f64>>,
 }
 
 impl TreeWorkspace {
@@ -28,6 +31,7 @@ impl TreeWorkspace {
             joint_frame: vec![Isometry3::identity(); tree.joints().len()],
             point: vec![Isometry3::identity(); tree.points().len()],
             joint_value: vec![0.0; tree.joints().len()],
+            motion: vec![Isometry3::identity(); tree.joints().len()],
         }
     }
 
@@ -41,12 +45,12 @@ impl KinematicTree {
     /// Rigid forward kinematics of every body, joint frame and point, with the base at the
     /// origin. `q` must hold [`nq`](KinematicTree::nq) values (see [`check_q`](KinematicTree::check_q)).
     pub fn forward_into(&self, q: &[f64], ws: &mut TreeWorkspace) {
-        self.forward_impl(q, None, 0, ws);
+        self.forward_impl(q, None, 0, None, ws);
     }
 
     /// Forward kinematics of the chain deformed by `pert` (Eq. 1–2 composed along the tree).
     pub fn forward_perturbed_into(&self, q: &[f64], pert: &Perturbation, ws: &mut TreeWorkspace) {
-        self.forward_impl(q, Some(pert), 0, ws);
+        self.forward_impl(q, Some(pert), 0, None, ws);
     }
 
     /// [`forward_perturbed_into`](Self::forward_perturbed_into) given `rigid`, the rigid
@@ -62,29 +66,60 @@ impl KinematicTree {
         let first = (0..self.joints.len())
             .find(|&j| pert.joint_offset[j] != 0.0 || pert.joint_twist[j] != nalgebra::Vector6::zeros())
             .unwrap_or(self.joints.len());
-        // Body `first` hangs from joint `first − 1`, which the deformation leaves alone.
-        ws.body[..=first].copy_from_slice(&rigid.body[..=first]);
-        ws.joint_frame[..first].copy_from_slice(&rigid.joint_frame[..first]);
-        ws.joint_value[..first].copy_from_slice(&rigid.joint_value[..first]);
-        self.forward_impl(q, Some(pert), first, ws);
+        copy_prefix(rigid, first, ws);
+        self.forward_impl(q, Some(pert), first, Some(rigid), ws);
     }
 
-    /// Evaluates joints `start..` (the ones before are in `ws` already) and every point.
-    fn forward_impl(&self, q: &[f64], pert: Option<&Perturbation>, start: usize, ws: &mut TreeWorkspace) {
+    /// Rigid [`forward_into`](Self::forward_into) given `prefix`, an evaluation at the same `q`
+    /// of a tree whose joints before `first` are this tree's (what a step of a later joint's
+    /// geometry leaves): those joints are copied from it rather than recomputed. The same bits
+    /// as the full evaluation.
+    pub fn forward_from_prefix_into(&self, q: &[f64], prefix: &TreeWorkspace, first: usize, ws: &mut TreeWorkspace) {
+        copy_prefix(prefix, first, ws);
+        self.forward_impl(q, None, first, None, ws);
+    }
+
+    /// Evaluates joints `start..` (the ones before are in `ws` already) and every point; with
+    /// `rigid`, the rigid evaluation of the same `q`, a joint whose value the deformation
+    /// leaves alone takes its motion from there (the same bits, no sine and cosine).
+    fn forward_impl(
+        &self,
+        q: &[f64],
+        pert: Option<&Perturbation>,
+        start: usize,
+        rigid: Option<&TreeWorkspace>,
+        ws: &mut TreeWorkspace,
+    ) {
         debug_assert_eq!(q.len(), self.nq());
         ws.body[0] = Isometry3::identity();
         for (j, joint) in self.joints.iter().enumerate().skip(start) {
             let mut value = self.joint_value(j, q);
             let mut frame = ws.body[joint.parent] * joint.placement;
+            let mut offset = 0.0;
             if let Some(p) = pert {
-                value += p.joint_offset[j];
+                offset = p.joint_offset[j];
+                value += offset;
                 if p.joint_twist[j] != nalgebra::Vector6::zeros() {
                     frame *= exp_twist(&p.joint_twist[j]);
                 }
             }
+            let motion = match rigid {
+                Some(r) if offset == 0.0 => r.motion[j],
+                _ => joint.motion.transform(value),
+            };
             ws.joint_value[j] = value;
             ws.joint_frame[j] = frame;
-            ws.body[j + 1] = frame * joint.motion.transform(value);
+            ws.motion[j] = motion;
+            // `frame * motion` without the parts the motion leaves at identity (a rotation
+            // has no translation, a slide no rotation): the same values, fewer operations.
+            ws.body[j + 1] = match joint.motion {
+                Motion::Revolute(_) => Isometry3::from_parts(frame.translation, frame.rotation * motion.rotation),
+                Motion::Prismatic(_) => Isometry3::from_parts(
+                    (frame.translation.vector + frame.rotation * motion.translation.vector).into(),
+                    frame.rotation,
+                ),
+                Motion::Fixed => frame,
+            };
         }
         for (i, point) in self.points.iter().enumerate() {
             let mut pose = ws.body[point.body] * point.local;
@@ -176,6 +211,15 @@ impl KinematicTree {
             Coordinate::None => {}
         }
     }
+}
+
+/// Copies the bodies, joint frames and values that joints `..first` determine from `from`.
+fn copy_prefix(from: &TreeWorkspace, first: usize, ws: &mut TreeWorkspace) {
+    // Body `first` hangs from joint `first − 1`; later joints only move later bodies.
+    ws.body[..=first].copy_from_slice(&from.body[..=first]);
+    ws.joint_frame[..first].copy_from_slice(&from.joint_frame[..first]);
+    ws.joint_value[..first].copy_from_slice(&from.joint_value[..first]);
+    ws.motion[..first].copy_from_slice(&from.motion[..first]);
 }
 
 /// How one point's world position responds, to first order, to a change of the deformation

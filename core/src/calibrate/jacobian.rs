@@ -9,27 +9,32 @@ use crate::geom::exp_twist;
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::perturbation::Perturbation;
-use crate::robot::{Conditions, Robot, RobotWorkspace};
+use crate::robot::{Conditions, Robot};
 use crate::tree::KinematicTree;
 use crate::workspace::PointSensitivity;
 
 use super::*;
 
-pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample], ws: &mut RobotWorkspace) -> Evaluation {
-    let mut world = Vec::with_capacity(samples.len());
-    let mut marker_rot = Vec::with_capacity(samples.len());
-    for s in samples {
-        robot.forward_with_into(&d.tree, &d.errors, &s.q, Conditions::of(s), ws);
-        let point = &d.tree.points()[s.point];
-        let rot = ws.frames.body[point.body].rotation.to_rotation_matrix().into_inner()
-            * d.tree.bodies()[point.body]
-                .convention_frame
-                .rotation
-                .to_rotation_matrix()
-                .into_inner();
-        world.push(ws.frames.point[s.point].translation.vector);
-        marker_rot.push(rot);
-    }
+/// The model's point and marker rotation at every sample, evaluated in parallel (each sample
+/// on its own, so the result does not depend on the thread count).
+pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample]) -> Evaluation {
+    let (world, marker_rot) = samples
+        .par_iter()
+        .map_init(
+            || robot.workspace(),
+            |ws, s| {
+                robot.forward_with_into(&d.tree, &d.errors, &s.q, Conditions::of(s), ws);
+                let point = &d.tree.points()[s.point];
+                let rot = ws.frames.body[point.body].rotation.to_rotation_matrix().into_inner()
+                    * d.tree.bodies()[point.body]
+                        .convention_frame
+                        .rotation
+                        .to_rotation_matrix()
+                        .into_inner();
+                (ws.frames.point[s.point].translation.vector, rot)
+            },
+        )
+        .unzip();
     Evaluation { world, marker_rot }
 }
 
@@ -40,8 +45,7 @@ pub(super) fn to_meas(t: &Isometry3<f64>, world: &[Vector3<f64>]) -> Vec<Vector3
 impl Problem<'_> {
     pub(super) fn predict(&self, theta: &[f64]) -> Result<(Decoded, Evaluation, Vec<Vector3<f64>>)> {
         let d = self.space.decode(self.robot, theta)?;
-        let mut ws = self.robot.workspace();
-        let e = evaluate(self.robot, &d, self.samples, &mut ws);
+        let e = evaluate(self.robot, &d, self.samples);
         let meas = to_meas(&d.t_meas_base, &e.world);
         Ok((d, e, meas))
     }
@@ -220,7 +224,12 @@ impl Problem<'_> {
                             } => {
                                 let mut dp = Vector3::zeros();
                                 if let Some((tree, h)) = deformation {
-                                    self.robot.deformation_into(tree, &d.errors, &s.q, cond, ws_fd);
+                                    // `joints` lists the stepped placements in order; the
+                                    // joints before the first keep their rigid frames.
+                                    let first = joints.first().map_or(tree.joints().len(), |&(j, _)| j);
+                                    self.robot.deformation_from_prefix_into(
+                                        tree, &d.errors, &s.q, cond, &ws.rigid, first, ws_fd,
+                                    );
                                     scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
                                     dp += sensitivity.effect(scratch);
                                 }

@@ -21,7 +21,7 @@
 //! determine. Each is named; it is left to the priors when one of its parameters has a prior,
 //! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
 
-use nalgebra::{Isometry3, Matrix3, Vector3, Vector6};
+use nalgebra::{DMatrix, Isometry3, Matrix3, Vector3, Vector6};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -479,6 +479,7 @@ pub fn calibrate(
         d,
         e,
         iterations: 0,
+        exact_jacobian: None,
     };
     let mut outcome = StageOutcome {
         converged: free.is_empty(),
@@ -518,6 +519,7 @@ pub fn calibrate(
                 d,
                 e,
                 iterations: 0,
+                exact_jacobian: None,
             };
             let trial_outcome = problem.levenberg_marquardt(&mut trial, &theta0, &free, params, observer)?;
             restarts_rms_mm.push(problem.rms_over_noise(&trial) * 3f64.sqrt() * params.measurement_std * 1e3);
@@ -532,12 +534,17 @@ pub fn calibrate(
         d,
         e,
         iterations,
+        exact_jacobian,
     } = stage;
 
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
     let pred = to_meas(&d.t_meas_base, &e.world);
     let r = problem.residuals(&pred);
-    let j = problem.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?;
+    // The fit's last iteration computed it when its convergence test needed it.
+    let j = match exact_jacobian {
+        Some((columns, j)) if columns == free => j,
+        _ => problem.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?,
+    };
     let mut a = j.transpose() * &j;
     for (c, &k) in free.iter().enumerate() {
         a[(c, c)] += space.params[k].info.sigma.powi(-2);
@@ -629,6 +636,8 @@ struct Stage {
     d: Decoded,
     e: Evaluation,
     iterations: usize,
+    /// The exact Jacobian at `theta` and the parameters of its columns, once computed.
+    exact_jacobian: Option<(Vec<usize>, DMatrix<f64>)>,
 }
 
 /// How a Levenberg–Marquardt run ended.

@@ -59,6 +59,9 @@ impl LeastSquares for StageFit<'_, '_> {
         };
         let Stage { theta, d, e, .. } = &*self.stage;
         *j = self.problem.jacobian(theta, d, e, self.free, form)?;
+        if form == JacobianForm::Exact {
+            self.stage.exact_jacobian = Some((self.free.to_vec(), j.clone()));
+        }
         Ok(())
     }
 
@@ -79,6 +82,7 @@ impl LeastSquares for StageFit<'_, '_> {
     fn accept(&mut self, _x: &[f64]) {
         if let Some((theta, d, e)) = self.trial.take() {
             (self.stage.theta, self.stage.d, self.stage.e) = (theta, d, e);
+            self.stage.exact_jacobian = None;
         }
     }
 

@@ -42,42 +42,41 @@ use armcomp_core::gravity::subtree_wrench;
 /// Links below this free length (m) are treated as rigid.
 const MIN_LENGTH: f64 = 1e-9;
 
-/// Deflection `w(x)` and slope `w'(x)` of a cantilever of length `l` under a uniform load `q`
-/// (force per length along the deflection): `q x² (6L² − 4Lx + x²) / (24 EI)`; at the tip
-/// `qL⁴/(8EI)` and `qL³/(6EI)`.
+/// Deflection `w(x)` and slope `w'(x)` of a cantilever of length `l` and compliance `c = 1/EI`
+/// under a uniform load `q` (force per length along the deflection):
+/// `q x² (6L² − 4Lx + x²) / (24 EI)`; at the tip `qL⁴/(8EI)` and `qL³/(6EI)`.
 #[inline]
-pub fn uniform_load(q: f64, l: f64, ei: f64, x: f64) -> (f64, f64) {
-    let w = q * x * x * (6.0 * l * l - 4.0 * l * x + x * x) / (24.0 * ei);
+pub fn uniform_load(q: f64, l: f64, c: f64, x: f64) -> (f64, f64) {
+    let qc = q * c;
+    let w = qc * x * x * (6.0 * l * l - 4.0 * l * x + x * x) * (1.0 / 24.0);
     let lx = l - x;
-    let slope = q * (l * l * l - lx * lx * lx) / (6.0 * ei);
+    let slope = qc * (l * l * l - lx * lx * lx) * (1.0 / 6.0);
     (w, slope)
 }
 
-/// Deflection and slope at `x` of a cantilever under a point force `p` at `a` (along the
-/// deflection): `P x²(3a − x)/(6EI)` before `a`, straight beyond; at the tip of a tip load
-/// `PL³/(3EI)` and `PL²/(2EI)`.
+/// Deflection and slope at `x` of a cantilever of compliance `c = 1/EI` under a point force
+/// `p` at `a` (along the deflection): `P x²(3a − x)/(6EI)` before `a`, straight beyond; at the
+/// tip of a tip load `PL³/(3EI)` and `PL²/(2EI)`.
 #[inline]
-pub fn point_force(p: f64, a: f64, ei: f64, x: f64) -> (f64, f64) {
+pub fn point_force(p: f64, a: f64, c: f64, x: f64) -> (f64, f64) {
+    let pc = p * c;
     if x <= a {
-        (
-            p * x * x * (3.0 * a - x) / (6.0 * ei),
-            p * x * (2.0 * a - x) / (2.0 * ei),
-        )
+        (pc * x * x * (3.0 * a - x) * (1.0 / 6.0), pc * x * (2.0 * a - x) * 0.5)
     } else {
-        (p * a * a * (3.0 * x - a) / (6.0 * ei), p * a * a / (2.0 * ei))
+        (pc * a * a * (3.0 * x - a) * (1.0 / 6.0), pc * a * a * 0.5)
     }
 }
 
-/// Deflection and slope at `x` of a cantilever bent by a couple `m` at `a` that curves it
-/// towards positive deflection: `M x²/(2EI)` before `a`, straight beyond; at the tip of a tip
-/// couple `ML²/(2EI)` and `ML/(EI)`.
+/// Deflection and slope at `x` of a cantilever of compliance `c = 1/EI` bent by a couple `m`
+/// at `a` that curves it towards positive deflection: `M x²/(2EI)` before `a`, straight
+/// beyond; at the tip of a tip couple `ML²/(2EI)` and `ML/(EI)`.
 #[inline]
-pub fn point_moment(m: f64, a: f64, ei: f64, x: f64) -> (f64, f64) {
-    let c = m / ei;
+pub fn point_moment(m: f64, a: f64, c: f64, x: f64) -> (f64, f64) {
+    let mc = m * c;
     if x <= a {
-        (c * x * x / 2.0, c * x)
+        (mc * x * x * 0.5, mc * x)
     } else {
-        (c * a * (x - a / 2.0), c * a)
+        (mc * a * (x - a * 0.5), mc * a)
     }
 }
 
@@ -94,8 +93,20 @@ pub struct Beam {
     pub z: Vector3<f64>,
     /// Free length (m).
     pub length: f64,
-    /// Rigidities (N m²).
-    pub rigidity: BeamRigidity,
+    /// Compliances `1/EI_y`, `1/EI_z`, `1/GJ` (1/(N m²)): one division per beam rather than
+    /// one per load and station.
+    compliance: [f64; 3],
+}
+
+/// The bending of a beam's axis at one station in its own axes, summed over loads: deflection
+/// along `z` and `y`, the slopes `dw/dx` and `dv/dx`, and the twist about `x`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Bending {
+    w: f64,
+    v: f64,
+    dw: f64,
+    dv: f64,
+    phi: f64,
 }
 
 impl Beam {
@@ -127,7 +138,7 @@ impl Beam {
             y,
             z,
             length,
-            rigidity,
+            compliance: [1.0 / rigidity.ei_y, 1.0 / rigidity.ei_z, 1.0 / rigidity.gj],
         })
     }
 
@@ -143,40 +154,45 @@ impl Beam {
         self.start + self.x * s
     }
 
-    /// Adds to `(u, θ)` (world displacement and rotation of the axis at station `s`) the effect
-    /// of a uniform load `q` (N/m, world) over the whole beam.
+    /// Adds to `b` (the bending at station `s`) the effect of a uniform load `q` (N/m, world)
+    /// over the whole beam.
     #[inline]
-    pub fn add_uniform(&self, s: f64, q: &Vector3<f64>, u: &mut Vector3<f64>, th: &mut Vector3<f64>) {
-        let r = &self.rigidity;
-        let (w, dw) = uniform_load(q.dot(&self.z), self.length, r.ei_y, s);
-        let (v, dv) = uniform_load(q.dot(&self.y), self.length, r.ei_z, s);
-        *u += self.z * w + self.y * v;
-        *th += self.y * (-dw) + self.z * dv;
+    pub fn add_uniform(&self, s: f64, q: &Vector3<f64>, b: &mut Bending) {
+        let [cy, cz, _] = self.compliance;
+        let (w, dw) = uniform_load(q.dot(&self.z), self.length, cy, s);
+        let (v, dv) = uniform_load(q.dot(&self.y), self.length, cz, s);
+        b.w += w;
+        b.dw += dw;
+        b.v += v;
+        b.dv += dv;
     }
 
-    /// Adds the effect of a force `f` (N, world) applied on the axis at station `a` with a
-    /// couple `m` (N m, world) there.
+    /// Adds to `b` the effect of a force `f` (N, world) applied on the axis at station `a`
+    /// with a couple `m` (N m, world) there.
     #[inline]
-    pub fn add_point(
-        &self,
-        s: f64,
-        a: f64,
-        f: &Vector3<f64>,
-        m: &Vector3<f64>,
-        u: &mut Vector3<f64>,
-        th: &mut Vector3<f64>,
-    ) {
-        let r = &self.rigidity;
+    pub fn add_point(&self, s: f64, a: f64, f: &Vector3<f64>, m: &Vector3<f64>, b: &mut Bending) {
+        let [cy, cz, ct] = self.compliance;
         // Deflection along z (EI_y): a couple about -y curves towards +z; slope w' is a
         // rotation about -y.
-        let (w1, dw1) = point_force(f.dot(&self.z), a, r.ei_y, s);
-        let (w2, dw2) = point_moment(-m.dot(&self.y), a, r.ei_y, s);
+        let (w1, dw1) = point_force(f.dot(&self.z), a, cy, s);
+        let (w2, dw2) = point_moment(-m.dot(&self.y), a, cy, s);
         // Deflection along y (EI_z): a couple about +z curves towards +y.
-        let (v1, dv1) = point_force(f.dot(&self.y), a, r.ei_z, s);
-        let (v2, dv2) = point_moment(m.dot(&self.z), a, r.ei_z, s);
-        let phi = m.dot(&self.x) * s.min(a) / r.gj;
-        *u += self.z * (w1 + w2) + self.y * (v1 + v2);
-        *th += self.y * (-(dw1 + dw2)) + self.z * (dv1 + dv2) + self.x * phi;
+        let (v1, dv1) = point_force(f.dot(&self.y), a, cz, s);
+        let (v2, dv2) = point_moment(m.dot(&self.z), a, cz, s);
+        b.w += w1 + w2;
+        b.dw += dw1 + dw2;
+        b.v += v1 + v2;
+        b.dv += dv1 + dv2;
+        b.phi += m.dot(&self.x) * s.min(a) * ct;
+    }
+
+    /// World displacement and rotation of the axis for `b`.
+    #[inline]
+    pub fn motion(&self, b: &Bending) -> (Vector3<f64>, Vector3<f64>) {
+        (
+            self.z * b.w + self.y * b.v,
+            self.y * (-b.dw) + self.z * b.dv + self.x * b.phi,
+        )
     }
 }
 
@@ -355,19 +371,26 @@ impl ErrorModelSpec for CantileverSpec {
 impl CantileverModel {
     /// The beam of modelled link `i` in the rigid configuration of `state`, scaled.
     fn beam(&self, state: &StaticState<'_>, i: usize, ei_scale: f64, gj_scale: f64) -> Option<Beam> {
+        if !(ei_scale > 0.0 && gj_scale > 0.0 && ei_scale.is_finite() && gj_scale.is_finite()) {
+            return None;
+        }
         let l = &self.links[i];
         let f = state.frames;
         let start = f.joint_frame[l.body - 1].translation.vector;
-        let farthest = |it: &mut dyn Iterator<Item = Vector3<f64>>| {
-            it.max_by(|a, b| (a - start).norm_squared().total_cmp(&(b - start).norm_squared()))
+        let mut end = None;
+        let mut farthest = -1.0;
+        let mut consider = |p: &Vector3<f64>| {
+            let d = (p - start).norm_squared();
+            if d > farthest {
+                (farthest, end) = (d, Some(*p));
+            }
         };
-        let end = if l.children.is_empty() {
-            farthest(&mut l.points.iter().map(|&p| f.point[p].translation.vector))
+        if l.children.is_empty() {
+            l.points.iter().for_each(|&p| consider(&f.point[p].translation.vector));
         } else {
-            farthest(&mut l.children.iter().map(|&c| f.joint_frame[c].translation.vector))
-        }?;
-        if !(ei_scale > 0.0 && gj_scale > 0.0 && ei_scale.is_finite() && gj_scale.is_finite()) {
-            return None;
+            l.children
+                .iter()
+                .for_each(|&c| consider(&f.joint_frame[c].translation.vector));
         }
         let r = l.rigidity;
         let rigidity = BeamRigidity {
@@ -375,7 +398,7 @@ impl CantileverModel {
             ei_z: r.ei_z * ei_scale,
             gj: r.gj * gj_scale,
         };
-        Beam::new(start, end, &f.body[l.body].rotation, rigidity)
+        Beam::new(start, end?, &f.body[l.body].rotation, rigidity)
     }
 
     /// World displacement and rotation of the material point at `p` of link `i`.
@@ -388,19 +411,18 @@ impl CantileverModel {
     ) -> (Vector3<f64>, Vector3<f64>) {
         let l = &self.links[i];
         let s = beam.station(p);
-        let mut u = Vector3::zeros();
-        let mut th = Vector3::zeros();
+        let mut bending = Bending::default();
         let own = state.mass.bodies[l.body].mass;
         if own != 0.0 {
             // A section longer than its free length is partly inside its parent, which carries
             // that part; one extended past its length spreads its whole weight.
             let spread = l.section_length.map_or(beam.length, |ls| ls.max(beam.length));
-            beam.add_uniform(s, &(state.gravity * (own / spread)), &mut u, &mut th);
+            beam.add_uniform(s, &(state.gravity * (own / spread)), &mut bending);
         }
         for &c in &l.children {
             let seat = state.frames.joint_frame[c].translation.vector;
             let (force, moment) = subtree_wrench(state, c + 1, &seat);
-            add_offset_load(beam, s, &seat, &force, &moment, &mut u, &mut th);
+            add_offset_load(beam, s, &seat, &force, &moment, &mut bending);
         }
         if let Some(pl) = &state.mass.payload
             && pl.body == l.body
@@ -413,10 +435,10 @@ impl CantileverModel {
                 &at,
                 &(state.gravity * pl.mass),
                 &Vector3::zeros(),
-                &mut u,
-                &mut th,
+                &mut bending,
             );
         }
+        let (u, th) = beam.motion(&bending);
         let r = p - beam.axis_point(s);
         (u + th.cross(&r), th)
     }
@@ -424,18 +446,10 @@ impl CantileverModel {
 
 /// A force `f` at world point `at` with couple `m` there, moved onto the axis.
 #[inline]
-fn add_offset_load(
-    beam: &Beam,
-    s: f64,
-    at: &Vector3<f64>,
-    f: &Vector3<f64>,
-    m: &Vector3<f64>,
-    u: &mut Vector3<f64>,
-    th: &mut Vector3<f64>,
-) {
+fn add_offset_load(beam: &Beam, s: f64, at: &Vector3<f64>, f: &Vector3<f64>, m: &Vector3<f64>, b: &mut Bending) {
     let a = beam.station(at);
     let arm = at - beam.axis_point(a);
-    beam.add_point(s, a, f, &(m + arm.cross(f)), u, th);
+    beam.add_point(s, a, f, &(m + arm.cross(f)), b);
 }
 
 impl ErrorModel for CantileverModel {

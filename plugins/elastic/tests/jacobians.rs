@@ -418,3 +418,51 @@ fn perturbed_fk_from_the_rigid_frames_is_the_full_evaluation() {
         assert_ne!(full.point[r.tool()], rigid.point[r.tool()]);
     }
 }
+
+/// The deformation of a tree whose geometry is stepped at one joint, evaluated from the
+/// unstepped tree's rigid frames before that joint, is the full evaluation's, bit for bit, for a
+/// step of every chain parameter.
+#[test]
+fn deformation_from_a_rigid_prefix_is_the_full_evaluation() {
+    let r = robot(ARM);
+    let conditions = armcomp_core::Conditions::default();
+    let mut base = r.workspace();
+    r.deformation_into(r.tree(), r.error_values(), &Q, conditions, &mut base);
+    let (mut full, mut from_prefix) = (r.workspace(), r.workspace());
+    let mut tested_after_the_first = false;
+    for k in 0..r.chain_values().len() {
+        let mut values = r.chain_values().to_vec();
+        values[k] += 1e-3;
+        let stepped = r.tree_for(&values).expect("stepped tree");
+        let first = (0..stepped.joints().len())
+            .find(|&j| stepped.joints()[j].placement != r.tree().joints()[j].placement)
+            .unwrap_or(stepped.joints().len());
+        tested_after_the_first |= first > 0;
+        r.deformation_into(&stepped, r.error_values(), &Q, conditions, &mut full);
+        // Whatever the workspace held before (another configuration) must not survive.
+        r.deformation_into(
+            r.tree(),
+            r.error_values(),
+            &[0.1, -0.2, 0.05, 0.3],
+            conditions,
+            &mut from_prefix,
+        );
+        r.deformation_from_prefix_into(
+            &stepped,
+            r.error_values(),
+            &Q,
+            conditions,
+            &base.rigid,
+            first,
+            &mut from_prefix,
+        );
+        assert_eq!(from_prefix.rigid.body, full.rigid.body, "parameter {k}");
+        assert_eq!(from_prefix.rigid.point, full.rigid.point, "parameter {k}");
+        assert_eq!(from_prefix.perturbation, full.perturbation, "parameter {k}");
+        assert_ne!(
+            full.perturbation, base.perturbation,
+            "parameter {k} changes the deformation"
+        );
+    }
+    assert!(tested_after_the_first);
+}

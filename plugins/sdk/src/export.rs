@@ -284,6 +284,7 @@ impl Default for PerturbBuffers {
                 joint_frame: Vec::new(),
                 point: Vec::new(),
                 joint_value: Vec::new(),
+                motion: Vec::new(),
             },
             mass: MassModel::massless(0),
             loads: SubtreeLoads::default(),
