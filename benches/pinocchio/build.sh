@@ -5,15 +5,18 @@
 #   benches/pinocchio/build.sh [--native] [OUT_DIR]
 #
 # OUT_DIR defaults to $CARGO_TARGET_DIR/pinocchio (target/pinocchio): the virtual environment
-# and the library go there, never into the source tree. --native adds -march=native (faster
-# on this CPU, a library other CPUs may not run). The last line printed is the library's path.
+# and the library go there, never into the source tree. --native adds -march=native and names
+# the library libpinshim_native.so (tuned to this CPU; other CPUs may not run it). The last
+# line printed is the library's path.
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(cd "$here/../.." && pwd)"
 march=()
+name=libpinshim.so
 if [[ "${1:-}" == "--native" ]]; then
   march=(-march=native)
+  name=libpinshim_native.so
   shift
 fi
 out="${1:-${CARGO_TARGET_DIR:-$root/target}/pinocchio}"
@@ -43,7 +46,8 @@ prefix="$("$out/venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths
   -DPINOCCHIO_URDFDOM_HEADERS_MINOR_VERSION=0 -DPINOCCHIO_URDFDOM_HEADERS_PATCH_VERSION=0 \
   -I"$prefix/include" -I"$prefix/include/eigen3" -I"$prefix/include/urdfdom_headers" \
   -I"$prefix/include/urdfdom" \
-  "$here/shim.cpp" -o "$out/libpinshim.so" \
-  -L"$prefix/lib" -Wl,-rpath,"$prefix/lib" -lpinocchio_parsers -lpinocchio_default -lurdfdom_model
+  "$here/shim.cpp" -o "$out/$name" \
+  -L"$prefix/lib" -Wl,-rpath,"$prefix/lib" -lpinocchio_parsers -lpinocchio_default -lurdfdom_model \
+  -lconsole_bridge
 
-echo "$out/libpinshim.so"
+echo "$out/$name"

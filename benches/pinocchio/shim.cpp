@@ -12,6 +12,8 @@
 #include <exception>
 #include <string>
 
+#include <console_bridge/console.h>
+
 #include "pinocchio/algorithm/frames.hpp"
 #include "pinocchio/algorithm/jacobian.hpp"
 #include "pinocchio/algorithm/kinematics.hpp"
@@ -94,6 +96,9 @@ const char* pinshim_last_error() { return last_error.c_str(); }
 int pinshim_load(const char* path, int mimic, Handle** handle) {
   return guarded([&] {
     if (path == nullptr || handle == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
+    // urdfdom's warnings (undefined visual materials in some published URDFs) would interleave
+    // with the bench's table; errors still print.
+    console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_ERROR);
     auto* h = new Handle();
     try {
       pinocchio::urdf::buildModel(std::string(path), h->model, false, mimic != 0);
