@@ -64,9 +64,18 @@ fn run(shim: OsString) -> Result<(), String> {
     println!("ratio = armcomp / pinocchio per round, then its median [quartiles]");
     for (file, tool_link) in ROBOTS {
         let bench = Bench::new(&shim, &dir.join(file), tool_link).map_err(|e| format!("{file}: {e}"))?;
-        bench.check().map_err(|e| format!("{file}: armcomp and pinocchio disagree: {e}"))?;
-        println!("\n{file} (nq {}, tool at `{tool_link}`): checked, agree within {TOLERANCE:e}", bench.nq);
-        println!("{:<24} {:>26} {:>26} {:>24}", "", "armcomp", "pinocchio", "armcomp/pinocchio");
+        let (position, entry) = bench
+            .check()
+            .map_err(|e| format!("{file}: armcomp and pinocchio disagree: {e}"))?;
+        println!(
+            "\n{file} (nq {}, tool at `{tool_link}`): agree on every configuration, largest differences \
+             {position:.1e} m (positions), {entry:.1e} (rotation and Jacobian entries)",
+            bench.nq
+        );
+        println!(
+            "{:<24} {:>26} {:>26} {:>24}",
+            "", "armcomp", "pinocchio", "armcomp/pinocchio"
+        );
         for row in time(bench.rows())? {
             println!("{row}");
         }
@@ -131,7 +140,10 @@ impl<'s> Bench<'s> {
         for name in tree.coordinate_names() {
             let j = pin.joint(name)?;
             if j.nv != 1 || !(j.nq == 1 || j.nq == 2) {
-                return Err(format!("pinocchio's joint `{name}` has {} q values and {} velocities", j.nq, j.nv));
+                return Err(format!(
+                    "pinocchio's joint `{name}` has {} q values and {} velocities",
+                    j.nq, j.nv
+                ));
             }
             q_covered[j.idx_q..j.idx_q + j.nq].fill(true);
             v_covered[j.idx_v] = true;
@@ -175,11 +187,13 @@ impl<'s> Bench<'s> {
         })
     }
 
-    /// Every configuration's results from both sides, compared.
-    fn check(&self) -> Result<(), String> {
+    /// Every configuration's results from both sides, compared: the largest differences of
+    /// positions (m) and of rotation and Jacobian entries.
+    fn check(&self) -> Result<(f64, f64), String> {
         let (nq, nv, tool) = (self.nq, self.pin.nv, self.tool.tool());
         let mut ws = TreeWorkspace::new(self.tool.tree());
         let mut jac = Matrix6xX::zeros(nq);
+        let (mut position, mut entry) = (0.0f64, 0.0f64);
 
         let mut a = vec![0.0; N * POSE];
         let mut p = vec![0.0; N * 12];
@@ -187,12 +201,14 @@ impl<'s> Bench<'s> {
         self.pin.fk_frame(self.tool_frame, &self.pin_qs, &mut p, 12)?;
         for (i, (a, p)) in a.chunks_exact(POSE).zip(p.chunks_exact(12)).enumerate() {
             let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(a[6], a[3], a[4], a[5]));
-            let r = r.to_rotation_matrix();
             let d = max_difference(&a[..3], &p[..3]);
-            let dr = max_difference(r.matrix().as_slice(), &p[3..]);
+            let dr = max_difference(r.to_rotation_matrix().matrix().as_slice(), &p[3..]);
             if d > TOLERANCE || dr > TOLERANCE {
-                return Err(format!("FK to the tool, configuration {i}: position {d:e} m, rotation {dr:e} apart"));
+                return Err(format!(
+                    "FK to the tool, configuration {i}: position {d:e} m, rotation {dr:e} apart"
+                ));
             }
+            (position, entry) = (position.max(d), entry.max(dr));
         }
 
         let width = 3 * self.link_frames.len();
@@ -205,26 +221,31 @@ impl<'s> Bench<'s> {
             if d > TOLERANCE {
                 return Err(format!("all frames, configuration {i}: a link position {d:e} m apart"));
             }
+            position = position.max(d);
         }
 
         let (mut a, mut p) = (vec![0.0; N * 6 * nq], vec![0.0; N * 6 * nv]);
         fk_jacobian(self.tool.tree(), tool, &self.qs, &mut ws, &mut jac, &mut a, 6 * nq);
         let compare = |what: &str, p: &[f64]| {
+            let mut largest = 0.0f64;
             for (i, (a, p)) in a.chunks_exact(6 * nq).zip(p.chunks_exact(6 * nv)).enumerate() {
                 for (c, &pc) in self.pin_column.iter().enumerate() {
                     let d = max_difference(&a[6 * c..6 * c + 6], &p[6 * pc..6 * pc + 6]);
                     if d > TOLERANCE {
                         return Err(format!("{what}, configuration {i}, column {c}: {d:e} apart"));
                     }
+                    largest = largest.max(d);
                 }
             }
-            Ok(())
+            Ok(largest)
         };
         self.pin.frame_jacobian(self.tool_frame, &self.pin_qs, &mut p, 6 * nv)?;
-        compare("Jacobian from q (computeFrameJacobian)", &p)?;
+        entry = entry.max(compare("Jacobian from q (computeFrameJacobian)", &p)?);
         p.fill(f64::NAN);
-        self.pin.joint_jacobians_then_frame(self.tool_frame, &self.pin_qs, &mut p, 6 * nv)?;
-        compare("Jacobian after FK (getFrameJacobian)", &p)
+        self.pin
+            .joint_jacobians_then_frame(self.tool_frame, &self.pin_qs, &mut p, 6 * nv)?;
+        entry = entry.max(compare("Jacobian after FK (getFrameJacobian)", &p)?);
+        Ok((position, entry))
     }
 
     /// The timed rows. Each side is a loop over every configuration writing one result slot
@@ -275,7 +296,15 @@ impl<'s> Bench<'s> {
                 armcomp: Work::Loop(Box::new({
                     let (mut ws, mut jac, mut out) = (ws(), jac(), vec![0.0; 6 * nq]);
                     move |r| {
-                        fk_jacobian(tool_tree, tool, black_box(rows(qs, nq, r)), &mut ws, &mut jac, &mut out, 0);
+                        fk_jacobian(
+                            tool_tree,
+                            tool,
+                            black_box(rows(qs, nq, r)),
+                            &mut ws,
+                            &mut jac,
+                            &mut out,
+                            0,
+                        );
                         black_box(&out);
                         Ok(())
                     }
@@ -293,7 +322,15 @@ impl<'s> Bench<'s> {
                     Box::new({
                         let (mut ws, mut jac, mut out) = (ws(), jac(), vec![0.0; 6 * nq]);
                         move |r| {
-                            fk_jacobian(tool_tree, tool, black_box(rows(qs, nq, r)), &mut ws, &mut jac, &mut out, 0);
+                            fk_jacobian(
+                                tool_tree,
+                                tool,
+                                black_box(rows(qs, nq, r)),
+                                &mut ws,
+                                &mut jac,
+                                &mut out,
+                                0,
+                            );
                             black_box(&out);
                             Ok(())
                         }
@@ -493,7 +530,8 @@ type Load = unsafe extern "C" fn(*const c_char, c_int, *mut *mut c_void) -> c_in
 type Free = unsafe extern "C" fn(*mut c_void);
 type LastError = unsafe extern "C" fn() -> *const c_char;
 type Dims = unsafe extern "C" fn(*const c_void, *mut usize, *mut usize, *mut usize) -> c_int;
-type JointIndex = unsafe extern "C" fn(*const c_void, *const c_char, *mut usize, *mut usize, *mut usize, *mut usize) -> c_int;
+type JointIndex =
+    unsafe extern "C" fn(*const c_void, *const c_char, *mut usize, *mut usize, *mut usize, *mut usize) -> c_int;
 type FrameId = unsafe extern "C" fn(*const c_void, *const c_char, *mut usize) -> c_int;
 /// `(handle, frame, n, qs, out, out_stride)`.
 type FrameLoop = unsafe extern "C" fn(*mut c_void, usize, usize, *const f64, *mut f64, usize) -> c_int;
@@ -523,12 +561,17 @@ impl Shim {
     fn open(path: &OsString) -> Result<Shim, String> {
         let shown = Path::new(path).display().to_string();
         // SAFETY: loading runs the library's initialisers; it is the shim the user built and named.
-        let library = unsafe { Library::new(path) }.map_err(|e| format!("{SHIM_VARIABLE}={shown}: {e}"))?;
+        let library =
+            unsafe { Library::new(path) }.map_err(|e| format!("{SHIM_VARIABLE}={shown}: {}", with_source(&e)))?;
         macro_rules! symbol {
             ($name:literal) => {
                 // SAFETY: shim.cpp defines the symbol with this signature.
-                *unsafe { library.get(concat!($name, "\0").as_bytes()) }
-                    .map_err(|e| format!("{shown} is not the shim of benches/pinocchio: {e}"))?
+                *unsafe { library.get(concat!($name, "\0").as_bytes()) }.map_err(|e| {
+                    format!(
+                        "{shown} is not the shim of benches/pinocchio: {}",
+                        with_source(&e)
+                    )
+                })?
             };
         }
         Ok(Shim {
@@ -553,7 +596,9 @@ impl Shim {
             return Ok(());
         }
         // SAFETY: the shim returns a NUL-terminated string owned by the calling thread.
-        let message = unsafe { CStr::from_ptr((self.last_error)()) }.to_string_lossy().into_owned();
+        let message = unsafe { CStr::from_ptr((self.last_error)()) }
+            .to_string_lossy()
+            .into_owned();
         Err(format!("pinocchio, {what}: {message} (code {code})"))
     }
 }
@@ -580,7 +625,10 @@ impl<'s> PinModel<'s> {
         let path = c_string(&urdf.display().to_string())?;
         let mut handle = std::ptr::null_mut();
         // SAFETY: a NUL-terminated path and a place for the handle.
-        shim.status(unsafe { (shim.load)(path.as_ptr(), 1, &mut handle) }, "reading the URDF")?;
+        shim.status(
+            unsafe { (shim.load)(path.as_ptr(), 1, &mut handle) },
+            "reading the URDF",
+        )?;
         let mut model = PinModel {
             shim,
             handle,
@@ -603,7 +651,16 @@ impl<'s> PinModel<'s> {
             nv: 0,
         };
         // SAFETY: a live handle, a NUL-terminated name and four places for the answer.
-        let code = unsafe { (self.shim.joint)(self.handle, c.as_ptr(), &mut j.idx_q, &mut j.nq, &mut j.idx_v, &mut j.nv) };
+        let code = unsafe {
+            (self.shim.joint)(
+                self.handle,
+                c.as_ptr(),
+                &mut j.idx_q,
+                &mut j.nq,
+                &mut j.idx_v,
+                &mut j.nv,
+            )
+        };
         self.shim.status(code, &format!("joint `{name}`"))?;
         if j.idx_q + j.nq > self.nq || j.idx_v + j.nv > self.nv {
             return Err(format!("pinocchio's joint `{name}` lies outside its q or velocity"));
@@ -624,7 +681,11 @@ impl<'s> PinModel<'s> {
     fn count(&self, qs: &[f64], out: &[f64], width: usize, stride: usize) -> Result<usize, String> {
         let n = qs.len() / self.nq;
         if qs.len() != n * self.nq || n == 0 || out.len() < (n - 1) * stride + width {
-            return Err(format!("{} q values or {} outputs for {n} configurations", qs.len(), out.len()));
+            return Err(format!(
+                "{} q values or {} outputs for {n} configurations",
+                qs.len(),
+                out.len()
+            ));
         }
         Ok(n)
     }
@@ -636,7 +697,15 @@ impl<'s> PinModel<'s> {
         Ok(())
     }
 
-    fn frame_loop(&self, f: FrameLoop, frame: usize, qs: &[f64], out: &mut [f64], width: usize, stride: usize) -> Result<(), String> {
+    fn frame_loop(
+        &self,
+        f: FrameLoop,
+        frame: usize,
+        qs: &[f64],
+        out: &mut [f64],
+        width: usize,
+        stride: usize,
+    ) -> Result<(), String> {
         self.check_frame(frame)?;
         let n = self.count(qs, out, width, stride)?;
         // SAFETY: sizes checked above: `qs` holds n configurations and `out` n results at `stride`.
@@ -657,7 +726,15 @@ impl<'s> PinModel<'s> {
         let n = self.count(qs, out, 3 * frames.len(), stride)?;
         // SAFETY: frames exist; `qs` holds n configurations and `out` n results at `stride`.
         let code = unsafe {
-            (self.shim.fk_all)(self.handle, frames.as_ptr(), frames.len(), n, qs.as_ptr(), out.as_mut_ptr(), stride)
+            (self.shim.fk_all)(
+                self.handle,
+                frames.as_ptr(),
+                frames.len(),
+                n,
+                qs.as_ptr(),
+                out.as_mut_ptr(),
+                stride,
+            )
         };
         self.shim.status(code, "all frames")
     }
@@ -668,8 +745,21 @@ impl<'s> PinModel<'s> {
     }
 
     /// computeJointJacobians, then getFrameJacobian as [`frame_jacobian`](Self::frame_jacobian).
-    fn joint_jacobians_then_frame(&self, frame: usize, qs: &[f64], out: &mut [f64], stride: usize) -> Result<(), String> {
-        self.frame_loop(self.shim.joint_jacobians_then_frame, frame, qs, out, 6 * self.nv, stride)
+    fn joint_jacobians_then_frame(
+        &self,
+        frame: usize,
+        qs: &[f64],
+        out: &mut [f64],
+        stride: usize,
+    ) -> Result<(), String> {
+        self.frame_loop(
+            self.shim.joint_jacobians_then_frame,
+            frame,
+            qs,
+            out,
+            6 * self.nv,
+            stride,
+        )
     }
 
     /// computeJointJacobians alone.
@@ -685,6 +775,14 @@ impl Drop for PinModel<'_> {
     fn drop(&mut self) {
         // SAFETY: the handle came from `load` and is freed once.
         unsafe { (self.shim.free)(self.handle) }
+    }
+}
+
+/// libloading's message and the system's reason under it.
+fn with_source(e: &libloading::Error) -> String {
+    match std::error::Error::source(e) {
+        Some(s) => format!("{e}: {s}"),
+        None => e.to_string(),
     }
 }
 

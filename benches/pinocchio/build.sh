@@ -15,7 +15,10 @@ root="$(cd "$here/../.." && pwd)"
 march=()
 name=libpinshim.so
 if [[ "${1:-}" == "--native" ]]; then
-  march=(-march=native)
+  # Eigen's alignment and heap allocator stay the wheel's (16 bytes, plain malloc): the Model
+  # the wheel's parser fills is used and freed here. GCC 12 warns about Eigen's 8-wide stores
+  # into 6-row blocks in pinocchio's composite joints, which URDFs never create.
+  march=(-march=native -DEIGEN_MAX_ALIGN_BYTES=16 -DEIGEN_MALLOC_ALREADY_ALIGNED=1 -Wno-stringop-overread)
   name=libpinshim_native.so
   shift
 fi
@@ -39,7 +42,11 @@ prefix="$("$out/venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths
 # The definitions are those of pinocchio's exported CMake targets (pinocchio_headers and
 # pinocchio_parsers) except PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION: without it the timed
 # algorithms are compiled here, with these flags, instead of called in the wheel's build.
+# Hidden visibility keeps this library's copies of pinocchio's templates to itself: exported,
+# they would replace the ones the wheel's URDF parser calls, and with --native their code would
+# not match the parser's.
 "${CXX:-c++}" -std=c++17 -O3 -DNDEBUG "${march[@]}" -fPIC -shared \
+  -fvisibility=hidden -fvisibility-inlines-hidden \
   -DBOOST_MPL_LIMIT_LIST_SIZE=30 -DBOOST_MPL_LIMIT_VECTOR_SIZE=30 \
   -DBOOST_MPL_CFG_NO_PREPROCESSED_HEADERS -DBOOST_FUSION_INVOKE_MAX_ARITY=12 \
   -DPINOCCHIO_WITH_URDFDOM -DPINOCCHIO_URDFDOM_HEADERS_MAJOR_VERSION=3 \

@@ -87,13 +87,15 @@ void write_pose(const pinocchio::SE3& m, double* out) {
 
 }  // namespace
 
+#define PINSHIM_API __attribute__((visibility("default")))
+
 extern "C" {
 
-const char* pinshim_last_error() { return last_error.c_str(); }
+PINSHIM_API const char* pinshim_last_error() { return last_error.c_str(); }
 
 // Reads the URDF at `path` (fixed base; with `mimic` nonzero, <mimic> joints follow the joint
 // they name instead of moving on their own) into a new handle.
-int pinshim_load(const char* path, int mimic, Handle** handle) {
+PINSHIM_API int pinshim_load(const char* path, int mimic, Handle** handle) {
   return guarded([&] {
     if (path == nullptr || handle == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
     // urdfdom's warnings (undefined visual materials in some published URDFs) would interleave
@@ -113,9 +115,9 @@ int pinshim_load(const char* path, int mimic, Handle** handle) {
   });
 }
 
-void pinshim_free(Handle* handle) { delete handle; }
+PINSHIM_API void pinshim_free(Handle* handle) { delete handle; }
 
-int pinshim_dims(const Handle* h, std::size_t* nq, std::size_t* nv, std::size_t* nframes) {
+PINSHIM_API int pinshim_dims(const Handle* h, std::size_t* nq, std::size_t* nv, std::size_t* nframes) {
   return guarded([&] {
     if (h == nullptr || nq == nullptr || nv == nullptr || nframes == nullptr)
       return fail(PINSHIM_ARGUMENT, "null pointer");
@@ -128,7 +130,7 @@ int pinshim_dims(const Handle* h, std::size_t* nq, std::size_t* nv, std::size_t*
 
 // Where joint `name` sits in q and in the velocity (Jacobian columns): first index and width.
 // A continuous joint takes two q values (cos, sin) and one velocity; a mimic joint none.
-int pinshim_joint(const Handle* h, const char* name, std::size_t* idx_q, std::size_t* nq, std::size_t* idx_v,
+PINSHIM_API int pinshim_joint(const Handle* h, const char* name, std::size_t* idx_q, std::size_t* nq, std::size_t* idx_v,
                   std::size_t* nv) {
   return guarded([&] {
     if (h == nullptr || name == nullptr || idx_q == nullptr || nq == nullptr || idx_v == nullptr || nv == nullptr)
@@ -144,7 +146,7 @@ int pinshim_joint(const Handle* h, const char* name, std::size_t* idx_q, std::si
 }
 
 // Id of the BODY frame of URDF link `name`.
-int pinshim_frame_id(const Handle* h, const char* name, std::size_t* id) {
+PINSHIM_API int pinshim_frame_id(const Handle* h, const char* name, std::size_t* id) {
   return guarded([&] {
     if (h == nullptr || name == nullptr || id == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
     if (!h->model.existFrame(name, pinocchio::BODY))
@@ -155,7 +157,7 @@ int pinshim_frame_id(const Handle* h, const char* name, std::size_t* id) {
 }
 
 // FK to one frame: forwardKinematics + updateFramePlacement; the frame's pose (12 values).
-int pinshim_fk_frame(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
+PINSHIM_API int pinshim_fk_frame(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
                      std::size_t out_stride) {
   return guarded([&] {
     if (int e = check_loop(h, frame, qs, out)) return e;
@@ -169,7 +171,7 @@ int pinshim_fk_frame(Handle* h, std::size_t frame, std::size_t n, const double* 
 }
 
 // All frames: framesForwardKinematics; the positions of `nsel` frames `sel` (3 values each).
-int pinshim_fk_all(Handle* h, const std::size_t* sel, std::size_t nsel, std::size_t n, const double* qs, double* out,
+PINSHIM_API int pinshim_fk_all(Handle* h, const std::size_t* sel, std::size_t nsel, std::size_t n, const double* qs, double* out,
                    std::size_t out_stride) {
   return guarded([&] {
     if (sel == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
@@ -190,7 +192,7 @@ int pinshim_fk_all(Handle* h, const std::size_t* sel, std::size_t nsel, std::siz
 
 // 6 x nv Jacobian of `frame` from q: computeFrameJacobian, LOCAL_WORLD_ALIGNED (rows 0-2 the
 // linear velocity of the frame's origin, 3-5 the angular velocity, world axes), column-major.
-int pinshim_frame_jacobian(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
+PINSHIM_API int pinshim_frame_jacobian(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
                            std::size_t out_stride) {
   return guarded([&] {
     if (int e = check_loop(h, frame, qs, out)) return e;
@@ -208,7 +210,7 @@ int pinshim_frame_jacobian(Handle* h, std::size_t frame, std::size_t n, const do
 // What getFrameJacobian needs first: computeJointJacobians (FK and every joint's Jacobian
 // column). Writes nothing; `pinshim_joint_jacobians_then_frame` minus this is the frame
 // Jacobian alone.
-int pinshim_joint_jacobians(Handle* h, std::size_t n, const double* qs) {
+PINSHIM_API int pinshim_joint_jacobians(Handle* h, std::size_t n, const double* qs) {
   return guarded([&] {
     if (h == nullptr || qs == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
     const auto nq = static_cast<std::size_t>(h->model.nq);
@@ -219,7 +221,7 @@ int pinshim_joint_jacobians(Handle* h, std::size_t n, const double* qs) {
 }
 
 // computeJointJacobians then getFrameJacobian of `frame` (LOCAL_WORLD_ALIGNED, as above).
-int pinshim_joint_jacobians_then_frame(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
+PINSHIM_API int pinshim_joint_jacobians_then_frame(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
                                        std::size_t out_stride) {
   return guarded([&] {
     if (int e = check_loop(h, frame, qs, out)) return e;
