@@ -11,6 +11,7 @@
 #include <cstring>
 #include <exception>
 #include <string>
+#include <utility>
 
 #include <console_bridge/console.h>
 
@@ -64,7 +65,6 @@ int guarded(F&& body) {
 }
 
 using ConstQ = Eigen::Map<const Eigen::VectorXd>;
-using Jacobian = Eigen::Map<pinocchio::Data::Matrix6x>;
 
 int check_loop(const Handle* h, std::size_t frame, const double* qs, const double* out) {
   if (h == nullptr || qs == nullptr || out == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
@@ -130,12 +130,14 @@ PINSHIM_API int pinshim_dims(const Handle* h, std::size_t* nq, std::size_t* nv, 
 
 // Where joint `name` sits in q and in the velocity (Jacobian columns): first index and width.
 // A continuous joint takes two q values (cos, sin) and one velocity; a mimic joint none.
-PINSHIM_API int pinshim_joint(const Handle* h, const char* name, std::size_t* idx_q, std::size_t* nq, std::size_t* idx_v,
-                  std::size_t* nv) {
+PINSHIM_API int pinshim_joint(const Handle* h, const char* name, std::size_t* idx_q, std::size_t* nq,
+                              std::size_t* idx_v, std::size_t* nv) {
   return guarded([&] {
-    if (h == nullptr || name == nullptr || idx_q == nullptr || nq == nullptr || idx_v == nullptr || nv == nullptr)
+    if (h == nullptr || name == nullptr || idx_q == nullptr || nq == nullptr || idx_v == nullptr ||
+        nv == nullptr)
       return fail(PINSHIM_ARGUMENT, "null pointer");
-    if (!h->model.existJointName(name)) return fail(PINSHIM_NOT_FOUND, std::string("no joint `") + name + "`");
+    if (!h->model.existJointName(name))
+      return fail(PINSHIM_NOT_FOUND, std::string("no joint `") + name + "`");
     const auto& joint = h->model.joints[h->model.getJointId(name)];
     *idx_q = static_cast<std::size_t>(joint.idx_q());
     *nq = static_cast<std::size_t>(joint.nq());
@@ -158,7 +160,7 @@ PINSHIM_API int pinshim_frame_id(const Handle* h, const char* name, std::size_t*
 
 // FK to one frame: forwardKinematics + updateFramePlacement; the frame's pose (12 values).
 PINSHIM_API int pinshim_fk_frame(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
-                     std::size_t out_stride) {
+                                 std::size_t out_stride) {
   return guarded([&] {
     if (int e = check_loop(h, frame, qs, out)) return e;
     const auto nq = static_cast<std::size_t>(h->model.nq);
@@ -171,12 +173,13 @@ PINSHIM_API int pinshim_fk_frame(Handle* h, std::size_t frame, std::size_t n, co
 }
 
 // All frames: framesForwardKinematics; the positions of `nsel` frames `sel` (3 values each).
-PINSHIM_API int pinshim_fk_all(Handle* h, const std::size_t* sel, std::size_t nsel, std::size_t n, const double* qs, double* out,
-                   std::size_t out_stride) {
+PINSHIM_API int pinshim_fk_all(Handle* h, const std::size_t* sel, std::size_t nsel, std::size_t n,
+                               const double* qs, double* out, std::size_t out_stride) {
   return guarded([&] {
     if (sel == nullptr) return fail(PINSHIM_ARGUMENT, "null pointer");
+    if (int e = check_loop(h, 0, qs, out)) return e;  // frame 0, the universe, always exists
     for (std::size_t k = 0; k < nsel; ++k)
-      if (int e = check_loop(h, sel[k], qs, out)) return e;
+      if (sel[k] >= h->model.frames.size()) return fail(PINSHIM_ARGUMENT, "frame id out of range");
     const auto nq = static_cast<std::size_t>(h->model.nq);
     for (std::size_t i = 0; i < n; ++i) {
       pinocchio::framesForwardKinematics(h->model, h->data, ConstQ(qs + i * nq, h->model.nq));
@@ -192,8 +195,8 @@ PINSHIM_API int pinshim_fk_all(Handle* h, const std::size_t* sel, std::size_t ns
 
 // 6 x nv Jacobian of `frame` from q: computeFrameJacobian, LOCAL_WORLD_ALIGNED (rows 0-2 the
 // linear velocity of the frame's origin, 3-5 the angular velocity, world axes), column-major.
-PINSHIM_API int pinshim_frame_jacobian(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
-                           std::size_t out_stride) {
+PINSHIM_API int pinshim_frame_jacobian(Handle* h, std::size_t frame, std::size_t n, const double* qs,
+                                       double* out, std::size_t out_stride) {
   return guarded([&] {
     if (int e = check_loop(h, frame, qs, out)) return e;
     const auto nq = static_cast<std::size_t>(h->model.nq);
@@ -221,8 +224,8 @@ PINSHIM_API int pinshim_joint_jacobians(Handle* h, std::size_t n, const double* 
 }
 
 // computeJointJacobians then getFrameJacobian of `frame` (LOCAL_WORLD_ALIGNED, as above).
-PINSHIM_API int pinshim_joint_jacobians_then_frame(Handle* h, std::size_t frame, std::size_t n, const double* qs, double* out,
-                                       std::size_t out_stride) {
+PINSHIM_API int pinshim_joint_jacobians_then_frame(Handle* h, std::size_t frame, std::size_t n,
+                                                   const double* qs, double* out, std::size_t out_stride) {
   return guarded([&] {
     if (int e = check_loop(h, frame, qs, out)) return e;
     const auto nq = static_cast<std::size_t>(h->model.nq);
