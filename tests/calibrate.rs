@@ -1049,6 +1049,7 @@ fn restarts_are_seeded_and_keep_the_lowest_cost() {
         let params = CalibrationParams {
             measurement_std: NOISE,
             restarts,
+            restart_converged: true,
             seed,
             ..Default::default()
         };

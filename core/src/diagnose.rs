@@ -417,6 +417,8 @@ fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
 /// robot file (those are always identified; an empty selection already includes them).
 fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> CalibrationParams {
     let mut out = params.calibration.clone();
+    // A candidate with a multimodal parameter is restarted: so is every fit it is compared with.
+    out.restart_converged = true;
     if !out.identify.is_empty() {
         let added = model.error_models().iter().skip(given);
         out.identify

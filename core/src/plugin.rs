@@ -123,6 +123,12 @@ pub trait ErrorModel: Debug + Send + Sync {
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation);
     /// The spec with `values` written back in the file's units, for model files.
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec>;
+    /// Whether the model, at parameter `values`, moves no frame and changes no load whatever
+    /// the configuration, geometry, loads and conditions (every compliance zero, say), so that
+    /// callers may skip it. `false`, the default, is always correct.
+    fn is_inactive(&self, _values: &[f64]) -> bool {
+        false
+    }
     /// Whether the model changes the loads every model sees ([`adjust_loads`](Self::adjust_loads)):
     /// a payload heavier than declared, a tilted gravity. Such a model acts only through the
     /// elastic models that respond to loads, with their own (identified) compliances.

@@ -489,21 +489,21 @@ impl Robot {
         self.deformation_at_rigid_into(tree, error_values, q, conditions, ws);
     }
 
-    /// [`deformation_into`](Robot::deformation_into) given `prefix`, an evaluation at the same
-    /// `q` of a tree whose joints before `first` are `tree`'s (see
-    /// [`KinematicTree::forward_from_prefix_into`]); the same bits.
+    /// [`deformation_into`](Robot::deformation_into) of a tree that differs from the one
+    /// `prefix` evaluated at the same `q` only in the placements of the joints `stepped` and in
+    /// its points (see [`KinematicTree::forward_restepped_into`]); the same bits.
     #[allow(clippy::too_many_arguments)]
-    pub fn deformation_from_prefix_into(
+    pub fn deformation_restepped_into(
         &self,
         tree: &KinematicTree,
         error_values: &[Vec<f64>],
         q: &[f64],
         conditions: Conditions,
         prefix: &TreeWorkspace,
-        first: usize,
+        stepped: &[usize],
         ws: &mut RobotWorkspace,
     ) {
-        tree.forward_from_prefix_into(q, prefix, first, &mut ws.rigid);
+        tree.forward_restepped_into(q, prefix, stepped, &mut ws.rigid);
         self.deformation_at_rigid_into(tree, error_values, q, conditions, ws);
     }
 
@@ -532,8 +532,19 @@ impl Robot {
             temperature: conditions.temperature,
         };
         for (m, v) in self.error_models.iter().zip(error_values) {
-            m.perturb(&state, v, &mut ws.perturbation);
+            if !m.is_inactive(v) {
+                m.perturb(&state, v, &mut ws.perturbation);
+            }
         }
+    }
+
+    /// Whether some error model deforms the robot at `error_values` (one list per model; see
+    /// [`ErrorModel::is_inactive`]).
+    pub fn deforms_at(&self, error_values: &[Vec<f64>]) -> bool {
+        self.error_models
+            .iter()
+            .zip(error_values)
+            .any(|(m, v)| !m.is_inactive(v))
     }
 
     /// The loads under `conditions` with the points of `tree` and error-model `values`:

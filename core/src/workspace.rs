@@ -70,13 +70,33 @@ impl KinematicTree {
         self.forward_impl(q, Some(pert), first, Some(rigid), ws);
     }
 
-    /// Rigid [`forward_into`](Self::forward_into) given `prefix`, an evaluation at the same `q`
-    /// of a tree whose joints before `first` are this tree's (what a step of a later joint's
-    /// geometry leaves): those joints are copied from it rather than recomputed. The same bits
-    /// as the full evaluation.
-    pub fn forward_from_prefix_into(&self, q: &[f64], prefix: &TreeWorkspace, first: usize, ws: &mut TreeWorkspace) {
+    /// Rigid [`forward_into`](Self::forward_into) of a tree that differs from the one `prefix`
+    /// evaluated at the same `q` only in the placements of the joints `stepped` (ascending) and
+    /// in its points (what a step of geometry leaves; the joints' motions and coordinates must
+    /// be the same): joints outside the subtrees of `stepped` are copied from `prefix`, the
+    /// others recomposed with the motions it holds (no sine or cosine). The same bits as the
+    /// full evaluation.
+    pub fn forward_restepped_into(&self, q: &[f64], prefix: &TreeWorkspace, stepped: &[usize], ws: &mut TreeWorkspace) {
+        debug_assert_eq!(q.len(), self.nq());
+        let first = stepped.first().map_or(self.joints.len(), |&j| j);
         copy_prefix(prefix, first, ws);
-        self.forward_impl(q, None, first, None, ws);
+        for (j, joint) in self.joints.iter().enumerate().skip(first) {
+            // A support lists the joints from the root down, so joint `a` (at depth
+            // `support[a + 1].len() − 1` of its own) carries body j + 1 iff it sits at that depth
+            // of body j + 1's support.
+            let carried = |a: &usize| self.support[j + 1].get(self.support[a + 1].len() - 1) == Some(a);
+            if stepped.iter().any(carried) {
+                let frame = ws.body[joint.parent] * joint.placement;
+                ws.joint_frame[j] = frame;
+                ws.body[j + 1] = compose_motion(&joint.motion, &frame, &prefix.motion[j]);
+            } else {
+                ws.joint_frame[j] = prefix.joint_frame[j];
+                ws.body[j + 1] = prefix.body[j + 1];
+            }
+            ws.joint_value[j] = prefix.joint_value[j];
+            ws.motion[j] = prefix.motion[j];
+        }
+        self.points_into(None, ws);
     }
 
     /// Evaluates joints `start..` (the ones before are in `ws` already) and every point; with
@@ -110,17 +130,13 @@ impl KinematicTree {
             ws.joint_value[j] = value;
             ws.joint_frame[j] = frame;
             ws.motion[j] = motion;
-            // `frame * motion` without the parts the motion leaves at identity (a rotation
-            // has no translation, a slide no rotation): the same values, fewer operations.
-            ws.body[j + 1] = match joint.motion {
-                Motion::Revolute(_) => Isometry3::from_parts(frame.translation, frame.rotation * motion.rotation),
-                Motion::Prismatic(_) => Isometry3::from_parts(
-                    (frame.translation.vector + frame.rotation * motion.translation.vector).into(),
-                    frame.rotation,
-                ),
-                Motion::Fixed => frame,
-            };
+            ws.body[j + 1] = compose_motion(&joint.motion, &frame, &motion);
         }
+        self.points_into(pert, ws);
+    }
+
+    /// Every point's pose from the bodies in `ws`, each deformed by its twist in `pert`.
+    fn points_into(&self, pert: Option<&Perturbation>, ws: &mut TreeWorkspace) {
         for (i, point) in self.points.iter().enumerate() {
             let mut pose = ws.body[point.body] * point.local;
             if let Some(p) = pert
@@ -210,6 +226,20 @@ impl KinematicTree {
             Coordinate::Mimic(c) => c.terms.iter().for_each(|(i, k)| f(*i, *k)),
             Coordinate::None => {}
         }
+    }
+}
+
+/// `frame * motion` without the parts a motion leaves at identity (a rotation has no
+/// translation, a slide no rotation): the same values, fewer operations.
+#[inline]
+fn compose_motion(kind: &Motion, frame: &Isometry3<f64>, motion: &Isometry3<f64>) -> Isometry3<f64> {
+    match kind {
+        Motion::Revolute(_) => Isometry3::from_parts(frame.translation, frame.rotation * motion.rotation),
+        Motion::Prismatic(_) => Isometry3::from_parts(
+            (frame.translation.vector + frame.rotation * motion.translation.vector).into(),
+            frame.rotation,
+        ),
+        Motion::Fixed => *frame,
     }
 }
 

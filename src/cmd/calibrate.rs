@@ -41,7 +41,8 @@ pub struct Args {
     #[arg(long, default_value = "1")]
     prior: Prior,
     /// Restarts from perturbed starts when the fit ends more than 1.5 times above the noise
-    /// (a local minimum, or an effect the model lacks); the lowest cost is kept.
+    /// (a local minimum, or an effect the model lacks) and a free parameter has several minima
+    /// (backlash, rigidity scales) or the fit did not converge; the lowest cost is kept.
     #[arg(long, default_value_t = 2)]
     restarts: usize,
     /// Seed of the restarts' perturbations; the same seed gives the same bytes.

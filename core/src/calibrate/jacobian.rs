@@ -124,7 +124,7 @@ impl Problem<'_> {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
                         let tree = space.tree(self.robot, &t)?;
-                        let deformed = form == JacobianForm::Exact && !self.robot.error_models().is_empty();
+                        let deformed = form == JacobianForm::Exact && self.robot.deforms_at(&d.errors);
                         geometry_plan(&d.tree, tree, h, deformed)
                     }
                 })
@@ -223,12 +223,9 @@ impl Problem<'_> {
                                 deformation,
                             } => {
                                 let mut dp = Vector3::zeros();
-                                if let Some((tree, h)) = deformation {
-                                    // `joints` lists the stepped placements in order; the
-                                    // joints before the first keep their rigid frames.
-                                    let first = joints.first().map_or(tree.joints().len(), |&(j, _)| j);
-                                    self.robot.deformation_from_prefix_into(
-                                        tree, &d.errors, &s.q, cond, &ws.rigid, first, ws_fd,
+                                if let Some((tree, stepped, h)) = deformation {
+                                    self.robot.deformation_restepped_into(
+                                        tree, &d.errors, &s.q, cond, &ws.rigid, stepped, ws_fd,
                                     );
                                     scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
                                     dp += sensitivity.effect(scratch);
@@ -306,7 +303,7 @@ pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64
         let xi = Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z);
         (xi != Vector6::zeros()).then_some(xi)
     };
-    let joints = tree
+    let joints: Vec<(usize, Vector6<f64>)> = tree
         .joints()
         .iter()
         .zip(stepped.joints())
@@ -320,10 +317,14 @@ pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64
         .enumerate()
         .filter_map(|(i, (a, b))| twist(&a.local, &b.local).map(|xi| (i, xi)))
         .collect();
+    let deformation = deformed.then(|| {
+        let moved = joints.iter().map(|&(j, _)| j).collect();
+        (stepped, moved, h)
+    });
     ColumnPlan::Twists {
         joints,
         points,
-        deformation: deformed.then_some((stepped, h)),
+        deformation,
     }
 }
 

@@ -131,8 +131,14 @@ pub struct CalibrationParams {
     /// this many times from perturbed starts, keeping the lowest cost: every parameter with a
     /// prior moved by a normal draw of its prior standard deviation, and parameters along
     /// which the cost has several minima ([`ParamInfo::multimodal`]: backlash, scales) by
-    /// their typical size as well.
+    /// their typical size as well. Only fits where another minimum is likely are restarted: a
+    /// multimodal parameter is free or the fit did not converge (see
+    /// [`restart_converged`](Self::restart_converged)).
     pub restarts: usize,
+    /// Also restart converged fits whose free parameters have one minimum each (geometry,
+    /// compliances), where restarts rarely find a lower cost: the diagnosis does, so that a
+    /// baseline gets the restarts its candidates get.
+    pub restart_converged: bool,
     /// Seed of the restarts' perturbations; the same seed gives the same fit.
     pub seed: u64,
 }
@@ -154,6 +160,7 @@ impl Default for CalibrationParams {
             use_priors: true,
             prior_scale: 1.0,
             restarts: 2,
+            restart_converged: false,
             seed: 0,
         }
     }
@@ -326,13 +333,13 @@ enum JacobianForm {
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
 enum ColumnPlan {
     /// Geometry acting through joint placements and point frames: the twist per unit of the
-    /// parameter at each joint frame and point it moves. With `deformation` (the stepped tree
-    /// and the step), the exact form: the change of the error models' deformation the step
+    /// parameter at each joint frame and point it moves. With `deformation`, the exact form: the change of the error models' deformation the step
     /// causes (its moment arms) is added, to first order at the deformed frames.
     Twists {
         joints: Vec<(usize, Vector6<f64>)>,
         points: Vec<(usize, Vector6<f64>)>,
-        deformation: Option<(KinematicTree, f64)>,
+        /// The stepped tree, its stepped joints (ascending) and the step.
+        deformation: Option<(KinematicTree, Vec<usize>, f64)>,
     },
     /// Geometry that changes a joint's motion: finite differences of the full model.
     Finite { tree: KinematicTree, h: f64 },
@@ -492,7 +499,9 @@ pub fn calibrate(
         outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
     }
     let mut restarts_rms_mm = Vec::new();
-    if !free.is_empty() && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
+    let another_minimum_likely =
+        params.restart_converged || !outcome.converged || free.iter().any(|&k| held_space.params[k].info.multimodal);
+    if !free.is_empty() && another_minimum_likely && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
         let mut best_cost = problem.cost(&stage, &theta0, &free);
         let mut rng = StdRng::seed_from_u64(params.seed);
         for _ in 0..params.restarts {

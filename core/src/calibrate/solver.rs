@@ -66,9 +66,16 @@ impl LeastSquares for StageFit<'_, '_> {
     }
 
     /// Deformed robots iterate on the fast form while it makes progress, and finish on the
-    /// exact one, so the minimum and the convergence test are those of the true model.
+    /// exact one, so the minimum and the convergence test are those of the true model. Error
+    /// models that deform nothing and stay so (none of their parameters free) leave the two
+    /// forms the same.
     fn has_approximate_jacobian(&self) -> bool {
-        !self.problem.robot.error_models().is_empty()
+        let space = self.problem.space;
+        self.problem.robot.deforms_at(&self.stage.d.errors)
+            || self
+                .free
+                .iter()
+                .any(|&k| matches!(space.params[k].group, ParamGroup::ErrorModel(_)))
     }
 
     fn bounds(&self) -> Option<(&[f64], &[f64])> {

@@ -146,6 +146,9 @@ impl ErrorModel for JointComplianceModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         for (cj, &c) in self.joints.iter().zip(values) {
+            if c == 0.0 {
+                continue;
+            }
             let mut load = joint_gravity_load(state, cj.joint);
             for &(m, k) in &cj.followers {
                 load += k * joint_gravity_load(state, m);
@@ -156,6 +159,10 @@ impl ErrorModel for JointComplianceModel {
                 out.joint_offset[m] += k * dq;
             }
         }
+    }
+
+    fn is_inactive(&self, values: &[f64]) -> bool {
+        values.iter().all(|&c| c == 0.0)
     }
 
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {

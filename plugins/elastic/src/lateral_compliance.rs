@@ -126,13 +126,21 @@ impl ErrorModel for LateralComplianceModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         for (i, l) in self.joints.iter().enumerate() {
+            let (cu, cv) = (values[2 * i], values[2 * i + 1]);
+            if cu == 0.0 && cv == 0.0 {
+                continue;
+            }
             let frame = &state.frames.joint_frame[l.joint];
             let origin = frame.translation.vector;
             let (_, m) = subtree_wrench(state, l.joint + 1, &origin);
             let m_local = frame.rotation.inverse_transform_vector(&m);
-            let d = l.u * (values[2 * i] * l.u.dot(&m_local)) + l.v * (values[2 * i + 1] * l.v.dot(&m_local));
+            let d = l.u * (cu * l.u.dot(&m_local)) + l.v * (cv * l.v.dot(&m_local));
             out.joint_twist[l.joint] += Vector6::new(0.0, 0.0, 0.0, d.x, d.y, d.z);
         }
+    }
+
+    fn is_inactive(&self, values: &[f64]) -> bool {
+        values.iter().all(|&c| c == 0.0)
     }
 
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {

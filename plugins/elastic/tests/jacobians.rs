@@ -420,49 +420,107 @@ fn perturbed_fk_from_the_rigid_frames_is_the_full_evaluation() {
 }
 
 /// The deformation of a tree whose geometry is stepped at one joint, evaluated from the
-/// unstepped tree's rigid frames before that joint, is the full evaluation's, bit for bit, for a
-/// step of every chain parameter.
+/// unstepped tree's rigid frames and motions, is the full evaluation's, bit for bit, for a step
+/// of every chain parameter.
 #[test]
-fn deformation_from_a_rigid_prefix_is_the_full_evaluation() {
+fn deformation_of_a_restepped_tree_is_the_full_evaluation() {
     let r = robot(ARM);
     let conditions = armcomp_core::Conditions::default();
     let mut base = r.workspace();
     r.deformation_into(r.tree(), r.error_values(), &Q, conditions, &mut base);
-    let (mut full, mut from_prefix) = (r.workspace(), r.workspace());
+    let (mut full, mut restepped) = (r.workspace(), r.workspace());
     let mut tested_after_the_first = false;
     for k in 0..r.chain_values().len() {
         let mut values = r.chain_values().to_vec();
         values[k] += 1e-3;
-        let stepped = r.tree_for(&values).expect("stepped tree");
-        let first = (0..stepped.joints().len())
-            .find(|&j| stepped.joints()[j].placement != r.tree().joints()[j].placement)
-            .unwrap_or(stepped.joints().len());
-        tested_after_the_first |= first > 0;
-        r.deformation_into(&stepped, r.error_values(), &Q, conditions, &mut full);
+        let tree = r.tree_for(&values).expect("stepped tree");
+        let stepped: Vec<usize> = (0..tree.joints().len())
+            .filter(|&j| tree.joints()[j].placement != r.tree().joints()[j].placement)
+            .collect();
+        tested_after_the_first |= stepped.first().is_some_and(|&j| j > 0);
+        r.deformation_into(&tree, r.error_values(), &Q, conditions, &mut full);
         // Whatever the workspace held before (another configuration) must not survive.
         r.deformation_into(
             r.tree(),
             r.error_values(),
             &[0.1, -0.2, 0.05, 0.3],
             conditions,
-            &mut from_prefix,
+            &mut restepped,
         );
-        r.deformation_from_prefix_into(
-            &stepped,
+        r.deformation_restepped_into(
+            &tree,
             r.error_values(),
             &Q,
             conditions,
             &base.rigid,
-            first,
-            &mut from_prefix,
+            &stepped,
+            &mut restepped,
         );
-        assert_eq!(from_prefix.rigid.body, full.rigid.body, "parameter {k}");
-        assert_eq!(from_prefix.rigid.point, full.rigid.point, "parameter {k}");
-        assert_eq!(from_prefix.perturbation, full.perturbation, "parameter {k}");
+        assert_eq!(restepped.rigid.body, full.rigid.body, "parameter {k}");
+        assert_eq!(restepped.rigid.joint_frame, full.rigid.joint_frame, "parameter {k}");
+        assert_eq!(restepped.rigid.point, full.rigid.point, "parameter {k}");
+        assert_eq!(restepped.perturbation, full.perturbation, "parameter {k}");
         assert_ne!(
             full.perturbation, base.perturbation,
             "parameter {k} changes the deformation"
         );
     }
     assert!(tested_after_the_first);
+}
+
+/// A model that calls itself inactive at zero values deforms nothing there, in any
+/// configuration; the compliance models are the ones that do, and not at their own values.
+#[test]
+fn inactive_models_deform_nothing() {
+    let r = robot(ARM);
+    let mut inactive = Vec::new();
+    for (m, model) in r.error_models().iter().enumerate() {
+        let zeros = vec![0.0; model.params().len()];
+        let own = &r.error_values()[m];
+        assert!(!model.is_inactive(own) || own.iter().all(|&v| v == 0.0), "model {m}");
+        if !model.is_inactive(&zeros) {
+            continue;
+        }
+        inactive.push(m);
+        for q in [[0.4, 0.6, 0.3, -0.8], [-1.0, 0.1, 0.05, 2.0]] {
+            let (pert, _) = perturbation_of(&r, m, &zeros, &q, Some(60.0));
+            assert_eq!(pert, armcomp_core::Perturbation::zeros(r.tree()), "model {m} at {q:?}");
+        }
+    }
+    // ARM's second and third models: joint and lateral compliance.
+    assert_eq!(inactive, [1, 2]);
+}
+
+/// On a branched tree (a torso with two arms), a step of one joint's geometry recomposes that
+/// joint's subtree and copies the other branch: the same bits as the full rigid evaluation, for
+/// a step of every chain parameter.
+#[test]
+fn restepped_rigid_kinematics_of_a_branched_tree_is_the_full_evaluation() {
+    let r = robot(include_str!("../../../robots/agile-justin.toml"));
+    let tree = r.tree();
+    let q: Vec<f64> = (0..tree.nq()).map(|i| 0.3 * ((i as f64) * 1.7).sin()).collect();
+    let mut base = TreeWorkspace::new(tree);
+    tree.forward_into(&q, &mut base);
+    let (mut full, mut restepped) = (TreeWorkspace::new(tree), TreeWorkspace::new(tree));
+    let mut copied_a_branch = false;
+    for k in 0..r.chain_values().len() {
+        let mut values = r.chain_values().to_vec();
+        values[k] += 1e-3;
+        let stepped_tree = r.tree_for(&values).expect("stepped tree");
+        let stepped: Vec<usize> = (0..tree.joints().len())
+            .filter(|&j| stepped_tree.joints()[j].placement != tree.joints()[j].placement)
+            .collect();
+        stepped_tree.forward_into(&q, &mut full);
+        stepped_tree.forward_into(&vec![0.1; tree.nq()], &mut restepped);
+        stepped_tree.forward_restepped_into(&q, &base, &stepped, &mut restepped);
+        assert_eq!(restepped.body, full.body, "parameter {k}");
+        assert_eq!(restepped.joint_frame, full.joint_frame, "parameter {k}");
+        assert_eq!(restepped.point, full.point, "parameter {k}");
+        assert_eq!(restepped.joint_value, full.joint_value, "parameter {k}");
+        // A later body the step left where it was: another branch, copied.
+        copied_a_branch |= stepped
+            .first()
+            .is_some_and(|&s| (s + 1..tree.joints().len()).any(|j| full.body[j + 1] == base.body[j + 1]));
+    }
+    assert!(copied_a_branch);
 }
