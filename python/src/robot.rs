@@ -217,7 +217,7 @@ impl PyRobot {
             let mut write = out.readwrite();
             let slice = write.as_slice_mut().expect("a new array is contiguous");
             let robot = &self.robot;
-            py.detach(|| robot.point_positions_many_into(n, qs, slice, &mut robot.workspace()))
+            py.detach(|| robot.point_positions_many_into(n, qs, slice, &mut robot.batch_workspace()))
                 .py()?;
         }
         Ok(out)

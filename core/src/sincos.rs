@@ -1,0 +1,149 @@
+//! Sine and cosine of several angles at once, written so that a loop over lanes vectorises.
+//!
+//! libm's `sin`/`cos` are scalar calls, and SIMD crates (`wide`'s `f64x4::sin_cos`) pick their
+//! instruction set when they are compiled, for the x86-64 baseline, and fuse multiply-adds only
+//! where that baseline has them, so their bits depend on the build. The function here is plain
+//! arithmetic with no branch per lane: the kinematics loops inline it into code compiled for
+//! the baseline and for AVX2/AVX-512 (`multiversion`), and every build performs the same IEEE
+//! operations in the same order (Rust never fuses a multiply and an add on its own), so they
+//! give the same bits.
+
+use crate::lanes::{LANES, Lanes};
+
+/// Above this magnitude (rad) the three-part reduction below loses bits (`k · PIO2_HI` is exact
+/// only while the quadrant `k` fits in 26 bits); such lanes, and non-finite ones, use libm.
+const REDUCTION_LIMIT: f64 = 1.0e7;
+
+/// `(sin x, cos x)` of every lane, within two units in the last place of libm's values (see
+/// the tests) except near the zeros away from the origin, where the absolute error stays below
+/// `10⁻³⁰ |x|` (the three-part π/2 holds 106 bits); libm's values beyond ±10⁷ rad.
+///
+/// `x = k π/2 + r` with `k` the nearest integer to `x · 2/π` and `|r| ≤ π/4`, `π/2` split in
+/// three (Cephes' constants: the first two have short mantissas so that `k · part` is exact),
+/// then Cephes' minimax polynomials of degree 13 (sine) and 14 (cosine) on `r`, and the
+/// quadrant picks which of them, with which sign, is the sine and the cosine.
+#[inline(always)]
+pub fn sin_cos(x: Lanes) -> (Lanes, Lanes) {
+    let mut s = [0.0; LANES];
+    let mut c = [0.0; LANES];
+    for l in 0..LANES {
+        (s[l], c[l]) = sin_cos_reduced(x.0[l]);
+    }
+    if x.0.iter().any(|v| !(v.abs() <= REDUCTION_LIMIT)) {
+        for l in 0..LANES {
+            if !(x.0[l].abs() <= REDUCTION_LIMIT) {
+                (s[l], c[l]) = x.0[l].sin_cos();
+            }
+        }
+    }
+    (Lanes(s), Lanes(c))
+}
+
+/// The branch-free body of [`sin_cos`] for one lane with `|x| ≤ REDUCTION_LIMIT`.
+#[inline(always)]
+fn sin_cos_reduced(x: f64) -> (f64, f64) {
+    // Adding 1.5·2⁵² rounds to an integer (ties to even) held in the low mantissa bits.
+    const ROUND: f64 = 6_755_399_441_055_744.0;
+    const PIO2_HI: f64 = 1.570_796_310_901_641_845_703_125;
+    const PIO2_MID: f64 = 1.589_325_471_229_585_673_428e-8;
+    const PIO2_LO: f64 = 6.123_233_995_736_765_886_14e-17;
+    const SIN: [f64; 6] = [
+        1.589_623_015_765_465_680_60e-10,
+        -2.505_074_776_285_780_728_66e-8,
+        2.755_731_362_138_572_452_13e-6,
+        -1.984_126_982_958_953_859_96e-4,
+        8.333_333_333_322_118_588_78e-3,
+        -1.666_666_666_666_663_072_95e-1,
+    ];
+    const COS: [f64; 6] = [
+        -1.135_853_652_138_768_173_00e-11,
+        2.087_570_084_197_473_167_78e-9,
+        -2.755_731_417_929_673_881_12e-7,
+        2.480_158_728_885_170_453_48e-5,
+        -1.388_888_888_887_305_641_16e-3,
+        4.166_666_666_666_659_292_18e-2,
+    ];
+    let xa = x.abs();
+    let t = xa * std::f64::consts::FRAC_2_PI + ROUND;
+    let k = t - ROUND;
+    let quadrant = t.to_bits().wrapping_sub(ROUND.to_bits());
+    let r = ((xa - k * PIO2_HI) - k * PIO2_MID) - k * PIO2_LO;
+    let r2 = r * r;
+    let mut ps = SIN[0];
+    let mut pc = COS[0];
+    for i in 1..6 {
+        ps = ps * r2 + SIN[i];
+        pc = pc * r2 + COS[i];
+    }
+    let sin_r = r + r * r2 * ps;
+    let cos_r = (1.0 - 0.5 * r2) + r2 * r2 * pc;
+    let odd = quadrant & 1 == 1;
+    let (s, c) = if odd { (cos_r, sin_r) } else { (sin_r, cos_r) };
+    // sin changes sign in quadrants 2 and 3 and with x; cos in quadrants 1 and 2.
+    let sin_sign = ((quadrant & 2) << 62) ^ (x.to_bits() & (1 << 63));
+    let cos_sign = (quadrant.wrapping_add(1) & 2) << 62;
+    (
+        f64::from_bits(s.to_bits() ^ sin_sign),
+        f64::from_bits(c.to_bits() ^ cos_sign),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Error of `got` in units in the last place of `want`, with errors below `1e-30 |x|`
+    /// (the reduction's, which only shows near the zeros away from the origin) counted as none.
+    fn ulps(got: f64, want: f64, x: f64) -> f64 {
+        let err = (got - want).abs();
+        if err <= 1e-30 * x.abs() {
+            return 0.0;
+        }
+        let w = want.abs().max(f64::MIN_POSITIVE);
+        err / (w.next_up() - w)
+    }
+
+    fn check(xs: impl Iterator<Item = f64>) -> (f64, f64) {
+        let mut worst = (0.0f64, 0.0f64);
+        let xs: Vec<f64> = xs.collect();
+        for chunk in xs.chunks_exact(LANES) {
+            let (s, c) = sin_cos(Lanes(chunk.try_into().unwrap()));
+            for l in 0..LANES {
+                let (ws, wc) = chunk[l].sin_cos();
+                worst.0 = worst.0.max((s.0[l] - ws).abs()).max((c.0[l] - wc).abs());
+                worst.1 = worst.1.max(ulps(s.0[l], ws, chunk[l])).max(ulps(c.0[l], wc, chunk[l]));
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn sin_cos_matches_libm_on_a_dense_grid() {
+        // Every joint angle a robot reaches, densely, and the quadrant boundaries exactly.
+        let dense = (-4_000_000..=4_000_000).map(|i| i as f64 * 5e-6);
+        let (abs, ulp) = check(dense);
+        assert!(abs <= 2.3e-16 && ulp <= 2.0, "largest error {abs:e} ({ulp} ulp)");
+        let boundaries = (-4000..=4000).flat_map(|k| {
+            let b = k as f64 * std::f64::consts::FRAC_PI_4;
+            [b, b.next_up(), b.next_down(), b + 1e-9]
+        });
+        let (abs, ulp) = check(boundaries);
+        assert!(abs <= 2.3e-16 && ulp <= 2.0, "largest error {abs:e} ({ulp} ulp)");
+        // Large arguments up to where the reduction stays exact.
+        let large = (0..200_000).map(|i| (i as f64 * 50.000_37).copysign(if i % 2 == 0 { 1.0 } else { -1.0 }));
+        let (abs, _) = check(large);
+        assert!(abs <= 1e-12, "largest error {abs:e} on large arguments");
+    }
+
+    #[test]
+    fn sin_cos_falls_back_to_libm_beyond_the_reduction_and_keeps_nan() {
+        let x = Lanes([1e9, f64::INFINITY, f64::NAN, 0.5]);
+        let (s, c) = sin_cos(x);
+        assert_eq!((s.0[0], c.0[0]), 1e9f64.sin_cos());
+        assert!(s.0[1].is_nan() && c.0[1].is_nan() && s.0[2].is_nan() && c.0[2].is_nan());
+        assert!((s.0[3] - 0.5f64.sin()).abs() < 1e-16 && (c.0[3] - 0.5f64.cos()).abs() < 1e-16);
+        // Signed zero as libm gives it.
+        let (s, c) = sin_cos(Lanes([-0.0, 0.0, -0.0, 0.0]));
+        assert!(s.0[0] == 0.0 && s.0[0].is_sign_negative() && s.0[1].is_sign_positive() && c.0[0] == 1.0);
+    }
+}
