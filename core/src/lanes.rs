@@ -46,33 +46,40 @@ impl Neg for Lanes {
 
 /// What the kinematics loops need of a number type.
 pub trait Real: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self> {
+    /// How many values [`sin_cos_into`](Real::sin_cos_into) takes at a time.
+    const PACK: usize;
     /// The constant `v` (in every lane).
     fn splat(v: f64) -> Self;
-    /// Sine and cosine of every entry of `x` into `sin` and `cos` (same lengths), through
-    /// [`sin_cos`](crate::sincos::sin_cos) so that single calls and batches give the same bits.
+    /// Sine and cosine of every entry of `x` into `sin` and `cos` (same lengths, a multiple of
+    /// [`PACK`](Real::PACK)), through [`sin_cos`](crate::sincos::sin_cos) so that single calls
+    /// and batches give the same bits.
     fn sin_cos_into(x: &[Self], sin: &mut [Self], cos: &mut [Self]);
 }
 
 impl Real for f64 {
+    /// Angles of one configuration go through the lanes [`LANES`] at a time.
+    const PACK: usize = LANES;
+
     #[inline(always)]
     fn splat(v: f64) -> f64 {
         v
     }
 
-    /// [`LANES`] angles at a time (the last group padded with zeros).
     #[inline(always)]
     fn sin_cos_into(x: &[f64], sin: &mut [f64], cos: &mut [f64]) {
-        for ((x, s), c) in x.chunks(LANES).zip(sin.chunks_mut(LANES)).zip(cos.chunks_mut(LANES)) {
-            let mut lanes = Lanes([0.0; LANES]);
-            lanes.0[..x.len()].copy_from_slice(x);
-            let (ls, lc) = crate::sincos::sin_cos(lanes);
-            s.copy_from_slice(&ls.0[..x.len()]);
-            c.copy_from_slice(&lc.0[..x.len()]);
+        let (x, _) = x.as_chunks::<LANES>();
+        let (sin, _) = sin.as_chunks_mut::<LANES>();
+        let (cos, _) = cos.as_chunks_mut::<LANES>();
+        for ((x, s), c) in x.iter().zip(sin).zip(cos) {
+            let (ls, lc) = crate::sincos::sin_cos(Lanes(*x));
+            (*s, *c) = (ls.0, lc.0);
         }
     }
 }
 
 impl Real for Lanes {
+    const PACK: usize = 1;
+
     #[inline(always)]
     fn splat(v: f64) -> Lanes {
         Lanes([v; LANES])

@@ -52,12 +52,15 @@ pub struct PointKinematics {
     tree_points: Vec<usize>,
     /// The tree's index of each step's joint.
     joints: Vec<usize>,
+    /// The coordinates the steps read, ascending.
+    coordinates: Vec<usize>,
     nq: usize,
 }
 
 /// The values one evaluation leaves, per moving joint of the plan and per point.
 #[derive(Debug, Clone)]
 pub(crate) struct Evaluation<T> {
+    /// Each step's joint value, sine and cosine, padded with zeros to whole packs.
     value: Vec<T>,
     sin: Vec<T>,
     cos: Vec<T>,
@@ -73,10 +76,11 @@ impl<T: Real> Evaluation<T> {
             r: [[zero; 3]; 3],
             p: [zero; 3],
         };
+        let packed = plan.steps.len().next_multiple_of(T::PACK);
         Evaluation {
-            value: vec![zero; plan.steps.len()],
-            sin: vec![zero; plan.steps.len()],
-            cos: vec![zero; plan.steps.len()],
+            value: vec![zero; packed],
+            sin: vec![zero; packed],
+            cos: vec![zero; packed],
             frame: vec![frame; plan.steps.len()],
             point: vec![frame; plan.points.len()],
         }
@@ -131,6 +135,7 @@ impl PointKinematics {
             points: Vec::with_capacity(points.len()),
             tree_points: points.to_vec(),
             joints: Vec::new(),
+            coordinates: Vec::new(),
             nq: tree.nq(),
         };
         // Per step, the turn taking z onto its joint's axis.
@@ -163,6 +168,8 @@ impl PointKinematics {
                 local: Frame::from_isometry(&(rel * point.local)),
             });
         }
+        let reads = tree.coordinates_moving(&points.iter().map(|&p| tree.points()[p].body).collect::<Vec<_>>());
+        plan.coordinates = (0..plan.nq).filter(|&i| reads[i]).collect();
         Ok(plan)
     }
 
@@ -182,6 +189,11 @@ impl PointKinematics {
         self.nq
     }
 
+    /// The coordinates (entries of `q`) the points depend on, ascending.
+    pub fn coordinates(&self) -> &[usize] {
+        &self.coordinates
+    }
+
     /// Buffers sized for this plan.
     pub fn workspace(&self) -> PointKinematicsWorkspace {
         PointKinematicsWorkspace {
@@ -194,7 +206,7 @@ impl PointKinematics {
     /// nothing.
     pub fn forward_into(&self, q: &[f64], ws: &mut PointKinematicsWorkspace) {
         debug_assert_eq!(q.len(), self.nq);
-        self.evaluate(q, &mut ws.eval);
+        forward(self, q, &mut ws.eval);
     }
 
     /// Jacobian of the pose of the plan's point `k` (6 × nq) from the last evaluation in `ws`,
@@ -203,6 +215,7 @@ impl PointKinematics {
     /// coordinates they follow.
     pub fn pose_jacobian_into(&self, ws: &PointKinematicsWorkspace, k: usize, out: &mut Matrix6xX<f64>) {
         let (columns, _) = out.as_mut_slice().as_chunks_mut::<6>();
+        columns.fill([0.0; 6]);
         self.pose_jacobian(&ws.eval, k, columns);
     }
 
@@ -240,11 +253,14 @@ impl PointKinematics {
     }
 
     /// The pose Jacobian of point `k` of the evaluation `ev` into `out` (one `[T; 6]` column,
-    /// linear then angular velocity, per coordinate).
+    /// linear then angular velocity, per coordinate): the columns of the plan's
+    /// [`coordinates`](Self::coordinates) are written, the others left as they are (zero).
     #[inline(always)]
     pub(crate) fn pose_jacobian<T: Real>(&self, ev: &Evaluation<T>, k: usize, out: &mut [[T; 6]]) {
         let zero = T::splat(0.0);
-        out.fill([zero; 6]);
+        for &i in &self.coordinates {
+            out[i] = [zero; 6];
+        }
         let pos = ev.point[k].p;
         let mut next = self.points[k].step;
         while let Some(s) = next {
@@ -276,6 +292,11 @@ impl PointKinematics {
             next = step.parent;
         }
     }
+}
+
+#[multiversion::multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2", "x86_64+avx"))]
+fn forward(plan: &PointKinematics, q: &[f64], ev: &mut Evaluation<f64>) {
+    plan.evaluate(q, ev);
 }
 
 /// `dst += k · column`.

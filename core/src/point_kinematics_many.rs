@@ -102,7 +102,8 @@ impl PointKinematics {
     }
 
     /// Evaluates the configurations of `qs` [`LANES`] at a time; `emit(first, count, eval)`
-    /// gets each pass, configurations `first..first + count` in its first `count` lanes.
+    /// gets each pass, configurations `first..first + count` in its first `count` lanes. Only
+    /// the coordinates the points depend on are read.
     #[inline(always)]
     fn passes(
         &self,
@@ -115,8 +116,8 @@ impl PointKinematics {
         let nq = self.nq();
         for first in (0..n).step_by(LANES) {
             let count = LANES.min(n - first);
-            for (i, qi) in q.iter_mut().enumerate() {
-                qi.0 = std::array::from_fn(|l| qs[(first + l.min(count - 1)) * nq + i]);
+            for &i in self.coordinates() {
+                q[i].0 = std::array::from_fn(|l| qs[(first + l.min(count - 1)) * nq + i]);
             }
             self.evaluate(q, eval);
             emit(first, count, eval);
@@ -184,9 +185,10 @@ fn jacobians_many(
     plan.passes(n, qs, &mut ws.q, &mut ws.eval, |first, count, eval| {
         plan.pose_jacobian(eval, k, jacobian);
         for l in 0..count {
-            let dst = &mut out[(first + l) * block..(first + l + 1) * block];
-            for (d, v) in dst.iter_mut().zip(jacobian.iter().flatten()) {
-                *d = v.0[l];
+            let (dst, _) = out[(first + l) * block..(first + l + 1) * block].as_chunks_mut::<6>();
+            dst.fill([0.0; 6]);
+            for &i in plan.coordinates() {
+                dst[i] = jacobian[i].map(|v| v.0[l]);
             }
         }
     });

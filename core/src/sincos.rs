@@ -30,13 +30,21 @@ pub fn sin_cos(x: Lanes) -> (Lanes, Lanes) {
         (s[l], c[l]) = sin_cos_reduced(x.0[l]);
     }
     if x.0.iter().any(|v| !(v.abs() <= REDUCTION_LIMIT)) {
-        for l in 0..LANES {
-            if !(x.0[l].abs() <= REDUCTION_LIMIT) {
-                (s[l], c[l]) = x.0[l].sin_cos();
-            }
-        }
+        beyond_reduction(x, &mut s, &mut c);
     }
     (Lanes(s), Lanes(c))
+}
+
+/// libm's values for the lanes beyond the reduction. Out of line, so that the compiler does
+/// not evaluate libm's `sin` and `cos` for every lane and pick afterwards.
+#[cold]
+#[inline(never)]
+fn beyond_reduction(x: Lanes, s: &mut [f64; LANES], c: &mut [f64; LANES]) {
+    for l in 0..LANES {
+        if !(x.0[l].abs() <= REDUCTION_LIMIT) {
+            (s[l], c[l]) = x.0[l].sin_cos();
+        }
+    }
 }
 
 /// The branch-free body of [`sin_cos`] for one lane with `|x| ≤ REDUCTION_LIMIT`.
