@@ -2,8 +2,9 @@
 //! plan's loop, each quantity held for all of them side by side (structure of arrays), so every
 //! operation, sine and cosine included, runs on all lanes in one vector instruction.
 //!
-//! The loops are compiled for the x86-64 baseline and for AVX2 and AVX-512, and the build the
-//! CPU supports is picked at run time (`multiversion`). Every build, and the single-call
+//! The loops are compiled for the x86-64 baseline and for AVX and AVX2, and the build the CPU
+//! supports is picked at run time (`multiversion`; AVX-512 measured no faster with four lanes,
+//! and eight lanes slower on both). Every build, and the single-call
 //! [`PointKinematics::forward_into`], performs the same IEEE operations per configuration, so
 //! all give the same bits. A batch whose size is not a multiple of [`LANES`] ends with a
 //! partial pass whose spare lanes repeat its last configuration and are not written out.
@@ -134,7 +135,7 @@ fn lane(f: &Frame<Lanes>, l: usize) -> Frame<f64> {
     }
 }
 
-#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2", "x86_64+avx"))]
+#[multiversion(targets("x86_64+avx2", "x86_64+avx"))]
 fn poses_many(
     plan: &PointKinematics,
     n: usize,
@@ -152,7 +153,7 @@ fn poses_many(
     });
 }
 
-#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2", "x86_64+avx"))]
+#[multiversion(targets("x86_64+avx2", "x86_64+avx"))]
 fn positions_many(
     plan: &PointKinematics,
     n: usize,
@@ -171,7 +172,7 @@ fn positions_many(
     });
 }
 
-#[multiversion(targets("x86_64+avx512f+avx512vl", "x86_64+avx2", "x86_64+avx"))]
+#[multiversion(targets("x86_64+avx2", "x86_64+avx"))]
 fn jacobians_many(
     plan: &PointKinematics,
     n: usize,

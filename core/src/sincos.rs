@@ -4,7 +4,7 @@
 //! instruction set when they are compiled, for the x86-64 baseline, and fuse multiply-adds only
 //! where that baseline has them, so their bits depend on the build. The function here is plain
 //! arithmetic with no branch per lane: the kinematics loops inline it into code compiled for
-//! the baseline and for AVX2/AVX-512 (`multiversion`), and every build performs the same IEEE
+//! the baseline and for AVX2 (`multiversion`), and every build performs the same IEEE
 //! operations in the same order (Rust never fuses a multiply and an add on its own), so they
 //! give the same bits.
 

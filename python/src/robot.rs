@@ -235,12 +235,13 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let q = self.configuration(&q)?;
         let p = self.point_index(point)?;
-        let tree = self.robot.tree();
-        let mut ws = armcomp_core::TreeWorkspace::new(tree);
-        tree.forward_into(&q, &mut ws);
-        let mut jac = Matrix6xX::zeros(tree.nq());
-        tree.pose_jacobian_into(&ws, p, &mut jac);
-        Ok(Array2::from_shape_fn((6, tree.nq()), |(r, c)| jac[(r, c)]).into_pyarray(py))
+        // The robot's point kinematics hold the tree's points in the tree's order.
+        let kinematics = self.robot.kinematics();
+        let mut ws = kinematics.workspace();
+        kinematics.forward_into(&q, &mut ws);
+        let mut jac = Matrix6xX::zeros(kinematics.nq());
+        kinematics.pose_jacobian_into(&ws, p, &mut jac);
+        Ok(Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jac[(r, c)]).into_pyarray(py))
     }
 
     /// The robot file with this robot's values as text (TOML, or JSON with `format="json"`).
