@@ -10,8 +10,9 @@
 
 use crate::lanes::{LANES, Lanes};
 
-/// Above this magnitude (rad) the three-part reduction below loses bits (`k · PIO2_HI` is exact
-/// only while the quadrant `k` fits in 26 bits); such lanes, and non-finite ones, use libm.
+/// Above this magnitude (rad) lanes, and non-finite ones, use libm. Below it the three-part
+/// reduction is exact but for its last product (`k · PIO2_HI` and `k · PIO2_MID` are exact
+/// while the quadrant `k` < 2²⁸, here below 2²³).
 const REDUCTION_LIMIT: f64 = 1.0e7;
 
 /// `(sin x, cos x)` of every lane, within two units in the last place of libm's values (see
@@ -29,7 +30,7 @@ pub fn sin_cos(x: Lanes) -> (Lanes, Lanes) {
     for l in 0..LANES {
         (s[l], c[l]) = sin_cos_reduced(x.0[l]);
     }
-    if x.0.iter().any(|v| !(v.abs() <= REDUCTION_LIMIT)) {
+    if x.0.iter().any(|v| v.is_nan() || v.abs() > REDUCTION_LIMIT) {
         beyond_reduction(x, &mut s, &mut c);
     }
     (Lanes(s), Lanes(c))
@@ -41,7 +42,7 @@ pub fn sin_cos(x: Lanes) -> (Lanes, Lanes) {
 #[inline(never)]
 fn beyond_reduction(x: Lanes, s: &mut [f64; LANES], c: &mut [f64; LANES]) {
     for l in 0..LANES {
-        if !(x.0[l].abs() <= REDUCTION_LIMIT) {
+        if x.0[l].is_nan() || x.0[l].abs() > REDUCTION_LIMIT {
             (s[l], c[l]) = x.0[l].sin_cos();
         }
     }
@@ -52,24 +53,24 @@ fn beyond_reduction(x: Lanes, s: &mut [f64; LANES], c: &mut [f64; LANES]) {
 fn sin_cos_reduced(x: f64) -> (f64, f64) {
     // Adding 1.5·2⁵² rounds to an integer (ties to even) held in the low mantissa bits.
     const ROUND: f64 = 6_755_399_441_055_744.0;
-    const PIO2_HI: f64 = 1.570_796_310_901_641_845_703_125;
-    const PIO2_MID: f64 = 1.589_325_471_229_585_673_428e-8;
-    const PIO2_LO: f64 = 6.123_233_995_736_765_886_14e-17;
+    const PIO2_HI: f64 = 1.5707963109016418;
+    const PIO2_MID: f64 = 1.5893254712295857e-8;
+    const PIO2_LO: f64 = 6.123233995736766e-17;
     const SIN: [f64; 6] = [
-        1.589_623_015_765_465_680_60e-10,
-        -2.505_074_776_285_780_728_66e-8,
-        2.755_731_362_138_572_452_13e-6,
-        -1.984_126_982_958_953_859_96e-4,
-        8.333_333_333_322_118_588_78e-3,
-        -1.666_666_666_666_663_072_95e-1,
+        1.5896230157654656e-10,
+        -2.5050747762857807e-8,
+        2.7557313621385722e-6,
+        -0.0001984126982958954,
+        0.008333333333322118,
+        -0.1666666666666663,
     ];
     const COS: [f64; 6] = [
-        -1.135_853_652_138_768_173_00e-11,
-        2.087_570_084_197_473_167_78e-9,
-        -2.755_731_417_929_673_881_12e-7,
-        2.480_158_728_885_170_453_48e-5,
-        -1.388_888_888_887_305_641_16e-3,
-        4.166_666_666_666_659_292_18e-2,
+        -1.1358536521387682e-11,
+        2.087570084197473e-9,
+        -2.755731417929674e-7,
+        2.4801587288851704e-5,
+        -0.0013888888888873056,
+        0.041666666666666595,
     ];
     let xa = x.abs();
     let t = xa * std::f64::consts::FRAC_2_PI + ROUND;
@@ -116,10 +117,10 @@ mod tests {
         let xs: Vec<f64> = xs.collect();
         for chunk in xs.chunks_exact(LANES) {
             let (s, c) = sin_cos(Lanes(chunk.try_into().unwrap()));
-            for l in 0..LANES {
-                let (ws, wc) = chunk[l].sin_cos();
-                worst.0 = worst.0.max((s.0[l] - ws).abs()).max((c.0[l] - wc).abs());
-                worst.1 = worst.1.max(ulps(s.0[l], ws, chunk[l])).max(ulps(c.0[l], wc, chunk[l]));
+            for ((&x, s), c) in chunk.iter().zip(s.0).zip(c.0) {
+                let (ws, wc) = x.sin_cos();
+                worst.0 = worst.0.max((s - ws).abs()).max((c - wc).abs());
+                worst.1 = worst.1.max(ulps(s, ws, x)).max(ulps(c, wc, x));
             }
         }
         worst
