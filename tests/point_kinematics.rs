@@ -97,7 +97,7 @@ fn path_fk_evaluates_only_the_moving_joints_on_the_path() {
         ]
     );
     assert!(tree.joints().len() > 6);
-    // TALOS' left-gripper marker: the two torso and seven arm joints of its 103.
+    // TALOS' left-gripper marker: the two torso and seven arm joints of its 59.
     let talos = robot_at("robots/talos-left-arm.toml");
     let plan = PointKinematics::for_points(talos.tree(), &[talos.tool()]).unwrap();
     let names: Vec<&str> = plan

@@ -71,8 +71,7 @@ impl Real for f64 {
         let (sin, _) = sin.as_chunks_mut::<LANES>();
         let (cos, _) = cos.as_chunks_mut::<LANES>();
         for ((x, s), c) in x.iter().zip(sin).zip(cos) {
-            let (ls, lc) = crate::sincos::sin_cos(Lanes(*x));
-            (*s, *c) = (ls.0, lc.0);
+            (*s, *c) = crate::sincos::sin_cos(*x);
         }
     }
 }
@@ -88,7 +87,7 @@ impl Real for Lanes {
     #[inline(always)]
     fn sin_cos_into(x: &[Lanes], sin: &mut [Lanes], cos: &mut [Lanes]) {
         for ((x, s), c) in x.iter().zip(sin.iter_mut()).zip(cos.iter_mut()) {
-            (*s, *c) = crate::sincos::sin_cos(*x);
+            (s.0, c.0) = crate::sincos::sin_cos(x.0);
         }
     }
 }

@@ -8,8 +8,6 @@
 //! operations in the same order (Rust never fuses a multiply and an add on its own), so they
 //! give the same bits.
 
-use crate::lanes::{LANES, Lanes};
-
 /// Above this magnitude (rad) lanes, and non-finite ones, use libm. Below it the three-part
 /// reduction is exact but for its last product (`k · PIO2_HI` and `k · PIO2_MID` are exact
 /// while the quadrant `k` < 2²⁸, here below 2²³).
@@ -24,26 +22,26 @@ const REDUCTION_LIMIT: f64 = 1.0e7;
 /// then Cephes' minimax polynomials of degree 13 (sine) and 14 (cosine) on `r`, and the
 /// quadrant picks which of them, with which sign, is the sine and the cosine.
 #[inline(always)]
-pub fn sin_cos(x: Lanes) -> (Lanes, Lanes) {
-    let mut s = [0.0; LANES];
-    let mut c = [0.0; LANES];
-    for l in 0..LANES {
-        (s[l], c[l]) = sin_cos_reduced(x.0[l]);
+pub fn sin_cos<const N: usize>(x: [f64; N]) -> ([f64; N], [f64; N]) {
+    let mut s = [0.0; N];
+    let mut c = [0.0; N];
+    for l in 0..N {
+        (s[l], c[l]) = sin_cos_reduced(x[l]);
     }
-    if x.0.iter().any(|v| v.is_nan() || v.abs() > REDUCTION_LIMIT) {
-        beyond_reduction(x, &mut s, &mut c);
+    if x.iter().any(|v| v.is_nan() || v.abs() > REDUCTION_LIMIT) {
+        beyond_reduction(&x, &mut s, &mut c);
     }
-    (Lanes(s), Lanes(c))
+    (s, c)
 }
 
 /// libm's values for the lanes beyond the reduction. Out of line, so that the compiler does
 /// not evaluate libm's `sin` and `cos` for every lane and pick afterwards.
 #[cold]
 #[inline(never)]
-fn beyond_reduction(x: Lanes, s: &mut [f64; LANES], c: &mut [f64; LANES]) {
-    for l in 0..LANES {
-        if x.0[l].is_nan() || x.0[l].abs() > REDUCTION_LIMIT {
-            (s[l], c[l]) = x.0[l].sin_cos();
+fn beyond_reduction<const N: usize>(x: &[f64; N], s: &mut [f64; N], c: &mut [f64; N]) {
+    for l in 0..N {
+        if x[l].is_nan() || x[l].abs() > REDUCTION_LIMIT {
+            (s[l], c[l]) = x[l].sin_cos();
         }
     }
 }
@@ -115,9 +113,9 @@ mod tests {
     fn check(xs: impl Iterator<Item = f64>) -> (f64, f64) {
         let mut worst = (0.0f64, 0.0f64);
         let xs: Vec<f64> = xs.collect();
-        for chunk in xs.chunks_exact(LANES) {
-            let (s, c) = sin_cos(Lanes(chunk.try_into().unwrap()));
-            for ((&x, s), c) in chunk.iter().zip(s.0).zip(c.0) {
+        for chunk in xs.chunks_exact(4) {
+            let (s, c) = sin_cos::<4>(chunk.try_into().unwrap());
+            for ((&x, s), c) in chunk.iter().zip(s).zip(c) {
                 let (ws, wc) = x.sin_cos();
                 worst.0 = worst.0.max((s - ws).abs()).max((c - wc).abs());
                 worst.1 = worst.1.max(ulps(s, ws, x)).max(ulps(c, wc, x));
@@ -146,13 +144,13 @@ mod tests {
 
     #[test]
     fn sin_cos_falls_back_to_libm_beyond_the_reduction_and_keeps_nan() {
-        let x = Lanes([1e9, f64::INFINITY, f64::NAN, 0.5]);
+        let x = [1e9, f64::INFINITY, f64::NAN, 0.5];
         let (s, c) = sin_cos(x);
-        assert_eq!((s.0[0], c.0[0]), 1e9f64.sin_cos());
-        assert!(s.0[1].is_nan() && c.0[1].is_nan() && s.0[2].is_nan() && c.0[2].is_nan());
-        assert!((s.0[3] - 0.5f64.sin()).abs() < 1e-16 && (c.0[3] - 0.5f64.cos()).abs() < 1e-16);
+        assert_eq!((s[0], c[0]), 1e9f64.sin_cos());
+        assert!(s[1].is_nan() && c[1].is_nan() && s[2].is_nan() && c[2].is_nan());
+        assert!((s[3] - 0.5f64.sin()).abs() < 1e-16 && (c[3] - 0.5f64.cos()).abs() < 1e-16);
         // Signed zero as libm gives it.
-        let (s, c) = sin_cos(Lanes([-0.0, 0.0, -0.0, 0.0]));
-        assert!(s.0[0] == 0.0 && s.0[0].is_sign_negative() && s.0[1].is_sign_positive() && c.0[0] == 1.0);
+        let (s, c) = sin_cos([-0.0, 0.0, -0.0, 0.0]);
+        assert!(s[0] == 0.0 && s[0].is_sign_negative() && s[1].is_sign_positive() && c[0] == 1.0);
     }
 }
