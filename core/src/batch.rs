@@ -92,13 +92,6 @@ impl Robot {
         out: &mut [f64],
         ws: &mut BatchWorkspace,
     ) -> Result<()> {
-        let nq = self.tree().nq();
-        self.check_configurations(n, qs, "Jacobians", 6 * nq, out.len())?;
-        if self.error_models().is_empty() {
-            return self
-                .kinematics()
-                .pose_jacobian_many_into(n, qs, point, out, &mut ws.many);
-        }
         if point >= self.tree().points().len() {
             return Err(Error::InvalidArgument {
                 what: "pose Jacobian".into(),
@@ -107,6 +100,13 @@ impl Robot {
                     self.tree().points().len()
                 ),
             });
+        }
+        let nq = self.tree().nq();
+        self.check_configurations(n, qs, "Jacobians", 6 * nq, out.len())?;
+        if self.error_models().is_empty() {
+            return self
+                .kinematics()
+                .pose_jacobian_many_into(n, qs, point, out, &mut ws.many);
         }
         for i in 0..n {
             self.forward_into(&qs[i * nq..(i + 1) * nq], None, &mut ws.robot);
