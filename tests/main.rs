@@ -20,6 +20,7 @@ mod malformed;
 mod measurement;
 mod mutated_inputs;
 mod plan;
+mod point_kinematics;
 mod robot_files;
 mod runtime_plugins;
 mod simulate;

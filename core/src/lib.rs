@@ -14,11 +14,13 @@ pub mod design;
 pub mod diagnose;
 pub mod error;
 pub mod evaluate;
+mod frame;
 pub mod geom;
 pub mod gravity;
 pub mod ik;
 pub mod interrupt;
 pub mod io;
+mod lanes;
 pub mod least_squares;
 pub mod mass;
 pub mod measurement;
@@ -26,6 +28,8 @@ pub mod param;
 pub mod perturbation;
 pub mod plan;
 pub mod plugin;
+pub mod point_kinematics;
+pub mod point_kinematics_many;
 pub mod prior_choice;
 pub mod registry;
 pub mod residuals;
@@ -35,12 +39,14 @@ pub mod role;
 pub mod sampling;
 pub mod shape;
 pub mod simulate;
+mod sincos;
 pub mod split;
 pub mod subtree_loads;
 pub mod tree;
 pub mod units;
 pub mod workspace;
 
+pub use batch::BatchWorkspace;
 pub use candidate::{Candidate, CandidateFn, CandidateScope, CandidateTemplate};
 pub use collision::{CollisionModel, CollisionWorkspace, Contact};
 pub use error::{Error, Issue, Issues, Result};
@@ -53,6 +59,8 @@ pub use plugin::{
     BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, Loads, ModelContext,
     PredictorSpec, StaticState, TrainingSet,
 };
+pub use point_kinematics::{PointKinematics, PointKinematicsWorkspace};
+pub use point_kinematics_many::PointKinematicsManyWorkspace;
 pub use registry::PluginInfo;
 pub use robot::{Conditions, Robot, RobotWorkspace};
 pub use robot_file::{RobotFile, SourceFile};

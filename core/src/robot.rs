@@ -12,6 +12,7 @@ use crate::measurement::CsvLayout;
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
+use crate::point_kinematics::PointKinematics;
 use crate::robot_file::{BeamSpec, RobotFile, SourceFile};
 use crate::shape::{Geometry, Shape};
 use crate::subtree_loads::SubtreeLoads;
@@ -38,6 +39,8 @@ pub struct Robot {
     chain: Box<dyn Chain>,
     chain_values: Vec<f64>,
     tree: KinematicTree,
+    /// The rigid kinematics of every point of `tree`, compiled from it.
+    kinematics: PointKinematics,
     points: Vec<ResolvedPoint>,
     mass: MassModel,
     gravity: Vector3<f64>,
@@ -167,6 +170,7 @@ impl Robot {
             source: None,
             chain,
             chain_values,
+            kinematics: PointKinematics::new(&base_tree),
             tree: base_tree,
             points,
             mass,
@@ -182,9 +186,10 @@ impl Robot {
             warnings,
             reads: Vec::new(),
         };
-        robot.tree = robot
+        let tree = robot
             .tree_for(&robot.chain_values)
             .map_err(|e| vec![Issue::new("kinematics", e.to_string())])?;
+        robot.set_tree(tree);
         // The payload's centre of mass is its point's pose in the tree (bit for bit, so that
         // `mass_under` sees it unmoved).
         let site = robot.payload_site(&robot.tree);
@@ -298,6 +303,12 @@ impl Robot {
     /// The kinematic tree at the current parameters, with points.
     pub fn tree(&self) -> &KinematicTree {
         &self.tree
+    }
+
+    /// The rigid kinematics of every point of the [`tree`](Robot::tree), the points in the
+    /// tree's order: only the joints on their paths, fixed joints folded in.
+    pub fn kinematics(&self) -> &PointKinematics {
+        &self.kinematics
     }
     /// Mass model, payload included.
     pub fn mass(&self) -> &MassModel {
@@ -426,9 +437,16 @@ impl Robot {
                 got: values.len(),
             });
         }
-        self.tree = self.tree_for(values)?;
+        let tree = self.tree_for(values)?;
+        self.set_tree(tree);
         self.chain_values = values.to_vec();
         Ok(())
+    }
+
+    /// Replaces the tree and the point kinematics compiled from it.
+    fn set_tree(&mut self, tree: KinematicTree) {
+        self.kinematics = PointKinematics::new(&tree);
+        self.tree = tree;
     }
 
     /// Buffers sized for this robot.

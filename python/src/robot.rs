@@ -7,7 +7,7 @@ use armcomp_core::calibrate::ParameterSpace;
 use armcomp_core::io::{check_output, write_atomic};
 use armcomp_core::robot_file::{Format, SourceFile};
 use armcomp_core::{Robot, RobotFile};
-use nalgebra::Matrix6xX;
+use nalgebra::{IsometryMatrix3, Matrix6xX};
 use numpy::ndarray::Array2;
 use numpy::{
     AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayLike2, PyArrayMethods,
@@ -175,9 +175,14 @@ impl PyRobot {
         q: PyArrayLike1<'py, f64, AllowTypeChange>,
     ) -> PyResult<(Matrix<'py>, Matrix<'py>)> {
         let q = self.configuration(&q)?;
-        let frames = self.robot.forward(&q).py()?;
-        let positions: Vec<_> = frames.point.iter().map(|p| p.translation.vector).collect();
-        let tool = frames.point[self.robot.tool()].to_homogeneous();
+        // A batch of one, so that `fk` and `fk_many` give the same bits.
+        let robot = &self.robot;
+        let mut poses = vec![IsometryMatrix3::identity(); robot.tree().points().len()];
+        robot
+            .forward_many_into(1, &q, &mut poses, &mut robot.batch_workspace())
+            .py()?;
+        let positions: Vec<_> = poses.iter().map(|p| p.translation.vector).collect();
+        let tool = poses[robot.tool()].to_homogeneous();
         let pose = Array2::from_shape_fn((4, 4), |(r, c)| tool[(r, c)]).into_pyarray(py);
         Ok((crate::arrays::points(py, &positions), pose))
     }
@@ -217,7 +222,7 @@ impl PyRobot {
             let mut write = out.readwrite();
             let slice = write.as_slice_mut().expect("a new array is contiguous");
             let robot = &self.robot;
-            py.detach(|| robot.point_positions_many_into(n, qs, slice, &mut robot.workspace()))
+            py.detach(|| robot.point_positions_many_into(n, qs, slice, &mut robot.batch_workspace()))
                 .py()?;
         }
         Ok(out)
@@ -235,12 +240,13 @@ impl PyRobot {
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let q = self.configuration(&q)?;
         let p = self.point_index(point)?;
-        let tree = self.robot.tree();
-        let mut ws = armcomp_core::TreeWorkspace::new(tree);
-        tree.forward_into(&q, &mut ws);
-        let mut jac = Matrix6xX::zeros(tree.nq());
-        tree.pose_jacobian_into(&ws, p, &mut jac);
-        Ok(Array2::from_shape_fn((6, tree.nq()), |(r, c)| jac[(r, c)]).into_pyarray(py))
+        // The robot's point kinematics hold the tree's points in the tree's order.
+        let kinematics = self.robot.kinematics();
+        let mut ws = kinematics.workspace();
+        kinematics.forward_into(&q, &mut ws);
+        let mut jac = Matrix6xX::zeros(kinematics.nq());
+        kinematics.pose_jacobian_into(&ws, p, &mut jac);
+        Ok(Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jac[(r, c)]).into_pyarray(py))
     }
 
     /// The robot file with this robot's values as text (TOML, or JSON with `format="json"`).
