@@ -15,9 +15,9 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use armcomp_core::robot_file::PointSpec;
-use armcomp_core::{KinematicTree, Robot, TreeWorkspace};
+use armcomp_core::{KinematicTree, PointKinematics, PointKinematicsWorkspace, Robot, TreeWorkspace};
 use libloading::Library;
-use nalgebra::Matrix6xX;
+use nalgebra::{IsometryMatrix3, Matrix6xX};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 
@@ -85,8 +85,8 @@ fn run(shim: OsString) -> Result<(), String> {
 
 /// One robot loaded by both, with its configurations in each one's coordinates.
 struct Bench<'s> {
-    /// The robot file of a URDF robot with one point, at the tool link.
-    tool: Robot,
+    /// The tool's path of the robot file of a URDF robot with one point, at the tool link, fixed joints folded: what FK to the tool and its Jacobian run.
+    plan: PointKinematics,
     /// The bare URDF robot: a point at every link.
     links: Robot,
     pin: PinModel<'s>,
@@ -174,8 +174,9 @@ impl<'s> Bench<'s> {
             .iter()
             .map(|p| pin.frame_id(&p.name))
             .collect::<Result<_, _>>()?;
+        let plan = PointKinematics::for_points(tool.tree(), &[tool.tool()]).map_err(|e| e.to_string())?;
         Ok(Bench {
-            tool,
+            plan,
             links,
             pin,
             nq,
@@ -190,25 +191,34 @@ impl<'s> Bench<'s> {
     /// Every configuration's results from both sides, compared: the largest differences of
     /// positions (m) and of rotation and Jacobian entries.
     fn check(&self) -> Result<(f64, f64), String> {
-        let (nq, nv, tool) = (self.nq, self.pin.nv, self.tool.tool());
-        let mut ws = TreeWorkspace::new(self.tool.tree());
+        let (nq, nv, plan) = (self.nq, self.pin.nv, &self.plan);
+        let mut ws = plan.workspace();
+        let mut many = plan.many_workspace();
         let mut jac = Matrix6xX::zeros(nq);
         let (mut position, mut entry) = (0.0f64, 0.0f64);
 
-        let mut a = vec![0.0; N * POSE];
-        let mut p = vec![0.0; N * 12];
-        fk_tool(self.tool.tree(), tool, &self.qs, &mut ws, &mut a, POSE);
-        self.pin.fk_frame(self.tool_frame, &self.pin_qs, &mut p, 12)?;
-        for (i, (a, p)) in a.chunks_exact(POSE).zip(p.chunks_exact(12)).enumerate() {
-            let r = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(a[6], a[3], a[4], a[5]));
-            let d = max_difference(&a[..3], &p[..3]);
-            let dr = max_difference(r.to_rotation_matrix().matrix().as_slice(), &p[3..]);
-            if d > TOLERANCE || dr > TOLERANCE {
-                return Err(format!(
-                    "FK to the tool, configuration {i}: position {d:e} m, rotation {dr:e} apart"
-                ));
+        let mut p = vec![0.0; N * POSE];
+        self.pin.fk_frame(self.tool_frame, &self.pin_qs, &mut p, POSE)?;
+        let mut one = vec![0.0; N * POSE];
+        fk_tool(plan, &self.qs, &mut ws, &mut one, POSE);
+        let mut poses = vec![IsometryMatrix3::identity(); N];
+        plan.forward_many_into(N, &self.qs, &mut poses, &mut many)
+            .map_err(|e| e.to_string())?;
+        let mut batch = vec![0.0; N * POSE];
+        for (pose, o) in poses.iter().zip(batch.chunks_exact_mut(POSE)) {
+            write_pose(pose, o);
+        }
+        for (what, a) in [("FK to the tool", &one), ("FK to the tool, batch", &batch)] {
+            for (i, (a, p)) in a.chunks_exact(POSE).zip(p.chunks_exact(POSE)).enumerate() {
+                let d = max_difference(&a[..3], &p[..3]);
+                let dr = max_difference(&a[3..], &p[3..]);
+                if d > TOLERANCE || dr > TOLERANCE {
+                    return Err(format!(
+                        "{what}, configuration {i}: position {d:e} m, rotation {dr:e} apart"
+                    ));
+                }
+                (position, entry) = (position.max(d), entry.max(dr));
             }
-            (position, entry) = (position.max(d), entry.max(dr));
         }
 
         let width = 3 * self.link_frames.len();
@@ -225,8 +235,11 @@ impl<'s> Bench<'s> {
         }
 
         let (mut a, mut p) = (vec![0.0; N * 6 * nq], vec![0.0; N * 6 * nv]);
-        fk_jacobian(self.tool.tree(), tool, &self.qs, &mut ws, &mut jac, &mut a, 6 * nq);
-        let compare = |what: &str, p: &[f64]| {
+        fk_jacobian(plan, &self.qs, &mut ws, &mut jac, &mut a, 6 * nq);
+        let mut batch = vec![0.0; N * 6 * nq];
+        plan.pose_jacobian_many_into(N, &self.qs, 0, &mut batch, &mut many)
+            .map_err(|e| e.to_string())?;
+        let compare = |what: &str, a: &[f64], p: &[f64]| {
             let mut largest = 0.0f64;
             for (i, (a, p)) in a.chunks_exact(6 * nq).zip(p.chunks_exact(6 * nv)).enumerate() {
                 for (c, &pc) in self.pin_column.iter().enumerate() {
@@ -240,25 +253,25 @@ impl<'s> Bench<'s> {
             Ok(largest)
         };
         self.pin.frame_jacobian(self.tool_frame, &self.pin_qs, &mut p, 6 * nv)?;
-        entry = entry.max(compare("Jacobian from q (computeFrameJacobian)", &p)?);
+        entry = entry.max(compare("Jacobian from q (computeFrameJacobian)", &a, &p)?);
+        entry = entry.max(compare("batched Jacobian against computeFrameJacobian", &batch, &p)?);
         p.fill(f64::NAN);
         self.pin
             .joint_jacobians_then_frame(self.tool_frame, &self.pin_qs, &mut p, 6 * nv)?;
-        entry = entry.max(compare("Jacobian after FK (getFrameJacobian)", &p)?);
+        entry = entry.max(compare("Jacobian after FK (getFrameJacobian)", &a, &p)?);
         Ok((position, entry))
     }
 
     /// The timed rows. Each side is a loop over every configuration writing one result slot
     /// (stride 0), the same functions as [`check`](Self::check) runs.
     fn rows(&self) -> Vec<Row<'_>> {
-        let (nq, pnq, nv, tool) = (self.nq, self.pin.nq, self.pin.nv, self.tool.tool());
-        let (qs, pin_qs, pin) = (&self.qs, &self.pin_qs, &self.pin);
-        let tool_tree = self.tool.tree();
+        let (nq, pnq, nv) = (self.nq, self.pin.nq, self.pin.nv);
+        let (qs, pin_qs, pin, plan) = (&self.qs, &self.pin_qs, &self.pin, &self.plan);
         let links_tree = self.links.tree();
         let frame = self.tool_frame;
         let links = &self.link_frames;
         // Each closure owns its buffers.
-        let ws = || TreeWorkspace::new(tool_tree);
+        let ws = || plan.workspace();
         let jac = || Matrix6xX::<f64>::zeros(nq);
         vec![
             Row {
@@ -266,7 +279,7 @@ impl<'s> Bench<'s> {
                 armcomp: Work::Loop(Box::new({
                     let (mut ws, mut out) = (ws(), [0.0; POSE]);
                     move |r| {
-                        fk_tool(tool_tree, tool, black_box(rows(qs, nq, r)), &mut ws, &mut out, 0);
+                        fk_tool(plan, black_box(rows(qs, nq, r)), &mut ws, &mut out, 0);
                         black_box(&out);
                         Ok(())
                     }
@@ -296,15 +309,7 @@ impl<'s> Bench<'s> {
                 armcomp: Work::Loop(Box::new({
                     let (mut ws, mut jac, mut out) = (ws(), jac(), vec![0.0; 6 * nq]);
                     move |r| {
-                        fk_jacobian(
-                            tool_tree,
-                            tool,
-                            black_box(rows(qs, nq, r)),
-                            &mut ws,
-                            &mut jac,
-                            &mut out,
-                            0,
-                        );
+                        fk_jacobian(plan, black_box(rows(qs, nq, r)), &mut ws, &mut jac, &mut out, 0);
                         black_box(&out);
                         Ok(())
                     }
@@ -322,15 +327,7 @@ impl<'s> Bench<'s> {
                     Box::new({
                         let (mut ws, mut jac, mut out) = (ws(), jac(), vec![0.0; 6 * nq]);
                         move |r| {
-                            fk_jacobian(
-                                tool_tree,
-                                tool,
-                                black_box(rows(qs, nq, r)),
-                                &mut ws,
-                                &mut jac,
-                                &mut out,
-                                0,
-                            );
+                            fk_jacobian(plan, black_box(rows(qs, nq, r)), &mut ws, &mut jac, &mut out, 0);
                             black_box(&out);
                             Ok(())
                         }
@@ -339,9 +336,9 @@ impl<'s> Bench<'s> {
                         let mut ws = ws();
                         move |r| {
                             for q in black_box(rows(qs, nq, r)).chunks_exact(nq) {
-                                tool_tree.forward_into(q, &mut ws);
+                                plan.forward_into(q, &mut ws);
                             }
-                            black_box(&ws.point);
+                            black_box(&ws);
                             Ok(())
                         }
                     }),
@@ -354,21 +351,66 @@ impl<'s> Bench<'s> {
                     Box::new(move |r| pin.joint_jacobians(black_box(rows(pin_qs, pnq, r)))),
                 ),
             },
+            // armcomp's batches against pinocchio's loop, which has no batch call.
+            Row {
+                name: "FK to the tool, batch",
+                armcomp: Work::Loop(Box::new({
+                    let (mut many, mut out) = (plan.many_workspace(), vec![IsometryMatrix3::identity(); BLOCK]);
+                    move |r| {
+                        let n = r.len();
+                        plan.forward_many_into(n, black_box(rows(qs, nq, r)), &mut out[..n], &mut many)
+                            .map_err(|e| e.to_string())?;
+                        black_box(&out);
+                        Ok(())
+                    }
+                })),
+                pinocchio: Work::Loop(Box::new({
+                    let mut out = [0.0; 12];
+                    move |r| pin.fk_frame(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
+                })),
+            },
+            Row {
+                name: "6×n Jacobian from q, batch",
+                armcomp: Work::Loop(Box::new({
+                    let (mut many, mut out) = (plan.many_workspace(), vec![0.0; BLOCK * 6 * nq]);
+                    move |r| {
+                        let n = r.len();
+                        plan.pose_jacobian_many_into(
+                            n,
+                            black_box(rows(qs, nq, r)),
+                            0,
+                            &mut out[..n * 6 * nq],
+                            &mut many,
+                        )
+                        .map_err(|e| e.to_string())?;
+                        black_box(&out);
+                        Ok(())
+                    }
+                })),
+                pinocchio: Work::Loop(Box::new({
+                    let mut out = vec![0.0; 6 * nv];
+                    move |r| pin.frame_jacobian(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
+                })),
+            },
         ]
     }
 }
 
-/// Values per armcomp pose: position, then the quaternion's i, j, k, w.
-const POSE: usize = 7;
+/// Values per pose: position, then the rotation matrix column by column (pinocchio's layout).
+const POSE: usize = 12;
 
-/// FK of every configuration (`qs`, `nq` each), writing the tool's pose to `out + i · stride`.
-fn fk_tool(tree: &KinematicTree, tool: usize, qs: &[f64], ws: &mut TreeWorkspace, out: &mut [f64], stride: usize) {
-    for (i, q) in qs.chunks_exact(tree.nq()).enumerate() {
-        tree.forward_into(q, ws);
-        let pose = &ws.point[tool];
-        let o = &mut out[i * stride..i * stride + POSE];
-        o[..3].copy_from_slice(pose.translation.vector.as_slice());
-        o[3..].copy_from_slice(pose.rotation.coords.as_slice());
+/// Writes `pose` as [`POSE`] values.
+fn write_pose(pose: &IsometryMatrix3<f64>, o: &mut [f64]) {
+    o[..3].copy_from_slice(pose.translation.vector.as_slice());
+    o[3..POSE].copy_from_slice(pose.rotation.matrix().as_slice());
+}
+
+/// FK of the tool's path at every configuration (`qs`, `nq` each), writing the tool's pose to
+/// `out + i · stride`.
+fn fk_tool(plan: &PointKinematics, qs: &[f64], ws: &mut PointKinematicsWorkspace, out: &mut [f64], stride: usize) {
+    for (i, q) in qs.chunks_exact(plan.nq()).enumerate() {
+        plan.forward_into(q, ws);
+        write_pose(&ws.point_pose(0), &mut out[i * stride..]);
     }
 }
 
@@ -385,18 +427,17 @@ fn fk_all(tree: &KinematicTree, qs: &[f64], ws: &mut TreeWorkspace, out: &mut [f
 /// FK and the tool's 6 × n pose Jacobian of every configuration, written column-major to
 /// `out + i · stride`.
 fn fk_jacobian(
-    tree: &KinematicTree,
-    tool: usize,
+    plan: &PointKinematics,
     qs: &[f64],
-    ws: &mut TreeWorkspace,
+    ws: &mut PointKinematicsWorkspace,
     jac: &mut Matrix6xX<f64>,
     out: &mut [f64],
     stride: usize,
 ) {
     let width = jac.len();
-    for (i, q) in qs.chunks_exact(tree.nq()).enumerate() {
-        tree.forward_into(q, ws);
-        tree.pose_jacobian_into(ws, tool, jac);
+    for (i, q) in qs.chunks_exact(plan.nq()).enumerate() {
+        plan.forward_into(q, ws);
+        plan.pose_jacobian_into(ws, 0, jac);
         out[i * stride..i * stride + width].copy_from_slice(jac.as_slice());
     }
 }
