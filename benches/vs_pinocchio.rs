@@ -273,6 +273,19 @@ impl<'s> Bench<'s> {
         // Each closure owns its buffers.
         let ws = || plan.workspace();
         let jac = || Matrix6xX::<f64>::zeros(nq);
+        // pinocchio's loops, each the reference of a single-call row and of a batch row.
+        let pin_fk_tool = || {
+            let mut out = [0.0; POSE];
+            Work::Loop(Box::new(move |r| {
+                pin.fk_frame(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
+            }))
+        };
+        let pin_frame_jacobian = || {
+            let mut out = vec![0.0; 6 * nv];
+            Work::Loop(Box::new(move |r| {
+                pin.frame_jacobian(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
+            }))
+        };
         vec![
             Row {
                 name: "FK to the tool",
@@ -284,10 +297,7 @@ impl<'s> Bench<'s> {
                         Ok(())
                     }
                 })),
-                pinocchio: Work::Loop(Box::new({
-                    let mut out = [0.0; 12];
-                    move |r| pin.fk_frame(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
-                })),
+                pinocchio: pin_fk_tool(),
             },
             Row {
                 name: "all frames",
@@ -314,10 +324,7 @@ impl<'s> Bench<'s> {
                         Ok(())
                     }
                 })),
-                pinocchio: Work::Loop(Box::new({
-                    let mut out = vec![0.0; 6 * nv];
-                    move |r| pin.frame_jacobian(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
-                })),
+                pinocchio: pin_frame_jacobian(),
             },
             // FK with the Jacobian minus FK alone: each library's own preparation (armcomp's
             // FK; pinocchio's computeJointJacobians, which getFrameJacobian reads) is left out.
@@ -364,10 +371,7 @@ impl<'s> Bench<'s> {
                         Ok(())
                     }
                 })),
-                pinocchio: Work::Loop(Box::new({
-                    let mut out = [0.0; 12];
-                    move |r| pin.fk_frame(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
-                })),
+                pinocchio: pin_fk_tool(),
             },
             Row {
                 name: "6×n Jacobian from q, batch",
@@ -387,10 +391,7 @@ impl<'s> Bench<'s> {
                         Ok(())
                     }
                 })),
-                pinocchio: Work::Loop(Box::new({
-                    let mut out = vec![0.0; 6 * nv];
-                    move |r| pin.frame_jacobian(frame, black_box(rows(pin_qs, pnq, r)), &mut out, 0)
-                })),
+                pinocchio: pin_frame_jacobian(),
             },
         ]
     }

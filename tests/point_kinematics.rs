@@ -221,17 +221,19 @@ fn jacobian_errors(robot: &Robot, k: usize, q: &[f64]) -> (f64, f64) {
     ((ours - theirs).abs().max(), fd_error)
 }
 
+/// Mimic joints (Agile Justin's torso, TIAGo's gripper), prismatic ones (the rock-drill boom,
+/// TIAGo's torso lift), a long tree (TALOS).
+const VARIED: [&str; 5] = [
+    "robots/agile-justin.toml",
+    "robots/rock-drill.toml",
+    "tests/data/urdf/tiago.urdf",
+    "tests/data/urdf/ur5_robot.urdf",
+    "robots/talos-left-arm.toml",
+];
+
 #[test]
 fn path_jacobian_equals_the_trees_and_central_differences() {
-    // Mimic joints (Agile Justin's torso, TIAGo's gripper), prismatic ones (the rock-drill
-    // boom, TIAGo's torso lift), a long tree (TALOS).
-    for path in [
-        "robots/agile-justin.toml",
-        "robots/rock-drill.toml",
-        "tests/data/urdf/tiago.urdf",
-        "tests/data/urdf/ur5_robot.urdf",
-        "robots/talos-left-arm.toml",
-    ] {
+    for path in VARIED {
         let robot = robot_at(path);
         for q in random_configurations(&robot, 3, 5) {
             for k in 0..robot.tree().points().len() {
@@ -253,13 +255,7 @@ fn batch(robot: &Robot, n: usize, seed: u64) -> Vec<f64> {
 #[test]
 fn batches_equal_single_calls_bit_for_bit() {
     // Lane counts of 4 and 8 both leave remainders among these sizes.
-    for path in [
-        "robots/agile-justin.toml",
-        "robots/rock-drill.toml",
-        "tests/data/urdf/tiago.urdf",
-        "tests/data/urdf/ur5_robot.urdf",
-        "robots/talos-left-arm.toml",
-    ] {
+    for path in VARIED {
         let robot = robot_at(path);
         let plan = robot.kinematics();
         let (nq, np) = (plan.nq(), plan.tree_points().len());
