@@ -40,6 +40,15 @@ fn bench(c: &mut Criterion) {
         .collect();
     let q0 = mid_range(&model);
     let mut comp = Compensator::new(&model, Some(gp.as_ref()), CompensationParams::default()).expect("sizes match");
+    // What a target costs: chord solves after the first model solve, and the final mismatch.
+    let mut shifts = std::collections::BTreeMap::new();
+    let mut worst: f64 = 0.0;
+    for t in &targets {
+        let r = comp.compensate(t, &q0, CompensationMode::Exact).expect("reachable");
+        *shifts.entry(r.shifts).or_insert(0) += 1;
+        worst = worst.max(r.mismatch);
+    }
+    eprintln!("targets by chord solves (solves: targets): {shifts:?}; largest mismatch {worst:.1e} m");
     let mut i = 0;
     c.bench_function("compensate exact, GP (900 samples), per target", |b| {
         b.iter(|| {

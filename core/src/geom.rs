@@ -63,15 +63,16 @@ pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
     }
     // One sine and cosine of the half angle serve the quaternion and, through sin θ = 2 sₕcₕ
     // and 1 − cos θ = 2 sₕ² (free of cancellation at small angles), the left Jacobian.
-    let (sh, ch) = (0.5 * theta).sin_cos();
+    let ([sh], [ch]) = crate::sincos::sin_cos([0.5 * theta]);
     let axis = w * (sh / theta);
     let rot = UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(ch, axis.x, axis.y, axis.z));
-    let k = skew(&w);
-    let k2 = k * k;
     let t2 = theta * theta;
-    // Left Jacobian of SO(3): V = I + (1-cos)/θ² K + (θ-sin)/θ³ K².
-    let vmat = Matrix3::identity() + k * (2.0 * sh * sh / t2) + k2 * ((theta - 2.0 * sh * ch) / (t2 * theta));
-    Isometry3::from_parts(Translation3::from(vmat * v), rot)
+    // Left Jacobian of SO(3) applied to v: V v = v + (1-cos)/θ² K v + (θ-sin)/θ³ K² v with
+    // K v = w × v, two cross products instead of the matrices.
+    let wv = w.cross(&v);
+    let wwv = w.cross(&wv);
+    let t = v + wv * (2.0 * sh * sh / t2) + wwv * ((theta - 2.0 * sh * ch) / (t2 * theta));
+    Isometry3::from_parts(Translation3::from(t), rot)
 }
 
 /// The body-frame twist by which [`exp_twist`] moves when its argument moves: with
