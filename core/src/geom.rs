@@ -64,14 +64,16 @@ pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
     // One sine and cosine of the half angle serve the quaternion and, through sin θ = 2 sₕcₕ
     // and 1 − cos θ = 2 sₕ² (free of cancellation at small angles), the left Jacobian.
     let ([sh], [ch]) = crate::sincos::sin_cos([0.5 * theta]);
-    let axis = w * (sh / theta);
+    // One division: the others are products with its result (divisions are slow).
+    let inv = 1.0 / theta;
+    let sh_t = sh * inv;
+    let axis = w * sh_t;
     let rot = UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(ch, axis.x, axis.y, axis.z));
-    let t2 = theta * theta;
     // Left Jacobian of SO(3) applied to v: V v = v + (1-cos)/θ² K v + (θ-sin)/θ³ K² v with
     // K v = w × v, two cross products instead of the matrices.
     let wv = w.cross(&v);
     let wwv = w.cross(&wv);
-    let t = v + wv * (2.0 * sh * sh / t2) + wwv * ((theta - 2.0 * sh * ch) / (t2 * theta));
+    let t = v + wv * (2.0 * sh_t * sh_t) + wwv * ((theta - 2.0 * sh * ch) * (inv * inv * inv));
     Isometry3::from_parts(Translation3::from(t), rot)
 }
 

@@ -112,6 +112,7 @@ pub struct Bending {
 impl Beam {
     /// The beam from `start` to `end`, section axes from the link's rotation (see module docs);
     /// `None` when shorter than a nanometre.
+    #[inline]
     pub fn new(
         start: Vector3<f64>,
         end: Vector3<f64>,
