@@ -98,8 +98,8 @@ impl Robot {
         Ok(())
     }
 
-    /// The 6 × nq pose Jacobian of the workspace's point `k` (for [`batch_workspace`]
-    /// (Robot::batch_workspace), the tree's point `k`; as
+    /// The 6 × nq pose Jacobian of the workspace's point `k` (the tree's point `k` for
+    /// [`batch_workspace`](Self::batch_workspace); as
     /// [`PointKinematics::pose_jacobian_into`]; with error models, of the deformed arm with
     /// the deformation held, as the IK uses it) at the `n` configurations of `qs`, into `out`
     /// as `n` column-major 6 × nq blocks. Checks every configuration before writing; allocates

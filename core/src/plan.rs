@@ -9,7 +9,9 @@
 //! - trajectory-similar subsets (ANN paper Sec. 3.4.1): points spread along a task trajectory
 //!   by arc length, and for each the nearest unused pool points by tool position.
 //!
-//! Every method takes an `accept` filter (e.g. collision checking) applied to candidates.
+//! Every method takes an `accept` filter (e.g. collision checking) applied to candidates. Tool
+//! positions come from the batch calls ([`Robot::point_positions_many`]): the tool's path alone
+//! on a rigid robot, the full model with error models.
 
 use nalgebra::Vector3;
 
