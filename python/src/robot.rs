@@ -1,7 +1,7 @@
 //! `armcomp.Robot`: a robot or model file (or a bare URDF) ready to evaluate.
 
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, MutexGuard, TryLockError};
+use std::sync::{Arc, Mutex, TryLockError};
 
 use armcomp_core::calibrate::ParameterSpace;
 use armcomp_core::io::{check_output, write_atomic};
@@ -47,34 +47,6 @@ impl Scratch {
     }
 }
 
-/// The robot's scratch, or fresh buffers while another thread holds it: never waiting on a
-/// lock, so a call holding the GIL cannot deadlock against one computing without it, and
-/// threads evaluating one robot run side by side.
-enum ScratchGuard<'a> {
-    Shared(MutexGuard<'a, Scratch>),
-    Own(Box<Scratch>),
-}
-
-impl std::ops::Deref for ScratchGuard<'_> {
-    type Target = Scratch;
-
-    fn deref(&self) -> &Scratch {
-        match self {
-            ScratchGuard::Shared(g) => g,
-            ScratchGuard::Own(s) => s,
-        }
-    }
-}
-
-impl std::ops::DerefMut for ScratchGuard<'_> {
-    fn deref_mut(&mut self) -> &mut Scratch {
-        match self {
-            ScratchGuard::Shared(g) => g,
-            ScratchGuard::Own(s) => s,
-        }
-    }
-}
-
 impl PyRobot {
     /// Wraps a robot an operation built (its reading warnings were issued when it was loaded).
     pub fn wrap(robot: Robot) -> Self {
@@ -90,13 +62,15 @@ impl PyRobot {
         Ok(PyRobot::wrap(robot))
     }
 
-    /// The buffers for one kinematics call (see [`ScratchGuard`]). Buffers a panic left
+    /// `f` on the robot's buffers, or on fresh ones while another thread holds them: never
+    /// waiting for the lock, so a call holding the GIL cannot deadlock against one computing
+    /// without it, and threads evaluating one robot run side by side. Buffers a panic left
     /// behind are only scratch, overwritten by the next call.
-    fn scratch(&self) -> ScratchGuard<'_> {
+    fn with_scratch<R>(&self, f: impl FnOnce(&mut Scratch) -> R) -> R {
         match self.scratch.try_lock() {
-            Ok(guard) => ScratchGuard::Shared(guard),
-            Err(TryLockError::Poisoned(e)) => ScratchGuard::Shared(e.into_inner()),
-            Err(TryLockError::WouldBlock) => ScratchGuard::Own(Box::new(Scratch::new(&self.robot))),
+            Ok(mut guard) => f(&mut guard),
+            Err(TryLockError::Poisoned(e)) => f(&mut e.into_inner()),
+            Err(TryLockError::WouldBlock) => f(&mut Scratch::new(&self.robot)),
         }
     }
 
@@ -239,13 +213,13 @@ impl PyRobot {
         let q = self.configuration(&q)?;
         // A batch of one, so that `fk` and `fk_many` give the same bits.
         let robot = &self.robot;
-        let mut guard = self.scratch();
-        let Scratch { batch, poses, .. } = &mut *guard;
-        robot.forward_many_into(1, &q, poses, batch).py()?;
-        let positions = Array2::from_shape_fn((poses.len(), 3), |(p, k)| poses[p].translation.vector[k]);
-        let tool = poses[robot.tool()].to_homogeneous();
-        let pose = Array2::from_shape_fn((4, 4), |(r, c)| tool[(r, c)]).into_pyarray(py);
-        Ok((positions.into_pyarray(py), pose))
+        self.with_scratch(|Scratch { batch, poses, .. }| {
+            robot.forward_many_into(1, &q, poses, batch).py()?;
+            let positions = Array2::from_shape_fn((poses.len(), 3), |(p, k)| poses[p].translation.vector[k]);
+            let tool = poses[robot.tool()].to_homogeneous();
+            let pose = Array2::from_shape_fn((4, 4), |(r, c)| tool[(r, c)]);
+            Ok((positions.into_pyarray(py), pose.into_pyarray(py)))
+        })
     }
 
     /// Forward kinematics of many configurations in one call: `Q` is `n × nq` (SI), the result
@@ -282,11 +256,8 @@ impl PyRobot {
         {
             let mut write = out.readwrite();
             let slice = write.as_slice_mut().expect("a new array is contiguous");
-            py.detach(|| {
-                self.robot
-                    .point_positions_many_into(n, qs, slice, &mut self.scratch().batch)
-            })
-            .py()?;
+            py.detach(|| self.with_scratch(|s| self.robot.point_positions_many_into(n, qs, slice, &mut s.batch)))
+                .py()?;
         }
         Ok(out)
     }
@@ -305,11 +276,12 @@ impl PyRobot {
         let p = self.point_index(point)?;
         // The robot's point kinematics hold the tree's points in the tree's order.
         let kinematics = self.robot.kinematics();
-        let mut guard = self.scratch();
-        let Scratch { point, jacobian, .. } = &mut *guard;
-        kinematics.forward_into(&q, point);
-        kinematics.pose_jacobian_into(point, p, jacobian);
-        Ok(Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jacobian[(r, c)]).into_pyarray(py))
+        let jacobian = self.with_scratch(|Scratch { point, jacobian, .. }| {
+            kinematics.forward_into(&q, point);
+            kinematics.pose_jacobian_into(point, p, jacobian);
+            Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jacobian[(r, c)])
+        });
+        Ok(jacobian.into_pyarray(py))
     }
 
     /// The robot file with this robot's values as text (TOML, or JSON with `format="json"`).
