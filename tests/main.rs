@@ -3,6 +3,7 @@
 mod agile_justin;
 mod architecture;
 mod bad_inputs;
+mod batched_pipelines;
 mod calibrate;
 mod cli;
 mod collision;

@@ -6,6 +6,7 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::measurement::Sample;
 use crate::plugin::{FittedPredictor, PredictorSpec, TrainingSet};
+use crate::point_kinematics::PointKinematics;
 use crate::robot::{Conditions, Robot};
 
 /// Statistics of 3-D position errors, in millimetres (the unit people compare arms in).
@@ -98,11 +99,52 @@ pub fn predictor_input_into(robot: &Robot, n_inputs: usize, q: &[f64], point: us
 
 /// Measured minus modelled position of each sample (m, measurement frame) through the physical
 /// model alone (chain and error models, no predictor): what a residual predictor learns.
+/// Samples give points of `robot` and configurations of its size.
 pub fn model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
+    if robot.error_models().is_empty() {
+        return rigid_model_errors(robot, samples);
+    }
     let mut ws = robot.workspace();
     samples
         .iter()
         .map(|s| s.position - robot.measured_position(&s.q, s.point, Conditions::of(s), &mut ws))
+        .collect()
+}
+
+/// [`model_errors`] of a rigid robot, whose points do not depend on the conditions: the
+/// measured points' batched kinematics, one configuration per run of samples at the same joint
+/// values (the markers of one pose).
+fn rigid_model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
+    let mut points: Vec<usize> = samples.iter().map(|s| s.point).collect();
+    points.sort_unstable();
+    points.dedup();
+    let plan = PointKinematics::for_points(robot.tree(), &points).expect("samples measure points of the robot");
+    // Each tree point's place among the measured ones.
+    let mut slot = vec![0; robot.tree().points().len()];
+    for (k, &p) in points.iter().enumerate() {
+        slot[p] = k;
+    }
+    let (mut qs, mut config, mut n) = (Vec::new(), Vec::with_capacity(samples.len()), 0);
+    for (i, s) in samples.iter().enumerate() {
+        if i == 0 || s.q != samples[i - 1].q {
+            qs.extend_from_slice(&s.q);
+            n += 1;
+        }
+        config.push(n - 1);
+    }
+    let width = 3 * points.len();
+    let mut positions = vec![0.0; n * width];
+    plan.point_positions_many_into(n, &qs, &mut positions, &mut plan.many_workspace())
+        .expect("samples hold configurations of the robot's size");
+    let t = robot.t_meas_base();
+    samples
+        .iter()
+        .zip(config)
+        .map(|(s, c)| {
+            let at = c * width + 3 * slot[s.point];
+            let p = Vector3::from_column_slice(&positions[at..at + 3]);
+            s.position - t.transform_point(&p.into()).coords
+        })
         .collect()
 }
 

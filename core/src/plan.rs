@@ -9,7 +9,9 @@
 //! - trajectory-similar subsets (ANN paper Sec. 3.4.1): points spread along a task trajectory
 //!   by arc length, and for each the nearest unused pool points by tool position.
 //!
-//! Every method takes an `accept` filter (e.g. collision checking) applied to candidates.
+//! Every method takes an `accept` filter (e.g. collision checking) applied to candidates. Tool
+//! positions come from the batch calls ([`Robot::point_positions_many`]): the tool's path alone
+//! on a rigid robot, the full model with error models.
 
 use nalgebra::Vector3;
 
@@ -63,7 +65,6 @@ pub fn spread(
     } else {
         n.saturating_mul(20).max(n)
     };
-    let mut ws = robot.workspace();
     match space {
         Space::Joint => {
             for q in configurations(robot.tree(), sampler, tries, seed)? {
@@ -74,21 +75,14 @@ pub fn spread(
                     report.rejected += 1;
                     continue;
                 }
-                robot.forward_into(&q, None, &mut ws);
-                report.tool_positions.push(ws.frames.point_position(robot.tool()));
                 report.poses.push(q);
             }
+            report.tool_positions = robot.point_positions_many(&[robot.tool()], &report.poses)?;
         }
         Space::Cartesian => {
             // The reachable box and IK starts come from a joint-space pool.
             let starts = configurations(robot.tree(), Sampler::Sobol, 2000, seed ^ 0x5eed)?;
-            let start_pos: Vec<Vector3<f64>> = starts
-                .iter()
-                .map(|q| {
-                    robot.forward_into(q, None, &mut ws);
-                    ws.frames.point_position(robot.tool())
-                })
-                .collect();
+            let start_pos = robot.point_positions_many(&[robot.tool()], &starts)?;
             let (lo, hi) = start_pos.iter().fold(
                 (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY)),
                 |(lo, hi), p| (lo.inf(p), hi.sup(p)),
@@ -165,13 +159,7 @@ pub fn trajectory_similar(
             ),
         });
     }
-    let mut ws = robot.workspace();
-    let mut path = Vec::with_capacity(trajectory.len());
-    for q in trajectory {
-        robot.tree().check_q(q)?;
-        robot.forward_into(q, None, &mut ws);
-        path.push(ws.frames.point_position(robot.tool()));
-    }
+    let path = robot.point_positions_many(&[robot.tool()], trajectory)?;
     let mut taken = vec![false; pool_positions.len()];
     let mut out = Vec::with_capacity(points * per_point);
     for target in resample_by_arc_length(&path, points) {

@@ -89,7 +89,9 @@ impl PointKinematics {
         Ok(())
     }
 
-    fn check_batch(&self, n: usize, qs: &[f64], what: &str, width: usize, got: usize) -> Result<()> {
+    /// Checks the sizes of a batch: `n` configurations in `qs`, `n × width` values of `what`
+    /// in an output of length `got`.
+    pub(crate) fn check_batch(&self, n: usize, qs: &[f64], what: &str, width: usize, got: usize) -> Result<()> {
         for (what, expected, got) in [("configurations", n * self.nq(), qs.len()), (what, n * width, got)] {
             if expected != got {
                 return Err(Error::Dimension {

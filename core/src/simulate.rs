@@ -18,7 +18,8 @@ pub struct SimulateParams {
 }
 
 /// Measures every marker of `truth` at each configuration: `T_meas_base · FK(q) · p_marker`
-/// through the full model (chain and error models), plus Gaussian noise per axis.
+/// through the full model (chain and error models; a rigid truth through the markers' batched
+/// point kinematics), plus Gaussian noise per axis.
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
     if !(params.noise_std.is_finite() && params.noise_std >= 0.0) {
         return Err(Error::InvalidArgument {
@@ -31,14 +32,13 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
         reason: e.to_string(),
     })?;
     let mut rng = StdRng::seed_from_u64(params.seed);
-    let mut ws = truth.workspace();
     let t = truth.t_meas_base();
+    let positions = truth.point_positions_many(truth.markers(), poses)?;
     let mut set = MeasurementSet::default();
-    for q in poses {
-        truth.tree().check_q(q)?;
-        truth.forward_into(q, None, &mut ws);
-        for &m in truth.markers() {
-            let mut p = t.transform_point(&ws.frames.point[m].translation.vector.into()).coords;
+    let per_pose = positions.chunks_exact(truth.markers().len().max(1));
+    for (q, at) in poses.iter().zip(per_pose) {
+        for (&m, p) in truth.markers().iter().zip(at) {
+            let mut p = t.transform_point(&(*p).into()).coords;
             for k in 0..3 {
                 p[k] += normal.sample(&mut rng);
             }

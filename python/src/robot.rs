@@ -1,12 +1,12 @@
 //! `armcomp.Robot`: a robot or model file (or a bare URDF) ready to evaluate.
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, TryLockError};
 
 use armcomp_core::calibrate::ParameterSpace;
 use armcomp_core::io::{check_output, write_atomic};
 use armcomp_core::robot_file::{Format, SourceFile};
-use armcomp_core::{Robot, RobotFile};
+use armcomp_core::{BatchWorkspace, PointKinematicsWorkspace, Robot, RobotFile};
 use nalgebra::{IsometryMatrix3, Matrix6xX};
 use numpy::ndarray::Array2;
 use numpy::{
@@ -24,18 +24,54 @@ use crate::measurements::PyMeasurements;
 #[pyclass(name = "Robot", module = "armcomp", frozen)]
 pub struct PyRobot {
     pub robot: Arc<Robot>,
+    /// The buffers of `fk`, `fk_many` and `jacobian`, kept so that a call allocates none.
+    scratch: Mutex<Scratch>,
+}
+
+/// What the kinematics calls of one [`PyRobot`] evaluate into.
+struct Scratch {
+    batch: BatchWorkspace,
+    poses: Vec<IsometryMatrix3<f64>>,
+    point: PointKinematicsWorkspace,
+    jacobian: Matrix6xX<f64>,
+}
+
+impl Scratch {
+    fn new(robot: &Robot) -> Self {
+        Scratch {
+            batch: robot.batch_workspace(),
+            poses: vec![IsometryMatrix3::identity(); robot.tree().points().len()],
+            point: robot.kinematics().workspace(),
+            jacobian: Matrix6xX::zeros(robot.tree().nq()),
+        }
+    }
 }
 
 impl PyRobot {
     /// Wraps a robot an operation built (its reading warnings were issued when it was loaded).
     pub fn wrap(robot: Robot) -> Self {
-        PyRobot { robot: Arc::new(robot) }
+        PyRobot {
+            scratch: Mutex::new(Scratch::new(&robot)),
+            robot: Arc::new(robot),
+        }
     }
 
     /// Wraps a robot just read, handing its reading warnings to Python's `warnings`.
     pub fn new(py: Python<'_>, robot: Robot) -> PyResult<Self> {
         crate::errors::warn_all(py, robot.warnings())?;
-        Ok(PyRobot { robot: Arc::new(robot) })
+        Ok(PyRobot::wrap(robot))
+    }
+
+    /// `f` on the robot's buffers, or on fresh ones while another thread holds them: never
+    /// waiting for the lock, so a call holding the GIL cannot deadlock against one computing
+    /// without it, and threads evaluating one robot run side by side. Buffers a panic left
+    /// behind are only scratch, overwritten by the next call.
+    fn with_scratch<R>(&self, f: impl FnOnce(&mut Scratch) -> R) -> R {
+        match self.scratch.try_lock() {
+            Ok(mut guard) => f(&mut guard),
+            Err(TryLockError::Poisoned(e)) => f(&mut e.into_inner()),
+            Err(TryLockError::WouldBlock) => f(&mut Scratch::new(&self.robot)),
+        }
     }
 
     /// Index of the point named `name`, or the tool.
@@ -177,14 +213,13 @@ impl PyRobot {
         let q = self.configuration(&q)?;
         // A batch of one, so that `fk` and `fk_many` give the same bits.
         let robot = &self.robot;
-        let mut poses = vec![IsometryMatrix3::identity(); robot.tree().points().len()];
-        robot
-            .forward_many_into(1, &q, &mut poses, &mut robot.batch_workspace())
-            .py()?;
-        let positions: Vec<_> = poses.iter().map(|p| p.translation.vector).collect();
-        let tool = poses[robot.tool()].to_homogeneous();
-        let pose = Array2::from_shape_fn((4, 4), |(r, c)| tool[(r, c)]).into_pyarray(py);
-        Ok((crate::arrays::points(py, &positions), pose))
+        self.with_scratch(|Scratch { batch, poses, .. }| {
+            robot.forward_many_into(1, &q, poses, batch).py()?;
+            let positions = Array2::from_shape_fn((poses.len(), 3), |(p, k)| poses[p].translation.vector[k]);
+            let tool = poses[robot.tool()].to_homogeneous();
+            let pose = Array2::from_shape_fn((4, 4), |(r, c)| tool[(r, c)]);
+            Ok((positions.into_pyarray(py), pose.into_pyarray(py)))
+        })
     }
 
     /// Forward kinematics of many configurations in one call: `Q` is `n × nq` (SI), the result
@@ -221,8 +256,7 @@ impl PyRobot {
         {
             let mut write = out.readwrite();
             let slice = write.as_slice_mut().expect("a new array is contiguous");
-            let robot = &self.robot;
-            py.detach(|| robot.point_positions_many_into(n, qs, slice, &mut robot.batch_workspace()))
+            py.detach(|| self.with_scratch(|s| self.robot.point_positions_many_into(n, qs, slice, &mut s.batch)))
                 .py()?;
         }
         Ok(out)
@@ -242,11 +276,12 @@ impl PyRobot {
         let p = self.point_index(point)?;
         // The robot's point kinematics hold the tree's points in the tree's order.
         let kinematics = self.robot.kinematics();
-        let mut ws = kinematics.workspace();
-        kinematics.forward_into(&q, &mut ws);
-        let mut jac = Matrix6xX::zeros(kinematics.nq());
-        kinematics.pose_jacobian_into(&ws, p, &mut jac);
-        Ok(Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jac[(r, c)]).into_pyarray(py))
+        let jacobian = self.with_scratch(|Scratch { point, jacobian, .. }| {
+            kinematics.forward_into(&q, point);
+            kinematics.pose_jacobian_into(point, p, jacobian);
+            Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jacobian[(r, c)])
+        });
+        Ok(jacobian.into_pyarray(py))
     }
 
     /// The robot file with this robot's values as text (TOML, or JSON with `format="json"`).

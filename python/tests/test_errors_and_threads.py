@@ -89,6 +89,43 @@ def test_long_calls_release_the_gil(talos):
     worker.join()
 
 
+def test_threads_evaluating_one_robot_get_their_own_values():
+    """`fk`, `fk_many` and `jacobian` share one robot's buffers; threads calling them at once
+    (`fk_many` without the GIL) neither wait for each other forever nor mix their values."""
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    tool = robot.points.index("tool")
+
+    def tool_xy(q):
+        q1, q12 = q[:, 0], q[:, 0] + q[:, 1]
+        return 0.7 * np.cos(q1) + 0.4 * np.cos(q12), 0.7 * np.sin(q1) + 0.4 * np.sin(q12)
+
+    failures = []
+
+    def worker(seed):
+        rng = np.random.default_rng(seed)
+        try:
+            for _ in range(30):
+                q = rng.uniform(-3.0, 3.0, (2000, 2))
+                x, y = tool_xy(q)
+                many = robot.fk_many(q)[:, tool, :]
+                np.testing.assert_allclose(many[:, 0], x, atol=1e-12)
+                np.testing.assert_allclose(many[:, 1], y, atol=1e-12)
+                positions, pose = robot.fk(q[0])
+                np.testing.assert_allclose(positions[tool, :2], [x[0], y[0]], atol=1e-12)
+                np.testing.assert_allclose(pose[:2, 3], [x[0], y[0]], atol=1e-12)
+                np.testing.assert_allclose(robot.jacobian(q[1])[5], [1.0, 1.0], atol=1e-12)
+        except AssertionError as e:
+            failures.append(e)
+
+    threads = [threading.Thread(target=worker, args=(seed,)) for seed in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=60)
+    assert not any(t.is_alive() for t in threads), "a thread is stuck"
+    assert not failures, failures[0]
+
+
 def test_ctrl_c_stops_a_long_call_and_the_next_one_runs(talos):
     robot, data = talos
     start = time.perf_counter()
