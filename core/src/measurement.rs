@@ -133,18 +133,49 @@ pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Ve
 /// The 1-based line of the record a csv reader read at `position` in `text` (0 when
 /// unknown). The reader's own line count leaves out comment lines, and its position is where
 /// it started reading, before the comment and blank lines it skipped: those are skipped here.
+/// For many records of one text use a [`LineCounter`].
 pub fn line_at(text: &str, position: Option<&csv::Position>) -> usize {
-    position.map_or(0, |p| {
-        let start = (p.byte() as usize).min(text.len());
-        let mut line = 1 + text.as_bytes()[..start].iter().filter(|&&b| b == b'\n').count();
-        for l in text.get(start..).unwrap_or_default().lines() {
-            if !(l.trim().is_empty() || l.starts_with('#')) {
-                break;
-            }
-            line += 1;
+    LineCounter::new(text).line_at(position)
+}
+
+/// [`line_at`] for the records of one text read in order: the newlines are counted on from the
+/// previous record, so numbering every row of a file stays linear in its size.
+#[derive(Debug, Clone)]
+pub struct LineCounter<'a> {
+    text: &'a str,
+    /// A byte offset and the 1-based line it is on.
+    byte: usize,
+    line: usize,
+}
+
+impl<'a> LineCounter<'a> {
+    /// A counter at the start of `text`.
+    pub fn new(text: &'a str) -> Self {
+        LineCounter { text, byte: 0, line: 1 }
+    }
+
+    /// The 1-based line of the record read at `position` (0 when unknown); positions before
+    /// the previous one are counted from the start again.
+    pub fn line_at(&mut self, position: Option<&csv::Position>) -> usize {
+        let Some(p) = position else { return 0 };
+        let start = (p.byte() as usize).min(self.text.len());
+        if start < self.byte {
+            (self.byte, self.line) = (0, 1);
         }
-        line
-    })
+        self.line += self.text.as_bytes()[self.byte..start]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
+        self.byte = start;
+        let skipped = self
+            .text
+            .get(start..)
+            .unwrap_or_default()
+            .lines()
+            .take_while(|l| l.trim().is_empty() || l.starts_with('#'))
+            .count();
+        self.line + skipped
+    }
 }
 
 /// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
@@ -384,9 +415,10 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     // Joints outside their limits: (rows, first line, worst value) per coordinate.
     let mut outside: Vec<(usize, usize, f64)> = vec![(0, 0, 0.0); names.len()];
     let mut rows_without_point = 0;
+    let mut lines = LineCounter::new(text);
     for (row, record) in reader.records().enumerate() {
-        let record = record.map_err(|e| err(Some(line_at(text, e.position())), format!("cannot read the row: {e}")))?;
-        let line = line_at(text, record.position());
+        let record = record.map_err(|e| err(Some(lines.line_at(e.position())), format!("cannot read the row: {e}")))?;
+        let line = lines.line_at(record.position());
         if record.len() != columns.len() {
             return Err(err(
                 Some(line),
@@ -769,4 +801,28 @@ pub fn joint_row(q: &[f64], tree: &KinematicTree, units: Units) -> Vec<String> {
 pub fn write_poses(poses: &[Vec<f64>], tree: &KinematicTree, units: Units) -> String {
     let rows = poses.iter().map(|q| joint_row(q, tree, units));
     csv_text(std::iter::once(joint_header(tree, units)).chain(rows))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn record_lines_count_comment_and_blank_lines() {
+        // Lines: 1 header, 2 comment, 3 row, 4 blank, 5 comment, 6 row, 7 row.
+        let text = "a,b\n# note\n1,2\n\n# another\n3,4\n5,6\n";
+        let mut reader = csv::ReaderBuilder::new()
+            .comment(Some(b'#'))
+            .from_reader(text.as_bytes());
+        let header = reader.headers().unwrap().clone();
+        let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+        let mut lines = LineCounter::new(text);
+        assert_eq!(lines.line_at(header.position()), 1);
+        let got: Vec<usize> = rows.iter().map(|r| lines.line_at(r.position())).collect();
+        assert_eq!(got, [3, 6, 7]);
+        // Out of order: counted from the start again, as the one-off function does.
+        assert_eq!(lines.line_at(rows[0].position()), 3);
+        assert_eq!(line_at(text, rows[2].position()), 7);
+        assert_eq!(lines.line_at(None), 0);
+    }
 }

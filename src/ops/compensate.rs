@@ -147,7 +147,7 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
-    let line_of = |r: &csv::StringRecord| armcomp_core::measurement::line_at(&text, r.position());
+    let mut lines = armcomp_core::measurement::LineCounter::new(&text);
     let header = reader
         .headers()
         .with_context(|| format!("{}: the header is not readable CSV", path.display()))?
@@ -155,7 +155,7 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
     if header.iter().all(str::is_empty) {
         bail!("{}: empty; expected a header `x[mm],y[mm],z[mm]`", path.display());
     }
-    let header_line = line_of(&header);
+    let header_line = lines.line_at(header.position());
     // Columns 0..3 are x, y, z (with their scale to m), 3..7 are qw, qx, qy, qz (scale 1).
     let mut columns: [Option<(usize, f64)>; 7] = [None; 7];
     let mut n_columns = 0;
@@ -203,7 +203,7 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
     let mut targets = Vec::new();
     for record in reader.records() {
         let row = record.with_context(|| format!("{}: a row is not readable CSV", path.display()))?;
-        let line = line_of(&row);
+        let line = lines.line_at(row.position());
         let cells: Vec<&str> = row.iter().collect();
         if cells.len() != n_columns {
             bail!(
