@@ -63,7 +63,7 @@ pub fn exp_twist(twist: &Vector6<f64>) -> Isometry3<f64> {
     }
     // One sine and cosine of the half angle serve the quaternion and, through sin θ = 2 sₕcₕ
     // and 1 − cos θ = 2 sₕ² (free of cancellation at small angles), the left Jacobian.
-    let ([sh], [ch]) = crate::sincos::sin_cos([0.5 * theta]);
+    let (sh, ch) = (0.5 * theta).sin_cos();
     // One division: the others are products with its result (divisions are slow).
     let inv = 1.0 / theta;
     let sh_t = sh * inv;

@@ -6,7 +6,7 @@
 //! along (prismatic) a unit axis given in the joint frame. The model is immutable; all buffers
 //! live in a [`TreeWorkspace`](crate::TreeWorkspace) so that FK and Jacobians never allocate.
 
-use nalgebra::{Isometry3, Quaternion, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
 
@@ -27,12 +27,7 @@ impl Motion {
     pub fn transform(&self, v: f64) -> Isometry3<f64> {
         match self {
             Motion::Revolute(axis) => {
-                // The project's inlined sine and cosine (within two ulps of libm's, about half
-                // the instructions and no call); `from_axis_angle` would call libm.
-                let ([s], [c]) = crate::sincos::sin_cos([0.5 * v]);
-                let a = axis.into_inner() * s;
-                let rotation = UnitQuaternion::new_unchecked(Quaternion::new(c, a.x, a.y, a.z));
-                Isometry3::from_parts(Translation3::identity(), rotation)
+                Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(axis, v))
             }
             Motion::Prismatic(axis) => {
                 Isometry3::from_parts(Translation3::from(axis.into_inner() * v), UnitQuaternion::identity())
