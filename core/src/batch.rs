@@ -136,7 +136,10 @@ impl Robot {
     /// through the full model as [`point_positions_many_into`](Self::point_positions_many_into):
     /// `poses.len() × points.len()` of them, configuration by configuration.
     pub fn point_positions_many(&self, points: &[usize], poses: &[Vec<f64>]) -> Result<Vec<Vector3<f64>>> {
-        for (i, q) in poses.iter().enumerate() {
+        // Lengths first, so that a short configuration is named rather than the batch's total;
+        // the batch call checks the values.
+        let nq = self.tree().nq();
+        for (i, q) in poses.iter().enumerate().filter(|(_, q)| q.len() != nq) {
             self.check_configuration(i, q)?;
         }
         let mut ws = self.batch_workspace_for(points)?;

@@ -333,8 +333,9 @@ enum JacobianForm {
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
 enum ColumnPlan {
     /// Geometry acting through joint placements and point frames: the twist per unit of the
-    /// parameter at each joint frame and point it moves. With `deformation`, the exact form: the change of the error models' deformation the step
-    /// causes (its moment arms) is added, to first order at the deformed frames.
+    /// parameter at each joint frame and point it moves. With `deformation`, the exact form:
+    /// the change of the error models' deformation the step causes (its moment arms) is added,
+    /// to first order at the deformed frames.
     Twists {
         joints: Vec<(usize, Vector6<f64>)>,
         points: Vec<(usize, Vector6<f64>)>,

@@ -24,9 +24,9 @@ const EXP_UNDERFLOW: f64 = -708.0;
 /// `(eʳ − 1 − r)/r²` on `|r| ≤ ln 2 / 2` (fit error below 1.3·10⁻¹⁷; one Horner step less than
 /// the degree-12 Taylor series), and `2^k` built in the exponent bits. The coefficients are
 /// mpmath's at 50 digits, rounded: `chebyfit(lambda r: (exp(r) - 1 - r) / r**2, [-h, h], 10)`
-/// with `h = log(2) / 2` (the series `1/2 + r/6 + r²/24` where `|r| < 1e-10`). `ln 2` is split in two (fdlibm's
-/// constants) so that `k ln 2` is exact to the last bit of `r`. Branch-free, so a loop of it
-/// vectorises.
+/// with `h = log(2) / 2` (the series `1/2 + r/6 + r²/24` where `|r| < 1e-10`). `ln 2` is split
+/// in two (fdlibm's constants) so that `k ln 2` is exact to the last bit of `r`. Branch-free, so
+/// a loop of it vectorises.
 #[inline(always)]
 pub(crate) fn exp_nonpositive(x: f64) -> f64 {
     // Adding 1.5·2⁵² rounds to an integer held in the low mantissa bits.
