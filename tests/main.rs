@@ -14,6 +14,7 @@ mod demo;
 mod demo_report;
 mod diagnose;
 mod docs;
+mod evidence;
 mod fk;
 mod jacobian;
 mod learning_curve;

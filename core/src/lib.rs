@@ -20,6 +20,7 @@ pub mod gravity;
 pub mod ik;
 pub mod interrupt;
 pub mod io;
+pub mod ladder;
 mod lanes;
 pub mod least_squares;
 pub mod mass;

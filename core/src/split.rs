@@ -91,6 +91,36 @@ pub fn kfold(samples: &[Sample], k: usize, seed: u64) -> Result<Vec<Split>> {
         .collect())
 }
 
+/// `k` folds that hold out whole groups: `groups[i]` is sample `i`'s group (a session, a
+/// station), the groups shuffled by `seed`; fold `i` holds out every `k`-th group.
+pub fn grouped_kfold(groups: &[usize], k: usize, seed: u64) -> Result<Vec<Split>> {
+    let mut ids: Vec<usize> = groups.to_vec();
+    ids.sort_unstable();
+    ids.dedup();
+    if k < 2 || k > ids.len() {
+        return Err(Error::InvalidArgument {
+            what: "folds".into(),
+            reason: format!(
+                "grouped k-fold needs 2 ≤ k ≤ number of groups ({}), got k = {k}",
+                ids.len()
+            ),
+        });
+    }
+    ids.shuffle(&mut StdRng::seed_from_u64(seed));
+    Ok((0..k)
+        .map(|fold| {
+            let held: Vec<usize> = ids
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| i % k == fold)
+                .map(|(_, g)| *g)
+                .collect();
+            let (test, train): (Vec<usize>, Vec<usize>) = (0..groups.len()).partition(|&i| held.contains(&groups[i]));
+            Split { train, test }
+        })
+        .collect())
+}
+
 /// The samples at `indices`, cloned, in that order.
 pub fn subset(samples: &[Sample], indices: &[usize]) -> Vec<Sample> {
     indices.iter().map(|&i| samples[i].clone()).collect()

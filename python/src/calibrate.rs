@@ -8,7 +8,7 @@ use crate::errors::{IntoPy, input_error};
 use crate::measurements::PyMeasurements;
 use crate::robot::PyRobot;
 
-/// `prior`: a positive factor, `"auto"` or `"none"`.
+/// `prior`: a positive factor, `"evidence"`, `"auto"` or `"none"`.
 fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
     let text = match value.extract::<f64>() {
         Ok(v) => v.to_string(),
@@ -20,15 +20,16 @@ fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
 
 /// Identifies a model of `robot` from `data`; returns the model, the report as JSON text (what
 /// `armcomp calibrate --json` prints) and whether the fit ended far above the declared noise.
+/// Without `noise_mm` the noise is estimated from the data with the fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, identify = None, noise_mm = 0.1, prior = None, max_iterations = 100, restarts = 2, seed = 0))]
+#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
     robot: PyRef<'_, PyRobot>,
     data: PyRef<'_, PyMeasurements>,
     identify: Option<Vec<String>>,
-    noise_mm: f64,
+    noise_mm: Option<f64>,
     prior: Option<&Bound<'_, PyAny>>,
     max_iterations: usize,
     restarts: usize,
@@ -42,14 +43,14 @@ pub fn calibrate(
     let set = data.resolve(&robot)?;
     let params = CalibrationParams {
         identify: identify.unwrap_or_default(),
-        measurement_std: noise_mm * 1e-3,
+        measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,
         max_iterations,
         restarts,
         seed,
         ..CalibrationParams::default()
     };
     let run = crate::interrupt::run(py, || {
-        armcomp::ops::calibrate::run(&robot, &set.samples, params, prior, &mut |_| {})
+        armcomp::ops::calibrate::run(&robot, &set.samples, params, prior, noise_mm.is_some(), &mut |_| {})
     })?
     .py()?;
     let json = serde_json::to_string(&run.to_json()).expect("JSON values print");

@@ -30,8 +30,9 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     identify: Vec<String>,
     /// Standard deviation of the tracker noise per axis, in mm (weighs data against priors).
-    #[arg(long, default_value_t = 0.1)]
-    noise_mm: f64,
+    /// Default: estimated from the data with the fit (the evidence's maximum).
+    #[arg(long)]
+    noise_mm: Option<f64>,
     /// Most Levenberg–Marquardt iterations.
     #[arg(long, default_value_t = 100)]
     max_iterations: usize,
@@ -59,7 +60,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
-        measurement_std: args.noise_mm * 1e-3,
+        measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
         max_iterations: args.max_iterations,
         restarts: args.restarts,
         seed: args.seed,
@@ -70,10 +71,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} iterations  {msg}")
             .expect("the template is valid"),
     );
-    let result = armcomp::ops::calibrate::run(&robot, &data.samples, params, args.prior, &mut |it| {
-        bar.set_position(it.iteration as u64);
-        bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
-    });
+    let result = armcomp::ops::calibrate::run(
+        &robot,
+        &data.samples,
+        params,
+        args.prior,
+        args.noise_mm.is_some(),
+        &mut |it| {
+            bar.set_position(it.iteration as u64);
+            bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
+        },
+    );
     bar.finish_and_clear();
     let run = result?;
     let (calibration, choice) = (&run.calibration, &run.prior_choice);
@@ -95,6 +103,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 scale_text(c.scale),
                 scores.join(", ")
             );
+        }
+        if let Some(e) = &run.evidence {
+            print_evidence(e);
         }
         print_report(report);
         println!("wrote {}", args.out.display());
@@ -118,6 +129,46 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::SUCCESS
     })
+}
+
+fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {
+    if e.noise_estimated {
+        println!(
+            "noise estimated from the data: {:.4} ± {:.4} mm per axis (residual RMS per axis x {:.4}, y {:.4}, z {:.4} \
+             mm; {:.1} of {} parameters determined by {} equations)",
+            e.noise_mm,
+            e.noise_std_mm,
+            e.rms_per_axis_mm[0],
+            e.rms_per_axis_mm[1],
+            e.rms_per_axis_mm[2],
+            e.determined,
+            e.n_free,
+            e.n_equations
+        );
+    }
+    if !e.groups.is_empty() {
+        let groups: Vec<String> = e
+            .groups
+            .iter()
+            .map(|g| {
+                format!(
+                    "{} ×{:.3} ({:.1} of {} determined)",
+                    g.label, g.scale, g.determined, g.n_params
+                )
+            })
+            .collect();
+        println!("prior scales chosen by the evidence: {}", groups.join(", "));
+    }
+    println!(
+        "log evidence {:.2} after {} round(s){}",
+        e.log_evidence,
+        e.rounds,
+        if e.converged {
+            ""
+        } else {
+            " (the hyper-parameters had not settled)"
+        }
+    );
 }
 
 fn scale_text(s: f64) -> String {

@@ -1,6 +1,7 @@
 //! `calibrate`: the prior choice around [`armcomp_core::calibrate::calibrate`] and its JSON report.
 
 use armcomp_core::Robot;
+use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
 use armcomp_core::calibrate::{Calibration, CalibrationParams, IterationInfo, calibrate};
 use armcomp_core::measurement::Sample;
 use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
@@ -12,20 +13,24 @@ pub enum Prior {
     Scale(f64),
     /// Chosen by 5-fold cross-validation on the calibration data alone.
     Auto,
+    /// One factor per group of parameters, chosen by the evidence (type-II maximum
+    /// likelihood) of the calibration data.
+    Evidence,
 }
 
 impl std::str::FromStr for Prior {
     type Err = String;
 
-    /// `auto`, `none` or a positive factor.
+    /// `evidence`, `auto`, `none` or a positive factor.
     fn from_str(s: &str) -> Result<Self, String> {
         match s.trim() {
             "auto" => Ok(Prior::Auto),
+            "evidence" => Ok(Prior::Evidence),
             "none" => Ok(Prior::Scale(f64::INFINITY)),
             t => match t.parse::<f64>() {
                 Ok(v) if v > 0.0 => Ok(Prior::Scale(v)),
                 _ => Err(format!(
-                    "expected `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
+                    "expected `evidence`, `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
                 )),
             },
         }
@@ -37,8 +42,10 @@ impl std::str::FromStr for Prior {
 pub struct CalibrationRun {
     /// The identified robot and its report.
     pub calibration: Calibration,
-    /// The prior choice, when it was made from the data.
+    /// The prior choice, when it was made from the data by cross-validation.
     pub prior_choice: Option<PriorChoice>,
+    /// The noise and prior scales chosen by the evidence, when any was.
+    pub evidence: Option<EvidenceReport>,
 }
 
 impl CalibrationRun {
@@ -48,17 +55,20 @@ impl CalibrationRun {
         // Both serialise plain numbers, strings and lists: they cannot fail.
         let mut value = serde_json::to_value(&self.calibration.report).expect("the report serialises");
         value["prior_choice"] = serde_json::to_value(&self.prior_choice).expect("the prior choice serialises");
+        value["evidence"] = serde_json::to_value(&self.evidence).expect("the evidence report serialises");
         value
     }
 }
 
-/// Calibrates `robot` on `samples` with `params`, its prior scale set by `prior`; `observer`
-/// sees every iteration of the final fit.
+/// Calibrates `robot` on `samples` with `params`, its prior scale set by `prior`; the noise
+/// is `params.measurement_std` when `noise_declared`, otherwise estimated with the fit.
+/// `observer` sees every iteration of the fits.
 pub fn run(
     robot: &Robot,
     samples: &[Sample],
     mut params: CalibrationParams,
     prior: Prior,
+    noise_declared: bool,
     observer: &mut dyn FnMut(&IterationInfo),
 ) -> armcomp_core::Result<CalibrationRun> {
     let prior_choice = match prior {
@@ -66,15 +76,27 @@ pub fn run(
             params.prior_scale = s;
             None
         }
+        Prior::Evidence => None,
         Prior::Auto => {
             let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0)?;
             params.prior_scale = choice.scale;
             Some(choice)
         }
     };
-    let calibration = calibrate(robot, samples, &params, observer)?;
+    let evidence = EvidenceParams {
+        estimate_noise: !noise_declared,
+        estimate_priors: prior == Prior::Evidence,
+        ..EvidenceParams::default()
+    };
+    let (calibration, evidence) = if evidence.estimate_noise || evidence.estimate_priors {
+        let (c, e) = calibrate_with_evidence(robot, samples, &params, &evidence, observer)?;
+        (c, Some(e))
+    } else {
+        (calibrate(robot, samples, &params, observer)?, None)
+    };
     Ok(CalibrationRun {
         calibration,
         prior_choice,
+        evidence,
     })
 }

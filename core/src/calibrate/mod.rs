@@ -21,7 +21,7 @@
 //! determine. Each is named; it is left to the priors when one of its parameters has a prior,
 //! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
 
-use nalgebra::{DMatrix, Isometry3, Matrix3, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3, Vector6};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -35,6 +35,7 @@ use crate::param::{ParamInfo, Quantity};
 use crate::robot::Robot;
 use crate::tree::KinematicTree;
 
+pub mod evidence;
 mod identifiability;
 mod jacobian;
 mod registration;
@@ -60,6 +61,44 @@ pub enum ParamGroup {
     Base,
     /// Marker `i` (index into [`Robot::markers`]).
     Marker(usize),
+}
+
+/// Parameters whose prior standard deviations share one scale when the scales are chosen from
+/// the data ([`evidence`]): what one kind of manufacturing or modelling uncertainty holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(tag = "kind", content = "index", rename_all = "snake_case")]
+pub enum PriorGroup {
+    /// The measurement frame (`base.*`).
+    Frame,
+    /// Marker offsets.
+    Markers,
+    /// Joint-value offsets of the chain (`θ` of revolute, `d` of prismatic joints).
+    JointOffsets,
+    /// Other chain lengths (link lengths and offsets, origin translations).
+    Lengths,
+    /// Other chain angles (twists, origin rotations, axis tilts).
+    Angles,
+    /// Every parameter of error model `i`.
+    ErrorModel(usize),
+    /// Parameter `k` of the [`ParameterSpace`] alone (a scale of its own: automatic relevance
+    /// determination).
+    Parameter(usize),
+}
+
+impl PriorGroup {
+    /// A short name for reports: `frame`, `markers`, `joint_offsets`, `lengths`, `angles`, or
+    /// the error model's type.
+    pub fn label(&self, robot: &Robot) -> String {
+        match self {
+            PriorGroup::Frame => "frame".into(),
+            PriorGroup::Markers => "markers".into(),
+            PriorGroup::JointOffsets => "joint_offsets".into(),
+            PriorGroup::Lengths => "lengths".into(),
+            PriorGroup::Angles => "angles".into(),
+            PriorGroup::ErrorModel(i) => robot.error_model_types().get(*i).cloned().unwrap_or_default(),
+            PriorGroup::Parameter(k) => format!("#{k}"),
+        }
+    }
 }
 
 /// One parameter of a [`ParameterSpace`]: what calibration may change.
@@ -141,6 +180,13 @@ pub struct CalibrationParams {
     pub restart_converged: bool,
     /// Seed of the restarts' perturbations; the same seed gives the same fit.
     pub seed: u64,
+    /// Further factors on the prior standard deviations of whole groups (on top of
+    /// [`prior_scale`](Self::prior_scale)); [`evidence`] chooses them from the data.
+    pub group_prior_scales: Vec<(PriorGroup, f64)>,
+    /// Where to start the fit: a full parameter vector ([`Linearisation::theta`] of an earlier
+    /// fit of the same robot and selection), instead of the robot's values registered in
+    /// closed form. The priors stay centred on the robot's values.
+    pub start: Option<Vec<f64>>,
 }
 
 /// A fit whose RMS is this many times what the declared noise gives is restarted (see
@@ -162,6 +208,8 @@ impl Default for CalibrationParams {
             restarts: 2,
             restart_converged: false,
             seed: 0,
+            group_prior_scales: Vec::new(),
+            start: None,
         }
     }
 }
@@ -307,6 +355,32 @@ pub struct Calibration {
     pub robot: Robot,
     /// The report.
     pub report: CalibrationReport,
+    /// The problem linearised at the solution.
+    pub linearisation: Linearisation,
+}
+
+/// A fitted calibration problem linearised at its solution: what the evidence of the model
+/// (and so the noise and the prior scales the data support) is computed from, and where a
+/// refit with other hyper-parameters starts.
+#[derive(Debug, Clone)]
+pub struct Linearisation {
+    /// Every parameter of the [`ParameterSpace`] at the solution (SI).
+    pub theta: Vec<f64>,
+    /// The priors' centres (the robot's values, the measurement frame as registered).
+    pub centre: Vec<f64>,
+    /// The parameters the fit moved (indices into `theta`).
+    pub free: Vec<usize>,
+    /// The prior standard deviation of each free parameter as the fit used it (SI; infinite
+    /// for none).
+    pub prior_sigma: Vec<f64>,
+    /// The group of each free parameter.
+    pub groups: Vec<PriorGroup>,
+    /// The noise standard deviation per axis the fit weighed the data with (m).
+    pub noise: f64,
+    /// Measurement residuals `(p̂ − p) / noise`, three per sample.
+    pub residuals: DVector<f64>,
+    /// Their Jacobian with respect to the free parameters (per SI unit).
+    pub jacobian: DMatrix<f64>,
 }
 
 /// State shared by the pieces of one calibration run.
@@ -458,7 +532,18 @@ pub fn calibrate(
     let before = stats(samples, &pred);
     let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
     let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
-    let (d, e, _) = problem.predict(&theta0)?;
+    let start = match &params.start {
+        Some(start) if start.len() == theta0.len() => start.clone(),
+        Some(start) => {
+            return Err(Error::Dimension {
+                what: "calibration start".into(),
+                expected: theta0.len(),
+                got: start.len(),
+            });
+        }
+        None => theta0.clone(),
+    };
+    let (d, e, _) = problem.predict(&start)?;
 
     // Identifiability at the start decides what is held.
     let jac0 = problem.jacobian(&theta0, &d, &e, &selected, JacobianForm::Exact)?;
@@ -483,7 +568,7 @@ pub fn calibrate(
         .filter(|&k| matches!(space.params[k].group, ParamGroup::Base | ParamGroup::Marker(_)))
         .collect();
     let mut stage = Stage {
-        theta: theta0.clone(),
+        theta: start,
         d,
         e,
         iterations: 0,
@@ -493,7 +578,9 @@ pub fn calibrate(
         converged: free.is_empty(),
         stop_reason: "nothing to identify".into(),
     };
-    if !frames.is_empty() && frames.len() < free.len() {
+    // A warm start has its frame already: the stage that protects the chain from a poor guess
+    // of it would only cost time.
+    if !frames.is_empty() && frames.len() < free.len() && params.start.is_none() {
         problem.levenberg_marquardt(&mut stage, &theta0, &frames, params, observer)?;
     }
     if !free.is_empty() {
@@ -618,8 +705,19 @@ pub fn calibrate(
             .filter_map(|&k| held_space.params[k].info.implausibility(theta[k])),
     );
     let calibrated = apply(robot, &space, &theta)?;
+    let linearisation = Linearisation {
+        prior_sigma: free.iter().map(|&k| space.params[k].info.sigma).collect(),
+        groups: free.iter().map(|&k| space.prior_group(robot, k)).collect(),
+        free,
+        theta,
+        centre: theta0,
+        noise: params.measurement_std,
+        residuals: r,
+        jacobian: j,
+    };
     Ok(Calibration {
         robot: calibrated,
+        linearisation,
         report: CalibrationReport {
             n_samples: samples.len(),
             measured_chain: robot.measured_joint_names(),

@@ -226,14 +226,37 @@ pub(super) fn base_xyz_rpy(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
 /// `prior_scale`, or none).
 pub(super) fn prior_space(robot: &Robot, params: &CalibrationParams) -> ParameterSpace {
     let mut space = ParameterSpace::new(robot);
-    for p in &mut space.params {
-        p.info.sigma = if params.use_priors {
-            p.info.sigma * params.prior_scale
+    for k in 0..space.params.len() {
+        let group = space.prior_group(robot, k);
+        let group_scale: f64 = params
+            .group_prior_scales
+            .iter()
+            .filter(|(g, _)| *g == group || *g == PriorGroup::Parameter(k))
+            .map(|(_, s)| s)
+            .product();
+        let info = &mut space.params[k].info;
+        info.sigma = if params.use_priors {
+            info.sigma * params.prior_scale * group_scale
         } else {
             f64::INFINITY
         };
     }
     space
+}
+
+impl ParameterSpace {
+    /// The prior group of parameter `k` (see [`PriorGroup`]).
+    pub fn prior_group(&self, robot: &Robot, k: usize) -> PriorGroup {
+        let p = &self.params[k];
+        match p.group {
+            ParamGroup::Base => PriorGroup::Frame,
+            ParamGroup::Marker(_) => PriorGroup::Markers,
+            ParamGroup::ErrorModel(i) => PriorGroup::ErrorModel(i),
+            ParamGroup::Geometry if is_joint_offset(robot.tree(), &p.info.name) => PriorGroup::JointOffsets,
+            ParamGroup::Geometry if p.info.quantity == Quantity::Angle => PriorGroup::Angles,
+            ParamGroup::Geometry => PriorGroup::Lengths,
+        }
+    }
 }
 
 impl ParameterSpace {

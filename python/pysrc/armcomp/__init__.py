@@ -40,6 +40,8 @@ from ._reports import (
     Parameter,
     Plan,
     PriorChoice,
+    Evidence,
+    GroupScale,
     PriorScaleScore,
     RankedCandidate,
 )
@@ -66,6 +68,8 @@ __all__ = [
     "Parameter",
     "Plan",
     "PriorChoice",
+    "Evidence",
+    "GroupScale",
     "PriorScaleScore",
     "RankedCandidate",
     "Robot",
@@ -92,7 +96,7 @@ def calibrate(
     robot: Robot,
     data: Measurements,
     identify: Union[None, str, Sequence[str]] = None,
-    noise_mm: float = 0.1,
+    noise_mm: Optional[float] = None,
     prior: Union[None, float, str] = 1.0,
     max_iterations: int = 100,
     restarts: int = 2,
@@ -103,9 +107,10 @@ def calibrate(
 
     ``identify``: what to identify (base, markers, geometry, offsets, errors, all, an error
     model's type or a parameter pattern such as ``"j2.*"``); default base, markers, geometry
-    and errors. ``noise_mm``: the tracker noise per axis (mm). ``prior``: a factor on the robot
-    file's prior standard deviations, ``"auto"`` (5-fold cross-validation) or None (no
-    priors). ``restarts``: fits from perturbed starts (seeded by ``seed``) when the fit ends
+    and errors. ``noise_mm``: the tracker noise per axis (mm); None estimates it from the
+    data with the fit (``report.evidence``). ``prior``: a factor on the robot file's prior
+    standard deviations, ``"evidence"`` (one factor per group of parameters, chosen by the
+    evidence of the data), ``"auto"`` (5-fold cross-validation) or None (no priors). ``restarts``: fits from perturbed starts (seeded by ``seed``) when the fit ends
     more than 1.5 times above the noise; the lowest cost is kept.
 
     Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's

@@ -84,7 +84,7 @@ def calibrate(
     robot: Robot,
     data: Measurements,
     identify: Optional[List[str]] = None,
-    noise_mm: float = 0.1,
+    noise_mm: Optional[float] = None,
     prior: Union[None, float, str] = None,
     max_iterations: int = 100,
     restarts: int = 2,

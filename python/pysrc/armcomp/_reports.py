@@ -89,6 +89,36 @@ class PriorChoice:
 
 
 @dataclass(frozen=True)
+class GroupScale:
+    """One group's prior scale chosen by the evidence (``prior="evidence"``)."""
+
+    group: Dict[str, Any]
+    label: str
+    scale: float
+    n_params: int
+    determined: float
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """The noise and prior scales chosen by the evidence of the data (type-II maximum
+    likelihood): ``noise_mm`` with its standard error, how many parameters the data
+    determine, and the log evidence."""
+
+    noise_estimated: bool
+    noise_mm: float
+    noise_std_mm: float
+    rms_per_axis_mm: List[float]
+    determined: float
+    n_free: int
+    n_equations: int
+    groups: List[GroupScale]
+    log_evidence: float
+    rounds: int
+    converged: bool
+
+
+@dataclass(frozen=True)
 class CalibrationReport(Report):
     """What calibration did and how well it fits (``armcomp calibrate --json``)."""
 
@@ -108,6 +138,7 @@ class CalibrationReport(Report):
     units_mislabelled: bool
     warnings: List[str]
     prior_choice: Optional[PriorChoice] = None
+    evidence: Optional[Evidence] = None
     far_above_noise: bool = False
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
