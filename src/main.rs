@@ -29,6 +29,9 @@ enum Command {
     Simulate(cmd::simulate::Args),
     /// Identify a model from measurements (Levenberg–Marquardt with priors).
     Calibrate(cmd::calibrate::Args),
+    /// Choose the model from the data: registration, joint offsets, geometry, error models and a
+    /// residual predictor, each scored by nested cross-validation; write the best.
+    Fit(cmd::fit::Args),
     /// Find the physical effects a model misses, one by one, scored on held-out poses.
     Diagnose(cmd::diagnose::Args),
     /// Fit the model's residual predictor on measurements and store it in the model.
@@ -67,6 +70,7 @@ fn main() -> ExitCode {
         Command::Fk(a) => cmd::fk::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Fit(a) => cmd::fit::run(a),
         Command::Diagnose(a) => cmd::diagnose::run(a),
         Command::Learn(a) => cmd::learn::run(a),
         Command::Compensate(a) => cmd::compensate::run(a),

@@ -178,6 +178,56 @@ impl<'a> LineCounter<'a> {
     }
 }
 
+/// The values of column `name` of measurement CSV `text`, one per data row (header and
+/// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
+/// into sessions or stations. `path` is used in messages.
+pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
+    let err = |line: Option<usize>, message: String| Error::InputAt {
+        location: Location {
+            line,
+            ..Location::file(path)
+        },
+        message,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let headers = reader
+        .headers()
+        .map_err(|e| {
+            err(
+                Some(line_at(text, e.position())),
+                format!("cannot read the header: {e}"),
+            )
+        })?
+        .clone();
+    let Some(col) = headers.iter().position(|h| split_header(h).0 == name) else {
+        return Err(err(
+            Some(line_at(text, headers.position())),
+            format!(
+                "no column `{name}` to group the rows by; the header has {}",
+                headers.iter().collect::<Vec<_>>().join(", ")
+            ),
+        ));
+    };
+    let mut lines = LineCounter::new(text);
+    reader
+        .records()
+        .map(|r| {
+            let r = r.map_err(|e| err(Some(line_at(text, e.position())), format!("cannot read the row: {e}")))?;
+            match r.get(col) {
+                Some(v) if !v.is_empty() => Ok(v.to_string()),
+                _ => Err(err(
+                    Some(lines.line_at(r.position())),
+                    format!("column `{name}` is empty in this row; every row needs its group"),
+                )),
+            }
+        })
+        .collect()
+}
+
 /// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
 /// `x1`, ...): measurements rather than joint configurations alone.
 pub fn has_positions(text: &str) -> bool {

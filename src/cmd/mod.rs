@@ -10,6 +10,7 @@ pub mod demo_output;
 pub mod diagnose;
 pub mod evaluate;
 pub mod export_urdf;
+pub mod fit;
 pub mod fk;
 pub mod learn;
 pub mod plan;

@@ -1,0 +1,168 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::io::write_atomic;
+use armcomp_core::ladder::{LadderParams, climb};
+use armcomp_core::measurement::column_values;
+
+use super::{check_output, read_measurements};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The nominal robot file (its values are the starting point and the priors' centre).
+    #[arg(long)]
+    robot: PathBuf,
+    /// Measurement CSV to choose and fit the model on.
+    #[arg(long)]
+    data: PathBuf,
+    /// Use only these rows of the data (0-based, header excluded; `A..B` excludes B),
+    /// comma-separated: `even`, `odd`, a row `N`, or a range `A..B`, `A..`, `..B`.
+    #[arg(long)]
+    rows: Option<armcomp_core::measurement::RowSelection>,
+    /// Where to write the chosen model (TOML, or JSON for a .json extension), atomically.
+    #[arg(long)]
+    out: PathBuf,
+    /// Standard deviation of the tracker noise per axis, in mm. Default: estimated from the
+    /// data with every fit.
+    #[arg(long)]
+    noise_mm: Option<f64>,
+    /// Outer cross-validation folds that score the rungs.
+    #[arg(long, default_value_t = 5)]
+    folds: usize,
+    /// Hold out whole groups of this CSV column (a session, a station, a day) in each fold
+    /// rather than single poses: folds over clustered poses are optimistic.
+    #[arg(long)]
+    group_by: Option<String>,
+    /// The residual predictor tried on top of the best physical model (gp, mlp, ssa_bp,
+    /// ridge, knn), or `none`.
+    #[arg(long, default_value = "gp")]
+    predictor: String,
+    /// Seed of the folds; the same seed gives the same bytes.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Print the ladder as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let robot = armcomp::load_robot(&args.robot)?;
+    check_output(&args.out, &robot, &[&args.data])?;
+    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let fold_groups = match &args.group_by {
+        Some(column) => {
+            let text = armcomp_core::io::read_text(&args.data)?;
+            let values = column_values(&text, &args.data, column)?;
+            let mut names: Vec<&String> = Vec::new();
+            let groups = data
+                .rows
+                .iter()
+                .map(|&r| {
+                    let v = &values[r];
+                    names.iter().position(|n| *n == v).unwrap_or_else(|| {
+                        names.push(v);
+                        names.len() - 1
+                    })
+                })
+                .collect();
+            Some(groups)
+        }
+        None => None,
+    };
+    let predictor = match args.predictor.trim() {
+        "none" => None,
+        p => Some(armcomp::ops::learn::default_predictor(p)?),
+    };
+    let params = LadderParams {
+        calibration: CalibrationParams {
+            measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
+            seed: args.seed,
+            ..CalibrationParams::default()
+        },
+        noise_declared: args.noise_mm.is_some(),
+        folds: args.folds,
+        seed: args.seed,
+        fold_groups,
+        predictor,
+    };
+    let bar = Mutex::new(indicatif::ProgressBar::new(0));
+    if let Ok(b) = bar.lock() {
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
+            )
+            .expect("the template is valid"),
+        );
+    }
+    let ladder = climb(&robot, &data.samples, &params, &|p| {
+        if let Ok(b) = bar.lock() {
+            b.set_length(p.total as u64);
+            b.set_position(p.done as u64);
+        }
+    });
+    if let Ok(b) = bar.lock() {
+        b.finish_and_clear();
+    }
+    let ladder = ladder?;
+    let text = ladder.robot.to_text_for(&args.out)?;
+    write_atomic(&args.out, text.as_bytes())?;
+    let r = &ladder.report;
+    if args.json {
+        let mut value = serde_json::to_value(r)?;
+        value["calibration"] = serde_json::to_value(&ladder.calibration.report)?;
+        println!("{}", serde_json::to_string_pretty(&value)?);
+    } else {
+        println!(
+            "{} rows, {}-fold nested cross-validation by {}; every choice made inside the training folds",
+            data.samples.len(),
+            r.folds,
+            args.group_by
+                .as_deref()
+                .map_or("pose".to_string(), |c| format!("`{c}`"))
+        );
+        println!(
+            "{:<26} {:>14} {:>12} {:>9}  verdict",
+            "rung", "held-out RMS", "± spread", "time"
+        );
+        for s in &r.rungs {
+            let mean = s.fold_rms_mm.iter().sum::<f64>() / s.fold_rms_mm.len().max(1) as f64;
+            let spread = (s.fold_rms_mm.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
+                / (s.fold_rms_mm.len().max(2) - 1) as f64)
+                .sqrt();
+            println!(
+                "{:<26} {:>11.3} mm {:>9.3} mm {:>7.1} s  {}: {}",
+                s.label,
+                s.rms_mm,
+                spread,
+                s.seconds,
+                if s.kept { "kept" } else { "not kept" },
+                s.reason
+            );
+        }
+        let e = &r.evidence;
+        println!(
+            "chosen: {} (expected held-out RMS {:.3} mm); on all rows the noise is {:.4} ± {:.4} mm per axis, {:.1} of {} parameters determined",
+            r.chosen.label(),
+            r.expected_rms_mm,
+            e.noise_mm,
+            e.noise_std_mm,
+            e.determined,
+            e.n_free
+        );
+        println!("wrote {}", args.out.display());
+    }
+    for w in &ladder.calibration.report.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(if ladder.calibration.report.converged {
+        ExitCode::SUCCESS
+    } else {
+        eprintln!(
+            "warning: the chosen model's fit did not converge ({}); the best parameters found were written",
+            ladder.calibration.report.stop_reason
+        );
+        ExitCode::from(2)
+    })
+}
