@@ -2,7 +2,7 @@
 //! parameter spreads are known.
 
 use armcomp_core::Robot;
-use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
+use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, PriorGroup};
 use armcomp_core::measurement::Sample;
 use armcomp_core::sampling::{Sampler, configurations};
@@ -39,13 +39,16 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64) -> Vec<Sample> {
         .samples
 }
 
-fn fit(nominal: &Robot, samples: &[Sample], identify: &str) -> EvidenceReport {
+fn fit(nominal: &Robot, samples: &[Sample], identify: &str, grouping: Grouping) -> EvidenceReport {
     let params = CalibrationParams {
         identify: identify.split(',').map(String::from).collect(),
         ..CalibrationParams::default()
     };
-    let (cal, report) =
-        calibrate_with_evidence(nominal, samples, &params, &EvidenceParams::default(), &mut |_| {}).unwrap();
+    let evidence = EvidenceParams {
+        grouping,
+        ..EvidenceParams::default()
+    };
+    let (cal, report) = calibrate_with_evidence(nominal, samples, &params, &evidence, &mut |_| {}).unwrap();
     assert!(cal.report.converged, "{}", cal.report.stop_reason);
     report
 }
@@ -64,6 +67,7 @@ fn noise_is_recovered_at_30_and_300_rows() {
                 &nominal,
                 &measure(&truth, n, noise, 100 + seed),
                 "base,markers,geometry",
+                Grouping::PerParameter,
             );
             let ratio = report.noise_mm * 1e-3 / noise;
             let se = report.noise_std_mm * 1e-3 / noise;
@@ -81,8 +85,11 @@ fn noise_is_recovered_at_30_and_300_rows() {
     }
 }
 
-/// Lengths, angles and joint offsets drawn with spreads of 0.3, 3 and 1 times their file's
-/// priors: the evidence recovers each group's scale within a factor 2, on three seeds.
+/// Lengths and angles drawn with spreads of 0.3 and 3 times their file's priors (joint offsets
+/// 1 time): the evidence recovers the scale of each group the data determine at least five
+/// parameters of within a factor 2, on three seeds. (The six joint offsets, two of which the
+/// frame and the marker absorb, give a scale from four draws: a factor 2 is within its
+/// chance spread only most of the time.)
 #[test]
 fn prior_scales_of_groups_are_recovered_within_a_factor_two() {
     let nominal = robot("industrial-6dof.toml");
@@ -98,8 +105,11 @@ fn prior_scales_of_groups_are_recovered_within_a_factor_two() {
             &nominal,
             &measure(&truth, 300, 0.02e-3, 200 + seed),
             "base,markers,geometry",
+            Grouping::Groups,
         );
-        for g in &report.groups {
+        let checked: Vec<_> = report.groups.iter().filter(|g| g.determined >= 5.0).collect();
+        assert_eq!(checked.len(), 2, "lengths and angles: {:?}", report.groups);
+        for g in checked {
             let want = scale(g.group);
             assert!(
                 g.scale / want < 2.0 && want / g.scale < 2.0,
@@ -110,6 +120,56 @@ fn prior_scales_of_groups_are_recovered_within_a_factor_two() {
                 g.n_params
             );
         }
-        assert_eq!(report.groups.len(), 3, "{:?}", report.groups);
     }
+}
+
+/// A signal planted in one group's rows only (a joint offset of 0.5°, as a robot re-homed for
+/// one session would show): the fold that holds that group out never sees it, so no rung can
+/// predict it there. Were a choice or a fit made with the held-out rows, the joint-offset rung
+/// would absorb part of it and that fold's error would fall below the planted displacement.
+#[test]
+fn nested_scores_never_fit_the_rows_that_score_them() {
+    use armcomp_core::evaluate::position_errors;
+    use armcomp_core::ladder::{LadderParams, Rung, climb};
+    let nominal = robot("industrial-6dof.toml");
+    let truth = truth(&nominal, |_| 0.0, 1);
+    let space = ParameterSpace::new(&nominal);
+    let mut theta = ParameterSpace::new(&truth).initial();
+    theta[space.index("j2.theta").unwrap()] += 0.5f64.to_radians();
+    let rehomed = space.apply(&truth, &theta).unwrap();
+    let (groups, per_group) = (4, 20);
+    let mut samples = Vec::new();
+    let mut fold_groups = Vec::new();
+    for g in 0..groups {
+        let source = if g == 0 { &rehomed } else { &truth };
+        samples.extend(measure(source, per_group, 0.02e-3, 300 + g as u64));
+        fold_groups.extend(std::iter::repeat_n(g, per_group));
+    }
+    // The planted displacement of group 0: the re-homed arm against the truth, pose by pose.
+    let planted: f64 = position_errors(&truth, &samples[..per_group])
+        .iter()
+        .map(|e| e.norm_squared())
+        .sum::<f64>()
+        / per_group as f64;
+    let planted_mm = planted.sqrt() * 1e3;
+    assert!(planted_mm > 2.0, "the planted signal is {planted_mm} mm");
+    let params = LadderParams {
+        calibration: CalibrationParams::default(),
+        noise_declared: false,
+        folds: groups,
+        seed: 3,
+        fold_groups: Some(fold_groups),
+        predictor: None,
+    };
+    let ladder = climb(&nominal, &samples, &params, &|_| {}).unwrap();
+    for rung in &ladder.report.rungs {
+        // One group per fold: the fold whose held-out error is the largest holds group 0.
+        let worst = rung.fold_rms_mm.iter().copied().fold(0.0, f64::max);
+        assert!(
+            worst > 0.8 * planted_mm,
+            "{}: the worst fold's held-out RMS {worst} mm is below the planted {planted_mm} mm",
+            rung.label
+        );
+    }
+    assert!(ladder.report.rungs.iter().any(|r| r.rung == Rung::JointOffsets));
 }

@@ -1,6 +1,7 @@
 //! Accuracy of a model on measurements: per-sample position errors and their statistics.
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
@@ -76,14 +77,50 @@ impl ErrorStats {
 pub fn position_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut errors = model_errors(robot, samples);
     if let Some(p) = robot.predictor() {
-        let (mut out, mut scratch, mut input) = ([0.0; 3], Vec::new(), Vec::new());
-        for (e, s) in errors.iter_mut().zip(samples) {
-            predictor_input_into(robot, p.n_inputs(), &s.q, s.point, &mut input);
-            p.predict_into(&input, &mut out, &mut scratch);
-            *e -= Vector3::from(out);
-        }
+        subtract_predictions(robot, p, samples, &mut errors);
     }
     errors
+}
+
+/// Subtracts `predictor`'s prediction at each sample from its error in `errors`.
+fn subtract_predictions(
+    robot: &Robot,
+    predictor: &dyn FittedPredictor,
+    samples: &[Sample],
+    errors: &mut [Vector3<f64>],
+) {
+    let (mut out, mut scratch, mut input) = ([0.0; 3], Vec::new(), Vec::new());
+    for (e, s) in errors.iter_mut().zip(samples) {
+        predictor_input_into(robot, predictor.n_inputs(), &s.q, s.point, &mut input);
+        predictor.predict_into(&input, &mut out, &mut scratch);
+        *e -= Vector3::from(out);
+    }
+}
+
+/// How well `spec`, fitted on what `robot`'s physical model leaves, predicts poses it was not
+/// fitted on: every pose held out once in `folds`-fold cross-validation (poses shuffled by
+/// `seed`), the errors after the held-out predictions pooled. A predictor whose training error
+/// is far below this has memorised its rows.
+pub fn cross_validated_predictor_errors(
+    robot: &Robot,
+    spec: &dyn PredictorSpec,
+    samples: &[Sample],
+    folds: usize,
+    seed: u64,
+) -> Result<ErrorStats> {
+    let splits = crate::split::kfold(samples, folds, seed)?;
+    let parts: Vec<Vec<Vector3<f64>>> = splits
+        .par_iter()
+        .map(|split| {
+            let train = crate::split::subset(samples, &split.train);
+            let test = crate::split::subset(samples, &split.test);
+            let fitted = fit_residual_predictor(robot, spec, &train)?;
+            let mut errors = model_errors(robot, &test);
+            subtract_predictions(robot, fitted.as_ref(), &test, &mut errors);
+            Ok(errors)
+        })
+        .collect::<Result<_>>()?;
+    Ok(ErrorStats::from_errors(&parts.concat()))
 }
 
 /// Writes into `input` what a residual predictor with `n_inputs` inputs takes at joint values

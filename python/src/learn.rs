@@ -34,6 +34,12 @@ pub fn learn(
         })
         .py()?;
     let run = crate::interrupt::run(py, || armcomp::ops::learn::run(&robot, file, &set.samples, predictor))?.py()?;
-    let json = serde_json::json!({"seconds": run.seconds, "before": run.before, "after": run.after});
+    let json = serde_json::json!({
+        "seconds": run.seconds,
+        "before": run.before,
+        "after": run.after,
+        "cross_validated": run.cross_validated,
+        "warnings": run.warnings(),
+    });
     Ok((PyRobot::wrap(run.robot), json.to_string()))
 }

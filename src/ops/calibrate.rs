@@ -1,7 +1,7 @@
 //! `calibrate`: the prior choice around [`armcomp_core::calibrate::calibrate`] and its JSON report.
 
 use armcomp_core::Robot;
-use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
+use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
 use armcomp_core::calibrate::{Calibration, CalibrationParams, IterationInfo, calibrate};
 use armcomp_core::measurement::Sample;
 use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
@@ -13,9 +13,10 @@ pub enum Prior {
     Scale(f64),
     /// Chosen by 5-fold cross-validation on the calibration data alone.
     Auto,
-    /// One factor per group of parameters, chosen by the evidence (type-II maximum
-    /// likelihood) of the calibration data.
-    Evidence,
+    /// Factors chosen by the evidence (type-II maximum likelihood) of the calibration data:
+    /// one per chain parameter (`evidence`) or one per group of parameters
+    /// (`evidence-groups`).
+    Evidence(Grouping),
 }
 
 impl std::str::FromStr for Prior {
@@ -25,12 +26,13 @@ impl std::str::FromStr for Prior {
     fn from_str(s: &str) -> Result<Self, String> {
         match s.trim() {
             "auto" => Ok(Prior::Auto),
-            "evidence" => Ok(Prior::Evidence),
+            "evidence" => Ok(Prior::Evidence(Grouping::PerParameter)),
+            "evidence-groups" => Ok(Prior::Evidence(Grouping::Groups)),
             "none" => Ok(Prior::Scale(f64::INFINITY)),
             t => match t.parse::<f64>() {
                 Ok(v) if v > 0.0 => Ok(Prior::Scale(v)),
                 _ => Err(format!(
-                    "expected `evidence`, `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
+                    "expected `evidence`, `evidence-groups`, `auto`, `none` or a positive factor on the priors' standard deviations, got `{t}`"
                 )),
             },
         }
@@ -76,7 +78,7 @@ pub fn run(
             params.prior_scale = s;
             None
         }
-        Prior::Evidence => None,
+        Prior::Evidence(_) => None,
         Prior::Auto => {
             let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0)?;
             params.prior_scale = choice.scale;
@@ -85,7 +87,11 @@ pub fn run(
     };
     let evidence = EvidenceParams {
         estimate_noise: !noise_declared,
-        estimate_priors: prior == Prior::Evidence,
+        estimate_priors: matches!(prior, Prior::Evidence(_)),
+        grouping: match prior {
+            Prior::Evidence(g) => g,
+            _ => Grouping::PerParameter,
+        },
         ..EvidenceParams::default()
     };
     let (calibration, evidence) = if evidence.estimate_noise || evidence.estimate_priors {

@@ -2,7 +2,9 @@
 
 use std::time::Instant;
 
-use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, model_errors, position_errors};
+use armcomp_core::evaluate::{
+    ErrorStats, cross_validated_predictor_errors, fit_residual_predictor, model_errors, position_errors,
+};
 use armcomp_core::measurement::Sample;
 use armcomp_core::{Error, PredictorSpec, Robot, RobotFile, Role};
 
@@ -15,8 +17,46 @@ pub struct LearnRun {
     pub before: ErrorStats,
     /// Training errors with the predictor.
     pub after: ErrorStats,
+    /// Errors with the predictor on poses it was not fitted on (every pose held out once in
+    /// [`CV_FOLDS`]-fold cross-validation); `None` with too few poses for that.
+    pub cross_validated: Option<ErrorStats>,
     /// Fitting time (s).
     pub seconds: f64,
+}
+
+/// Folds of the cross-validated error `learn` reports beside the training error.
+pub const CV_FOLDS: usize = 5;
+
+/// A cross-validated RMS this many times the training RMS says the predictor memorised its
+/// rows rather than learned a pattern that carries to other poses.
+pub const MEMORISING_RATIO: f64 = 2.0;
+
+impl LearnRun {
+    /// What the fit suggests is wrong: a predictor that memorised its rows, or one that
+    /// predicts held-out poses no better than the model alone.
+    pub fn warnings(&self) -> Vec<String> {
+        let Some(cv) = &self.cross_validated else {
+            return vec![format!(
+                "too few poses for a cross-validated error ({CV_FOLDS} folds need {CV_FOLDS}); the training error says \
+                 nothing of other poses"
+            )];
+        };
+        let mut out = Vec::new();
+        if cv.rms_mm > MEMORISING_RATIO * self.after.rms_mm {
+            out.push(format!(
+                "the predictor memorises: RMS {:.4} mm on its training rows but {:.4} mm on rows it was not fitted on",
+                self.after.rms_mm, cv.rms_mm
+            ));
+        }
+        if cv.rms_mm >= self.before.rms_mm {
+            out.push(format!(
+                "the predictor does not help on rows it was not fitted on (RMS {:.4} mm with it, {:.4} mm without): \
+                 what the model leaves is not learnable from these rows",
+                cv.rms_mm, self.before.rms_mm
+            ));
+        }
+        out
+    }
 }
 
 /// A predictor type with its default settings (`gp`, `mlp`, `ssa_bp`, `ridge`, `knn`, as
@@ -65,6 +105,12 @@ pub fn run(
     let fitted = fit_residual_predictor(robot, spec, samples)?;
     let seconds = start.elapsed().as_secs_f64();
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
+    let poses = armcomp_core::split::pose_groups(samples).len();
+    let cross_validated = if poses >= CV_FOLDS {
+        Some(cross_validated_predictor_errors(robot, spec, samples, CV_FOLDS, 0)?)
+    } else {
+        None
+    };
     file.fitted_predictor = Some(fitted);
     let written = Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)?;
     let after = ErrorStats::from_errors(&position_errors(&written, samples));
@@ -72,6 +118,7 @@ pub fn run(
         robot: written,
         before,
         after,
+        cross_validated,
         seconds,
     })
 }

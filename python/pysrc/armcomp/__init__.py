@@ -202,9 +202,14 @@ def diagnose(
 def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, LearnReport]:
     """Fits ``predictor`` (gp, mlp, ssa_bp, ridge or knn with default settings), or else the
     residual predictor ``model``'s ``[predictor]`` table describes, on ``data``, as
-    ``armcomp learn`` does; returns the model with it and the training errors."""
+    ``armcomp learn`` does; returns the model with it, the training errors and the
+    cross-validated ones. A predictor that memorises its rows, or does not help on rows it was
+    not fitted on, is warned about (``CalibrationWarning``)."""
     fitted, text = _native.learn(model, data, predictor=predictor)
-    return fitted, from_json(LearnReport, text)
+    report = from_json(LearnReport, text)
+    for w in report.warnings:
+        warnings.warn(w, CalibrationWarning, stacklevel=2)
+    return fitted, report
 
 
 def compensate(

@@ -243,11 +243,15 @@ class DiagnosisReport(Report):
 
 @dataclass(frozen=True)
 class LearnReport(Report):
-    """A fitted residual predictor: fitting time (s) and training errors without and with it."""
+    """A fitted residual predictor: fitting time (s), training errors without and with it, and
+    the errors with it on rows it was not fitted on (5-fold cross-validation; None with fewer
+    than five poses)."""
 
     seconds: float
     before: ErrorStats
     after: ErrorStats
+    cross_validated: Optional[ErrorStats] = None
+    warnings: List[str] = field(default_factory=list)
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
