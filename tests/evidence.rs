@@ -173,3 +173,94 @@ fn nested_scores_never_fit_the_rows_that_score_them() {
     }
     assert!(ladder.report.rungs.iter().any(|r| r.rung == Rung::JointOffsets));
 }
+
+/// Agile Justin's 250 / 250 split of the published data (seed 1, as the step table): the
+/// model chosen by the ladder on the training half, scored on the other half. A measurement,
+/// not a check: `cargo test --release --test integration -- --ignored agile_justin_ladder --nocapture`.
+#[test]
+#[ignore = "minutes; a measurement for docs/calibration.md"]
+fn agile_justin_ladder() {
+    use armcomp_core::evaluate::{ErrorStats, position_errors};
+    use armcomp_core::ladder::{LadderParams, climb};
+    use armcomp_core::split::subset;
+    use armcomp_repro::agile_justin::{MEASUREMENTS, half_split, parse_measurements};
+    let justin = robot("agile-justin.toml");
+    let samples = parse_measurements(MEASUREMENTS, std::path::Path::new("m.csv"), &justin).unwrap();
+    let split = half_split(&samples, 1).unwrap();
+    let (train, test) = (subset(&samples, &split.train), subset(&samples, &split.test));
+    let params = LadderParams {
+        calibration: CalibrationParams::default(),
+        noise_declared: false,
+        folds: 5,
+        seed: 0,
+        fold_groups: None,
+        predictor: None,
+    };
+    let started = std::time::Instant::now();
+    let ladder = climb(&justin, &train, &params, &|_| {}).unwrap();
+    for r in &ladder.report.rungs {
+        println!("{:<28} {:.3} mm  {:.1} s  {}", r.label, r.rms_mm, r.seconds, r.reason);
+    }
+    let held = ErrorStats::from_errors(&position_errors(&ladder.robot, &test));
+    println!(
+        "chosen {:?}: expected RMS {:.3} mm; held-out mean {:.3} mm, RMS {:.3} mm; {:.1} s",
+        ladder.report.chosen,
+        ladder.report.expected_rms_mm,
+        held.mean_mm,
+        held.rms_mm,
+        started.elapsed().as_secs_f64()
+    );
+}
+
+/// Four rows of 200 off by 6 mm (a line of sight broken): the calibration names exactly those
+/// samples as gross errors, on three seeds, and no sample of the clean data.
+#[test]
+fn gross_errors_are_found_by_sample() {
+    use armcomp_core::calibrate::calibrate;
+    let nominal = robot("industrial-6dof.toml");
+    let params = CalibrationParams {
+        identify: vec!["base".into(), "markers".into(), "geometry".into()],
+        ..CalibrationParams::default()
+    };
+    for seed in 1..=3 {
+        let truth = truth(&nominal, |_| 0.5, seed);
+        let clean = measure(&truth, 200, 0.05e-3, 400 + seed);
+        let report = calibrate(&nominal, &clean, &params, &mut |_| {}).unwrap().report;
+        assert!(report.outliers.is_empty(), "seed {seed}: {:?}", report.outliers);
+        let mut dirty = clean.clone();
+        let planted = [7, 64, 131, 198];
+        for &i in &planted {
+            dirty[i].position.x += 6e-3;
+        }
+        let report = calibrate(&nominal, &dirty, &params, &mut |_| {}).unwrap().report;
+        let mut found: Vec<usize> = report.outliers.iter().map(|o| o.sample).collect();
+        found.sort_unstable();
+        assert_eq!(found, planted, "seed {seed}");
+    }
+}
+
+/// A tracker drifting 1 mm along y over the session is reported as a drift of about that
+/// size; the same data without it are not.
+#[test]
+fn a_drift_is_found_as_a_drift() {
+    use armcomp_core::calibrate::calibrate;
+    let nominal = robot("industrial-6dof.toml");
+    let params = CalibrationParams {
+        identify: vec!["base".into(), "markers".into(), "geometry".into()],
+        ..CalibrationParams::default()
+    };
+    for seed in 1..=3 {
+        let truth = truth(&nominal, |_| 0.5, seed);
+        let clean = measure(&truth, 200, 0.05e-3, 500 + seed);
+        let report = calibrate(&nominal, &clean, &params, &mut |_| {}).unwrap().report;
+        assert!(report.drift.is_none(), "seed {seed}: {:?}", report.drift);
+        let mut drifting = clean.clone();
+        let n = drifting.len() as f64;
+        for (i, s) in drifting.iter_mut().enumerate() {
+            s.position.y += 1e-3 * i as f64 / (n - 1.0);
+        }
+        let report = calibrate(&nominal, &drifting, &params, &mut |_| {}).unwrap().report;
+        let d = report.drift.unwrap_or_else(|| panic!("seed {seed}: no drift found"));
+        assert!((d.change_mm[1] - 1.0).abs() < 0.3, "seed {seed}: {d:?}");
+    }
+}

@@ -49,6 +49,10 @@ pub struct Args {
     /// Seed of the restarts' perturbations; the same seed gives the same bytes.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Fit again without the rows whose residual is gross (over 5 times the robust noise per
+    /// axis), and write that model; the rows are listed either way.
+    #[arg(long)]
+    exclude_outliers: bool,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -57,7 +61,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
-    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let mut data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
@@ -71,25 +75,45 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} iterations  {msg}")
             .expect("the template is valid"),
     );
-    let result = armcomp::ops::calibrate::run(
+    let mut observer = |it: &armcomp_core::calibrate::IterationInfo| {
+        bar.set_position(it.iteration as u64);
+        bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
+    };
+    let declared = args.noise_mm.is_some();
+    let mut run = armcomp::ops::calibrate::run(
         &robot,
         &data.samples,
-        params,
+        params.clone(),
         args.prior,
-        args.noise_mm.is_some(),
-        &mut |it| {
-            bar.set_position(it.iteration as u64);
-            bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
-        },
-    );
+        declared,
+        &mut observer,
+    )?;
+    let outlier_rows: Vec<usize> = run
+        .calibration
+        .report
+        .outliers
+        .iter()
+        .map(|o| data.rows[o.sample])
+        .collect();
+    if args.exclude_outliers && !outlier_rows.is_empty() {
+        let keep: Vec<usize> = (0..data.samples.len())
+            .filter(|&i| !outlier_rows.contains(&data.rows[i]))
+            .collect();
+        data.samples = keep.iter().map(|&i| data.samples[i].clone()).collect();
+        data.rows = keep.iter().map(|&i| data.rows[i]).collect();
+        run = armcomp::ops::calibrate::run(&robot, &data.samples, params, args.prior, declared, &mut observer)?;
+    }
     bar.finish_and_clear();
-    let run = result?;
     let (calibration, choice) = (&run.calibration, &run.prior_choice);
     let text = calibration.robot.to_file().to_text_for(&args.out)?;
     write_atomic(&args.out, text.as_bytes())?;
     let report = &calibration.report;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&run.to_json())?);
+        let mut value = run.to_json();
+        // Rows as `--rows` counts them (0-based, header and comments excluded).
+        value["outlier_rows"] = serde_json::to_value(&outlier_rows)?;
+        value["outliers_excluded"] = serde_json::Value::Bool(args.exclude_outliers && !outlier_rows.is_empty());
+        println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         if let Some(c) = &choice {
             let scores: Vec<String> = c
@@ -108,6 +132,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             print_evidence(e);
         }
         print_report(report);
+        print_gross_errors(&outlier_rows, report, args.exclude_outliers);
         println!("wrote {}", args.out.display());
     }
     for w in &report.warnings {
@@ -129,6 +154,30 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         ExitCode::SUCCESS
     })
+}
+
+/// The gross errors by data row, and a drift of the residuals over the rows.
+fn print_gross_errors(rows: &[usize], report: &CalibrationReport, excluded: bool) {
+    if !rows.is_empty() {
+        let listed: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
+        println!(
+            "gross errors (residual over {} times the robust noise) in data row(s) {}{}",
+            armcomp_core::calibrate::GROSS_ERROR,
+            listed.join(", "),
+            if excluded {
+                ": excluded, the model was fitted without them"
+            } else {
+                " (0-based as --rows counts; --exclude-outliers fits without them)"
+            }
+        );
+    }
+    if let Some(d) = &report.drift {
+        println!(
+            "the residual drifts with the row order: {:+.3}, {:+.3}, {:+.3} mm (x, y, z) from the first row to the last (t = {:.1}); \
+             a tracker or frame drifting over the session, or poses measured in workspace order",
+            d.change_mm[0], d.change_mm[1], d.change_mm[2], d.t
+        );
+    }
 }
 
 fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {

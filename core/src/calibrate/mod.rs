@@ -328,6 +328,111 @@ pub struct CalibrationReport {
     /// What the fit suggests is wrong when it ends far above the noise or the units look
     /// mislabelled, most likely first.
     pub warnings: Vec<String>,
+    /// Samples whose residual is far beyond the noise (see [`gross_errors`]), largest first.
+    pub outliers: Vec<Outlier>,
+    /// A residual that changes steadily with the sample order (a tracker drifting), when
+    /// there is one (see [`drift`]).
+    pub drift: Option<Drift>,
+}
+
+/// A sample whose residual is far beyond the noise: a marker seen through a broken line of
+/// sight, a row from another session, a typo.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Outlier {
+    /// Its index among the calibration's samples.
+    pub sample: usize,
+    /// Its 3-D residual (mm).
+    pub residual_mm: f64,
+    /// That residual over the robust noise per axis.
+    pub over_noise: f64,
+}
+
+/// A residual that changes steadily with the sample order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Drift {
+    /// The change of the residual from the first sample to the last, per axis (mm).
+    pub change_mm: [f64; 3],
+    /// Its largest t statistic over the axes.
+    pub t: f64,
+}
+
+/// A 3-D residual this many times the robust noise per axis is a gross error: Gaussian noise
+/// gives one that large once in 80 000 samples.
+pub const GROSS_ERROR: f64 = 5.0;
+
+/// The robust noise per axis of residuals `errors` (m): 1.4826 times the median absolute
+/// residual component, which a few gross errors do not inflate.
+pub fn robust_noise(errors: &[Vector3<f64>]) -> f64 {
+    let mut abs: Vec<f64> = errors.iter().flat_map(|e| e.iter().map(|v| v.abs())).collect();
+    if abs.is_empty() {
+        return 0.0;
+    }
+    let mid = abs.len() / 2;
+    let (_, median, _) = abs.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * *median
+}
+
+/// The samples of `errors` (measured minus modelled, m) whose 3-D residual exceeds
+/// [`GROSS_ERROR`] times the robust noise, largest first.
+pub fn gross_errors(errors: &[Vector3<f64>]) -> Vec<Outlier> {
+    let noise = robust_noise(errors);
+    if noise <= 0.0 {
+        return Vec::new();
+    }
+    let mut out: Vec<Outlier> = errors
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| e.norm() > GROSS_ERROR * noise)
+        .map(|(i, e)| Outlier {
+            sample: i,
+            residual_mm: e.norm() * 1e3,
+            over_noise: e.norm() / noise,
+        })
+        .collect();
+    out.sort_by(|a, b| b.residual_mm.total_cmp(&a.residual_mm));
+    out
+}
+
+/// A linear trend of the residuals `errors` (m) over the sample order, when one axis' slope
+/// is more than 5 standard errors from zero and moves the residual by more than twice the
+/// robust noise over the data: what a tracker drifting over a session leaves. (Poses measured
+/// in workspace order leave the same trend; the report says so.)
+pub fn drift(errors: &[Vector3<f64>]) -> Option<Drift> {
+    let n = errors.len();
+    if n < 10 {
+        return None;
+    }
+    let noise = robust_noise(errors);
+    let t_mean = (n as f64 - 1.0) / 2.0;
+    let stt: f64 = (0..n).map(|i| (i as f64 - t_mean).powi(2)).sum();
+    let mut change_mm = [0.0; 3];
+    let mut t_max: f64 = 0.0;
+    let mut big = false;
+    for a in 0..3 {
+        let mean = errors.iter().map(|e| e[a]).sum::<f64>() / n as f64;
+        let slope = errors
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (i as f64 - t_mean) * (e[a] - mean))
+            .sum::<f64>()
+            / stt;
+        let sse: f64 = errors
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e[a] - mean - slope * (i as f64 - t_mean)).powi(2))
+            .sum();
+        let se = (sse / (n as f64 - 2.0) / stt).sqrt();
+        let change = slope * (n as f64 - 1.0);
+        change_mm[a] = change * 1e3;
+        if se > 0.0 {
+            let t = (slope / se).abs();
+            if t > 5.0 && change.abs() > 2.0 * noise {
+                big = true;
+            }
+            t_max = t_max.max(t);
+        }
+    }
+    big.then_some(Drift { change_mm, t: t_max })
 }
 
 /// How many times the RMS its declared noise gives (`√3 σ` in 3-D) a fit's residual may reach
@@ -673,6 +778,9 @@ pub fn calibrate(
         .collect();
 
     let after = stats(samples, &pred);
+    let residual_vectors: Vec<Vector3<f64>> = samples.iter().zip(&pred).map(|(s, p)| s.position - p).collect();
+    let outliers = gross_errors(&residual_vectors);
+    let drift = drift(&residual_vectors);
     let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
     // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
     // can shrink the arm onto positions read a thousand times too small.
@@ -734,6 +842,8 @@ pub fn calibrate(
             rms_over_noise,
             units_mislabelled,
             warnings,
+            outliers,
+            drift,
         },
     })
 }
