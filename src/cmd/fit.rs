@@ -2,9 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Mutex;
 
-use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::io::write_atomic;
-use armcomp_core::ladder::{LadderParams, climb};
 use armcomp_core::measurement::column_values;
 
 use super::{check_output, read_measurements};
@@ -55,37 +53,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Some(column) => {
             let text = armcomp_core::io::read_text(&args.data)?;
             let values = column_values(&text, &args.data, column)?;
-            let mut names: Vec<&String> = Vec::new();
-            let groups = data
-                .rows
-                .iter()
-                .map(|&r| {
-                    let v = &values[r];
-                    names.iter().position(|n| *n == v).unwrap_or_else(|| {
-                        names.push(v);
-                        names.len() - 1
-                    })
-                })
-                .collect();
-            Some(groups)
+            Some(armcomp::ops::fit::groups_of(&values, &data.rows))
         }
         None => None,
     };
-    let predictor = match args.predictor.trim() {
-        "none" => None,
-        p => Some(armcomp::ops::learn::default_predictor(p)?),
-    };
-    let params = LadderParams {
-        calibration: CalibrationParams {
-            measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
-            seed: args.seed,
-            ..CalibrationParams::default()
-        },
-        noise_declared: args.noise_mm.is_some(),
+    let params = armcomp::ops::fit::FitParams {
+        noise_mm: args.noise_mm,
         folds: args.folds,
         seed: args.seed,
         fold_groups,
-        predictor,
+        predictor: (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string()),
     };
     let bar = Mutex::new(indicatif::ProgressBar::new(0));
     if let Ok(b) = bar.lock() {
@@ -96,7 +73,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .expect("the template is valid"),
         );
     }
-    let ladder = climb(&robot, &data.samples, &params, &|p| {
+    let ladder = armcomp::ops::fit::run(&robot, &data.samples, params, &|p| {
         if let Ok(b) = bar.lock() {
             b.set_length(p.total as u64);
             b.set_position(p.done as u64);
@@ -110,9 +87,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     write_atomic(&args.out, text.as_bytes())?;
     let r = &ladder.report;
     if args.json {
-        let mut value = serde_json::to_value(r)?;
-        value["calibration"] = serde_json::to_value(&ladder.calibration.report)?;
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&armcomp::ops::fit::to_json(&ladder))?
+        );
     } else {
         println!(
             "{} rows, {}-fold nested cross-validation by {}; every choice made inside the training folds",

@@ -7,6 +7,7 @@ pub mod compensate;
 pub mod diagnose;
 pub mod evaluate;
 pub mod export_urdf;
+pub mod fit;
 pub mod learn;
 pub mod plan;
 pub mod simulate;

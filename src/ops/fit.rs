@@ -1,0 +1,73 @@
+//! `fit`: the model ladder of [`armcomp_core::ladder`] with the predictor named as the command
+//! line names it, and its JSON report.
+
+use armcomp_core::Robot;
+use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::ladder::{Ladder, LadderParams, LadderProgress, climb};
+use armcomp_core::measurement::Sample;
+
+/// How `fit` is asked to choose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitParams {
+    /// The declared noise per axis (mm); `None` estimates it with every fit.
+    pub noise_mm: Option<f64>,
+    /// Outer folds.
+    pub folds: usize,
+    /// Seed of the folds.
+    pub seed: u64,
+    /// A group per sample: folds hold out whole groups (`None`: whole poses).
+    pub fold_groups: Option<Vec<usize>>,
+    /// The residual predictor to try (`gp`, `mlp`, ...; `None` for none).
+    pub predictor: Option<String>,
+}
+
+/// Climbs the ladder for `robot` on `samples`; `progress` sees every fit done.
+pub fn run(
+    robot: &Robot,
+    samples: &[Sample],
+    params: FitParams,
+    progress: &(dyn Fn(LadderProgress) + Sync),
+) -> armcomp_core::Result<Ladder> {
+    let predictor = params
+        .predictor
+        .as_deref()
+        .map(crate::ops::learn::default_predictor)
+        .transpose()?;
+    let ladder = LadderParams {
+        calibration: CalibrationParams {
+            measurement_std: params.noise_mm.unwrap_or(0.1) * 1e-3,
+            seed: params.seed,
+            ..CalibrationParams::default()
+        },
+        noise_declared: params.noise_mm.is_some(),
+        folds: params.folds,
+        seed: params.seed,
+        fold_groups: params.fold_groups,
+        predictor,
+    };
+    climb(robot, samples, &ladder, progress)
+}
+
+/// The report as `armcomp fit --json` prints it: the ladder with the chosen rung's calibration
+/// report as `calibration`.
+pub fn to_json(ladder: &Ladder) -> serde_json::Value {
+    // Both serialise plain numbers, strings and lists: they cannot fail.
+    let mut value = serde_json::to_value(&ladder.report).expect("the ladder serialises");
+    value["calibration"] = serde_json::to_value(&ladder.calibration.report).expect("the report serialises");
+    value
+}
+
+/// Group numbers, one per sample, from the values of a column per data row (`values`, indexed
+/// by row) and each sample's row: equal values, one group.
+pub fn groups_of(values: &[String], rows: &[usize]) -> Vec<usize> {
+    let mut names: Vec<&String> = Vec::new();
+    rows.iter()
+        .map(|&r| {
+            let v = &values[r];
+            names.iter().position(|n| *n == v).unwrap_or_else(|| {
+                names.push(v);
+                names.len() - 1
+            })
+        })
+        .collect()
+}
