@@ -130,7 +130,7 @@ impl Robot {
         Ok(robot)
     }
 
-    fn build_unrecorded(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
+    fn build_unrecorded(mut file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
         let mut issues = Issues::default();
         let units = file.units;
         let ctx = BuildContext {
@@ -160,6 +160,19 @@ impl Robot {
         let payload_point = resolve_payload(&file, &points, tool, &base_tree, &mut mass, &mut issues);
 
         let (t_meas_base, markers, hold) = measurement_setup(&file, &base_tree, &points, tool, &units, &mut issues);
+
+        // A predictor that names files (a run-time library) finds them beside this file, as
+        // error models do, and not in the working folder it is later fitted from.
+        let pctx = BuildContext {
+            units,
+            base_dir,
+            path: "predictor",
+        };
+        match file.predictor.as_deref().map(|p| p.resolve(&pctx)) {
+            Some(Ok(Some(resolved))) => file.predictor = Some(resolved),
+            Some(Err(e)) => issues.0.extend(e.0),
+            Some(Ok(None)) | None => {}
+        }
 
         if !issues.is_empty() {
             return Err(issues.0);

@@ -264,6 +264,27 @@ pub enum Format {
     Json,
 }
 
+thread_local! {
+    /// The folders of the files [`SourceFile::parse`] is reading on this thread, innermost last.
+    static READING: std::cell::RefCell<Vec<PathBuf>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Pops the folder `parse` pushed even if deserialising panics.
+struct ReadingGuard;
+
+impl Drop for ReadingGuard {
+    fn drop(&mut self) {
+        READING.with(|r| r.borrow_mut().pop());
+    }
+}
+
+/// The folder of the file being parsed on this thread (empty for the working folder), if any:
+/// a value that loads a file while it is read (a fitted run-time predictor names its library)
+/// finds it there, since serde cannot hand it the file's path.
+pub fn folder_being_read() -> Option<PathBuf> {
+    READING.with(|r| r.borrow().last().cloned())
+}
+
 /// A text file kept in memory so that field paths can be mapped back to lines.
 #[derive(Debug, Clone)]
 pub struct SourceFile {
@@ -308,7 +329,17 @@ impl SourceFile {
     }
 
     /// Deserialises the whole file into `T`; failures name the line and the field path.
+    /// Meanwhile [`folder_being_read`] is this file's folder.
     pub fn parse<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
+        READING.with(|r| {
+            r.borrow_mut()
+                .push(self.path.parent().map(Path::to_path_buf).unwrap_or_default())
+        });
+        let _guard = ReadingGuard;
+        self.parse_here()
+    }
+
+    fn parse_here<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
         let issue = match self.format {
             Format::Toml => {
                 let de = toml::Deserializer::parse(&self.text).map_err(|e| self.toml_error(&e, String::new()))?;
