@@ -22,6 +22,7 @@ pub mod interrupt;
 pub mod io;
 mod lanes;
 pub mod least_squares;
+pub mod limits;
 pub mod mass;
 pub mod measurement;
 pub mod param;

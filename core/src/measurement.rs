@@ -225,16 +225,34 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         })?
         .clone();
     let header_line = line_at(text, headers.position());
+    // Every cell of a column is read and kept in the row's record: a column costs its share
+    // of each line.
+    let lines = text.lines().count().max(1) as f64;
+    crate::limits::check("columns of the header", headers.len(), "columns", &|n| {
+        crate::limits::Cost::per_unit(n, 64.0 + 16.0 * lines, 50.0 * lines)
+    })
+    .map_err(|e| err(Some(header_line), e.to_string()))?;
+    // Spreadsheets export `;`- or tab-separated files, whose header reads as one mangled column.
+    if let Some((_, words)) = [(';', "semicolons"), ('\t', "tabs")]
+        .into_iter()
+        .find(|(d, _)| headers.iter().any(|h| h.contains(*d)))
+    {
+        return Err(err(
+            Some(header_line),
+            format!(
+                "the header separates its columns by {words}; measurement files are comma-separated (save the file as CSV with `,` between values)"
+            ),
+        ));
+    }
     let names = tree.coordinate_names();
     let mut columns = Vec::new();
-    let mut seen: Vec<String> = Vec::new();
+    let mut seen: std::collections::HashSet<&str> = std::collections::HashSet::new();
     let mut ignored: Vec<&str> = Vec::new();
     for h in headers.iter() {
         let (name, unit) = split_header(h);
-        if seen.iter().any(|s| s == name) {
+        if !seen.insert(name) {
             return Err(err(Some(header_line), format!("column `{name}` appears twice")));
         }
-        seen.push(name.to_string());
         let length = |u: Option<&str>| -> Result<f64> {
             match u {
                 None => Ok(units.length.to_si()),
@@ -409,7 +427,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         set.warnings.push(format!(
             "{}: column(s) {} ignored (not a joint of the robot or a measurement column)",
             path.display(),
-            ignored.iter().map(|c| format!("`{c}`")).collect::<Vec<_>>().join(", ")
+            listed(&ignored)
         ));
     }
     // Joints outside their limits: (rows, first line, worst value) per coordinate.
@@ -575,6 +593,20 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         check_magnitudes(&set, &columns, &headers, tree, path)?;
     }
     Ok(set)
+}
+
+/// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
+fn listed(names: &[&str]) -> String {
+    let mut text = names
+        .iter()
+        .take(10)
+        .map(|c| format!("`{c}`"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > 10 {
+        text.push_str(&format!(" and {} more", names.len() - 10));
+    }
+    text
 }
 
 /// Which data rows of a measurement file to use (0-based, header excluded): comma-separated

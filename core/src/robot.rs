@@ -7,8 +7,9 @@ use nalgebra::{Isometry3, Vector3};
 use crate::collision::{BodyShape, CollisionGeometry, Fixture};
 use crate::error::{Error, Issue, Issues, Result};
 use crate::geom::xyz_rpy;
+use crate::limits::Cost;
 use crate::mass::{BeamRigidity, MassModel, Payload};
-use crate::measurement::CsvLayout;
+use crate::measurement::{CsvLayout, Sample};
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
@@ -399,6 +400,26 @@ impl Robot {
                 self.markers.clone()
             },
             hold,
+        }
+    }
+    /// Floating-point operations of one forward kinematics: about a hundred and fifty a body
+    /// for the rigid chain (a transform product and the points on it), and as much again a body
+    /// for every error model (loads, compliances, deflections). Sizes are checked against
+    /// [the limits](crate::limits) with it.
+    pub fn fk_flops(&self) -> f64 {
+        150.0 * self.tree.bodies().len() as f64 * (1 + self.error_models.len()) as f64
+    }
+    /// What one planned or simulated pose costs: its joint values and a sample for each
+    /// measured point in memory, with their CSV text (about 20 characters a number); its forward
+    /// kinematics and that text in time (a shortest round-trip decimal takes about as long as
+    /// 150 operations).
+    pub fn pose_cost(&self) -> Cost {
+        let joints = self.tree.coordinate_names().len() as f64;
+        let points = self.markers.len().max(1) as f64;
+        let values = 8.0 * joints + 48.0;
+        Cost {
+            bytes: values + points * (std::mem::size_of::<Sample>() as f64 + values + 20.0 * (joints + 3.0)),
+            flops: self.fk_flops() + 150.0 * points * (joints + 3.0),
         }
     }
     /// Guess of the robot base pose in the measurement frame.
