@@ -72,6 +72,24 @@ enum Column {
     Ignored,
 }
 
+impl Column {
+    /// `v`, a cell of this column, in SI, and the magnitude beyond which it cannot be a
+    /// measurement (a typo, a corrupt file; such a number would also overflow the squares and
+    /// sums it goes into), with that bound in words.
+    fn si_and_bound(&self, v: f64) -> Option<(f64, f64, &'static str)> {
+        match *self {
+            // A thousand turns, or 10 km of travel.
+            Column::Joint { scale, .. } => Some((v * scale, 1e4, "10000 rad (or m for a prismatic joint)")),
+            Column::Position { scale, .. } => Some((v * scale, 1e4, "10 km")),
+            Column::Payload(scale) => Some((v * scale, 1e6, "1000 t")),
+            Column::Temperature(offset) => Some((v + offset, 1e4, "10000 °C")),
+            Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
+            // A quaternion's norm is checked to be 1.
+            Column::Quat(_) | Column::Point | Column::Ignored => None,
+        }
+    }
+}
+
 /// Splits a column header `x[mm]` into its name and optional unit.
 pub fn split_header(h: &str) -> (&str, Option<&str>) {
     let h = h.trim();
@@ -487,6 +505,14 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 return Err(err(
                     Some(line),
                     format!("column `{head}`: {field} is not a finite number"),
+                ));
+            }
+            if let Some((si, bound, words)) = col.si_and_bound(v)
+                && si.abs() > bound
+            {
+                return Err(err(
+                    Some(line),
+                    format!("column `{head}`: {field} is not a measurement; expected a magnitude of at most {words}"),
                 ));
             }
             match *col {
