@@ -694,6 +694,25 @@ impl std::str::FromStr for RowSelection {
     }
 }
 
+/// The selection as it is written (`even,3,10..20`), for messages.
+impl std::fmt::Display for RowSelection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (k, r) in self.0.iter().enumerate() {
+            if k > 0 {
+                write!(f, ",")?;
+            }
+            match *r {
+                RowRange::Even => write!(f, "even")?,
+                RowRange::Odd => write!(f, "odd")?,
+                RowRange::Span(a, Some(b)) if b == a + 1 => write!(f, "{a}")?,
+                RowRange::Span(a, Some(b)) => write!(f, "{a}..{b}")?,
+                RowRange::Span(a, None) => write!(f, "{a}..")?,
+            }
+        }
+        Ok(())
+    }
+}
+
 impl RowSelection {
     /// Whether data row `row` is selected.
     pub fn contains(&self, row: usize) -> bool {

@@ -220,7 +220,15 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
             )
         }
         sampler => {
-            let plan = spread(robot, space, Sampler::parse(sampler)?, n, p.seed, &accept)?;
+            let sampler = Sampler::parse(sampler).map_err(|_| {
+                invalid(
+                    "method",
+                    format!(
+                        "unknown method `{sampler}`; expected sobol, halton, random, grid (even sets), d-optimal, a-optimal, uncertainty (optimal subsets) or trajectory"
+                    ),
+                )
+            })?;
+            let plan = spread(robot, space, sampler, n, p.seed, &accept)?;
             if plan.poses.len() < n {
                 warnings.push(format!("only {} of {n} poses could be planned", plan.poses.len()));
             }

@@ -88,6 +88,16 @@ impl PriorSpec {
     }
 }
 
+/// The `joints` of a convention's spec, read so that an error names the joint and its field
+/// (`kinematics.joints[2].kind`), not the whole `kinematics` table.
+pub(crate) fn joints<'de, D, T>(d: D) -> std::result::Result<Vec<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::Deserialize<'de>,
+{
+    armcomp_core::robot_file::tracked(d, "joints")
+}
+
 /// Declares a convention's joint struct: the shared fields plus the convention's own geometry.
 macro_rules! joint_spec {
     ($(#[$m:meta])* $name:ident { $($(#[$fm:meta])* $field:ident : $ty:ty,)* }) => {
