@@ -88,6 +88,8 @@ pub struct Validation {
     /// What could not be checked: run-time plugin libraries the user did not allow to load
     /// (their configs are checked against the libraries' schemas only when they load).
     pub not_loaded: Vec<Diagnostic>,
+    /// The run-time plugin libraries the file made this run load (and their configs checked).
+    pub loaded: Vec<PathBuf>,
 }
 
 /// Checks one robot file (a bare URDF is read and built): syntax and types, then semantics
@@ -100,10 +102,17 @@ pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
 
 /// [`validate_file`], with the plugin libraries that were not loaded apart from the problems.
 pub fn check_file(path: &Path, schema: &Value) -> Validation {
-    let (not_loaded, problems) = diagnose_file(path, schema)
+    let (diagnostics, inputs) = armcomp_core::io::recording_reads(|| diagnose_file(path, schema));
+    let (not_loaded, problems) = diagnostics
         .into_iter()
         .partition(|d| d.message.starts_with(armcomp_sdk::NOT_ALLOWED));
-    Validation { problems, not_loaded }
+    let libraries = armcomp_sdk::loaded_libraries();
+    let loaded = inputs.into_iter().filter(|f| libraries.contains(f)).collect();
+    Validation {
+        problems,
+        not_loaded,
+        loaded,
+    }
 }
 
 fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {

@@ -759,11 +759,12 @@ fn an_empty_identify_word_and_a_model_without_finite_positions_are_errors() {
     let space = ParameterSpace::new(&nominal);
     let mut theta = space.initial();
     theta[space.index("j2.a").unwrap()] = 1e305; // 1e308 mm in the file
-    let huge = space.apply(&nominal, &theta).unwrap();
-    let err = calibrate(&huge, &data, &CalibrationParams::default(), &mut |_| {})
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("too far for a finite residual"), "{err}");
+    // Such a model is refused when it is built, before anything computes with it.
+    let err = space.apply(&nominal, &theta).unwrap_err().to_string();
+    assert!(
+        err.contains("`j2.a` = 1.000e305 m is physically absurd; expected a magnitude of at most 1 km"),
+        "{err}"
+    );
 }
 
 /// Exit codes of `armcomp calibrate`: 3 with the unit named when positions in metres are

@@ -217,6 +217,7 @@ fn runtime_predictor_matches_the_linked_one_from_many_threads_bit_for_bit() {
         library: scratch.0.join(&lib).to_string_lossy().into_owned(),
         model: "gp".into(),
         config: serde_json::json!({ "restarts": 0, "max_iterations": 20 }),
+        folder: None,
     }
     .fit(&data)
     .unwrap();
@@ -250,6 +251,71 @@ fn runtime_predictor_matches_the_linked_one_from_many_threads_bit_for_bit() {
     let reloaded: Box<dyn FittedPredictor> = serde_json::from_str(&stored).unwrap();
     let again: Vec<[f64; 4]> = queries.chunks_exact(2).map(|x| predict(reloaded.as_ref(), x)).collect();
     assert_eq!(again, reference);
+}
+
+/// A predictor library beside its robot file is found there from any working folder, the way
+/// an error model's is: `validate` loads and names it, `learn` fits through it, and the model
+/// file written beside it loads it again.
+#[test]
+fn a_predictor_library_beside_the_robot_file_is_found_from_another_folder() {
+    let scratch = Scratch::new("rt-predictor-folder");
+    let sub = scratch.0.join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    let lib = library_file("gp_plugin");
+    std::fs::copy(built_plugins().join("examples").join(&lib), sub.join(&lib)).unwrap();
+    let bad = root().join("tests/bad_inputs");
+    let robot = std::fs::read_to_string(bad.join("arm.toml")).unwrap()
+        + "\n[predictor]\ntype = \"plugin\"\nlibrary = \"gp_plugin\"\nmodel = \"gp\"\nconfig = { restarts = 0, max_iterations = 20 }\n";
+    std::fs::write(sub.join("robot.toml"), robot).unwrap();
+    std::fs::copy(bad.join("arm.csv"), sub.join("arm.csv")).unwrap();
+    let run_here = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_armcomp"))
+            .args(args)
+            .current_dir(&scratch.0)
+            .env_remove("ARMCOMP_CONFIG")
+            .env("XDG_CONFIG_HOME", scratch.0.join("no-config"))
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (out.status.code(), text)
+    };
+    let (code, text) = run_here(&["validate", "--allow-plugins", "sub/robot.toml"]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("sub/robot.toml: ok"), "{text}");
+    let named = format!(
+        "sub/robot.toml: loaded and checked the plugin library {}",
+        sub.canonicalize().unwrap().join(&lib).display()
+    );
+    assert!(text.contains(&named), "expected `{named}` in: {text}");
+    let learn = [
+        "learn",
+        "--allow-plugins",
+        "--model",
+        "sub/robot.toml",
+        "--data",
+        "sub/arm.csv",
+        "--out",
+        "sub/model.toml",
+    ];
+    let (code, text) = run_here(&learn);
+    assert_eq!(code, Some(0), "{text}");
+    let (code, text) = run_here(&[
+        "evaluate",
+        "--allow-plugins",
+        "--model",
+        "sub/model.toml",
+        "--data",
+        "sub/arm.csv",
+    ]);
+    assert_eq!(code, Some(0), "{text}");
+    // Without permission, the fitted predictor's library is not loaded.
+    let (code, text) = run_here(&["evaluate", "--model", "sub/model.toml", "--data", "sub/arm.csv"]);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.contains("run-time plugins are not allowed"), "{text}");
 }
 
 #[test]

@@ -161,6 +161,21 @@ pub enum Error {
         /// What is wrong with it and what was expected.
         reason: String,
     },
+    /// A size asked for (poses, pool, draws, folds, rows, columns) costs more memory or time
+    /// than a request may take (see [`crate::limits`]).
+    #[error("{what} {asked}: at most {limit} {unit}; {reason}")]
+    TooLarge {
+        /// The size, by the name its caller knows it (`--n`, `--pool`, `columns`).
+        what: String,
+        /// The size asked for.
+        asked: usize,
+        /// What it counts (`poses`, `rows`).
+        unit: String,
+        /// The largest size that fits.
+        limit: usize,
+        /// What the asked size would cost, and the limits.
+        reason: String,
+    },
     /// The inputs leave a computation without a unique answer: a matrix that is not positive
     /// definite, features that depend on each other. More or other data (or a regulariser)
     /// helps; the same call again does not.

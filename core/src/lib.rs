@@ -23,6 +23,7 @@ pub mod io;
 pub mod ladder;
 mod lanes;
 pub mod least_squares;
+pub mod limits;
 pub mod mass;
 pub mod measurement;
 pub mod param;

@@ -72,6 +72,24 @@ enum Column {
     Ignored,
 }
 
+impl Column {
+    /// `v`, a cell of this column, in SI, and the magnitude beyond which it cannot be a
+    /// measurement (a typo, a corrupt file; such a number would also overflow the squares and
+    /// sums it goes into), with that bound in words.
+    fn si_and_bound(&self, v: f64) -> Option<(f64, f64, &'static str)> {
+        match *self {
+            // A thousand turns, or 10 km of travel.
+            Column::Joint { scale, .. } => Some((v * scale, 1e4, "10000 rad (or m for a prismatic joint)")),
+            Column::Position { scale, .. } => Some((v * scale, 1e4, "10 km")),
+            Column::Payload(scale) => Some((v * scale, 1e6, "1000 t")),
+            Column::Temperature(offset) => Some((v + offset, 1e4, "10000 °C")),
+            Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
+            // A quaternion's norm is checked to be 1.
+            Column::Quat(_) | Column::Point | Column::Ignored => None,
+        }
+    }
+}
+
 /// Splits a column header `x[mm]` into its name and optional unit.
 pub fn split_header(h: &str) -> (&str, Option<&str>) {
     let h = h.trim();
@@ -275,16 +293,34 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         })?
         .clone();
     let header_line = line_at(text, headers.position());
+    // Every cell of a column is read and kept in the row's record: a column costs its share
+    // of each line.
+    let lines = text.lines().count().max(1) as f64;
+    crate::limits::check("columns of the header", headers.len(), "columns", &|n| {
+        crate::limits::Cost::per_unit(n, 64.0 + 16.0 * lines, 50.0 * lines)
+    })
+    .map_err(|e| err(Some(header_line), e.to_string()))?;
+    // Spreadsheets export `;`- or tab-separated files, whose header reads as one mangled column.
+    if let Some((_, words)) = [(';', "semicolons"), ('\t', "tabs")]
+        .into_iter()
+        .find(|(d, _)| headers.iter().any(|h| h.contains(*d)))
+    {
+        return Err(err(
+            Some(header_line),
+            format!(
+                "the header separates its columns by {words}; measurement files are comma-separated (save the file as CSV with `,` between values)"
+            ),
+        ));
+    }
     let names = tree.coordinate_names();
     let mut columns = Vec::new();
-    let mut seen: Vec<String> = Vec::new();
+    let mut seen: std::collections::HashSet<&str> = std::collections::HashSet::new();
     let mut ignored: Vec<&str> = Vec::new();
     for h in headers.iter() {
         let (name, unit) = split_header(h);
-        if seen.iter().any(|s| s == name) {
+        if !seen.insert(name) {
             return Err(err(Some(header_line), format!("column `{name}` appears twice")));
         }
-        seen.push(name.to_string());
         let length = |u: Option<&str>| -> Result<f64> {
             match u {
                 None => Ok(units.length.to_si()),
@@ -459,7 +495,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         set.warnings.push(format!(
             "{}: column(s) {} ignored (not a joint of the robot or a measurement column)",
             path.display(),
-            ignored.iter().map(|c| format!("`{c}`")).collect::<Vec<_>>().join(", ")
+            listed(&ignored)
         ));
     }
     // Joints outside their limits: (rows, first line, worst value) per coordinate.
@@ -519,6 +555,14 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 return Err(err(
                     Some(line),
                     format!("column `{head}`: {field} is not a finite number"),
+                ));
+            }
+            if let Some((si, bound, words)) = col.si_and_bound(v)
+                && si.abs() > bound
+            {
+                return Err(err(
+                    Some(line),
+                    format!("column `{head}`: {field} is not a measurement; expected a magnitude of at most {words}"),
                 ));
             }
             match *col {
@@ -627,6 +671,20 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     Ok(set)
 }
 
+/// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
+fn listed(names: &[&str]) -> String {
+    let mut text = names
+        .iter()
+        .take(10)
+        .map(|c| format!("`{c}`"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > 10 {
+        text.push_str(&format!(" and {} more", names.len() - 10));
+    }
+    text
+}
+
 /// Which data rows of a measurement file to use (0-based, header excluded): comma-separated
 /// `even`, `odd`, a row `N`, or a half-open range `A..B`, `A..`, `..B`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -683,6 +741,25 @@ impl std::str::FromStr for RowSelection {
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(RowSelection(items))
+    }
+}
+
+/// The selection as it is written (`even,3,10..20`), for messages.
+impl std::fmt::Display for RowSelection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (k, r) in self.0.iter().enumerate() {
+            if k > 0 {
+                write!(f, ",")?;
+            }
+            match *r {
+                RowRange::Even => write!(f, "even")?,
+                RowRange::Odd => write!(f, "odd")?,
+                RowRange::Span(a, Some(b)) if b == a + 1 => write!(f, "{a}")?,
+                RowRange::Span(a, Some(b)) => write!(f, "{a}..{b}")?,
+                RowRange::Span(a, None) => write!(f, "{a}..")?,
+            }
+        }
+        Ok(())
     }
 }
 

@@ -50,6 +50,24 @@ impl Quantity {
             Quantity::Other(u) => u,
         }
     }
+
+    /// The magnitude (SI) no parameter of this quantity can physically have, with it in
+    /// words: a value beyond is a typo or a unit mix-up, and would overflow the arithmetic
+    /// it goes into. `None` where any magnitude can be meant (ratios, rigidities).
+    pub fn absurd_beyond(&self) -> Option<(f64, &'static str)> {
+        match self {
+            // No arm's link, offset or eccentricity is a kilometre.
+            Quantity::Length => Some((1e3, "1 km")),
+            // Sixteen turns: no angle offset of a joint or frame.
+            Quantity::Angle => Some((100.0, "100 rad")),
+            // A radian under one newton-metre: a loose hinge, not a driven joint.
+            Quantity::Compliance => Some((1.0, "1 rad/(N m)")),
+            Quantity::Mass => Some((1e6, "1000 t")),
+            // Ten percent a kelvin: no solid expands so.
+            Quantity::PerKelvin => Some((0.1, "0.1 1/K")),
+            Quantity::Dimensionless | Quantity::Rigidity | Quantity::Other(_) => None,
+        }
+    }
 }
 
 /// One identifiable parameter of a chain, an error model or the measurement setup.
@@ -129,6 +147,30 @@ impl ParamInfo {
             bound(lo),
             bound(hi)
         ))
+    }
+
+    /// Why `value` (SI) cannot be this parameter's, when it cannot: outside the bounds its
+    /// model sets, or beyond what its quantity can physically be; `None` otherwise.
+    pub fn absurdity(&self, value: f64) -> Option<String> {
+        if let Some((bound, words)) = self.quantity.absurd_beyond()
+            && value.abs() > bound
+        {
+            return Some(format!(
+                "`{}` = {value:.3e} {} is physically absurd; expected a magnitude of at most {words}",
+                self.name,
+                self.quantity.si_unit()
+            ));
+        }
+        if !(self.lower..=self.upper).contains(&value) {
+            return Some(format!(
+                "`{}` = {} is outside the range its model allows, {} to {}",
+                self.name,
+                self.quantity.readable(value),
+                self.quantity.readable(self.lower),
+                self.quantity.readable(self.upper)
+            ));
+        }
+        None
     }
 
     /// The same parameter restricted to `[lower, upper]` (SI), which calibration respects.

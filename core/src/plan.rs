@@ -18,7 +18,7 @@ use nalgebra::Vector3;
 use crate::error::{Error, Result};
 use crate::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
 use crate::robot::Robot;
-use crate::sampling::{Sampler, configurations, unit_points};
+use crate::sampling::{SOBOL_POINTS, Sampler, configurations, unit_points};
 
 /// Where a set of poses spreads evenly.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,10 +60,11 @@ pub fn spread(
         unreachable: 0,
         rejected: 0,
     };
-    let tries = if sampler == Sampler::Grid {
-        n
-    } else {
-        n.saturating_mul(20).max(n)
+    let tries = match sampler {
+        Sampler::Grid => n,
+        // Sobol's table ends at SOBOL_POINTS; fewer tries, not a shorter set.
+        Sampler::Sobol => n.saturating_mul(20).min(SOBOL_POINTS).max(n),
+        _ => n.saturating_mul(20).max(n),
     };
     match space {
         Space::Joint => {

@@ -174,6 +174,12 @@ pub struct TrainingSet<'a> {
 pub trait PredictorSpec: Debug + Send + Sync {
     /// Fits the predictor; deterministic for the spec's seed.
     fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>>;
+    /// Checks the spec against the file that names it, when the robot is built, and returns
+    /// the spec to fit in its place if its meaning depends on where that file lies (a run-time
+    /// library's path); `None`, the default, keeps the spec as written.
+    fn resolve(&self, _ctx: &BuildContext<'_>) -> Result<Option<Box<dyn PredictorSpec>>, Issues> {
+        Ok(None)
+    }
 }
 
 /// A fitted residual predictor, stored in model files.

@@ -7,8 +7,9 @@ use nalgebra::{Isometry3, Vector3};
 use crate::collision::{BodyShape, CollisionGeometry, Fixture};
 use crate::error::{Error, Issue, Issues, Result};
 use crate::geom::xyz_rpy;
+use crate::limits::Cost;
 use crate::mass::{BeamRigidity, MassModel, Payload};
-use crate::measurement::CsvLayout;
+use crate::measurement::{CsvLayout, Sample};
 use crate::param::ParamInfo;
 use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
@@ -98,6 +99,9 @@ pub struct RobotWorkspace {
     gravity: Vector3<f64>,
 }
 
+/// Gravity (m/s²) no robot works in: a hundred times Earth's.
+const ABSURD_GRAVITY: f64 = 1e3;
+
 /// Names of the base frame's six parameters (`base.<name>`), in the order of
 /// [`xyz_rpy`](crate::geom::xyz_rpy): position, then roll, pitch, yaw.
 pub(crate) const BASE_NAMES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
@@ -130,7 +134,7 @@ impl Robot {
         Ok(robot)
     }
 
-    fn build_unrecorded(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
+    fn build_unrecorded(mut file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
         let mut issues = Issues::default();
         let units = file.units;
         let ctx = BuildContext {
@@ -146,6 +150,13 @@ impl Robot {
 
         if file.gravity.iter().any(|g| !g.is_finite()) {
             issues.push("gravity", "expected three finite numbers (m/s²)");
+        } else if let Some(g) = file.gravity.iter().find(|g| g.abs() > ABSURD_GRAVITY) {
+            issues.push(
+                "gravity",
+                format!(
+                    "a component of {g:e} m/s² is physically absurd; expected a magnitude of at most {ABSURD_GRAVITY} m/s² (Earth's is 9.81)"
+                ),
+            );
         }
         let gravity = Vector3::from(file.gravity);
 
@@ -160,6 +171,19 @@ impl Robot {
         let payload_point = resolve_payload(&file, &points, tool, &base_tree, &mut mass, &mut issues);
 
         let (t_meas_base, markers, hold) = measurement_setup(&file, &base_tree, &points, tool, &units, &mut issues);
+
+        // A predictor that names files (a run-time library) finds them beside this file, as
+        // error models do, and not in the working folder it is later fitted from.
+        let pctx = BuildContext {
+            units,
+            base_dir,
+            path: "predictor",
+        };
+        match file.predictor.as_deref().map(|p| p.resolve(&pctx)) {
+            Some(Ok(Some(resolved))) => file.predictor = Some(resolved),
+            Some(Err(e)) => issues.0.extend(e.0),
+            Some(Ok(None)) | None => {}
+        }
 
         if !issues.is_empty() {
             return Err(issues.0);
@@ -386,6 +410,26 @@ impl Robot {
                 self.markers.clone()
             },
             hold,
+        }
+    }
+    /// Floating-point operations of one forward kinematics: about a hundred and fifty a body
+    /// for the rigid chain (a transform product and the points on it), and as much again a body
+    /// for every error model (loads, compliances, deflections). Sizes are checked against
+    /// [the limits](crate::limits) with it.
+    pub fn fk_flops(&self) -> f64 {
+        150.0 * self.tree.bodies().len() as f64 * (1 + self.error_models.len()) as f64
+    }
+    /// What one planned or simulated pose costs: its joint values and a sample for each
+    /// measured point in memory, with their CSV text (about 20 characters a number); its forward
+    /// kinematics and that text in time (a shortest round-trip decimal takes about as long as
+    /// 150 operations).
+    pub fn pose_cost(&self) -> Cost {
+        let joints = self.tree.coordinate_names().len() as f64;
+        let points = self.markers.len().max(1) as f64;
+        let values = 8.0 * joints + 48.0;
+        Cost {
+            bytes: values + points * (std::mem::size_of::<Sample>() as f64 + values + 20.0 * (joints + 3.0)),
+            flops: self.fk_flops() + 150.0 * points * (joints + 3.0),
         }
     }
     /// Guess of the robot base pose in the measurement frame.
@@ -1009,17 +1053,48 @@ fn measurement_setup(
         ),
         None => (Isometry3::identity(), Vec::new()),
     };
+    for (field, v) in file
+        .measurement
+        .iter()
+        .flat_map(|m| [("base_xyz", m.base_xyz), ("base_rpy", m.base_rpy)])
+    {
+        if v.iter().any(|x| !x.is_finite()) {
+            issues.push(
+                format!("measurement.{field}"),
+                format!("expected three finite numbers, got {v:?}"),
+            );
+        }
+    }
     let names = base_tree.coordinate_names();
     let mut hold = vec![None; names.len()];
     for (name, v) in file.measurement.iter().flat_map(|m| &m.hold) {
         let field = format!("measurement.hold.{name}");
         match names.iter().position(|n| n == name) {
             Some(c) if v.is_finite() => {
-                hold[c] = Some(if base_tree.coordinate_is_prismatic()[c] {
+                let si = if base_tree.coordinate_is_prismatic()[c] {
                     units.len(*v)
                 } else {
                     units.ang(*v)
-                })
+                };
+                let out = |v| {
+                    if base_tree.coordinate_is_prismatic()[c] {
+                        units.len_out(v)
+                    } else {
+                        units.ang_out(v)
+                    }
+                };
+                match base_tree.coordinate_limits()[c] {
+                    // A held joint outside its range is a pose the arm cannot take.
+                    Some(l) if !(l.lower - 1e-12..=l.upper + 1e-12).contains(&si) => issues.push(
+                        field,
+                        format!(
+                            "{v} is outside the joint's limits; expected a value from {:.4} to {:.4} (the file's units)",
+                            out(l.lower),
+                            out(l.upper)
+                        ),
+                    ),
+                    _ => hold[c] = Some(si),
+                }
             }
             Some(_) => issues.push(field, "expected a finite number"),
             None => issues.push(
@@ -1040,6 +1115,11 @@ fn measurement_setup(
     let mut markers = Vec::new();
     for (i, name) in marker_names.iter().enumerate() {
         match point_index.get(name.as_str()).copied() {
+            // Listed twice, a point would be measured, written and fitted twice a pose.
+            Some(k) if markers.contains(&k) => issues.push(
+                format!("measurement.markers[{i}]"),
+                format!("point `{name}` is listed twice; expected each marker once"),
+            ),
             Some(k) => markers.push(k),
             None => issues.push(
                 format!("measurement.markers[{i}]"),
@@ -1072,7 +1152,14 @@ fn build_error_models(robot: &Robot, base_dir: &Path, issues: &mut Issues) -> Ve
             mass: &robot.mass,
         };
         match spec.build(&mctx) {
-            Ok(m) => models.push(m),
+            Ok(m) => {
+                for p in m.params() {
+                    if let Some(why) = p.absurdity(p.nominal) {
+                        issues.push(path.clone(), why);
+                    }
+                }
+                models.push(m);
+            }
             Err(e) => issues.0.extend(e.0),
         }
     }

@@ -264,6 +264,27 @@ pub enum Format {
     Json,
 }
 
+thread_local! {
+    /// The folders of the files [`SourceFile::parse`] is reading on this thread, innermost last.
+    static READING: std::cell::RefCell<Vec<PathBuf>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Pops the folder `parse` pushed even if deserialising panics.
+struct ReadingGuard;
+
+impl Drop for ReadingGuard {
+    fn drop(&mut self) {
+        READING.with(|r| r.borrow_mut().pop());
+    }
+}
+
+/// The folder of the file being parsed on this thread (empty for the working folder), if any:
+/// a value that loads a file while it is read (a fitted run-time predictor names its library)
+/// finds it there, since serde cannot hand it the file's path.
+pub fn folder_being_read() -> Option<PathBuf> {
+    READING.with(|r| r.borrow().last().cloned())
+}
+
 /// A text file kept in memory so that field paths can be mapped back to lines.
 #[derive(Debug, Clone)]
 pub struct SourceFile {
@@ -308,7 +329,17 @@ impl SourceFile {
     }
 
     /// Deserialises the whole file into `T`; failures name the line and the field path.
+    /// Meanwhile [`folder_being_read`] is this file's folder.
     pub fn parse<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
+        READING.with(|r| {
+            r.borrow_mut()
+                .push(self.path.parent().map(Path::to_path_buf).unwrap_or_default())
+        });
+        let _guard = ReadingGuard;
+        self.parse_here()
+    }
+
+    fn parse_here<T: serde::de::DeserializeOwned>(&self) -> Result<T> {
         let issue = match self.format {
             Format::Toml => {
                 let de = toml::Deserializer::parse(&self.text).map_err(|e| self.toml_error(&e, String::new()))?;
@@ -327,10 +358,18 @@ impl SourceFile {
                     Err(e) => {
                         let path = clean_path(&e.path().to_string());
                         let inner = e.into_inner();
-                        Issue {
-                            path,
-                            message: strip_json_position(&inner.to_string()),
-                            line: Some(inner.line()),
+                        let message = strip_json_position(&inner.to_string());
+                        match deeper(&path, &message) {
+                            Some((path, message)) => Issue {
+                                line: self.line_of_path(&path).or(Some(inner.line())),
+                                path,
+                                message,
+                            },
+                            None => Issue {
+                                path,
+                                message,
+                                line: Some(inner.line()),
+                            },
                         }
                     }
                 }
@@ -343,6 +382,15 @@ impl SourceFile {
     }
 
     fn toml_error(&self, e: &toml::de::Error, path: String) -> Error {
+        if let Some((path, message)) = deeper(&path, e.message().trim()) {
+            let line = self
+                .line_of_path(&path)
+                .or_else(|| e.span().map(|s| self.line_of_offset(s.start)));
+            return Error::InvalidFile {
+                file: self.path.clone(),
+                issues: vec![Issue { path, message, line }],
+            };
+        }
         let line = e.span().map(|s| self.line_of_offset(s.start));
         let line = line.or_else(|| self.line_of_path(&path));
         let mut message = e.message().trim().to_string();
@@ -397,6 +445,35 @@ impl SourceFile {
             issues,
         }
     }
+}
+
+/// Deserialises the field `field` of a plugin's spec so that an error inside it says where:
+/// serde's path stops at a plugin's table (typetag reads the table whole before the plugin's
+/// type sees it), so the message begins ``at `field[1].kind`: `` and the file's reader moves
+/// that into the issue's path and line. Use it as `deserialize_with` through a function that
+/// names the field.
+pub fn tracked<'de, D, T>(d: D, field: &str) -> std::result::Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    serde_path_to_error::deserialize(d).map_err(|e| {
+        let inner = clean_path(&e.path().to_string());
+        let sep = if inner.is_empty() || inner.starts_with('[') {
+            ""
+        } else {
+            "."
+        };
+        <D::Error as serde::de::Error>::custom(format!("at `{field}{sep}{inner}`: {}", e.into_inner()))
+    })
+}
+
+/// The path and message of an error [`tracked`] inside the plugin table at `path`.
+fn deeper(path: &str, message: &str) -> Option<(String, String)> {
+    let rest = message.strip_prefix("at `")?;
+    let (inner, message) = rest.split_once("`: ")?;
+    let sep = if path.is_empty() { "" } else { "." };
+    Some((format!("{path}{sep}{inner}"), message.to_string()))
 }
 
 /// The first `name` in "...`prefix``name`..." messages.

@@ -47,9 +47,20 @@ pub fn sobol_coordinate(i: u32, d: usize, seed: u32) -> f64 {
     f64::from(sobol_burley::sample(i, (d % TABLE) as u32, seed ^ (d / TABLE) as u32))
 }
 
+/// The most points the Sobol sampler draws: its table's length, 2^16; beyond, the sequence
+/// gives unspecified numbers.
+pub const SOBOL_POINTS: usize = 1 << 16;
+
 /// `n` points in `[0, 1)^dim`.
 pub fn unit_points(sampler: Sampler, n: usize, dim: usize, seed: u64) -> Result<Vec<Vec<f64>>> {
     match sampler {
+        Sampler::Sobol if n > SOBOL_POINTS => Err(Error::TooLarge {
+            what: "sobol sampler".into(),
+            asked: n,
+            unit: "points".into(),
+            limit: SOBOL_POINTS,
+            reason: "the length of its table; draw more with halton or random".into(),
+        }),
         Sampler::Sobol => {
             let seed = (seed ^ (seed >> 32)) as u32;
             Ok((0..n as u32)

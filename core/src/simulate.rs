@@ -17,6 +17,14 @@ pub struct SimulateParams {
     pub seed: u64,
 }
 
+/// Noise (m per axis) at which simulated measurements say nothing about an arm: no tracker
+/// is off by a metre.
+pub const ABSURD_NOISE: f64 = 1.0;
+
+/// Noise (m per axis) beyond any tracker's (laser trackers are off by hundredths of a
+/// millimetre, cameras by a millimetre): allowed, with a warning.
+pub const IMPLAUSIBLE_NOISE: f64 = 5e-3;
+
 /// Measures every marker of `truth` at each configuration: `T_meas_base · FK(q) · p_marker`
 /// through the full model (chain and error models; a rigid truth through the markers' batched
 /// point kinematics), plus Gaussian noise per axis.
@@ -27,6 +35,16 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
             reason: format!("must be zero or positive, got {} m", params.noise_std),
         });
     }
+    if params.noise_std > ABSURD_NOISE {
+        return Err(Error::InvalidArgument {
+            what: "noise".into(),
+            reason: format!(
+                "{:.3e} mm per axis is no tracker's noise; expected at most {:.0} mm",
+                params.noise_std * 1e3,
+                ABSURD_NOISE * 1e3
+            ),
+        });
+    }
     let normal = Normal::new(0.0, params.noise_std).map_err(|e| Error::InvalidArgument {
         what: "noise".into(),
         reason: e.to_string(),
@@ -35,6 +53,13 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
     let t = truth.t_meas_base();
     let positions = truth.point_positions_many(truth.markers(), poses)?;
     let mut set = MeasurementSet::default();
+    if params.noise_std > IMPLAUSIBLE_NOISE {
+        set.warnings.push(format!(
+            "a noise of {:.3} mm per axis is more than any tracker's (at most {:.0} mm)",
+            params.noise_std * 1e3,
+            IMPLAUSIBLE_NOISE * 1e3
+        ));
+    }
     let per_pose = positions.chunks_exact(truth.markers().len().max(1));
     for (q, at) in poses.iter().zip(per_pose) {
         for (&m, p) in truth.markers().iter().zip(at) {

@@ -14,6 +14,30 @@ pub fn vector(a: &PyArrayLike1<'_, f64, AllowTypeChange>) -> Vec<f64> {
     a.as_array().iter().copied().collect()
 }
 
+/// The argument `what`, a 1-D array (or sequence) of floats, as a vector; anything else (a
+/// 2-D array, strings) is an `InputError` naming the argument and the shape it has, with
+/// `hint` (where a batch goes instead).
+pub fn vector_arg(a: &Bound<'_, PyAny>, what: &str, hint: &str) -> PyResult<Vec<f64>> {
+    if let Ok(v) = a.extract::<PyArrayLike1<'_, f64, AllowTypeChange>>() {
+        return Ok(vector(&v));
+    }
+    let shape = a
+        .py()
+        .import("numpy")
+        .and_then(|np| np.call_method1("shape", (a,)))
+        .and_then(|s| s.extract::<Vec<usize>>())
+        .map_or_else(
+            |_| "no array shape".to_string(),
+            |s| format!("shape {s:?} ({}-D)", s.len()),
+        );
+    Err(input_error(
+        &format!("{what}: expected a 1-D array of floats, got {shape}; {hint}"),
+        None,
+        None,
+        Some(what),
+    ))
+}
+
 /// A 2-D array (or nested sequence) as rows, checking the row width when `width` is given.
 pub fn rows(a: &PyArrayLike2<'_, f64, AllowTypeChange>, what: &str, width: Option<usize>) -> PyResult<Vec<Vec<f64>>> {
     let view = a.as_array();

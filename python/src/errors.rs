@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use armcomp_core::Error;
-use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -53,17 +53,36 @@ fn column(message: &str) -> Option<&str> {
     Some(&rest[..rest.find('`')?])
 }
 
+/// The errno of an operating system's message (`... (os error 2)`), or for armcomp's own
+/// refusals the nearest one: a missing file or folder `ENOENT`, a permission `EACCES`, any
+/// other refusal (an input, a link, a special file as output) `EINVAL`.
+fn os_errno(message: &str) -> i32 {
+    const ENOENT: i32 = 2;
+    const EACCES: i32 = 13;
+    const EINVAL: i32 = 22;
+    let os = message
+        .rsplit_once("(os error ")
+        .and_then(|(_, rest)| rest.strip_suffix(')'))
+        .and_then(|n| n.parse().ok());
+    os.unwrap_or(if message.contains("does not exist") || message.contains("no such") {
+        ENOENT
+    } else if message.contains("read-only") || message.contains("ermission") {
+        EACCES
+    } else {
+        EINVAL
+    })
+}
+
 /// The Python exception for a core error; `context` (e.g. an anyhow chain) replaces the message.
 pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
     let message = context.map_or_else(|| e.to_string(), str::to_string);
     match e {
         Error::Interrupted => PyKeyboardInterrupt::new_err(message),
-        Error::Io { path, .. } => Python::attach(|py| {
-            let err = PyOSError::new_err(message.clone());
-            // `filename` as Python's own file errors carry it.
-            let _ = err.value(py).setattr("filename", path.display().to_string());
-            err
-        }),
+        Error::Io { path, message: reason } => {
+            // As Python's own file errors: `errno`, the reason as `strerror`, and `filename`,
+            // which `str()` shows as `[Errno N] reason: 'path'`.
+            PyOSError::new_err((os_errno(reason), reason.clone(), path.display().to_string()))
+        }
         Error::InvalidFile { file, issues } => {
             let first = issues.first();
             let field = first.map(|i| i.path.as_str()).filter(|p| !p.is_empty());
@@ -76,7 +95,7 @@ pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
         Error::InputAt { location, message: m } => {
             input_error(&message, Some(&location.file), location.line, column(m))
         }
-        Error::Dimension { what, .. } | Error::InvalidArgument { what, .. } => {
+        Error::Dimension { what, .. } | Error::InvalidArgument { what, .. } | Error::TooLarge { what, .. } => {
             input_error(&message, None, None, Some(what))
         }
         Error::UnknownPlugin { role, .. } => input_error(&message, None, None, Some(role.field())),
@@ -94,7 +113,8 @@ pub fn any_error(e: &anyhow::Error) -> PyErr {
     let message = format!("{e:#}");
     match e.chain().find_map(|c| c.downcast_ref::<Error>()) {
         Some(core) => core_error(core, Some(&message)),
-        None => PyRuntimeError::new_err(message),
+        // armcomp's own refusals without a core error (an unreachable target): its own type.
+        None => armcomp_error(&message),
     }
 }
 

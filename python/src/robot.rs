@@ -10,12 +10,11 @@ use armcomp_core::{BatchWorkspace, PointKinematicsWorkspace, Robot, RobotFile};
 use nalgebra::{IsometryMatrix3, Matrix6xX};
 use numpy::ndarray::Array2;
 use numpy::{
-    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike1, PyArrayLike2, PyArrayMethods,
-    PyUntypedArrayMethods,
+    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike2, PyArrayMethods, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
 
-use crate::arrays::{Matrix, vector};
+use crate::arrays::{Matrix, vector_arg};
 use crate::errors::{IntoPy, file_error, input_error};
 use crate::measurements::PyMeasurements;
 
@@ -92,8 +91,8 @@ impl PyRobot {
     }
 
     /// `q` checked against the robot's joints.
-    fn configuration(&self, q: &PyArrayLike1<'_, f64, AllowTypeChange>) -> PyResult<Vec<f64>> {
-        let q = vector(q);
+    fn configuration(&self, q: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+        let q = vector_arg(q, "q", "for several configurations, one a row, call fk_many")?;
         self.robot.tree().check_q(&q).py()?;
         Ok(q)
     }
@@ -205,12 +204,8 @@ impl PyRobot {
 
     /// Forward kinematics of the full model at `q` (SI): the positions of every point (a
     /// `points × 3` array, m, base frame) and the tool pose (a 4 × 4 homogeneous matrix).
-    fn fk<'py>(
-        &self,
-        py: Python<'py>,
-        q: PyArrayLike1<'py, f64, AllowTypeChange>,
-    ) -> PyResult<(Matrix<'py>, Matrix<'py>)> {
-        let q = self.configuration(&q)?;
+    fn fk<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<(Matrix<'py>, Matrix<'py>)> {
+        let q = self.configuration(q)?;
         // A batch of one, so that `fk` and `fk_many` give the same bits.
         let robot = &self.robot;
         self.with_scratch(|Scratch { batch, poses, .. }| {
@@ -269,10 +264,10 @@ impl PyRobot {
     fn jacobian<'py>(
         &self,
         py: Python<'py>,
-        q: PyArrayLike1<'py, f64, AllowTypeChange>,
+        q: &Bound<'py, PyAny>,
         point: Option<&str>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let q = self.configuration(&q)?;
+        let q = self.configuration(q)?;
         let p = self.point_index(point)?;
         // The robot's point kinematics hold the tree's points in the tree's order.
         let kinematics = self.robot.kinematics();

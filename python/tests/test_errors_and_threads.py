@@ -141,3 +141,38 @@ def test_ctrl_c_stops_a_long_call_and_the_next_one_runs(talos):
     # The stop request is withdrawn: the same call completes afterwards.
     model, report = long_call(robot, data)
     assert report.converged
+
+
+def test_an_output_that_cannot_be_written_says_why(tmp_path):
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    target = tmp_path / "missing" / "model.toml"
+    with pytest.raises(OSError) as e:
+        robot.save(target)
+    assert e.value.filename == str(target)
+    assert isinstance(e.value.errno, int) and e.value.strerror
+    assert "None" not in str(e.value), str(e.value)
+
+
+def test_fk_of_a_two_dimensional_array_names_the_argument_and_fk_many():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    with pytest.raises(armcomp.InputError) as e:
+        robot.fk(np.zeros((2, 2)))
+    assert e.value.field == "q"
+    assert "[2, 2]" in str(e.value) and "fk_many" in str(e.value)
+
+
+def test_plan_with_an_unknown_method_lists_the_selection_methods():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.plan(robot, n=3, method="doptimal")
+    assert e.value.field == "method"
+    assert "d-optimal" in str(e.value) and "uncertainty" in str(e.value)
+
+
+def test_an_unreachable_orientation_is_armcomps_own_error():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    # The planar arm's tool turns about z only: a tool tipped about x is out of reach.
+    half = np.sqrt(0.5)
+    with pytest.raises(armcomp.ArmcompError) as e:
+        armcomp.compensate(robot, [[0.8, 0.3, 0.0, half, half, 0.0, 0.0]], frame="base")
+    assert not isinstance(e.value, armcomp.InputError)

@@ -52,13 +52,17 @@ pub struct Args {
     /// Learning curves: random subsets per size.
     #[arg(long, default_value_t = 10)]
     draws: usize,
-    /// talos: the robot file (run from the repository root for the default).
-    #[arg(long, default_value = "robots/talos-left-arm.toml")]
-    robot: std::path::PathBuf,
-    /// talos: the measurements.
-    #[arg(long, default_value = "data/talos-left-arm/measurements.csv")]
-    data: std::path::PathBuf,
+    /// talos: the robot file (default: robots/talos-left-arm.toml, from the repository root).
+    #[arg(long)]
+    robot: Option<std::path::PathBuf>,
+    /// talos: the measurements (default: data/talos-left-arm/measurements.csv).
+    #[arg(long)]
+    data: Option<std::path::PathBuf>,
 }
+
+/// The work of one random draw of the learning curves: a fit per size of every curve, some
+/// seconds.
+const DRAW_FLOPS: f64 = 3e9;
 
 /// Joint configurations to show: all zero, the middle of the limits, and the upper limits.
 fn configurations(robot: &Robot) -> Vec<(&'static str, Vec<f64>)> {
@@ -137,6 +141,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.seeds.is_some() && args.twin != "rock-drill" {
         bail!("--seeds runs the rock-drill demo only, not `{}`", args.twin);
     }
+    if args.twin != "talos" && (args.robot.is_some() || args.data.is_some()) {
+        bail!(
+            "--robot and --data go with the talos demo; the `{}` demo runs its built-in twin",
+            args.twin
+        );
+    }
     if let (Some(dir), None) = (&args.report, args.seeds) {
         armcomp_repro::demos::report::check(dir)?;
     }
@@ -179,6 +189,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             super::demo_output::emit(&[table], false, args.report.as_deref())?;
         }
         "agile-justin" | "talos" if args.learning_curve || args.twin == "talos" => {
+            if args.draws == 0 {
+                bail!("--draws 0: the random subsets the tool's choice is compared with need at least 1 draw per size");
+            }
+            armcomp_core::limits::check("--draws", args.draws, "draws", &|d| {
+                armcomp_core::limits::Cost::per_unit(d, 0.0, DRAW_FLOPS)
+            })?;
             let opts = super::demo_curve::CurveParams {
                 json: args.json,
                 seed: args.seed,
@@ -187,7 +203,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 report: args.report,
             };
             return if args.twin == "talos" {
-                super::demo_curve::talos(&opts, &args.robot, &args.data)
+                super::demo_curve::talos(&opts, args.robot.as_deref(), args.data.as_deref())
             } else {
                 super::demo_curve::agile_justin(&opts)
             };

@@ -26,6 +26,20 @@ pub struct CurveParams {
     pub report: Option<PathBuf>,
 }
 
+/// TALOS' robot file and measurements, from the repository root.
+const TALOS_ROBOT: &str = "robots/talos-left-arm.toml";
+const TALOS_DATA: &str = "data/talos-left-arm/measurements.csv";
+
+/// `result`, its error telling where the default `path` is looked for when the user gave no
+/// `flag`; a path the user gave is wrong as the error itself says.
+fn default_hint<T>(result: anyhow::Result<T>, defaulted: bool, path: &str, flag: &str) -> anyhow::Result<T> {
+    if defaulted {
+        result.with_context(|| format!("{path}: run from the repository root, or give {flag}"))
+    } else {
+        result
+    }
+}
+
 /// The paper's full-data held-out mean on Agile Justin (mm).
 const JUSTIN_TARGET_MM: f64 = 3.12;
 
@@ -109,16 +123,20 @@ fn beats_median(c: &LearningCurveReport, stat: fn(&ErrorStats) -> f64) {
 }
 
 /// `armcomp demo talos`: TALOS' two splits at two levels (the robot file and data are read
-/// from the given paths, by default relative to the repository root).
-pub fn talos(opts: &CurveParams, robot_path: &Path, data_path: &Path) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(robot_path).with_context(|| {
-        format!(
-            "{}: run from the repository root, or give --robot",
-            robot_path.display()
-        )
-    })?;
-    let set = read_csv(data_path, &robot.csv_layout())
-        .with_context(|| format!("{}: run from the repository root, or give --data", data_path.display()))?;
+/// from the given paths, by default from the repository root's).
+pub fn talos(opts: &CurveParams, robot_path: Option<&Path>, data_path: Option<&Path>) -> anyhow::Result<ExitCode> {
+    let robot = default_hint(
+        armcomp::load_robot(robot_path.unwrap_or(Path::new(TALOS_ROBOT))).map_err(anyhow::Error::from),
+        robot_path.is_none(),
+        TALOS_ROBOT,
+        "--robot",
+    )?;
+    let set = default_hint(
+        read_csv(data_path.unwrap_or(Path::new(TALOS_DATA)), &robot.csv_layout()).map_err(anyhow::Error::from),
+        data_path.is_none(),
+        TALOS_DATA,
+        "--data",
+    )?;
     let bar = progress();
     let talos = talos_curves(&robot, &set, opts.seed, opts.criterion, opts.draws, &|| bar.inc(1));
     bar.finish_and_clear();

@@ -61,11 +61,21 @@ fn cells(s: &ErrorStats) -> String {
     format!("{:>6.2} {:>6.2} {:>6.2}", s.mean_mm, s.std_mm, s.max_mm)
 }
 
+/// The work of one fold: every step of the table fitted once, about ten seconds.
+const FOLD_FLOPS: f64 = 1e10;
+
 pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
     let started = std::time::Instant::now();
     let robot = Twin::get("agile-justin").expect("built in").robot()?;
     let samples = parse_measurements(MEASUREMENTS, Path::new(MEASUREMENTS_PATH), &robot)?;
     let split = half_split(&samples, opts.seed)?;
+    if opts.folds > 0 {
+        // The folds are checked before the step table's seconds of fitting, not after.
+        armcomp_core::split::kfold(&samples, opts.folds, opts.seed)?;
+        armcomp_core::limits::check("--folds", opts.folds, "folds", &|k| {
+            armcomp_core::limits::Cost::per_unit(k, 0.0, FOLD_FLOPS)
+        })?;
+    }
     let predictor = armcomp_learn::RidgeSpec {
         lambda: 0.05,
         degree: 1,

@@ -50,14 +50,18 @@ pub fn at_least_one(text: &str) -> Result<usize, String> {
 /// the selected rows, and prints the reader's warnings.
 pub fn read_measurements(robot: &Robot, path: &Path, rows: Option<&RowSelection>) -> anyhow::Result<MeasurementSet> {
     let mut set = read_csv(path, &robot.csv_layout())?;
-    if let Some(rows) = rows {
-        set = set.select_rows(rows);
-    }
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }
-    if set.samples.is_empty() {
-        anyhow::bail!("{}: no measurements", path.display());
+    if let Some(selection) = rows {
+        let total = set.rows.last().map_or(0, |r| r + 1);
+        set = set.select_rows(selection);
+        if set.samples.is_empty() {
+            anyhow::bail!(
+                "{}: --rows {selection} selects none of its {total} data rows (numbered from 0, header excluded: 0..{total})",
+                path.display()
+            );
+        }
     }
     Ok(set)
 }

@@ -41,6 +41,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
     let set = armcomp::ops::simulate::run(&truth, &poses, args.noise_mm, args.seed)?;
+    for w in &set.warnings {
+        eprintln!("warning: {w}");
+    }
     write_atomic(&args.out, write_csv(&set, truth.tree(), truth.units()).as_bytes())?;
     eprintln!(
         "wrote {} measurements of {} poses to {} (noise {} mm per axis, seed {})",

@@ -15,7 +15,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let schema = armcomp::robot_schema();
     let mut all = Vec::new();
     for f in &args.files {
-        let armcomp::Validation { problems, not_loaded } = armcomp::check_file(f, &schema);
+        let armcomp::Validation {
+            problems,
+            not_loaded,
+            loaded,
+        } = armcomp::check_file(f, &schema);
         // Not a problem of the file: the user has not allowed its code to run.
         for n in &not_loaded {
             eprintln!(
@@ -25,6 +29,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if !args.json {
             if problems.is_empty() {
                 println!("{}: ok", f.display());
+            }
+            // Loading ran the library's code: the user sees which libraries that was.
+            for lib in &loaded {
+                println!(
+                    "{}: loaded and checked the plugin library {}",
+                    f.display(),
+                    lib.display()
+                );
             }
             for p in &problems {
                 println!("{p}");

@@ -91,10 +91,8 @@ pub fn run(
     samples: &[Sample],
     predictor: Option<Box<dyn PredictorSpec>>,
 ) -> armcomp_core::Result<LearnRun> {
-    if let Some(spec) = predictor {
-        file.predictor = Some(spec);
-    }
-    let Some(spec) = file.predictor.as_deref() else {
+    // The model's own spec as built: a run-time library found beside the model file.
+    let Some(spec) = predictor.as_deref().or(robot.predictor_spec()) else {
         return Err(Error::InvalidArgument {
             what: "predictor".into(),
             reason: "the model has no [predictor] table; name a predictor (e.g. gp) or add a `[predictor]` table with its type and settings"
@@ -104,6 +102,9 @@ pub fn run(
     let start = Instant::now();
     let fitted = fit_residual_predictor(robot, spec, samples)?;
     let seconds = start.elapsed().as_secs_f64();
+    if let Some(spec) = predictor {
+        file.predictor = Some(spec);
+    }
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let poses = armcomp_core::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {

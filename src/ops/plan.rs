@@ -6,6 +6,7 @@ use std::cell::RefCell;
 
 use armcomp_core::collision::CollisionModel;
 use armcomp_core::design::{Criterion, SelectionParams, SelectionReport, pose_candidates, select_poses};
+use armcomp_core::limits::{self, Cost};
 use armcomp_core::measurement::{MeasurementSet, Sample};
 use armcomp_core::plan::{Space, spread, trajectory_similar};
 use armcomp_core::sampling::Sampler;
@@ -138,6 +139,7 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
         .clone()
         .unwrap_or_else(|| if p.next.is_some() { "uncertainty" } else { "sobol" }.to_string());
     let n = p.next.unwrap_or(p.n);
+    check_sizes(robot, p, &method, space, n)?;
     // Poses in collision (self-collision or fixtures) are never planned.
     let collision = CollisionModel::new(robot.tree(), robot.collision());
     let collision_ws = RefCell::new(collision.workspace());
@@ -218,7 +220,15 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
             )
         }
         sampler => {
-            let plan = spread(robot, space, Sampler::parse(sampler)?, n, p.seed, &accept)?;
+            let sampler = Sampler::parse(sampler).map_err(|_| {
+                invalid(
+                    "method",
+                    format!(
+                        "unknown method `{sampler}`; expected sobol, halton, random, grid (even sets), d-optimal, a-optimal, uncertainty (optimal subsets) or trajectory"
+                    ),
+                )
+            })?;
+            let plan = spread(robot, space, sampler, n, p.seed, &accept)?;
             if plan.poses.len() < n {
                 warnings.push(format!("only {} of {n} poses could be planned", plan.poses.len()));
             }
@@ -237,6 +247,67 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
         chosen_samples: None,
         warnings,
     })
+}
+
+/// Checks the sizes asked for (`n` poses, or the `--next` ones, and a sampled pool) against
+/// [the limits](armcomp_core::limits) before anything is sampled: drawing a pose costs its
+/// tries (20 for the quasi-random samplers, each a collision check, and through IK in
+/// Cartesian space), and the optimal methods score every pool pose at every pick and exchange
+/// pass against the parameters' information.
+fn check_sizes(robot: &Robot, p: &PlanParams, method: &str, space: Space, n: usize) -> Result<()> {
+    let optimal = method.parse::<Criterion>().is_ok();
+    let fk = robot.fk_flops();
+    let pose = robot.pose_cost();
+    let joints = robot.tree().coordinate_names().len() as f64;
+    let sampler = if optimal || method == "trajectory" {
+        p.pool_sampler.as_str()
+    } else {
+        method
+    };
+    // A grid tries its own points only.
+    let tries = if sampler == "grid" { 1.0 } else { 20.0 };
+    let per_try = match space {
+        Space::Joint => 2.0 * fk,
+        // A hundred iterations, each a Jacobian of every joint.
+        Space::Cartesian => 100.0 * (joints + 1.0) * fk,
+    };
+    let drawn = (tries * (8.0 * joints + 48.0) + pose.bytes, tries * per_try + pose.flops);
+    let n_name = if p.next.is_some() { "--next" } else { "--n" };
+    if method == "trajectory" {
+        // Its pool is sampled; the rest is a nearest-neighbour search per trajectory point.
+        let PlanPool::Sampled(size) = p.pool else {
+            return Ok(());
+        };
+        return limits::check("--pool", size, "poses", &|n| Cost::per_unit(n, drawn.0, drawn.1));
+    }
+    if !optimal {
+        return limits::check(n_name, n, "poses", &|n| Cost::per_unit(n, drawn.0, drawn.1));
+    }
+    let params = (robot.chain_params().len()
+        + robot.error_models().iter().map(|m| m.params().len()).sum::<usize>()
+        + robot.setup_param_names().len()) as f64;
+    let rows = 3.0 * robot.markers().len().max(1) as f64;
+    // A candidate's Jacobian rows, scaled and unscaled, and its samples.
+    let candidate_bytes = 16.0 * rows * params + pose.bytes;
+    let scoring = |picks: usize| rows * params * (fk + params * picks as f64 * (1 + p.exchange_passes) as f64);
+    let (sampled, default_pool) = match p.pool {
+        PlanPool::Sampled(size) => (true, (size == 0).then_some(10)),
+        _ => (false, None),
+    };
+    let cost = |pool: usize, picks: usize| {
+        let (bytes, flops) = if sampled { drawn } else { (0.0, 0.0) };
+        Cost::per_unit(pool, bytes + candidate_bytes, flops + scoring(picks))
+    };
+    let pool = match &p.pool {
+        PlanPool::Sampled(size) => *size,
+        PlanPool::Configurations(poses) => poses.len(),
+        PlanPool::Measured(set) => set.rows.len(),
+    };
+    if let Some(times) = default_pool {
+        return limits::check(n_name, n, "poses", &|n| cost(times * n, n));
+    }
+    limits::check("--pool", pool, "poses", &|pool| cost(pool, n))?;
+    limits::check(n_name, n, "poses", &|n| cost(pool, n))
 }
 
 /// Candidates for the optimal methods: their samples and where they come from.

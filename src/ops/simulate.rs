@@ -1,13 +1,18 @@
 //! `simulate`: measurements of a truth robot at drawn or given poses, with tracker noise.
 
 use armcomp_core::Robot;
+use armcomp_core::limits::{self, Cost};
 use armcomp_core::measurement::MeasurementSet;
 use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::simulate::{SimulateParams, simulate};
 
-/// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or grid).
+/// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or
+/// grid); `n` is checked against [the limits](armcomp_core::limits) of simulating them first.
 pub fn draw_poses(truth: &Robot, sampler: &str, n: usize, seed: u64) -> armcomp_core::Result<Vec<Vec<f64>>> {
-    configurations(truth.tree(), Sampler::parse(sampler)?, n, seed)
+    let sampler = Sampler::parse(sampler)?;
+    let pose = truth.pose_cost();
+    limits::check("--n", n, "poses", &|n| Cost::per_unit(n, pose.bytes, pose.flops))?;
+    configurations(truth.tree(), sampler, n, seed)
 }
 
 /// Measures `truth` at `poses` with `noise_mm` of noise per axis, the noise drawn from `seed`.

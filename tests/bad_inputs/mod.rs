@@ -40,13 +40,16 @@ struct Case {
     code: i32,
     /// Fragments the output (stdout and stderr) must contain; `{dir}` is the scratch folder.
     says: Vec<String>,
+    /// Fragments the output must not contain (a misleading hint).
+    #[serde(default)]
+    lacks: Vec<String>,
     /// Files written into the scratch folder first; `{dir}` in their text is the folder.
     #[serde(default)]
     files: BTreeMap<String, FileSpec>,
     /// Then these steps: `["symlink", LINK, TARGET]`, `["fifo", NAME]`, `["readonly", NAME]`,
     /// `["mkdir", NAME]`, `["pad", NAME, BYTES]` (comment lines appended),
     /// `["bytes", NAME, HEX]` (raw bytes appended), `["bom", NAME]` (a UTF-8 byte-order mark
-    /// prepended).
+    /// prepended), `["columns", NAME, COUNT]` (columns `extra1`, ... added to the header).
     #[serde(default)]
     setup: Vec<Vec<String>>,
     /// Files that must keep their content (and kind) through the run.
@@ -57,6 +60,9 @@ struct Case {
     absent: Vec<String>,
     /// The user config for the run (`ARMCOMP_CONFIG`).
     config: Option<String>,
+    /// Most seconds the run may take: for inputs whose error must come before any work
+    /// worth the name (a size far over its limit, a header of many columns).
+    seconds: Option<u64>,
 }
 
 #[derive(Deserialize)]
@@ -124,6 +130,13 @@ fn setup(step: &[String], dir: &Path) -> Result<(), String> {
             let mut bytes = vec![0xef, 0xbb, 0xbf];
             bytes.extend(std::fs::read(p(name)).map_err(io)?);
             std::fs::write(p(name), bytes).map_err(io)
+        }
+        [what, name, count] if what == "columns" => {
+            let n: usize = count.parse().map_err(|_| format!("{step:?}: not a count"))?;
+            let text = std::fs::read_to_string(p(name)).map_err(io)?;
+            let (header, rest) = text.split_once('\n').unwrap_or((&text, ""));
+            let extra: String = (1..=n).map(|k| format!(",extra{k}")).collect();
+            std::fs::write(p(name), format!("{header}{extra}\n{rest}")).map_err(io)
         }
         [what, name] if what == "readonly" => {
             let mut perms = std::fs::metadata(p(name)).map_err(io)?.permissions();
@@ -194,6 +207,7 @@ fn run_case(case: &Case) -> Result<(), String> {
         }
         std::thread::sleep(Duration::from_millis(20));
     };
+    let took = started.elapsed();
     let out = child.wait_with_output().map_err(|e| e.to_string())?;
     let text = format!(
         "{}{}",
@@ -204,12 +218,22 @@ fn run_case(case: &Case) -> Result<(), String> {
     if status.code() != Some(case.code) {
         wrong.push(format!("exit code {:?}, expected {}", status.code(), case.code));
     }
+    if let Some(most) = case.seconds
+        && took > Duration::from_secs(most)
+    {
+        wrong.push(format!("took {took:?}, more than {most} s"));
+    }
     if text.contains("panicked") {
         wrong.push("panicked".into());
     }
     for s in &case.says {
         if !text.contains(&subst(s)) {
             wrong.push(format!("does not say `{}`", subst(s)));
+        }
+    }
+    for s in &case.lacks {
+        if text.contains(&subst(s)) {
+            wrong.push(format!("says `{}`", subst(s)));
         }
     }
     for (f, was) in case.unchanged.iter().zip(&before) {

@@ -7,6 +7,10 @@ use nalgebra::{Isometry3, Unit, Vector3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+/// The joint travel (SI: rad, or m for a prismatic joint) no joint has either way of zero: 160
+/// turns, or a kilometre of slide. Beyond it a limit is a typo or a unit mix-up.
+const ABSURD_TRAVEL: f64 = 1e3;
+
 /// How a joint moves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "lowercase")]
@@ -82,6 +86,16 @@ impl PriorSpec {
             _ => f64::INFINITY,
         }
     }
+}
+
+/// The `joints` of a convention's spec, read so that an error names the joint and its field
+/// (`kinematics.joints[2].kind`), not the whole `kinematics` table.
+pub(crate) fn joints<'de, D, T>(d: D) -> std::result::Result<Vec<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::Deserialize<'de>,
+{
+    armcomp_core::robot_file::tracked(d, "joints")
 }
 
 /// Declares a convention's joint struct: the shared fields plus the convention's own geometry.
@@ -237,6 +251,25 @@ impl ChainCore {
                     );
                     None
                 }
+                Some([lo, hi]) if lo == hi => {
+                    issues.push(
+                        format!("{path}.limits"),
+                        format!(
+                            "equal limits [{lo}, {hi}] leave the joint no travel; make it `fixed`, or hold it with `[measurement] hold`"
+                        ),
+                    );
+                    None
+                }
+                Some([lo, hi]) if scale(lo).abs().max(scale(hi).abs()) > ABSURD_TRAVEL => {
+                    issues.push(
+                        format!("{path}.limits"),
+                        format!(
+                            "limits [{lo:e}, {hi:e}] are physically absurd; expected at most {ABSURD_TRAVEL} {} either way",
+                            if j.kind == JointKind::Prismatic { "m" } else { "rad" }
+                        ),
+                    );
+                    None
+                }
                 Some(_) if j.kind == JointKind::Fixed => {
                     issues.push(format!("{path}.limits"), "a fixed joint has no limits");
                     None
@@ -265,6 +298,12 @@ impl ChainCore {
                             m.joints.len(),
                             m.multipliers.len()
                         ),
+                    );
+                }
+                if let Some(k) = m.multipliers.iter().position(|v| !v.is_finite()) {
+                    issues.push(
+                        format!("{path}.mimic.multipliers[{k}]"),
+                        format!("expected a finite number, got {}", m.multipliers[k]),
                     );
                 }
                 if m.joints.is_empty() {
@@ -313,15 +352,18 @@ impl ChainCore {
             }
             let first_param = params.len();
             for (suffix, quantity, nominal) in geo {
-                if !nominal.is_finite() {
-                    issues.push(format!("{path}.{suffix}"), "expected a finite number");
-                }
-                params.push(ParamInfo::new(
+                let param = ParamInfo::new(
                     format!("{}.{suffix}", j.name),
                     quantity,
                     nominal,
                     prior.sigma(quantity, &units),
-                ));
+                );
+                if !nominal.is_finite() {
+                    issues.push(format!("{path}.{suffix}"), "expected a finite number");
+                } else if let Some(why) = param.absurdity(nominal) {
+                    issues.push(format!("{path}.{suffix}"), why);
+                }
+                params.push(param);
             }
             topo.push(JointTopo {
                 name: j.name.to_string(),

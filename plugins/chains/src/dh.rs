@@ -44,6 +44,7 @@ pub struct DhSpec {
     #[serde(default = "default_base")]
     pub base: String,
     /// The joints in order.
+    #[serde(deserialize_with = "crate::common::joints")]
     pub joints: Vec<DhJoint>,
     /// Prior standard deviations of the parameters.
     #[serde(default, skip_serializing_if = "is_default_prior")]

@@ -46,6 +46,7 @@ pub struct MdhSpec {
     #[serde(default = "default_base")]
     pub base: String,
     /// The joints in order; each hangs from the previous joint's link unless `parent` says otherwise.
+    #[serde(deserialize_with = "crate::common::joints")]
     pub joints: Vec<MdhJoint>,
     /// Prior standard deviations of the parameters.
     #[serde(default, skip_serializing_if = "is_default_prior")]

@@ -38,6 +38,7 @@ pub struct PoeSpec {
     #[serde(default = "default_base")]
     pub base: String,
     /// The joints in order.
+    #[serde(deserialize_with = "crate::common::joints")]
     pub joints: Vec<PoeJoint>,
     /// Prior standard deviations of the parameters.
     #[serde(default, skip_serializing_if = "is_default_prior")]

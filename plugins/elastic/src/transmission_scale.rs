@@ -35,7 +35,23 @@ impl ErrorModelSpec for TransmissionScaleSpec {
                 "expected at least one joint, e.g. scale = { j1 = 0.0 }",
             );
         }
-        let resolved = resolve_joint_table(ctx, "scale", &self.scale, &mut issues, check_finite);
+        // The joint turns (1 + s) times its command: at s = -1 it never moves, below it runs
+        // backwards; no gear or encoder error does either.
+        let resolved = resolve_joint_table(ctx, "scale", &self.scale, &mut issues, |issues, path, v| {
+            if !check_finite(issues, path, v) {
+                return false;
+            }
+            if v <= -1.0 {
+                issues.push(
+                    path,
+                    format!(
+                        "{v} would stop or reverse the joint (it turns 1 + s times its command); expected more than -1"
+                    ),
+                );
+                return false;
+            }
+            true
+        });
         if !issues.is_empty() {
             return Err(issues);
         }

@@ -33,7 +33,7 @@ mod per_thread;
 #[cfg(feature = "host")]
 pub use host::{
     NOT_ALLOWED, PluginErrorModel, PluginErrorModelSpec, PluginPolicy, PluginPredictor, PluginPredictorSpec,
-    load_library, loaded_plugins, plugins, set_policy,
+    load_library, loaded_libraries, loaded_plugins, plugins, set_policy,
 };
 
 /// Exports error models and predictors through the C ABI of [`abi`]. Call it once, at the root

@@ -161,6 +161,22 @@ impl UrdfDocument {
                     if tag == "inertial" {
                         check_numbers(sub, "mass", "value", 1, &format!("{at}: <inertial>"), &mut found);
                     }
+                    // urdf-rs names an unknown shape without its line or link.
+                    for shape in sub
+                        .children()
+                        .filter(|n| n.has_tag_name("geometry"))
+                        .flat_map(|g| g.children().filter(|n| n.is_element()))
+                        .filter(|n| !SHAPES.contains(&n.tag_name().name()))
+                    {
+                        errors.push(at_line(
+                            line_of(shape),
+                            format!(
+                                "{at}: <{tag}> <geometry>: unknown shape <{}>; expected one of <{}>",
+                                shape.tag_name().name(),
+                                SHAPES.join(">, <")
+                            ),
+                        ));
+                    }
                 }
                 link_nodes.push(el);
             }
@@ -473,6 +489,9 @@ fn for_urdf_rs(text: &str, robot: roxmltree::Node<'_, '_>) -> String {
 fn in_file(path: &Path, issues: &[Issue]) -> Vec<String> {
     issues.iter().map(|i| i.in_file(path)).collect()
 }
+
+/// The shapes a URDF `<geometry>` may hold.
+const SHAPES: [&str; 5] = ["box", "cylinder", "capsule", "sphere", "mesh"];
 
 /// A problem at a line of the file; the message names the element.
 fn at_line(line: usize, message: String) -> Issue {

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::handle::PluginHandle;
-use super::{ConfigObject, LoadedType, Origin, PluginLibrary, empty_config, lock, one_issue, owned};
+use super::{ConfigObject, LoadedType, PluginLibrary, empty_config, lock, one_issue, owned};
 use crate::abi::*;
 use crate::flat::{FlatMass, FlatState, FlatTree, abi_str};
 use crate::per_thread::with_buffers;
@@ -93,8 +93,8 @@ impl ErrorModelSpec for PluginErrorModelSpec {
     fn build(&self, ctx: &ModelContext<'_>) -> std::result::Result<Box<dyn ErrorModel>, Issues> {
         let path = ctx.build.path;
         let (lib, ty) = PluginLibrary::resolve(
-            &super::platform_library_path(&ctx.build.base_dir.join(&self.library)),
-            Origin::File(ctx.build.base_dir),
+            ctx.build.base_dir,
+            &self.library,
             &self.model,
             Role::ErrorModel,
             Some(&self.config),

@@ -104,9 +104,8 @@ static LIBRARIES: Mutex<BTreeMap<PathBuf, &'static PluginLibrary>> = Mutex::new(
 /// none loads.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct PluginPolicy {
-    /// The user allows the libraries of this run (`--allow-plugins`): those a robot file names
-    /// inside its own folder (predictor libraries: inside the working folder), and those named
-    /// on the command line.
+    /// The user allows the libraries of this run (`--allow-plugins`): those a robot or model
+    /// file names inside its own folder, and those named on the command line.
     pub allow: bool,
     /// Folders whose libraries load from any robot file, allowed or not (`plugin_dirs` of the
     /// user config).
@@ -414,19 +413,27 @@ impl PluginLibrary {
             })
     }
 
-    /// The library at `file`, named at `origin`, and its type `model` of `role`, with `config`
-    /// (when given) checked against the type's schema; each problem an issue at its field under
-    /// `field` (`field.library`, `field.model`, `field.config.…`).
+    /// The library a file in `folder` names as `library`: a path relative to that folder, in
+    /// the platform's naming, which loads only from inside it (or from a trusted folder). Every
+    /// library a robot or model file names is found and checked this way.
+    fn load_for_file(folder: &Path, library: &str) -> Result<&'static PluginLibrary> {
+        Self::load(&platform_library_path(&folder.join(library)), Origin::File(folder))
+    }
+
+    /// The library a file in `folder` names as `library` ([`load_for_file`](Self::load_for_file))
+    /// and its type `model` of `role`, with `config` (when given) checked against the type's
+    /// schema; each problem an issue at its field under `field` (`field.library`,
+    /// `field.model`, `field.config.…`).
     fn resolve(
-        file: &Path,
-        origin: Origin<'_>,
+        folder: &Path,
+        library: &str,
         model: &str,
         role: Role,
         config: Option<&Value>,
         field: &str,
     ) -> std::result::Result<(&'static PluginLibrary, &'static LoadedType), Issues> {
-        let lib =
-            PluginLibrary::load(file, origin).map_err(|e| one_issue(format!("{field}.library"), e.to_string()))?;
+        let lib = PluginLibrary::load_for_file(folder, library)
+            .map_err(|e| one_issue(format!("{field}.library"), e.to_string()))?;
         let ty = lib
             .find(model, role)
             .map_err(|e| one_issue(format!("{field}.model"), e.to_string()))?;
@@ -471,6 +478,11 @@ fn generic_candidates(path: &Path, model: &str, template: CandidateTemplate) -> 
             |config| serde_json::json!({ "type": "plugin", "library": library, "model": model, "config": config }),
         )
     }))
+}
+
+/// The files (canonical paths) of the libraries loaded so far.
+pub fn loaded_libraries() -> Vec<PathBuf> {
+    lock(&LIBRARIES).keys().cloned().collect()
 }
 
 /// Registry entries of every type of every library loaded so far, in load order of paths.

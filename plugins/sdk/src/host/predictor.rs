@@ -2,15 +2,15 @@
 //! gives, a handle of a loaded library behind the core's [`FittedPredictor`] trait.
 
 use std::os::raw::c_void;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, Role, TrainingSet};
+use armcomp_core::{BuildContext, Error, FittedPredictor, Issues, PredictorSpec, Result, Role, TrainingSet};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::handle::PluginHandle;
-use super::{ConfigObject, Origin, PluginLibrary, empty_config, platform_library_path};
+use super::{ConfigObject, PluginLibrary, empty_config};
 use crate::abi::*;
 use crate::flat::abi_str;
 
@@ -18,9 +18,8 @@ use crate::flat::abi_str;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct PluginPredictorSpec {
-    /// The shared library, relative to the working directory (predictor specs are fitted
-    /// without the robot file's folder) and inside it unless the library's folder is trusted;
-    /// platform naming as for error models.
+    /// The shared library: a path relative to the robot file, inside its folder unless the
+    /// library's folder is trusted; platform naming as for error models.
     pub library: String,
     /// The predictor type the library exports.
     pub model: String,
@@ -28,14 +27,19 @@ pub struct PluginPredictorSpec {
     #[serde(default = "empty_config")]
     #[schemars(with = "ConfigObject")]
     pub config: Value,
+    /// The folder of the file that names the spec, which `library` is relative to and must lie
+    /// in; set when the robot is built, the working folder for a spec made in code.
+    #[serde(skip)]
+    #[schemars(skip)]
+    pub folder: Option<PathBuf>,
 }
 
 #[typetag::serde(name = "plugin")]
 impl PredictorSpec for PluginPredictorSpec {
     fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
         let (lib, ty) = PluginLibrary::resolve(
-            &platform_library_path(Path::new(&self.library)),
-            Origin::File(Path::new(".")),
+            self.folder.as_deref().unwrap_or(Path::new("")),
+            &self.library,
             &self.model,
             Role::Predictor,
             Some(&self.config),
@@ -88,6 +92,24 @@ impl PredictorSpec for PluginPredictorSpec {
         }
         Ok(Box::new(PluginPredictor::new(lib, self.model.clone(), raw)?))
     }
+
+    /// Loads the library from the robot file's folder and checks the config against its schema
+    /// before anything is fitted; the spec to fit names the library by its resolved path.
+    fn resolve(&self, ctx: &BuildContext<'_>) -> std::result::Result<Option<Box<dyn PredictorSpec>>, Issues> {
+        let (lib, _) = PluginLibrary::resolve(
+            ctx.base_dir,
+            &self.library,
+            &self.model,
+            Role::Predictor,
+            Some(&self.config),
+            ctx.path,
+        )?;
+        Ok(Some(Box::new(PluginPredictorSpec {
+            library: lib.path.to_string_lossy().into_owned(),
+            folder: Some(ctx.base_dir.to_path_buf()),
+            ..self.clone()
+        })))
+    }
 }
 
 /// A fitted predictor living in a plugin library, behind the core's [`FittedPredictor`] trait.
@@ -129,7 +151,9 @@ impl PluginPredictor {
     }
 
     fn load(record: PredictorRecord) -> Result<Self> {
-        let lib = PluginLibrary::load(Path::new(&record.library), Origin::File(Path::new(".")))?;
+        // The library lies beside the model file that stores the predictor.
+        let folder = armcomp_core::robot_file::folder_being_read().unwrap_or_default();
+        let lib = PluginLibrary::load_for_file(&folder, &record.library)?;
         let ty = lib.find(&record.model, Role::Predictor)?;
         let json = record.fitted.to_string();
         let mut raw = std::ptr::null_mut();
