@@ -53,7 +53,7 @@ pub fn calibrate(
         armcomp::ops::calibrate::run(&robot, &set.samples, params, prior, noise_mm.is_some(), &mut |_| {})
     })?
     .py()?;
-    let json = serde_json::to_string(&run.to_json()).expect("JSON values print");
+    let json = serde_json::to_string(&run.to_json(&set.rows)).expect("JSON values print");
     let far = run.calibration.report.far_above_noise();
     Ok((PyRobot::wrap(run.calibration.robot), json, far))
 }

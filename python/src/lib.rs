@@ -9,6 +9,7 @@ mod compensate;
 mod diagnose;
 mod errors;
 mod evaluate;
+mod fit;
 mod interrupt;
 mod learn;
 mod measurements;
@@ -27,6 +28,7 @@ fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<measurements::PyMeasurements>()?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(learn::learn, m)?)?;

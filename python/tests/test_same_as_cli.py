@@ -206,3 +206,23 @@ def test_diagnose_reports_as_the_command_line(simulated):
         assert isinstance(step, armcomp.DiagnosisStep) and step.label == raw["label"]
         assert step.heldout_after.rms_mm == raw["heldout_after"]["rms_mm"]
     assert report.final_.heldout.n == len(data)
+
+
+def test_fit_chooses_and_writes_what_the_command_line_does(simulated):
+    """The model ladder from Python: the same ladder and the same model bytes as `armcomp fit`."""
+    tmp, data = simulated
+    expected = cli_json(
+        "fit", "--robot", NOMINAL, "--data", tmp / "cli.csv", "--predictor", "none", "--folds", 3,
+        "--out", tmp / "fit_cli.toml",
+    )
+    model, report = armcomp.fit(armcomp.Robot.load(NOMINAL), data, folds=3, predictor=None)
+    model.save(tmp / "fit_py.toml")
+    assert (tmp / "fit_py.toml").read_bytes() == (tmp / "fit_cli.toml").read_bytes()
+    # Everything but the run times.
+    got = report.to_dict()
+    for rungs in (got["rungs"], expected["rungs"]):
+        for r in rungs:
+            r.pop("seconds")
+    assert got == expected
+    assert [r.label for r in report.rungs] == ["registration", "joint offsets", "geometry"]
+    assert report.rungs[0].kept and report.expected_rms_mm > 0

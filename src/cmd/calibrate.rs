@@ -109,11 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     write_atomic(&args.out, text.as_bytes())?;
     let report = &calibration.report;
     if args.json {
-        let mut value = run.to_json();
-        // Rows as `--rows` counts them (0-based, header and comments excluded).
-        value["outlier_rows"] = serde_json::to_value(&outlier_rows)?;
-        value["outliers_excluded"] = serde_json::Value::Bool(args.exclude_outliers && !outlier_rows.is_empty());
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        println!("{}", serde_json::to_string_pretty(&run.to_json(&data.rows))?);
     } else {
         if let Some(c) = &choice {
             let scores: Vec<String> = c

@@ -51,14 +51,28 @@ pub struct CalibrationRun {
 }
 
 impl CalibrationRun {
-    /// The report as `armcomp calibrate --json` prints it: the calibration report with a
-    /// `prior_choice` entry.
-    pub fn to_json(&self) -> serde_json::Value {
+    /// The report as `armcomp calibrate --json` prints it: the calibration report with
+    /// `prior_choice`, `evidence` and `outlier_rows` (the data rows, as `--rows` counts them, of
+    /// its gross errors; `rows` gives each sample's row).
+    pub fn to_json(&self, rows: &[usize]) -> serde_json::Value {
         // Both serialise plain numbers, strings and lists: they cannot fail.
         let mut value = serde_json::to_value(&self.calibration.report).expect("the report serialises");
         value["prior_choice"] = serde_json::to_value(&self.prior_choice).expect("the prior choice serialises");
         value["evidence"] = serde_json::to_value(&self.evidence).expect("the evidence report serialises");
+        value["outlier_rows"] = self.outlier_rows(rows).into();
         value
+    }
+}
+
+impl CalibrationRun {
+    /// The data rows of the gross errors, largest first; `rows` gives each sample's row.
+    pub fn outlier_rows(&self, rows: &[usize]) -> Vec<usize> {
+        self.calibration
+            .report
+            .outliers
+            .iter()
+            .map(|o| rows[o.sample])
+            .collect()
     }
 }
 

@@ -102,9 +102,6 @@ pub fn run(
     let start = Instant::now();
     let fitted = fit_residual_predictor(robot, spec, samples)?;
     let seconds = start.elapsed().as_secs_f64();
-    if let Some(spec) = predictor {
-        file.predictor = Some(spec);
-    }
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let poses = armcomp_core::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {
@@ -112,6 +109,9 @@ pub fn run(
     } else {
         None
     };
+    if let Some(spec) = predictor {
+        file.predictor = Some(spec);
+    }
     file.fitted_predictor = Some(fitted);
     let written = Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)?;
     let after = ErrorStats::from_errors(&position_errors(&written, samples));

@@ -32,6 +32,9 @@ from ._reports import (
     DiagnosisStep,
     ErrorStats,
     EvaluationReport,
+    Evidence,
+    FitReport,
+    GroupScale,
     FinalModel,
     Identifiability,
     IdentifiedValue,
@@ -40,10 +43,9 @@ from ._reports import (
     Parameter,
     Plan,
     PriorChoice,
-    Evidence,
-    GroupScale,
     PriorScaleScore,
     RankedCandidate,
+    RungScore,
 )
 
 __all__ = [
@@ -57,6 +59,9 @@ __all__ = [
     "DiagnosisStep",
     "ErrorStats",
     "EvaluationReport",
+    "Evidence",
+    "FitReport",
+    "GroupScale",
     "FinalModel",
     "Identifiability",
     "IdentifiedValue",
@@ -68,15 +73,15 @@ __all__ = [
     "Parameter",
     "Plan",
     "PriorChoice",
-    "Evidence",
-    "GroupScale",
     "PriorScaleScore",
     "RankedCandidate",
+    "RungScore",
     "Robot",
     "calibrate",
     "compensate",
     "diagnose",
     "evaluate",
+    "fit",
     "learn",
     "plan",
     "simulate",
@@ -197,6 +202,32 @@ def diagnose(
         predictor=predictor,
     )
     return model, from_json(DiagnosisReport, text)
+
+
+def fit(
+    robot: Robot,
+    data: Measurements,
+    noise_mm: Optional[float] = None,
+    folds: int = 5,
+    seed: int = 0,
+    groups: Optional[Sequence[str]] = None,
+    predictor: Optional[str] = "gp",
+) -> Tuple[Robot, FitReport]:
+    """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
+    offsets, geometry, the robot file's error models and ``predictor`` (None for none), each
+    with the noise and prior scales the evidence chooses, scored by nested cross-validation
+    over ``folds`` folds (whole groups held out when ``groups`` gives a label per data row);
+    returns the chosen model fitted on all of ``data`` and the ladder."""
+    model, text = _native.fit(
+        robot,
+        data,
+        noise_mm=noise_mm,
+        folds=folds,
+        seed=seed,
+        groups=None if groups is None else [str(g) for g in groups],
+        predictor=predictor,
+    )
+    return model, from_json(FitReport, text)
 
 
 def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, LearnReport]:

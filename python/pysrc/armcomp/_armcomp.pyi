@@ -91,6 +91,15 @@ def calibrate(
     seed: int = 0,
 ) -> Tuple[Robot, str, bool]: ...
 def evaluate(model: Robot, data: Measurements) -> Tuple[str, np.ndarray]: ...
+def fit(
+    robot: Robot,
+    data: Measurements,
+    noise_mm: Optional[float] = None,
+    folds: int = 5,
+    seed: int = 0,
+    groups: Optional[List[str]] = None,
+    predictor: Optional[str] = "gp",
+) -> Tuple[Robot, str]: ...
 def simulate(
     truth: Robot,
     poses: Optional[_Array] = None,

@@ -139,6 +139,9 @@ class CalibrationReport(Report):
     warnings: List[str]
     prior_choice: Optional[PriorChoice] = None
     evidence: Optional[Evidence] = None
+    outliers: List[Dict[str, Any]] = field(default_factory=list)
+    drift: Optional[Dict[str, Any]] = None
+    outlier_rows: List[int] = field(default_factory=list)
     far_above_noise: bool = False
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -146,6 +149,37 @@ class CalibrationReport(Report):
     def parameters(self) -> Dict[str, Parameter]:
         """The parameters by name."""
         return {p.name: p for p in self.params}
+
+
+@dataclass(frozen=True)
+class RungScore:
+    """One rung of the model ladder: its nested cross-validated held-out RMS (mm), per fold,
+    the gain over the last rung kept (mm² per row) with its standard error, and the verdict."""
+
+    rung: str
+    label: str
+    rms_mm: float
+    fold_rms_mm: List[float]
+    gain_mm2: float
+    gain_std_error_mm2: float
+    kept: bool
+    reason: str
+    seconds: float
+
+
+@dataclass(frozen=True)
+class FitReport(Report):
+    """The model ladder (``armcomp fit --json``): every rung's nested score, the rung chosen,
+    the held-out error to expect, and the chosen rung's evidence and calibration on all rows."""
+
+    rungs: List[RungScore]
+    chosen: str
+    expected_rms_mm: float
+    folds: int
+    folds_by: str
+    evidence: Evidence
+    calibration: CalibrationReport
+    _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
