@@ -83,18 +83,22 @@ def test_not_converged_carries_the_model_the_command_line_writes(simulated):
 
 
 def test_talos_levels_match_the_command_line(tmp_path):
-    """The TALOS levels of docs/reproductions/talos.md: registration (which ends far above the
-    noise, exit 3 and a warning) and joint offsets without priors, trained on the even rows."""
+    """The TALOS levels of docs/reproductions/talos.md: registration with a declared 0.1 mm noise
+    (which it ends far above: exit 3 and a warning) and joint offsets without priors, the noise
+    estimated, trained on the even rows."""
     robot = armcomp.Robot.load(TALOS)
     train = armcomp.Measurements.read(TALOS_DATA, rows="even")
-    for identify, prior, code in [("base,markers", "1", 3), ("base,markers,offsets", "none", 0)]:
+    for identify, prior, noise, code in [("base,markers", "1", 0.1, 3), ("base,markers,offsets", "none", None, 0)]:
+        declared = [] if noise is None else ["--noise-mm", noise]
         expected = cli_json(
             "calibrate", "--robot", TALOS, "--data", TALOS_DATA, "--rows", "even", "--identify", identify,
-            "--prior", prior, "--out", tmp_path / "cli.toml", expect=(code,),
+            "--prior", prior, *declared, "--out", tmp_path / "cli.toml", expect=(code,),
         )
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            model, report = armcomp.calibrate(robot, train, identify=identify, prior=None if prior == "none" else 1.0)
+            model, report = armcomp.calibrate(
+                robot, train, identify=identify, prior=None if prior == "none" else 1.0, noise_mm=noise
+            )
         far = [w for w in caught if issubclass(w.category, armcomp.CalibrationWarning)]
         assert bool(far) == (code == 3) == report.far_above_noise
         model.save(tmp_path / "py.toml")

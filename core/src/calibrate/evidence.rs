@@ -203,7 +203,9 @@ pub fn calibrate_with_evidence(
     let mut fit = calibrate(robot, samples, &p, observer)?;
     let mut rounds = 1;
     let mut converged = false;
-    loop {
+    // A fit that did not converge (its iteration budget spent) ends the rounds: its
+    // linearisation is not at a minimum, and the report says it did not converge.
+    while fit.report.converged {
         let lin = &fit.linearisation;
         let u = update(lin);
         let mut changed: f64 = 0.0;
