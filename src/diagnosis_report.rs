@@ -148,7 +148,7 @@ fn html(r: &DiagnosisReport) -> String {
             escape(&s.label),
             escape(&s.summary)
         );
-        h.push_str("<table><tr><th>candidate</th><th>params (determined / added)</th><th>held-out RMS (mm)</th><th>removed</th><th>earns its parameters</th><th>data cannot tell it from the first</th></tr>\n");
+        h.push_str("<table><tr><th>candidate</th><th>params (determined / added)</th><th>held-out RMS (mm)</th><th>removed</th><th>verdict</th><th>data cannot tell it from the first</th></tr>\n");
         for c in &s.ranking {
             let rms = c
                 .heldout
@@ -160,7 +160,7 @@ fn html(r: &DiagnosisReport) -> String {
                 c.identified_params,
                 c.n_params,
                 100.0 * c.share_removed,
-                if c.earns_parameters { "yes" } else { "no" },
+                escape(&c.verdict),
                 if c.indistinguishable_from_best { "yes" } else { "" }
             );
         }

@@ -772,3 +772,30 @@ fn candidates_stay_on_the_measured_chain() {
         chain.len()
     );
 }
+
+/// A transmission scale of 0.5 (a joint turning half again as far as commanded, beyond the
+/// ±0.2 its model calls plausible): the candidate that explains it is not named, and its
+/// verdict says why; a candidate left at its neutral value says that, not that it lacks gain.
+#[test]
+fn implausible_values_are_not_named_and_verdicts_give_the_real_reason() {
+    let nominal = robot("industrial-6dof.toml");
+    let truth = with_effects(&nominal, &[json!({"type": "transmission_scale", "scale": {"j3": 0.5}})]);
+    let noise = 0.02e-3;
+    let samples = measure(&truth, 80, noise, 7, Campaign::default());
+    let r = run(&nominal, &samples, noise, 3);
+    assert!(
+        r.steps.iter().all(|s| !(s.effect == "transmission_scale" && s.location == "j3")),
+        "named {:?}",
+        r.steps.iter().map(|s| &s.label).collect::<Vec<_>>()
+    );
+    let ranking = r.steps.first().map_or(&r.final_model.ranking, |s| &s.ranking);
+    let scale = ranking
+        .iter()
+        .find(|c| c.effect == "transmission_scale" && c.location == "j3")
+        .expect("the candidate was scored");
+    assert!(scale.implausible_values && !scale.earns_parameters, "{scale:?}");
+    assert!(scale.verdict.contains("implausible"), "{}", scale.verdict);
+    for c in ranking.iter().filter(|c| c.at_neutral) {
+        assert!(c.verdict.contains("neutral"), "{}: {}", c.label, c.verdict);
+    }
+}

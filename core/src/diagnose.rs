@@ -22,7 +22,12 @@
 //! - and its calibrations moved it: a candidate left at its neutral value (within
 //!   [`NEUTRAL_Z`] standard deviations), on a bound or fixed in most folds did nothing itself,
 //!   whatever its fit gained (a re-calibration that escaped a local minimum, say), so it is
-//!   never named.
+//!   never named;
+//! - and its values are physically plausible in most folds ([`crate::param::ParamInfo::plausible`]):
+//!   an encoder eccentricity of degrees or a compliance that bends the arm by centimetres
+//!   explains the data with values no real robot has.
+//!
+//! Every candidate carries its `verdict`, the first of these reasons that applies, in words.
 //!
 //! Some effects are indistinguishable from tool positions on a given robot: on the rock drill,
 //! torsion of the short swing link turns the boom's pivot about the swing's axis in proportion
@@ -118,8 +123,16 @@ pub struct RankedCandidate {
     /// folds: the effect itself did nothing, so whatever its fit gained came from elsewhere
     /// (another minimum, other parameters) and it cannot be named.
     pub at_neutral: bool,
+    /// Whether its calibrations needed values outside the range its model calls physically
+    /// plausible (an eccentricity of degrees, a compliance that bends the arm by centimetres)
+    /// in most folds: it explains the data with values no real robot has, so it is not named.
+    pub implausible_values: bool,
     /// Whether it passes the acceptance rule (see the module documentation).
     pub earns_parameters: bool,
+    /// Why it does or does not earn its parameters, the first reason that applies: left at
+    /// its neutral value, implausible values, too small a gain, or a gain below the BIC
+    /// penalty.
+    pub verdict: String,
     /// Whether the data cannot tell it from the best candidate of the round (paired z-score of
     /// the held-out squared errors below [`TIE_Z`]); false for the best itself.
     pub indistinguishable_from_best: bool,
@@ -535,7 +548,9 @@ fn score(
         heldout_bic: f64::INFINITY,
         share_removed: 0.0,
         at_neutral: false,
+        implausible_values: false,
         earns_parameters: false,
+        verdict: String::new(),
         indistinguishable_from_best: false,
         error: None,
         evaluation: None,
@@ -576,9 +591,39 @@ fn score(
                 })
                 .count();
             out.at_neutral = 2 * neutral_folds > evaluation.params.len();
+            let implausible_folds = evaluation
+                .params
+                .iter()
+                .filter(|fold| fold.iter().any(|p| names.contains(&p.name) && !p.fixed && !p.plausible))
+                .count();
+            out.implausible_values = 2 * implausible_folds > evaluation.params.len();
+            let (gain, penalty) = (n * (sse0 / sse1).ln(), k as f64 * n.ln());
+            out.verdict = if out.at_neutral {
+                format!(
+                    "its calibrations left it at its neutral value (within {NEUTRAL_Z} standard deviations, on a bound \
+                     or fixed) in most folds: what its fit gained ({:.0}%) came from the other parameters",
+                    100.0 * out.share_removed
+                )
+            } else if out.implausible_values {
+                format!(
+                    "removes {:.0}%, but only with values its model calls physically implausible in most folds",
+                    100.0 * out.share_removed
+                )
+            } else if out.share_removed < params.min_rms_reduction {
+                format!(
+                    "removes {:.1}% of the held-out RMS, less than the {:.0}% that folds alone can move a score by",
+                    100.0 * out.share_removed,
+                    100.0 * params.min_rms_reduction
+                )
+            } else if gain <= penalty {
+                format!("its held-out likelihood gain {gain:.1} does not pay its {k} parameter(s) (BIC penalty {penalty:.1})")
+            } else {
+                format!("earns its parameters: removes {:.0}% of the held-out RMS", 100.0 * out.share_removed)
+            };
             out.earns_parameters = !out.at_neutral
+                && !out.implausible_values
                 && out.share_removed >= params.min_rms_reduction
-                && n * (sse0 / sse1).ln() > k as f64 * n.ln();
+                && gain > penalty;
             out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
             out.heldout_bic = bic(&evaluation.errors, k);
             out.evaluation = Some(evaluation);

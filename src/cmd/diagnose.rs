@@ -170,9 +170,9 @@ fn print_ranking(ranking: &[RankedCandidate]) {
                 h.rms_mm,
                 -100.0 * c.share_removed,
                 if c.earns_parameters {
-                    ""
+                    String::new()
                 } else {
-                    "  (does not earn its parameters)"
+                    format!("  (not kept: {})", c.verdict)
                 },
                 if c.indistinguishable_from_best {
                     "  (the data cannot tell it from the first)"

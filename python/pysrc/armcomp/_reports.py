@@ -214,6 +214,8 @@ class RankedCandidate:
     earns_parameters: bool
     indistinguishable_from_best: bool
     error: Optional[str] = None
+    implausible_values: bool = False
+    verdict: str = ""
 
 
 @dataclass(frozen=True)
