@@ -784,7 +784,9 @@ fn implausible_values_are_not_named_and_verdicts_give_the_real_reason() {
     let samples = measure(&truth, 80, noise, 7, Campaign::default());
     let r = run(&nominal, &samples, noise, 3);
     assert!(
-        r.steps.iter().all(|s| !(s.effect == "transmission_scale" && s.location == "j3")),
+        r.steps
+            .iter()
+            .all(|s| !(s.effect == "transmission_scale" && s.location == "j3")),
         "named {:?}",
         r.steps.iter().map(|s| &s.label).collect::<Vec<_>>()
     );

@@ -616,9 +616,14 @@ fn score(
                     100.0 * params.min_rms_reduction
                 )
             } else if gain <= penalty {
-                format!("its held-out likelihood gain {gain:.1} does not pay its {k} parameter(s) (BIC penalty {penalty:.1})")
+                format!(
+                    "its held-out likelihood gain {gain:.1} does not pay its {k} parameter(s) (BIC penalty {penalty:.1})"
+                )
             } else {
-                format!("earns its parameters: removes {:.0}% of the held-out RMS", 100.0 * out.share_removed)
+                format!(
+                    "earns its parameters: removes {:.0}% of the held-out RMS",
+                    100.0 * out.share_removed
+                )
             };
             out.earns_parameters = !out.at_neutral
                 && !out.implausible_values

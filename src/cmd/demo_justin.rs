@@ -206,7 +206,10 @@ fn print_diagnosis(d: &DiagnosisReport) {
         );
     }
     match d.final_model.ranking.first() {
-        Some(best) => println!("   stopped: the best next candidate ({}) is not kept: {}", best.label, best.verdict),
+        Some(best) => println!(
+            "   stopped: the best next candidate ({}) is not kept: {}",
+            best.label, best.verdict
+        ),
         None => println!("   stopped at the step limit"),
     }
     let paper: Vec<&str> = GROUPS.iter().map(|g| g.label).collect();
