@@ -196,17 +196,20 @@ impl<'a> LineCounter<'a> {
     }
 }
 
-/// The values of column `name` of measurement CSV `text`, one per data row (header and
-/// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
-/// into sessions or stations. `path` is used in messages.
-pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
-    let err = |line: Option<usize>, message: String| Error::InputAt {
+/// An error in measurement file `path` at `line`.
+fn input_error(path: &Path, line: Option<usize>, message: String) -> Error {
+    Error::InputAt {
         location: Location {
             line,
             ..Location::file(path)
         },
         message,
-    };
+    }
+}
+
+/// A reader of measurement CSV `text` (comments `#`, cells trimmed, rows of any length) and its
+/// header; `path` is used in messages.
+fn open_table<'t>(text: &'t str, path: &Path) -> Result<(csv::Reader<&'t [u8]>, csv::StringRecord)> {
     let mut reader = csv::ReaderBuilder::new()
         .flexible(true)
         .trim(csv::Trim::All)
@@ -215,12 +218,22 @@ pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>>
     let headers = reader
         .headers()
         .map_err(|e| {
-            err(
+            input_error(
+                path,
                 Some(line_at(text, e.position())),
                 format!("cannot read the header: {e}"),
             )
         })?
         .clone();
+    Ok((reader, headers))
+}
+
+/// The values of column `name` of measurement CSV `text`, one per data row (header and
+/// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
+/// into sessions or stations. `path` is used in messages.
+pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
+    let err = |line: Option<usize>, message: String| input_error(path, line, message);
+    let (mut reader, headers) = open_table(text, path)?;
     let Some(col) = headers.iter().position(|h| split_header(h).0 == name) else {
         return Err(err(
             Some(line_at(text, headers.position())),
@@ -271,27 +284,8 @@ fn numbered_position(name: &str) -> Option<(usize, usize)> {
 
 fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: bool) -> Result<MeasurementSet> {
     let (tree, units) = (layout.tree, layout.units);
-    let err = |line: Option<usize>, message: String| Error::InputAt {
-        location: Location {
-            line,
-            ..Location::file(path)
-        },
-        message,
-    };
-    let mut reader = csv::ReaderBuilder::new()
-        .flexible(true)
-        .trim(csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(text.as_bytes());
-    let headers = reader
-        .headers()
-        .map_err(|e| {
-            err(
-                Some(line_at(text, e.position())),
-                format!("cannot read the header: {e}"),
-            )
-        })?
-        .clone();
+    let err = |line: Option<usize>, message: String| input_error(path, line, message);
+    let (mut reader, headers) = open_table(text, path)?;
     let header_line = line_at(text, headers.position());
     // Every cell of a column is read and kept in the row's record: a column costs its share
     // of each line.
