@@ -212,27 +212,34 @@ fn agile_justin_ladder() {
     );
 }
 
-/// Four rows of 200 off by 6 mm (a line of sight broken): the calibration names exactly those
-/// samples as gross errors, on three seeds, and no sample of the clean data.
-#[test]
-fn gross_errors_are_found_by_sample() {
-    use armcomp_core::calibrate::calibrate;
-    let nominal = robot("industrial-6dof.toml");
+/// The report of a frame, marker and geometry calibration of `nominal` on `samples`, the noise
+/// as declared by default.
+fn geometry_report(nominal: &Robot, samples: &[Sample]) -> armcomp_core::calibrate::CalibrationReport {
     let params = CalibrationParams {
         identify: vec!["base".into(), "markers".into(), "geometry".into()],
         ..CalibrationParams::default()
     };
+    armcomp_core::calibrate::calibrate(nominal, samples, &params, &mut |_| {})
+        .unwrap()
+        .report
+}
+
+/// Four rows of 200 off by 6 mm (a line of sight broken): the calibration names exactly those
+/// samples as gross errors, on three seeds, and no sample of the clean data.
+#[test]
+fn gross_errors_are_found_by_sample() {
+    let nominal = robot("industrial-6dof.toml");
     for seed in 1..=3 {
         let truth = truth(&nominal, |_| 0.5, seed);
         let clean = measure(&truth, 200, 0.05e-3, 400 + seed);
-        let report = calibrate(&nominal, &clean, &params, &mut |_| {}).unwrap().report;
+        let report = geometry_report(&nominal, &clean);
         assert!(report.outliers.is_empty(), "seed {seed}: {:?}", report.outliers);
         let mut dirty = clean.clone();
         let planted = [7, 64, 131, 198];
         for &i in &planted {
             dirty[i].position.x += 6e-3;
         }
-        let report = calibrate(&nominal, &dirty, &params, &mut |_| {}).unwrap().report;
+        let report = geometry_report(&nominal, &dirty);
         let mut found: Vec<usize> = report.outliers.iter().map(|o| o.sample).collect();
         found.sort_unstable();
         assert_eq!(found, planted, "seed {seed}");
@@ -243,23 +250,18 @@ fn gross_errors_are_found_by_sample() {
 /// size; the same data without it are not.
 #[test]
 fn a_drift_is_found_as_a_drift() {
-    use armcomp_core::calibrate::calibrate;
     let nominal = robot("industrial-6dof.toml");
-    let params = CalibrationParams {
-        identify: vec!["base".into(), "markers".into(), "geometry".into()],
-        ..CalibrationParams::default()
-    };
     for seed in 1..=3 {
         let truth = truth(&nominal, |_| 0.5, seed);
         let clean = measure(&truth, 200, 0.05e-3, 500 + seed);
-        let report = calibrate(&nominal, &clean, &params, &mut |_| {}).unwrap().report;
+        let report = geometry_report(&nominal, &clean);
         assert!(report.drift.is_none(), "seed {seed}: {:?}", report.drift);
         let mut drifting = clean.clone();
         let n = drifting.len() as f64;
         for (i, s) in drifting.iter_mut().enumerate() {
             s.position.y += 1e-3 * i as f64 / (n - 1.0);
         }
-        let report = calibrate(&nominal, &drifting, &params, &mut |_| {}).unwrap().report;
+        let report = geometry_report(&nominal, &drifting);
         let d = report.drift.unwrap_or_else(|| panic!("seed {seed}: no drift found"));
         assert!((d.change_mm[1] - 1.0).abs() < 0.3, "seed {seed}: {d:?}");
     }

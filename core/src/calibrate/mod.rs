@@ -777,10 +777,11 @@ pub fn calibrate(
         })
         .collect();
 
-    let after = stats(samples, &pred);
-    let residual_vectors: Vec<Vector3<f64>> = samples.iter().zip(&pred).map(|(s, p)| s.position - p).collect();
+    // Measured minus modelled, once for the statistics, the gross errors and the trend.
+    let residual_vectors = measured_minus_modelled(samples, &pred);
+    let after = ErrorStats::from_errors(&residual_vectors);
     let outliers = gross_errors(&residual_vectors);
-    let drift = drift(&residual_vectors);
+    let trend = drift(&residual_vectors);
     let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
     // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
     // can shrink the arm onto positions read a thousand times too small.
@@ -843,7 +844,7 @@ pub fn calibrate(
             units_mislabelled,
             warnings,
             outliers,
-            drift,
+            drift: trend,
         },
     })
 }
@@ -864,7 +865,10 @@ struct StageOutcome {
     stop_reason: String,
 }
 
+fn measured_minus_modelled(samples: &[Sample], predicted: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    samples.iter().zip(predicted).map(|(s, p)| s.position - p).collect()
+}
+
 fn stats(samples: &[Sample], predicted: &[Vector3<f64>]) -> ErrorStats {
-    let errors: Vec<Vector3<f64>> = samples.iter().zip(predicted).map(|(s, p)| s.position - p).collect();
-    ErrorStats::from_errors(&errors)
+    ErrorStats::from_errors(&measured_minus_modelled(samples, predicted))
 }
