@@ -150,9 +150,10 @@ fn html(r: &DiagnosisReport) -> String {
         );
         h.push_str("<table><tr><th>candidate</th><th>params (determined / added)</th><th>held-out RMS (mm)</th><th>removed</th><th>verdict</th><th>data cannot tell it from the first</th></tr>\n");
         for c in &s.ranking {
-            let rms = c
-                .heldout
-                .map_or_else(|| "failed".to_string(), |x| format!("{:.4}", x.rms_mm));
+            let rms = c.heldout.map_or_else(
+                || if c.refitted { "failed" } else { "not refitted" }.to_string(),
+                |x| format!("{:.4}", x.rms_mm),
+            );
             let _ = writeln!(
                 h,
                 "<tr><td>{}</td><td>{} / {}</td><td>{rms}</td><td>{:.1}%</td><td>{}</td><td>{}</td></tr>",

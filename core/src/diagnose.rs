@@ -51,7 +51,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, ParamResult, calibrate};
+use crate::calibrate::{CalibrationParams, ParamResult, calibrate, score_test};
 use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
@@ -72,6 +72,18 @@ pub const TIE_Z: f64 = 2.0;
 /// as not identified away from it.
 pub const NEUTRAL_Z: f64 = 2.0;
 
+/// A candidate is refitted (k-fold) only when the score test at the current fit predicts it
+/// removes at least this share of [`DiagnoseParams::min_rms_reduction`] of the training RMS,
+/// or it is among the [`MIN_REFITS`] the test ranks first. A held-out gain is smaller than the
+/// training gain it comes from, and the first-order prediction of the effects offered (linear
+/// in their parameters at the neutral value) is close to the refit's, so the margin of two
+/// keeps every candidate that can earn its place.
+pub const SCREEN_SHARE: f64 = 0.5;
+
+/// The candidates the score test ranks first are refitted whatever it predicts, so that every
+/// round reports held-out scores of its best few.
+pub const MIN_REFITS: usize = 3;
+
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnoseParams {
@@ -85,6 +97,9 @@ pub struct DiagnoseParams {
     pub min_rms_reduction: f64,
     /// Most effects added.
     pub max_steps: usize,
+    /// Refit every candidate, not only those the score test says can win (see
+    /// [`SCREEN_SHARE`]): for checking the screening, at many times the cost.
+    pub exhaustive: bool,
 }
 
 impl Default for DiagnoseParams {
@@ -95,6 +110,7 @@ impl Default for DiagnoseParams {
             calibration: CalibrationParams::default(),
             min_rms_reduction: 0.05,
             max_steps: 5,
+            exhaustive: false,
         }
     }
 }
@@ -118,6 +134,12 @@ pub struct RankedCandidate {
     pub heldout_bic: f64,
     /// Share of the held-out RMS before the round that it removes (negative when worse).
     pub share_removed: f64,
+    /// Share of the training RMS the score test at the current fit predicts it removes (see
+    /// [`crate::calibrate::score_test`]); `None` when the test could not be computed.
+    pub predicted_share: Option<f64>,
+    /// Whether it was refitted and scored on held-out folds; a candidate the score test shows
+    /// cannot earn its place is not (its `verdict` says so).
+    pub refitted: bool,
     /// Whether its calibrations left it where it started (every parameter within
     /// [`NEUTRAL_Z`] standard deviations of its neutral value, on a bound, or fixed) in most
     /// folds: the effect itself did nothing, so whatever its fit gained came from elsewhere
@@ -282,15 +304,30 @@ pub fn diagnose(
                     .any(|s| s.effect == o.effect && s.location == o.candidate.location)
             })
             .collect();
+        let fit_sse = sse(&position_errors(&fitted, samples));
+        let predicted: Vec<Option<f64>> = offers
+            .par_iter()
+            .map(|o| predicted_share(&fitted, fit_sse, given, o, samples, params))
+            .collect();
+        let refit = to_refit(&predicted, params);
         let mut ranking: Vec<RankedCandidate> = offers
             .par_iter()
-            .map(|o| score(&model, given, o, samples, &splits, &current, params))
+            .zip(&predicted)
+            .zip(&refit)
+            .map(|((o, &p), &r)| {
+                if r {
+                    score(&model, given, o, p, samples, &splits, &current, params)
+                } else {
+                    screened_out(o, p, params)
+                }
+            })
             .collect();
         // A stopped calibration fails its candidate; the round is not worth ranking.
         crate::interrupt::check()?;
         ranking.sort_by(|a, b| {
             a.heldout_bic
                 .total_cmp(&b.heldout_bic)
+                .then_with(|| rank_key(b).total_cmp(&rank_key(a)))
                 .then_with(|| a.label.cmp(&b.label))
         });
         mark_ties(&mut ranking);
@@ -526,18 +563,53 @@ fn norms_mm(errors: &[Vector3<f64>]) -> Vec<f64> {
     errors.iter().map(|e| e.norm() * 1e3).collect()
 }
 
-/// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
-/// against the held-out evaluation `current` of the model without it.
-fn score(
-    model: &Robot,
+/// The share of the training RMS that the offered effect, added to `fitted` (the current model
+/// fitted to all `samples`, its squared residuals summing to `fit_sse`) at its starting value,
+/// is predicted to remove by the score test.
+fn predicted_share(
+    fitted: &Robot,
+    fit_sse: f64,
     given: usize,
     offer: &Offer,
     samples: &[Sample],
-    splits: &[Split],
-    current: &Heldout,
     params: &DiagnoseParams,
-) -> RankedCandidate {
-    let mut out = RankedCandidate {
+) -> Option<f64> {
+    let model = with_effect(fitted, offer).ok()?;
+    let added: Vec<String> = model
+        .error_models()
+        .last()
+        .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
+    score_test(&model, samples, &selection(&model, given, params), &added)
+        .ok()
+        .map(|t| t.predicted_share(fit_sse))
+}
+
+/// Which candidates to refit: those the score test gives at least [`SCREEN_SHARE`] of the
+/// smallest reduction, the [`MIN_REFITS`] it ranks first, and those it could not assess.
+fn to_refit(predicted: &[Option<f64>], params: &DiagnoseParams) -> Vec<bool> {
+    if params.exhaustive {
+        return vec![true; predicted.len()];
+    }
+    let key = |p: Option<f64>| p.unwrap_or(f64::INFINITY);
+    let mut order: Vec<usize> = (0..predicted.len()).collect();
+    order.sort_by(|&a, &b| key(predicted[b]).total_cmp(&key(predicted[a])));
+    let top = &order[..order.len().min(MIN_REFITS)];
+    predicted
+        .iter()
+        .enumerate()
+        .map(|(i, p)| top.contains(&i) || key(*p) >= SCREEN_SHARE * params.min_rms_reduction)
+        .collect()
+}
+
+/// Orders candidates with equal held-out scores (those not refitted): larger predicted gains
+/// first.
+fn rank_key(c: &RankedCandidate) -> f64 {
+    c.predicted_share.unwrap_or(f64::NEG_INFINITY)
+}
+
+/// A candidate as ranked before any fit: not evaluated, with the score test's prediction.
+fn unscored(offer: &Offer, predicted_share: Option<f64>) -> RankedCandidate {
+    RankedCandidate {
         effect: offer.effect.to_string(),
         location: offer.candidate.location.clone(),
         label: offer.candidate.label.clone(),
@@ -547,6 +619,8 @@ fn score(
         // Candidates that could not be evaluated go last.
         heldout_bic: f64::INFINITY,
         share_removed: 0.0,
+        predicted_share,
+        refitted: false,
         at_neutral: false,
         implausible_values: false,
         earns_parameters: false,
@@ -554,7 +628,36 @@ fn score(
         indistinguishable_from_best: false,
         error: None,
         evaluation: None,
-    };
+    }
+}
+
+/// A candidate the score test shows cannot earn its place, with the reason.
+fn screened_out(offer: &Offer, predicted_share: Option<f64>, params: &DiagnoseParams) -> RankedCandidate {
+    let mut out = unscored(offer, predicted_share);
+    out.verdict = format!(
+        "not refitted: the score test at the current fit predicts it removes {:.1}% of the training RMS, where \
+         earning its parameters takes {:.0}% of the held-out RMS",
+        100.0 * predicted_share.unwrap_or(0.0),
+        100.0 * params.min_rms_reduction
+    );
+    out
+}
+
+/// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
+/// against the held-out evaluation `current` of the model without it.
+#[allow(clippy::too_many_arguments)]
+fn score(
+    model: &Robot,
+    given: usize,
+    offer: &Offer,
+    predicted_share: Option<f64>,
+    samples: &[Sample],
+    splits: &[Split],
+    current: &Heldout,
+    params: &DiagnoseParams,
+) -> RankedCandidate {
+    let mut out = unscored(offer, predicted_share);
+    out.refitted = true;
     let evaluated = (|| {
         let model = with_effect(model, offer)?;
         let names: Vec<String> = model

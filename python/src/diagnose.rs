@@ -51,6 +51,7 @@ pub fn diagnose(
         },
         min_rms_reduction: min_reduction_percent / 100.0,
         max_steps,
+        ..DiagnoseParams::default()
     };
     let diagnosis = crate::interrupt::run(py, || {
         armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by)

@@ -58,6 +58,10 @@ pub struct Args {
     /// Standard deviation of the tracker noise per axis, in mm (weighs data against priors).
     #[arg(long, default_value_t = 0.1)]
     noise_mm: f64,
+    /// Refit every candidate on the folds, also those the score test at the current fit shows
+    /// cannot earn their parameters (slower; for checking the screening).
+    #[arg(long)]
+    exhaustive: bool,
     /// What to identify besides each candidate, as for `calibrate --identify`.
     #[arg(long, value_delimiter = ',')]
     identify: Vec<String>,
@@ -100,6 +104,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         },
         min_rms_reduction: args.min_reduction_percent / 100.0,
         max_steps: args.max_steps,
+        exhaustive: args.exhaustive,
     };
     let learnable_by = match args.predictor {
         Predictor::Gp => LearnableBy::Gp,
@@ -180,6 +185,7 @@ fn print_ranking(ranking: &[RankedCandidate]) {
                     ""
                 }
             ),
+            None if !c.refitted => println!("    {:<48} ({})", c.label, c.verdict),
             None => println!("    {:<48} failed: {}", c.label, c.error.as_deref().unwrap_or("")),
         }
     }

@@ -14,7 +14,8 @@
 //! `jacobian` (evaluation and columns), `identifiability` (what the data cannot determine),
 //! `solver` (a stage as a problem for the shared Levenberg–Marquardt loop of
 //! [`crate::least_squares`]: bounds, priors, the Jacobian forms, progress), `registration`
-//! (the measurement frame in closed form, mislabelled units); the driver [`calibrate`] and the
+//! (the measurement frame in closed form, mislabelled units), `score` (what further parameters
+//! would gain, predicted at a fit); the driver [`calibrate`] and the
 //! report types are here.
 //!
 //! Before iterating, the scaled Jacobian is decomposed to find directions the data cannot
@@ -39,6 +40,7 @@ pub mod evidence;
 mod identifiability;
 mod jacobian;
 mod registration;
+mod score;
 mod solver;
 mod space;
 
@@ -47,6 +49,7 @@ use identifiability::*;
 use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
+pub use score::{ScoreTest, score_test};
 use space::*;
 
 /// Which part of the model a parameter belongs to.
