@@ -3,6 +3,7 @@
 mod cmd;
 
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Parser, Subcommand};
 
@@ -54,10 +55,19 @@ enum Command {
     CheckPose(cmd::check_pose::Args),
 }
 
+/// Set by commands that keep their best result when stopped: the first Ctrl-C asks the
+/// computation to stop there ([`armcomp_core::interrupt`]), a second ends the process.
+pub static STOP_KEEPS_RESULT: AtomicBool = AtomicBool::new(false);
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // A run stopped by Ctrl-C or `kill` leaves no hidden temporary beside its outputs.
     let _ = ctrlc::set_handler(|| {
+        if STOP_KEEPS_RESULT.load(Ordering::Relaxed) && !armcomp_core::interrupt::requested() {
+            armcomp_core::interrupt::request();
+            eprintln!("\nstopping: the result so far is kept once the running calibrations end (Ctrl-C again to quit)");
+            return;
+        }
         armcomp_core::io::remove_pending_temporaries();
         std::process::exit(130);
     });

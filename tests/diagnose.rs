@@ -90,7 +90,7 @@ fn params(noise: f64, max_steps: usize) -> DiagnoseParams {
 }
 
 fn run(start: &Robot, samples: &[Sample], noise: f64, max_steps: usize) -> DiagnosisReport {
-    diagnose(start, samples, &builtin(), None, &params(noise, max_steps))
+    diagnose(start, samples, &builtin(), None, &params(noise, max_steps), &|_| {})
         .expect("diagnosis runs")
         .report
 }
@@ -571,6 +571,7 @@ fn a_seed_gives_the_same_diagnosis_and_the_rest_is_scored_by_a_predictor() {
             &builtin(),
             Some(("ridge", &predictor as &dyn PredictorSpec)),
             &params(noise, 1),
+            &|_| {},
         )
         .unwrap();
         serde_json::to_string(&d.report).unwrap()
@@ -799,5 +800,63 @@ fn implausible_values_are_not_named_and_verdicts_give_the_real_reason() {
     assert!(scale.verdict.contains("implausible"), "{}", scale.verdict);
     for c in ranking.iter().filter(|c| c.at_neutral) {
         assert!(c.verdict.contains("neutral"), "{}: {}", c.label, c.verdict);
+    }
+}
+
+/// The score test predicts, from the rigid fit alone, the residual sum of squares that refitting
+/// with a joint compliance reaches when the truth has one (within 10 %, three seeds), and
+/// almost no gain when it has none: a refit reaches what the test says.
+#[test]
+fn the_score_test_predicts_what_a_refit_reaches() {
+    use armcomp_core::calibrate::score_test;
+    let nominal = robot("industrial-6dof.toml");
+    let compliant = with_effects(
+        &nominal,
+        &[json!({"type": "joint_compliance", "compliance": {"j2": 5e-6}})],
+    );
+    let noise = 2e-5;
+    let calibration = CalibrationParams {
+        measurement_std: noise,
+        ..Default::default()
+    };
+    let sse = |r: &Robot, s: &[Sample]| position_errors(r, s).iter().map(|e| e.norm_squared()).sum::<f64>();
+    let name = "joint_compliance.j2".to_string();
+    for seed in [1, 2, 3] {
+        for (truth, present) in [(&compliant, true), (&nominal, false)] {
+            let samples = measure(truth, 60, noise, seed, Campaign::default());
+            let rigid = calibrate(&nominal, &samples, &calibration, &mut |_| {}).unwrap().robot;
+            let rigid_sse = sse(&rigid, &samples);
+            let candidate = with_effects(
+                &rigid,
+                &[json!({"type": "joint_compliance", "compliance": {"j2": 0.0}})],
+            );
+            let predicted = score_test(&candidate, &samples, &calibration, std::slice::from_ref(&name))
+                .unwrap()
+                .predicted_sse;
+            let refit = sse(
+                &calibrate(&candidate, &samples, &calibration, &mut |_| {})
+                    .unwrap()
+                    .robot,
+                &samples,
+            );
+            if present {
+                assert!(
+                    rigid_sse > 4.0 * refit,
+                    "seed {seed}: the hidden compliance must matter ({rigid_sse:.3e} vs {refit:.3e} m²)"
+                );
+                assert!(
+                    (predicted / refit - 1.0).abs() < 0.1,
+                    "seed {seed}: predicted {predicted:.4e} m², the refit reached {refit:.4e} m²"
+                );
+            } else {
+                let share = |v: f64| 1.0 - (v / rigid_sse).sqrt();
+                assert!(
+                    share(predicted) < 0.02 && share(refit) < 0.02,
+                    "seed {seed}: no compliance in the truth: predicted share {:.3}, refit {:.3}",
+                    share(predicted),
+                    share(refit)
+                );
+            }
+        }
     }
 }

@@ -672,7 +672,9 @@ fn diagnose_names_a_hose_hidden_in_the_data_from_the_library_candidates() {
         max_steps: 1,
         ..Default::default()
     };
-    let r = diagnose(&nominal, &samples, &plugins, None, &params).unwrap().report;
+    let r = diagnose(&nominal, &samples, &plugins, None, &params, &|_| {})
+        .unwrap()
+        .report;
     let step = r.steps.first().expect("an effect is found");
     assert_eq!(
         (step.effect.as_str(), step.location.as_str()),

@@ -46,6 +46,7 @@
 //! their neutral values, so no held-out pose ever influences a fold's start.
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -252,6 +253,32 @@ pub struct DiagnosisReport {
     /// Held-out error norms (mm) per sample of the initial model and after each step.
     #[serde(skip)]
     pub heldout_norms_mm: Vec<Vec<f64>>,
+    /// Whether a stop request ([`crate::interrupt`]) ended the search early: the steps are
+    /// those accepted before it, the round it interrupted is dropped.
+    pub interrupted: bool,
+}
+
+/// What [`diagnose`] is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DiagnoseStage {
+    /// Scoring the model as given on the folds.
+    Baseline,
+    /// Searching for the n-th effect (1-based): the candidates the score test keeps, refitted
+    /// on the folds.
+    Round(usize),
+    /// Scoring what a residual predictor learns of the rest.
+    Learnable,
+}
+
+/// Progress of [`diagnose`]: fold calibrations done of those the stage needs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DiagnoseProgress {
+    /// The stage.
+    pub stage: DiagnoseStage,
+    /// Fold calibrations done.
+    pub done: usize,
+    /// Fold calibrations the stage needs.
+    pub total: usize,
 }
 
 /// The improved robot (calibrated on all the data, the found effects added) and the report.
@@ -270,13 +297,16 @@ struct Offer {
 }
 
 /// Finds, one by one, the effects of `plugins` (the registry) that `robot` misses according to
-/// `samples`; `predictor` (its type name and spec) learns what remains.
+/// `samples`; `predictor` (its type name and spec) learns what remains. `progress` hears of
+/// every fold calibration. A stop request ([`crate::interrupt`]) after the model as given is
+/// scored ends the search with the effects found so far (the report says it was interrupted).
 pub fn diagnose(
     robot: &Robot,
     samples: &[Sample],
     plugins: &[PluginInfo],
     predictor: Option<(&str, &dyn PredictorSpec)>,
     params: &DiagnoseParams,
+    progress: &(dyn Fn(DiagnoseProgress) + Sync),
 ) -> Result<Diagnosis> {
     if !(params.min_rms_reduction.is_finite() && (0.0..1.0).contains(&params.min_rms_reduction)) {
         return Err(Error::InvalidArgument {
@@ -288,13 +318,29 @@ pub fn diagnose(
     let given = robot.error_models().len();
     // The robot as given plus the accepted effects at their neutral values.
     let mut model = robot.rebuild(robot.to_file())?;
-    let mut current = heldout(&model, samples, &splits, &params.calibration)?;
+    // A counter of the stage's fold calibrations that reports each.
+    let stage_counter = |stage: DiagnoseStage, total: usize| {
+        progress(DiagnoseProgress { stage, done: 0, total });
+        let done = AtomicUsize::new(0);
+        move || {
+            let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(DiagnoseProgress { stage, done, total });
+        }
+    };
+    let mut current = heldout(
+        &model,
+        samples,
+        &splits,
+        &params.calibration,
+        &stage_counter(DiagnoseStage::Baseline, splits.len()),
+    )?;
     let initial = ErrorStats::from_errors(&current.errors);
     let initial_residuals = describe_residuals(robot, samples, &current.errors);
     let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
     let mut fitted = calibrate(&model, samples, &params.calibration, &mut |_| {})?.robot;
     let mut steps: Vec<DiagnosisStep> = Vec::new();
     let mut last_ranking = Vec::new();
+    let mut interrupted = false;
     while steps.len() < params.max_steps {
         let offers: Vec<Offer> = offers(&fitted, plugins)
             .into_iter()
@@ -310,20 +356,27 @@ pub fn diagnose(
             .map(|o| predicted_share(&fitted, fit_sse, given, o, samples, params))
             .collect();
         let refit = to_refit(&predicted, params);
+        let tick = stage_counter(
+            DiagnoseStage::Round(steps.len() + 1),
+            refit.iter().filter(|&&r| r).count() * splits.len(),
+        );
         let mut ranking: Vec<RankedCandidate> = offers
             .par_iter()
             .zip(&predicted)
             .zip(&refit)
             .map(|((o, &p), &r)| {
                 if r {
-                    score(&model, given, o, p, samples, &splits, &current, params)
+                    score(&model, given, o, p, samples, &splits, &current, params, &tick)
                 } else {
                     screened_out(o, p, params)
                 }
             })
             .collect();
         // A stopped calibration fails its candidate; the round is not worth ranking.
-        crate::interrupt::check()?;
+        if crate::interrupt::requested() {
+            interrupted = true;
+            break;
+        }
         ranking.sort_by(|a, b| {
             a.heldout_bic
                 .total_cmp(&b.heldout_bic)
@@ -407,8 +460,8 @@ pub fn diagnose(
         heldout_norms_mm.push(norms_mm(&current.errors));
     }
     let current = current.errors;
-    let learnable_residual = match predictor {
-        Some((name, spec)) => Some(learnable(
+    let learnable_residual = match predictor.filter(|_| !interrupted) {
+        Some((name, spec)) => match learnable(
             &model,
             samples,
             &splits,
@@ -416,7 +469,14 @@ pub fn diagnose(
             name,
             spec,
             &selection(&model, given, params),
-        )?),
+            &stage_counter(DiagnoseStage::Learnable, splits.len()),
+        ) {
+            Err(Error::Interrupted) => {
+                interrupted = true;
+                None
+            }
+            other => Some(other?),
+        },
         None => None,
     };
     let report = DiagnosisReport {
@@ -433,6 +493,7 @@ pub fn diagnose(
         steps,
         learnable_residual,
         heldout_norms_mm,
+        interrupted,
     };
     Ok(Diagnosis { robot: fitted, report })
 }
@@ -523,12 +584,20 @@ struct Heldout {
 }
 
 /// Calibrates `model` on each fold's training poses and scores it on the poses held out.
-fn heldout(model: &Robot, samples: &[Sample], splits: &[Split], calibration: &CalibrationParams) -> Result<Heldout> {
+/// `tick` hears of each fold's calibration.
+fn heldout(
+    model: &Robot,
+    samples: &[Sample],
+    splits: &[Split],
+    calibration: &CalibrationParams,
+    tick: &(dyn Fn() + Sync),
+) -> Result<Heldout> {
     let mut errors = vec![Vector3::zeros(); samples.len()];
     let mut fixed = Vec::with_capacity(splits.len());
     let mut params = Vec::with_capacity(splits.len());
     for split in splits {
         let fit = calibrate(model, &subset(samples, &split.train), calibration, &mut |_| {})?;
+        tick();
         fixed.push(
             fit.report
                 .params
@@ -655,6 +724,7 @@ fn score(
     splits: &[Split],
     current: &Heldout,
     params: &DiagnoseParams,
+    tick: &(dyn Fn() + Sync),
 ) -> RankedCandidate {
     let mut out = unscored(offer, predicted_share);
     out.refitted = true;
@@ -666,7 +736,7 @@ fn score(
             .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
         Ok::<_, Error>((
             names,
-            heldout(&model, samples, splits, &selection(&model, given, params))?,
+            heldout(&model, samples, splits, &selection(&model, given, params), tick)?,
         ))
     })();
     match evaluated {
@@ -754,7 +824,9 @@ fn new_model_values(robot: &Robot) -> Vec<(String, Quantity, f64)> {
 }
 
 /// Fits `spec` to each fold's training residuals of `model` (joint values in, residual
-/// position out) and scores the corrected held-out errors against `current`.
+/// position out) and scores the corrected held-out errors against `current`; `tick` hears of
+/// each fold's calibration.
+#[allow(clippy::too_many_arguments)]
 fn learnable(
     model: &Robot,
     samples: &[Sample],
@@ -763,12 +835,14 @@ fn learnable(
     name: &str,
     spec: &dyn PredictorSpec,
     calibration: &CalibrationParams,
+    tick: &(dyn Fn() + Sync),
 ) -> Result<LearnableResidual> {
     let nq = model.tree().nq();
     let mut corrected = current.to_vec();
     for split in splits {
         let train = subset(samples, &split.train);
         let fit = calibrate(model, &train, calibration, &mut |_| {})?;
+        tick();
         let residuals = position_errors(&fit.robot, &train);
         let inputs: Vec<f64> = train.iter().flat_map(|s| s.q.iter().copied()).collect();
         let targets: Vec<f64> = residuals.iter().flat_map(|r| r.iter().copied()).collect();

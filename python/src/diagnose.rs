@@ -2,7 +2,7 @@
 
 use armcomp::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
-use armcomp_core::diagnose::DiagnoseParams;
+use armcomp_core::diagnose::{DiagnoseParams, DiagnoseStage};
 use pyo3::prelude::*;
 
 use crate::errors::{IntoPy, input_error};
@@ -11,8 +11,10 @@ use crate::robot::PyRobot;
 
 /// Diagnoses `robot` on `data`; returns the improved model (found effects added, calibrated
 /// on all the data) and the report as JSON text (what `armcomp diagnose --json` prints).
+/// `progress`, when given, is called as `progress(stage, done, total)` after every fold
+/// calibration (`stage`: "model as given", "effect N", "learnable residual").
 #[pyfunction]
-#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp"))]
+#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp", progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
@@ -25,6 +27,7 @@ pub fn diagnose(
     noise_mm: f64,
     identify: Option<Vec<String>>,
     predictor: Option<&str>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<(PyRobot, String)> {
     let learnable_by = match predictor {
         Some("gp") => LearnableBy::Gp,
@@ -54,7 +57,21 @@ pub fn diagnose(
         ..DiagnoseParams::default()
     };
     let diagnosis = crate::interrupt::run(py, || {
-        armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by)
+        armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
+            if let Some(callback) = &progress {
+                let stage = match p.stage {
+                    DiagnoseStage::Baseline => "model as given".to_string(),
+                    DiagnoseStage::Round(n) => format!("effect {n}"),
+                    DiagnoseStage::Learnable => "learnable residual".to_string(),
+                };
+                Python::attach(|py| {
+                    // A callback that raises is reported, not allowed to end the diagnosis.
+                    if let Err(e) = callback.call1(py, (stage, p.done, p.total)) {
+                        e.write_unraisable(py, None);
+                    }
+                });
+            }
+        })
     })?
     .py()?;
     let json = serde_json::to_string(&diagnosis.report).expect("the report serialises");

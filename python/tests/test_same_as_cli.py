@@ -201,10 +201,21 @@ def test_diagnose_reports_as_the_command_line(simulated):
     tmp, data = simulated
     args = ["--folds", 3, "--max-steps", 1, "--predictor", "none", "--noise-mm", 0.05, "--seed", 2, "--identify", "base"]
     expected = cli_json("diagnose", "--robot", NOMINAL, "--data", tmp / "cli.csv", *args)
+    calls = []
     model, report = armcomp.diagnose(
-        armcomp.Robot.load(NOMINAL), data, folds=3, max_steps=1, predictor=None, noise_mm=0.05, seed=2, identify="base"
+        armcomp.Robot.load(NOMINAL), data, folds=3, max_steps=1, predictor=None, noise_mm=0.05, seed=2, identify="base",
+        progress=lambda stage, done, total: calls.append((stage, done, total)),
     )
     assert report.to_dict() == expected
+    # Progress: every stage counts from 0 to its total once each, the model as given first (3 folds).
+    assert calls[0] == ("model as given", 0, 3)
+    stages = list(dict.fromkeys(stage for stage, _, _ in calls))
+    assert stages[:2] == ["model as given", "effect 1"]
+    for stage in stages:
+        counts = [(done, total) for s, done, total in calls if s == stage]
+        # Candidates are refitted in parallel: the counts may arrive out of order.
+        total = counts[0][1]
+        assert sorted(d for d, _ in counts) == list(range(total + 1)), stage
     assert len(report.steps) == len(expected["steps"]) == 1
     for step, raw in zip(report.steps, expected["steps"]):
         assert isinstance(step, armcomp.DiagnosisStep) and step.label == raw["label"]

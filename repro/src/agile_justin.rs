@@ -368,7 +368,7 @@ pub fn diagnose_from_frames(
         max_steps,
         ..DiagnoseParams::default()
     };
-    Ok(diagnose(&rigid(robot)?, samples, plugins, None, &params)?.report)
+    Ok(diagnose(&rigid(robot)?, samples, plugins, None, &params, &|_| {})?.report)
 }
 
 /// Residual statistics of one step on the fitted and the held-out poses.

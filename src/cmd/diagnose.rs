@@ -4,7 +4,9 @@ use std::process::ExitCode;
 use anyhow::Context;
 use armcomp::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
-use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, RankedCandidate};
+use std::sync::atomic::Ordering;
+
+use armcomp_core::diagnose::{DiagnoseParams, DiagnoseStage, DiagnosisReport, RankedCandidate};
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::io::write_atomic;
 use armcomp_core::residuals::ResidualDescription;
@@ -111,11 +113,29 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Predictor::Ridge => LearnableBy::Ridge,
         Predictor::None => LearnableBy::None,
     };
-    let spinner = indicatif::ProgressBar::new_spinner();
-    spinner.set_message("diagnosing (k-fold calibration of every candidate effect)");
-    spinner.enable_steady_tick(std::time::Duration::from_millis(200));
-    let result = armcomp::ops::diagnose::run(&robot, &data.samples, &params, learnable_by);
-    spinner.finish_and_clear();
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg} {bar:30} {pos}/{len} fold calibrations  {elapsed} (about {eta} left)",
+        )
+        .expect("the template is valid"),
+    );
+    crate::STOP_KEEPS_RESULT.store(true, Ordering::Relaxed);
+    let result = armcomp::ops::diagnose::run(&robot, &data.samples, &params, learnable_by, &|p| {
+        // A new stage restarts the bar, so that its estimate is the stage's own.
+        if bar.length() != Some(p.total as u64) || p.done == 0 {
+            bar.reset();
+            bar.set_length(p.total as u64);
+            bar.set_message(match p.stage {
+                DiagnoseStage::Baseline => "model as given:".to_string(),
+                DiagnoseStage::Round(n) => format!("effect {n}, candidates that can win:"),
+                DiagnoseStage::Learnable => "learnable residual:".to_string(),
+            });
+        }
+        bar.set_position(p.done as u64);
+    });
+    crate::STOP_KEEPS_RESULT.store(false, Ordering::Relaxed);
+    bar.finish_and_clear();
     let diagnosis = result?;
     let report = &diagnosis.report;
     if let Some(out) = &args.out {
@@ -135,6 +155,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if let Some(dir) = &args.report {
             println!("wrote {}", dir.join("index.html").display());
         }
+    }
+    if report.interrupted {
+        eprintln!(
+            "interrupted: the model and report hold the {} effect(s) found before the stop",
+            report.steps.len()
+        );
+        return Ok(ExitCode::from(130));
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -215,6 +242,9 @@ fn print_report(r: &DiagnosisReport) {
     for (i, s) in r.steps.iter().enumerate() {
         println!("\nstep {}: {}", i + 1, s.summary);
         print_ranking(&s.ranking);
+    }
+    if r.interrupted {
+        println!("\ninterrupted while searching for effect {}", r.steps.len() + 1);
     }
     if !r.final_model.ranking.is_empty() {
         println!("\nno further candidate earns its parameters; best of the last round:");

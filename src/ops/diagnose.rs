@@ -1,7 +1,7 @@
 //! `diagnose`: the residual predictor that scores what remains learnable, around
 //! [`armcomp_core::diagnose::diagnose`].
 
-use armcomp_core::diagnose::{DiagnoseParams, Diagnosis, diagnose};
+use armcomp_core::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, diagnose};
 use armcomp_core::measurement::Sample;
 use armcomp_core::{PredictorSpec, Robot};
 
@@ -16,12 +16,14 @@ pub enum LearnableBy {
     None,
 }
 
-/// Diagnoses `robot` on `samples` with every registered plugin's candidates.
+/// Diagnoses `robot` on `samples` with every registered plugin's candidates; `progress` hears
+/// of every fold calibration.
 pub fn run(
     robot: &Robot,
     samples: &[Sample],
     params: &DiagnoseParams,
     learnable_by: LearnableBy,
+    progress: &(dyn Fn(DiagnoseProgress) + Sync),
 ) -> armcomp_core::Result<Diagnosis> {
     let gp = armcomp_learn::GpSpec {
         seed: params.seed,
@@ -33,5 +35,5 @@ pub fn run(
         LearnableBy::Ridge => Some(("ridge", &ridge)),
         LearnableBy::None => None,
     };
-    diagnose(robot, samples, &crate::plugins(), predictor, params)
+    diagnose(robot, samples, &crate::plugins(), predictor, params, progress)
 }

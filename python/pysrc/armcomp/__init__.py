@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from typing import Iterable, Optional, Sequence, Tuple, Union
+from typing import Callable, Iterable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -185,11 +185,13 @@ def diagnose(
     noise_mm: float = 0.1,
     identify: Union[None, str, Sequence[str]] = None,
     predictor: Optional[str] = "gp",
+    progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[Robot, DiagnosisReport]:
     """Finds the effects ``robot`` misses, one by one, scored on held-out poses, as
     ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
     are the accepted effects. ``predictor`` (gp, ridge or None) scores what remains
-    learnable."""
+    learnable. ``progress(stage, done, total)`` is called after every fold calibration
+    (stage: "model as given", "effect N", "learnable residual")."""
     model, text = _native.diagnose(
         robot,
         data,
@@ -200,6 +202,7 @@ def diagnose(
         noise_mm=noise_mm,
         identify=_names(identify),
         predictor=predictor,
+        progress=progress,
     )
     return model, from_json(DiagnosisReport, text)
 

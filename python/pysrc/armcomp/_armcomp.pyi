@@ -1,7 +1,7 @@
 """Type stubs of the native module (``armcomp._armcomp``); use it through ``armcomp``."""
 
 from os import PathLike
-from typing import List, Optional, Sequence, Tuple, Union
+from typing import Callable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -118,6 +118,7 @@ def diagnose(
     noise_mm: float = 0.1,
     identify: Optional[List[str]] = None,
     predictor: Optional[str] = "gp",
+    progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[Robot, str]: ...
 def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, str]: ...
 def compensate(

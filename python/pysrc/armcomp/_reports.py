@@ -216,6 +216,8 @@ class RankedCandidate:
     error: Optional[str] = None
     implausible_values: bool = False
     verdict: str = ""
+    predicted_share: Optional[float] = None
+    refitted: bool = True
 
 
 @dataclass(frozen=True)
@@ -274,6 +276,7 @@ class DiagnosisReport(Report):
     steps: List[DiagnosisStep]
     final_: FinalModel
     learnable_residual: Optional[LearnableResidual] = None
+    interrupted: bool = False
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
