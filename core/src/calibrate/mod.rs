@@ -21,7 +21,7 @@
 //! determine. Each is named; it is left to the priors when one of its parameters has a prior,
 //! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
 
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -122,6 +122,8 @@ pub struct ParameterSpace {
     error_offsets: Vec<usize>,
     base_offset: usize,
     marker_offset: usize,
+    /// Parameters per marker: 3 (position), or 6 with its orientation.
+    marker_dofs: usize,
 }
 
 /// A parameter vector made ready for evaluation.
@@ -132,11 +134,12 @@ struct Decoded {
     t_meas_base: Isometry3<f64>,
 }
 
-/// Per-sample intermediate results: the point in the robot base frame and the rotation that
-/// maps a marker offset into it.
+/// Per-sample intermediate results: the point in the robot base frame, the rotation that
+/// maps a marker offset into it, and the point's orientation in that frame.
 struct Evaluation {
     world: Vec<Vector3<f64>>,
     marker_rot: Vec<Matrix3<f64>>,
+    rotation: Vec<UnitQuaternion<f64>>,
 }
 
 /// Settings of [`calibrate`].
@@ -146,6 +149,9 @@ pub struct CalibrationParams {
     pub identify: Vec<String>,
     /// Standard deviation of the tracker noise per axis (m); weighs data against priors.
     pub measurement_std: f64,
+    /// Standard deviation of the measured orientation's noise per axis (rad), when the robot
+    /// measures poses: weighs orientations against positions and priors.
+    pub orientation_std: f64,
     /// Most Levenberg–Marquardt iterations, over all stages of the fit.
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this fraction.
@@ -198,6 +204,7 @@ impl Default for CalibrationParams {
         CalibrationParams {
             identify: Vec::new(),
             measurement_std: 1e-4,
+            orientation_std: 1e-3,
             max_iterations: 100,
             tolerance: 1e-10,
             min_improvement: 1e-4,
@@ -493,7 +500,37 @@ struct Problem<'a> {
     robot: &'a Robot,
     space: &'a ParameterSpace,
     samples: &'a [Sample],
+    /// The position noise per axis (m).
     sigma: f64,
+    /// The orientation noise per axis (rad).
+    sigma_rot: f64,
+    /// The samples whose orientation is a residual block (the robot measures poses), in order.
+    oriented: Vec<usize>,
+}
+
+impl<'a> Problem<'a> {
+    fn new(robot: &'a Robot, space: &'a ParameterSpace, samples: &'a [Sample], sigma: f64, sigma_rot: f64) -> Self {
+        let oriented = if robot.measures_pose() {
+            (0..samples.len())
+                .filter(|&i| samples[i].orientation.is_some())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Problem {
+            robot,
+            space,
+            samples,
+            sigma,
+            sigma_rot,
+            oriented,
+        }
+    }
+
+    /// Number of residuals: three per position, three per orientation.
+    fn n_residuals(&self) -> usize {
+        3 * (self.samples.len() + self.oriented.len())
+    }
 }
 
 /// How the Jacobian treats the deformation of a robot with error models.
@@ -525,8 +562,15 @@ enum ColumnPlan {
     Finite { tree: KinematicTree, h: f64 },
     /// An error-model parameter: the difference of that model's deformation at `values` (the
     /// model's parameters with this one stepped by `h`), to first order at the deformed
-    /// frames (the rigid kinematics and the other models' share are reused).
-    Model { model: usize, values: Vec<f64>, h: f64 },
+    /// frames (the rigid kinematics and the other models' share are reused). `errors` are all
+    /// the models' parameters with this one stepped: the orientation of pose samples is
+    /// differenced through the full model.
+    Model {
+        model: usize,
+        values: Vec<f64>,
+        errors: Vec<Vec<f64>>,
+        h: f64,
+    },
     /// A parameter of a load-adjusting model (a payload mass, a base tilt): finite differences
     /// of the full model, since every elastic model responds to the load. `errors` are all the
     /// models' parameters with this one stepped by `h`.
@@ -538,7 +582,8 @@ enum ColumnPlan {
         to: Isometry3<f64>,
         h: f64,
     },
-    /// A marker offset along `axis` of its link frame: exact.
+    /// A marker offset along `axis` 0–2 of its link frame, or a turn about axis `axis − 3` of
+    /// the point's own frame: exact.
     Marker { point: usize, axis: usize },
 }
 
@@ -613,12 +658,7 @@ pub fn calibrate(
     }
     let space = prior_space(robot, params);
     let selected = space.select(robot, &params.identify)?;
-    let problem = Problem {
-        robot,
-        space: &space,
-        samples,
-        sigma: params.measurement_std,
-    };
+    let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
     // The priors' centre: the robot's values, the measurement frame as registered.
     let mut theta0 = space.initial();
     let (_, _, pred) = problem.predict(&theta0)?;
@@ -741,7 +781,7 @@ pub fn calibrate(
 
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
     let pred = to_meas(&d.t_meas_base, &e.world);
-    let r = problem.residuals(&pred);
+    let r = problem.residuals(&d, &e);
     // The fit's last iteration computed it when its convergence test needed it.
     let j = match exact_jacobian {
         Some((columns, j)) if columns == free => j,
