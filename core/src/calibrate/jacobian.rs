@@ -99,6 +99,18 @@ impl Problem<'_> {
         DVector::from_iterator(self.n_residuals(), positions.chain(orientations))
     }
 
+    /// Statistics of the orientation residuals (`None` without pose samples).
+    pub(super) fn orientation_stats(&self, d: &Decoded, e: &Evaluation) -> Option<AngleStats> {
+        (!self.oriented.is_empty()).then(|| {
+            let angles: Vec<f64> = self
+                .oriented
+                .iter()
+                .map(|&i| orientation_residual(d, e, &self.samples[i], i).norm())
+                .collect();
+            AngleStats::from_angles(&angles)
+        })
+    }
+
     /// How each Jacobian column of `free` is computed at `theta`.
     pub(super) fn column_plans(
         &self,

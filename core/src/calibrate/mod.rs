@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::evaluate::ErrorStats;
+use crate::evaluate::{AngleStats, ErrorStats};
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::robot::Robot;
@@ -325,6 +325,10 @@ pub struct CalibrationReport {
     pub before: ErrorStats,
     /// Residuals on the calibration data after.
     pub after: ErrorStats,
+    /// Orientation residuals before, when the robot measures poses.
+    pub before_orientation: Option<AngleStats>,
+    /// Orientation residuals after, when the robot measures poses.
+    pub after_orientation: Option<AngleStats>,
     /// The 3-D RMS after, over what the declared noise alone gives (`√3 σ`); above
     /// [`FAR_ABOVE_NOISE`] the model or the data is wrong, not just noisy.
     pub rms_over_noise: f64,
@@ -489,7 +493,12 @@ pub struct Linearisation {
     pub groups: Vec<PriorGroup>,
     /// The noise standard deviation per axis the fit weighed the data with (m).
     pub noise: f64,
-    /// Measurement residuals `(p̂ − p) / noise`, three per sample.
+    /// The orientation noise per axis it weighed orientations with (rad).
+    pub orientation_noise: f64,
+    /// How many leading residuals are positions; the rest are orientations.
+    pub position_rows: usize,
+    /// Measurement residuals `(p̂ − p) / noise`, three per sample, then
+    /// `log(R_measᵀ R̂) / orientation_noise`, three per oriented sample.
     pub residuals: DVector<f64>,
     /// Their Jacobian with respect to the free parameters (per SI unit).
     pub jacobian: DMatrix<f64>,
@@ -675,6 +684,8 @@ pub fn calibrate(
         });
     }
     let before = stats(samples, &pred);
+    let (d0, e0, _) = problem.predict(&theta0)?;
+    let before_orientation = problem.orientation_stats(&d0, &e0);
     let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
     let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
     let start = match &params.start {
@@ -861,6 +872,8 @@ pub fn calibrate(
         theta,
         centre: theta0,
         noise: params.measurement_std,
+        orientation_noise: params.orientation_std,
+        position_rows: 3 * samples.len(),
         residuals: r,
         jacobian: j,
     };
@@ -880,6 +893,8 @@ pub fn calibrate(
             stop_reason: outcome.stop_reason,
             before,
             after,
+            before_orientation,
+            after_orientation: problem.orientation_stats(&d, &e),
             rms_over_noise,
             units_mislabelled,
             warnings,
