@@ -171,7 +171,8 @@ pub struct CsvLayout<'a> {
     /// Per independent coordinate, the value it holds when the file has no column for it
     /// (rad or m); `None` makes its column required.
     pub hold: Vec<Option<f64>>,
-    /// Whether every row must give an orientation (the robot measures poses).
+    /// Whether the robot measures poses: a file without orientation columns is then read as
+    /// positions with a warning.
     pub orientation: bool,
 }
 
@@ -573,15 +574,6 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             ));
         }
     };
-    if spelling.is_none() && layout.orientation && with_positions {
-        return Err(err(
-            Some(header_line),
-            "the robot file measures poses (`[measurement] kind = \"pose\"`): the file needs an orientation, as \
-             qw, qx, qy, qz (quaternion), rx, ry, rz (rotation vector, e.g. `rx[deg]`) or roll, pitch, yaw (URDF \
-             roll-pitch-yaw, e.g. `roll[rad]`)"
-                .into(),
-        ));
-    }
     if spelling.is_some() && slots.len() > 1 {
         return Err(err(
             Some(header_line),
@@ -591,6 +583,15 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     let has_torque = has(&|k| matches!(k, Column::Torque(_)));
 
     let mut set = MeasurementSet::default();
+    // A pose robot's file without orientation is a file of positions (another session's, a
+    // tracker without a 6-DoF probe): its rows are point measurements, and the user is told.
+    if spelling.is_none() && layout.orientation && with_positions {
+        set.warnings.push(format!(
+            "{}: the robot file measures poses but this file gives no orientation (qw, qx, qy, qz; rx, ry, rz; or \
+             roll, pitch, yaw): its rows are used as positions only",
+            path.display()
+        ));
+    }
     if !ignored.is_empty() {
         set.warnings.push(format!(
             "{}: column(s) {} ignored (not a joint of the robot or a measurement column)",
