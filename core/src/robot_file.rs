@@ -229,7 +229,7 @@ pub struct MeasurementSpec {
     pub hold: BTreeMap<String, f64>,
 }
 
-/// What a measurement file's rows measure (see [`MeasurementSpec::kind`]).
+/// What the rows of a measurement file measure at the markers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum MeasurementKind {
