@@ -67,7 +67,10 @@ fn truth_of(nominal: &Robot, changes: &[(&str, f64)]) -> Robot {
 /// orientations (`log(R_measᵀ R̂)`, rad), through a robot rebuilt from its file.
 fn stacked_residuals(robot: &Robot, samples: &[Sample]) -> Vec<f64> {
     let poses: Vec<Isometry3<f64>> = samples.iter().map(|s| model_pose(robot, &s.q)).collect();
-    let positions = poses.iter().zip(samples).flat_map(|(p, s)| (p.translation.vector - s.position).data.0[0]);
+    let positions = poses
+        .iter()
+        .zip(samples)
+        .flat_map(|(p, s)| (p.translation.vector - s.position).data.0[0]);
     let turns = poses.iter().zip(samples).flat_map(|(p, s)| {
         let r = (s.orientation.unwrap().inverse() * p.rotation).scaled_axis();
         r.data.0[0]
@@ -75,10 +78,13 @@ fn stacked_residuals(robot: &Robot, samples: &[Sample]) -> Vec<f64> {
     positions.chain(turns).collect()
 }
 
+/// A robot, a relative tolerance, and parameters with their finite-difference steps.
+type JacobianCase<'a> = (Robot, f64, &'a [(&'a str, f64)]);
+
 #[test]
 fn the_pose_jacobian_matches_finite_differences_of_the_full_model() {
     let compliant = "\n[[error_models]]\ntype = \"cantilever_deflection\"\n\n[[error_models]]\ntype = \"joint_compliance\"\ncompliance = { j2 = 2e-5, j5 = 3e-5 }\n";
-    let cases: [(Robot, f64, &[(&str, f64)]); 2] = [
+    let cases: [JacobianCase; 2] = [
         (
             pose_robot(""),
             1e-6,
@@ -116,7 +122,11 @@ fn the_pose_jacobian_matches_finite_differences_of_the_full_model() {
         let space = ParameterSpace::new(robot);
         for (name, h) in params.iter() {
             let (jac, _) = samples_jacobian(robot, &samples, &[name.to_string()]).unwrap();
-            assert_eq!(jac.nrows(), 6 * samples.len(), "three position and three orientation rows a sample");
+            assert_eq!(
+                jac.nrows(),
+                6 * samples.len(),
+                "three position and three orientation rows a sample"
+            );
             let k = space.index(name).unwrap();
             let at = |d: f64| {
                 let mut theta = space.initial();
@@ -151,7 +161,12 @@ fn spelled(robot: &Robot, samples: &[Sample], spelling: &str) -> String {
     };
     let mut text = format!(
         "{},x[m],y[m],z[m],{}\n",
-        joints.iter().map(|j| format!("{j}[rad]")).collect::<Vec<_>>().join(","),
+        joints
+            .iter()
+            .zip(robot.tree().coordinate_is_prismatic())
+            .map(|(j, prismatic)| format!("{j}[{}]", if *prismatic { "m" } else { "rad" }))
+            .collect::<Vec<_>>()
+            .join(","),
         cols.iter().map(|c| format!("{c}{unit}")).collect::<Vec<_>>().join(",")
     );
     for s in samples {
@@ -165,13 +180,12 @@ fn spelled(robot: &Robot, samples: &[Sample], spelling: &str) -> String {
                 vec![r, p, y]
             }
         };
-        let row: Vec<String> = s
-            .q
-            .iter()
-            .chain(s.position.iter())
-            .chain(angles.iter())
-            .map(|v| format!("{v:e}"))
-            .collect();
+        let row: Vec<String> =
+            s.q.iter()
+                .chain(s.position.iter())
+                .chain(angles.iter())
+                .map(|v| format!("{v:e}"))
+                .collect();
         text.push_str(&row.join(","));
         text.push('\n');
     }
@@ -181,7 +195,10 @@ fn spelled(robot: &Robot, samples: &[Sample], spelling: &str) -> String {
 #[test]
 fn quaternion_signs_and_the_three_orientation_spellings_give_the_same_fit() {
     let nominal = pose_robot("");
-    let truth = truth_of(&nominal, &[("j2.a", 2e-3), ("j4.alpha", 1e-3), ("marker.tool.rz", 0.02)]);
+    let truth = truth_of(
+        &nominal,
+        &[("j2.a", 2e-3), ("j4.alpha", 1e-3), ("marker.tool.rz", 0.02)],
+    );
     let samples = pose_samples(&truth, 30, 5e-5, 2e-4, 7);
     let params = CalibrationParams {
         measurement_std: 5e-5,
@@ -221,7 +238,9 @@ fn doubling_the_orientation_noise_divides_its_weight_by_four() {
             start: Some(ParameterSpace::new(&nominal).initial()),
             ..CalibrationParams::default()
         };
-        let lin = calibrate(&nominal, &samples, &params, &mut |_| {}).unwrap().linearisation;
+        let lin = calibrate(&nominal, &samples, &params, &mut |_| {})
+            .unwrap()
+            .linearisation;
         let j = &lin.jacobian;
         let rows = lin.position_rows;
         let positions = j.rows(0, rows).transpose() * j.rows(0, rows);
@@ -231,15 +250,26 @@ fn doubling_the_orientation_noise_divides_its_weight_by_four() {
     let (p1, r1) = normal(2e-4);
     let (p2, r2) = normal(4e-4);
     assert!(r1.norm() > 0.0);
-    assert!((&p2 - &p1).norm() <= 1e-12 * p1.norm(), "the positions' weight is unchanged");
-    assert!((&r2 * 4.0 - &r1).norm() <= 1e-10 * r1.norm(), "the orientations' weight is a quarter");
+    assert!(
+        (&p2 - &p1).norm() <= 1e-12 * p1.norm(),
+        "the positions' weight is unchanged"
+    );
+    assert!(
+        (&r2 * 4.0 - &r1).norm() <= 1e-10 * r1.norm(),
+        "the orientations' weight is a quarter"
+    );
 }
 
 #[test]
 fn a_simulated_pose_truth_and_its_noises_are_recovered_over_seeds() {
     use armcomp_core::calibrate::evidence::{EvidenceParams, calibrate_with_evidence};
     let nominal = pose_robot("");
-    let changes = [("j2.a", 2e-3), ("j4.alpha", 1.5e-3), ("marker.tool.rx", 0.02), ("marker.tool.ry", -0.01)];
+    let changes = [
+        ("j2.a", 2e-3),
+        ("j4.alpha", 1.5e-3),
+        ("marker.tool.rx", 0.02),
+        ("marker.tool.ry", -0.01),
+    ];
     let truth = truth_of(&nominal, &changes);
     let (sigma_p, sigma_r) = (5e-5, 3e-4);
     let evidence = EvidenceParams {
@@ -267,11 +297,22 @@ fn a_simulated_pose_truth_and_its_noises_are_recovered_over_seeds() {
         }
         // A fit to within the noise: the orientation residual's RMS is about √3 σ_r.
         let after = fit.report.after_orientation.unwrap();
-        assert!(after.rms_deg < 1.3 * 3f64.sqrt() * sigma_r.to_degrees(), "seed {seed}: {after:?}");
-        noise_ratios.push((report.noise_mm * 1e-3 / sigma_p, report.orientation_noise_deg.unwrap().to_radians() / sigma_r));
+        assert!(
+            after.rms_deg < 1.3 * 3f64.sqrt() * sigma_r.to_degrees(),
+            "seed {seed}: {after:?}"
+        );
+        noise_ratios.push((
+            report.noise_mm * 1e-3 / sigma_p,
+            report.orientation_noise_deg.unwrap().to_radians() / sigma_r,
+        ));
     }
     // Each kind's noise estimated from its own residuals, within 15 % on average over the seeds.
     let n = noise_ratios.len() as f64;
-    let (p, r) = noise_ratios.iter().fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
-    assert!((p - 1.0).abs() < 0.15 && (r - 1.0).abs() < 0.15, "noise estimates over truth: {noise_ratios:?}");
+    let (p, r) = noise_ratios
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    assert!(
+        (p - 1.0).abs() < 0.15 && (r - 1.0).abs() < 0.15,
+        "noise estimates over truth: {noise_ratios:?}"
+    );
 }
