@@ -205,7 +205,7 @@ fn quaternion_signs_and_the_three_orientation_spellings_give_the_same_fit() {
         orientation_std: 2e-4,
         ..CalibrationParams::default()
     };
-    let mut fits: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut fits: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for spelling in ["quaternion", "negated", "rotation_vector", "roll_pitch_yaw"] {
         let text = spelled(&nominal, &samples, spelling);
         let set = parse_csv(&text, "poses.csv".as_ref(), &nominal.csv_layout()).unwrap();
@@ -214,12 +214,18 @@ fn quaternion_signs_and_the_three_orientation_spellings_give_the_same_fit() {
             assert!(angle < 1e-9, "{spelling}: read {angle} rad away from what was written");
         }
         let fit = calibrate(&nominal, &set.samples, &params, &mut |_| {}).unwrap();
-        fits.push((spelling.into(), fit.report.params.iter().map(|p| p.value).collect()));
+        fits.push((
+            spelling.into(),
+            fit.report.params.iter().map(|p| (p.value, p.std)).collect(),
+        ));
     }
+    // Spellings differ by round-off in the last digits of the orientations; the fits by no more
+    // than a thousandth of each parameter's standard deviation (a sign flip not at all).
     let (_, reference) = &fits[0];
     for (spelling, values) in &fits[1..] {
-        for (a, b) in values.iter().zip(reference) {
-            assert!((a - b).abs() <= 1e-8 * b.abs().max(1e-3), "{spelling}: {a} vs {b}");
+        for ((a, _), (b, std)) in values.iter().zip(reference) {
+            let tol = if spelling == "negated" { 0.0 } else { 1e-3 * std };
+            assert!((a - b).abs() <= tol, "{spelling}: {a} vs {b} (std {std})");
         }
     }
 }
