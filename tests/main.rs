@@ -20,6 +20,7 @@ mod jacobian;
 mod learning_curve;
 mod malformed;
 mod measurement;
+mod measurement_kinds;
 mod mutated_inputs;
 mod plan;
 mod point_kinematics;

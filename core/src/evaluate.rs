@@ -71,6 +71,50 @@ impl ErrorStats {
     }
 }
 
+/// Statistics of orientation errors (the angle of `log(R_measᵀ R̂)`), in degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AngleStats {
+    /// Number of measured orientations.
+    pub n: usize,
+    /// Mean angle (deg).
+    pub mean_deg: f64,
+    /// Root mean square angle (deg).
+    pub rms_deg: f64,
+    /// Largest angle (deg).
+    pub max_deg: f64,
+}
+
+impl AngleStats {
+    /// Statistics of angles given in radians; all zeros for an empty list.
+    pub fn from_angles(angles: &[f64]) -> Self {
+        let n = angles.len();
+        let nf = n.max(1) as f64;
+        let deg: Vec<f64> = angles.iter().map(|a| a.to_degrees()).collect();
+        AngleStats {
+            n,
+            mean_deg: deg.iter().sum::<f64>() / nf,
+            rms_deg: (deg.iter().map(|v| v * v).sum::<f64>() / nf).sqrt(),
+            max_deg: deg.iter().copied().fold(0.0, f64::max),
+        }
+    }
+}
+
+/// The orientation error (rad, the angle between measured and modelled) of each sample that
+/// has a measured orientation, through the robot's full model and measurement frame; `None`
+/// for the others.
+pub fn orientation_errors(robot: &Robot, samples: &[Sample]) -> Vec<Option<f64>> {
+    let mut ws = robot.workspace();
+    let t = robot.t_meas_base();
+    samples
+        .iter()
+        .map(|s| {
+            let measured = s.orientation?;
+            robot.forward_with_into(robot.tree(), robot.error_values(), &s.q, Conditions::of(s), &mut ws);
+            Some(measured.angle_to(&(t.rotation * ws.frames.point[s.point].rotation)))
+        })
+        .collect()
+}
+
 /// Measured minus modelled position of each sample (m, measurement frame), through the
 /// robot's full model, its measurement-frame guess and, when the file carries one, its fitted
 /// residual predictor.

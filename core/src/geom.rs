@@ -121,6 +121,21 @@ fn right_jacobian_series(
     sum
 }
 
+/// `J_r⁻¹(φ)`, the inverse right Jacobian of SO(3) at the rotation vector `φ`: with
+/// `R = exp(φ)`, `log(R · exp(u)) = φ + J_r⁻¹(φ) u + O(u²)`. How an orientation residual
+/// `log(R_measᵀ R_model)` moves when the model turns, exact at residuals of any size below π.
+pub fn so3_right_jacobian_inverse(phi: &Vector3<f64>) -> Matrix3<f64> {
+    let theta = phi.norm();
+    let k = skew(phi);
+    // (1/θ² − (1 + cos θ)/(2θ sin θ)), whose series starts at 1/12 (and cancels below 1e-4).
+    let c = if theta < 1e-4 {
+        1.0 / 12.0 + theta * theta / 720.0
+    } else {
+        (1.0 / (theta * theta)) - (1.0 + theta.cos()) / (2.0 * theta * theta.sin())
+    };
+    Matrix3::identity() + k * 0.5 + k * k * c
+}
+
 /// A unit vector, or `None` when `v` is (numerically) zero.
 pub fn unit(v: Vector3<f64>) -> Option<Unit<Vector3<f64>>> {
     Unit::try_new(v, 1e-12)

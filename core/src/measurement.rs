@@ -7,7 +7,10 @@
 //! optional `point` (the measured point's name; default: the first marker), or numbered
 //! triples `x1, y1, z1`, `x2, ...` for several points measured at once (the robot file's
 //! markers in order; all three cells of a point left empty when it was not seen); optional
-//! orientation `qw, qx, qy, qz`; optional `payload[kg]`, `temperature[C]`, and joint torques
+//! orientation in one of three spellings: a unit quaternion `qw, qx, qy, qz` (either sign), a
+//! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
+//! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
+//! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
 //! `tau_<joint>[Nm]`. Other columns (timestamps, marker quality, joints of other limbs) are
 //! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
@@ -64,7 +67,9 @@ enum Column {
         axis: usize,
         scale: f64,
     },
-    Quat(usize),
+    /// An orientation cell: its spelling, which of its cells, and the angle unit's scale
+    /// (1 for a quaternion).
+    Orientation(Spelling, usize, f64),
     Payload(f64),
     Temperature(f64),
     Torque(usize),
@@ -85,7 +90,60 @@ impl Column {
             Column::Temperature(offset) => Some((v + offset, 1e4, "10000 °C")),
             Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
             // A quaternion's norm is checked to be 1.
-            Column::Quat(_) | Column::Point | Column::Ignored => None,
+            Column::Orientation(Spelling::Quaternion, ..) => None,
+            Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
+            Column::Point | Column::Ignored => None,
+        }
+    }
+}
+
+/// How a measurement file writes an orientation (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Spelling {
+    Quaternion,
+    RotationVector,
+    RollPitchYaw,
+}
+
+impl Spelling {
+    const ALL: [(Spelling, [&'static str; 4]); 3] = [
+        (Spelling::Quaternion, ["qw", "qx", "qy", "qz"]),
+        (Spelling::RotationVector, ["rx", "ry", "rz", ""]),
+        (Spelling::RollPitchYaw, ["roll", "pitch", "yaw", ""]),
+    ];
+
+    /// The spelling and cell of column `name`, if it is an orientation column.
+    fn of(name: &str) -> Option<(Spelling, usize)> {
+        Spelling::ALL
+            .iter()
+            .find_map(|(s, cells)| cells.iter().position(|c| !c.is_empty() && *c == name).map(|k| (*s, k)))
+    }
+
+    fn cells(self) -> &'static [&'static str] {
+        let cells = &Spelling::ALL
+            .iter()
+            .find(|(s, _)| *s == self)
+            .expect("every spelling is listed")
+            .1;
+        if self == Spelling::Quaternion {
+            cells
+        } else {
+            &cells[..3]
+        }
+    }
+
+    /// The rotation of cells `v` (angles in rad); an error for a quaternion whose norm is not 1.
+    fn rotation(self, v: [f64; 4]) -> std::result::Result<UnitQuaternion<f64>, String> {
+        match self {
+            Spelling::Quaternion => {
+                let q = Quaternion::new(v[0], v[1], v[2], v[3]);
+                if (q.norm() - 1.0).abs() > 1e-3 {
+                    return Err(format!("orientation quaternion has norm {:.6}, expected 1", q.norm()));
+                }
+                Ok(UnitQuaternion::from_quaternion(q))
+            }
+            Spelling::RotationVector => Ok(UnitQuaternion::from_scaled_axis(Vector3::new(v[0], v[1], v[2]))),
+            Spelling::RollPitchYaw => Ok(UnitQuaternion::from_euler_angles(v[0], v[1], v[2])),
         }
     }
 }
@@ -113,6 +171,9 @@ pub struct CsvLayout<'a> {
     /// Per independent coordinate, the value it holds when the file has no column for it
     /// (rad or m); `None` makes its column required.
     pub hold: Vec<Option<f64>>,
+    /// Whether the robot measures poses: a file without orientation columns is then read as
+    /// positions with a warning.
+    pub orientation: bool,
 }
 
 impl<'a> CsvLayout<'a> {
@@ -123,6 +184,7 @@ impl<'a> CsvLayout<'a> {
             units,
             points: vec![point],
             hold: vec![None; tree.nq()],
+            orientation: false,
         }
     }
 }
@@ -358,6 +420,24 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 axis,
                 scale: length(unit)?,
             }
+        } else if let Some((spelling, cell)) = Spelling::of(name) {
+            let scale = match (spelling, unit) {
+                (Spelling::Quaternion, None) => 1.0,
+                (Spelling::Quaternion, Some(u)) => {
+                    return Err(err(
+                        Some(header_line),
+                        format!("column `{h}`: a quaternion has no unit, got `{u}`"),
+                    ));
+                }
+                (_, None) => units.angle.to_si(),
+                (_, Some(u)) => AngleUnit::parse(u).map(AngleUnit::to_si).ok_or_else(|| {
+                    err(
+                        Some(header_line),
+                        format!("column `{h}`: expected an angle unit (rad or deg), got `{u}`"),
+                    )
+                })?,
+            };
+            Column::Orientation(spelling, cell, scale)
         } else {
             match name {
                 "point" => Column::Point,
@@ -366,9 +446,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     axis: (name.as_bytes()[0] - b'x') as usize,
                     scale: length(unit)?,
                 },
-                "qw" | "qx" | "qy" | "qz" => {
-                    Column::Quat(["qw", "qx", "qy", "qz"].iter().position(|n| *n == name).unwrap_or(0))
-                }
+
                 "payload" => Column::Payload(match unit {
                     None | Some("kg") => 1.0,
                     Some("g") => 1e-3,
@@ -469,22 +547,51 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             }
         }
     }
-    let nquat = columns.iter().filter(|c| matches!(c, Column::Quat(_))).count();
-    if nquat != 0 && nquat != 4 {
+    let mut spellings: Vec<Spelling> = columns
+        .iter()
+        .filter_map(|c| match c {
+            Column::Orientation(s, ..) => Some(*s),
+            _ => None,
+        })
+        .collect();
+    let n_cells = spellings.len();
+    spellings.dedup();
+    let spelling = match spellings.as_slice() {
+        [] => None,
+        [s] if n_cells == s.cells().len() => Some(*s),
+        [s] => {
+            return Err(err(
+                Some(header_line),
+                format!("an orientation needs all its columns: {}", s.cells().join(", ")),
+            ));
+        }
+        _ => {
+            return Err(err(
+                Some(header_line),
+                "the orientation is given in several spellings; keep one of qw, qx, qy, qz (quaternion), rx, ry, rz \
+                 (rotation vector) or roll, pitch, yaw"
+                    .into(),
+            ));
+        }
+    };
+    if spelling.is_some() && slots.len() > 1 {
         return Err(err(
             Some(header_line),
-            "an orientation needs all four columns qw, qx, qy, qz".into(),
-        ));
-    }
-    if nquat == 4 && slots.len() > 1 {
-        return Err(err(
-            Some(header_line),
-            "an orientation (qw, qx, qy, qz) goes with one measured point, not several".into(),
+            "an orientation goes with one measured point, not several".into(),
         ));
     }
     let has_torque = has(&|k| matches!(k, Column::Torque(_)));
 
     let mut set = MeasurementSet::default();
+    // A pose robot's file without orientation is a file of positions (another session's, a
+    // tracker without a 6-DoF probe): its rows are point measurements, and the user is told.
+    if spelling.is_none() && layout.orientation && with_positions {
+        set.warnings.push(format!(
+            "{}: the robot file measures poses but this file gives no orientation (qw, qx, qy, qz; rx, ry, rz; or \
+             roll, pitch, yaw): its rows are used as positions only",
+            path.display()
+        ));
+    }
     if !ignored.is_empty() {
         set.warnings.push(format!(
             "{}: column(s) {} ignored (not a joint of the robot or a measurement column)",
@@ -518,7 +625,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             temperature: None,
             torque: has_torque.then(|| vec![0.0; names.len()]),
         };
-        let mut quat = [0.0; 4];
+        let mut angles = [0.0; 4];
         // Per slot, the position and how many of its cells were empty.
         let mut positions = vec![(Vector3::zeros(), 0usize); slots.len()];
         for (field, (col, head)) in record.iter().zip(columns.iter().zip(headers.iter())) {
@@ -565,7 +672,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     let k = slots.iter().position(|s| *s == slot).unwrap_or(0);
                     positions[k].0[axis] = v * scale;
                 }
-                Column::Quat(k) => quat[k] = v,
+                Column::Orientation(_, k, scale) => angles[k] = v * scale,
                 Column::Payload(_) if v < 0.0 => {
                     return Err(err(
                         Some(line),
@@ -582,15 +689,8 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 Column::Point | Column::Ignored => {}
             }
         }
-        if nquat == 4 {
-            let q = Quaternion::new(quat[0], quat[1], quat[2], quat[3]);
-            if (q.norm() - 1.0).abs() > 1e-3 {
-                return Err(err(
-                    Some(line),
-                    format!("orientation quaternion has norm {:.6}, expected 1", q.norm()),
-                ));
-            }
-            s.orientation = Some(UnitQuaternion::from_quaternion(q));
+        if let Some(spelling) = spelling {
+            s.orientation = Some(spelling.rotation(angles).map_err(|m| err(Some(line), m))?);
         }
         for (c, lim) in tree.coordinate_limits().iter().enumerate() {
             if let Some(l) = lim

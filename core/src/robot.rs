@@ -410,7 +410,22 @@ impl Robot {
                 self.markers.clone()
             },
             hold,
+            orientation: self.measures_pose(),
         }
+    }
+
+    /// Whether the robot file declares pose measurements (`[measurement] kind = "pose"`).
+    pub fn measures_pose(&self) -> bool {
+        self.file
+            .measurement
+            .as_ref()
+            .is_some_and(|m| m.kind == crate::robot_file::MeasurementKind::Pose)
+    }
+
+    /// Calibration parameters per marker: its position, and with pose measurements its
+    /// orientation too (`rx, ry, rz`, a rotation vector about the point's own axes).
+    pub fn marker_dofs(&self) -> usize {
+        if self.measures_pose() { 6 } else { 3 }
     }
     /// Floating-point operations of one forward kinematics: about a hundred and fifty a body
     /// for the rigid chain (a transform product and the points on it), and as much again a body
@@ -453,12 +468,14 @@ impl Robot {
         &self.warnings
     }
     /// Names of the measurement-setup parameters, in [`ParameterSpace`](crate::calibrate::ParameterSpace) order: the base
-    /// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`).
+    /// frame (`base.x … base.yaw`), then each marker's offset (`marker.<point>.x|y|z`, and `rx|ry|rz` when it measures poses).
     pub fn setup_param_names(&self) -> Vec<String> {
         let base = BASE_NAMES.iter().map(|n| format!("base.{n}"));
         let markers = self.markers().iter().flat_map(|&m| {
             let name = &self.tree().points()[m].name;
-            ["x", "y", "z"].map(|a| format!("marker.{name}.{a}"))
+            ["x", "y", "z", "rx", "ry", "rz"][..self.marker_dofs()]
+                .iter()
+                .map(move |a| format!("marker.{name}.{a}"))
         });
         base.chain(markers).collect()
     }

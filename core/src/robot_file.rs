@@ -207,6 +207,11 @@ pub struct PayloadSpec {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeasurementSpec {
+    /// What each row of a measurement file measures at the markers: `point` (a position) or
+    /// `pose` (a position and an orientation; the markers' orientations on their links are
+    /// identified with their positions).
+    #[serde(default, skip_serializing_if = "MeasurementKind::is_point")]
+    pub kind: MeasurementKind,
     /// Guess of the robot base position in the tracker frame (length unit).
     #[serde(default)]
     pub base_xyz: [f64; 3],
@@ -222,6 +227,24 @@ pub struct MeasurementSpec {
     /// marker and is not named here holds 0, or the middle of its limits if 0 is outside them.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub hold: BTreeMap<String, f64>,
+}
+
+/// What the rows of a measurement file measure at the markers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MeasurementKind {
+    /// A position of each measured marker.
+    #[default]
+    Point,
+    /// A position and an orientation (a motion-capture rigid body, a 6-DoF probe).
+    Pose,
+}
+
+impl MeasurementKind {
+    /// Whether it is the default, `point`.
+    pub fn is_point(&self) -> bool {
+        *self == MeasurementKind::Point
+    }
 }
 
 macro_rules! plugin_placeholder {

@@ -33,6 +33,11 @@ pub struct Args {
     /// Default: estimated from the data with the fit (the evidence's maximum).
     #[arg(long)]
     noise_mm: Option<f64>,
+    /// Standard deviation of the measured orientation per axis, in degrees, when the robot
+    /// file measures poses (weighs orientations against positions). The noise is declared,
+    /// not estimated, only when both --noise-mm and this are given.
+    #[arg(long)]
+    noise_deg: Option<f64>,
     /// Most Levenberg–Marquardt iterations.
     #[arg(long, default_value_t = 100)]
     max_iterations: usize,
@@ -65,6 +70,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
+        orientation_std: args.noise_deg.unwrap_or(0.1).to_radians(),
         max_iterations: args.max_iterations,
         restarts: args.restarts,
         seed: args.seed,
@@ -79,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bar.set_position(it.iteration as u64);
         bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
     };
-    let declared = args.noise_mm.is_some();
+    let declared = args.noise_mm.is_some() && (args.noise_deg.is_some() || !robot.measures_pose());
     let mut run = armcomp::ops::calibrate::run(
         &robot,
         &data.samples,
@@ -190,6 +196,9 @@ fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {
             e.n_free,
             e.n_equations
         );
+        if let Some(deg) = e.orientation_noise_deg {
+            println!("orientation noise estimated from the data: {deg:.4}° per axis");
+        }
     }
     if !e.groups.is_empty() {
         let groups: Vec<String> = e
@@ -279,9 +288,18 @@ fn print_report(r: &CalibrationReport) {
         };
         println!("{:<34} {:>14.6} {:>14.6} {:>12}  {unit}", p.name, a, b, std);
     }
-    for (label, s) in [("before", &r.before), ("after", &r.after)] {
+    for (label, s, o) in [
+        ("before", &r.before, &r.before_orientation),
+        ("after", &r.after, &r.after_orientation),
+    ] {
+        let turn = o.map_or(String::new(), |o| {
+            format!(
+                "; orientation mean {:.4}°, RMS {:.4}°, max {:.4}°",
+                o.mean_deg, o.rms_deg, o.max_deg
+            )
+        });
         println!(
-            "{label:>6}: mean {:.4} mm, std {:.4} mm, RMS {:.4} mm, max {:.4} mm",
+            "{label:>6}: mean {:.4} mm, std {:.4} mm, RMS {:.4} mm, max {:.4} mm{turn}",
             s.mean_mm, s.std_mm, s.rms_mm, s.max_mm
         );
     }

@@ -18,7 +18,8 @@ pub struct Args {
     /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
     #[arg(long)]
     rows: Option<armcomp_core::measurement::RowSelection>,
-    /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}}.
+    /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}},
+    /// and with pose measurements "orientation": {"n", "mean_deg", "rms_deg", "max_deg"}.
     #[arg(long)]
     json: bool,
     /// Also write every sample's residual to this CSV (atomically): its row among the data rows,
@@ -42,6 +43,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&report.to_json())?);
     } else {
         println!("{}", stats_line(&report.stats));
+        if let Some(o) = &report.orientation {
+            println!(
+                "  orientation: n {}  mean {:.4} deg  RMS {:.4} deg  max {:.4} deg",
+                o.n, o.mean_deg, o.rms_deg, o.max_deg
+            );
+        }
         for (name, s) in &report.per_point {
             println!("  point {name}: {}", stats_line(s));
         }

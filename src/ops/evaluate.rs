@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
-use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::evaluate::{AngleStats, ErrorStats, orientation_errors, position_errors};
 use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
 
@@ -14,6 +14,8 @@ pub struct EvaluationReport {
     pub stats: ErrorStats,
     /// Per measured point by name, when the samples measure several.
     pub per_point: BTreeMap<String, ErrorStats>,
+    /// Over every sample with a measured orientation, when the robot measures poses.
+    pub orientation: Option<AngleStats>,
     /// Measured minus modelled position of every sample, measurement frame (m).
     pub errors: Vec<Vector3<f64>>,
 }
@@ -41,9 +43,15 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
     } else {
         BTreeMap::new()
     };
+    let angles: Vec<f64> = if robot.measures_pose() {
+        orientation_errors(robot, samples).into_iter().flatten().collect()
+    } else {
+        Vec::new()
+    };
     EvaluationReport {
         stats,
         per_point,
+        orientation: (!angles.is_empty()).then(|| AngleStats::from_angles(&angles)),
         errors,
     }
 }
@@ -54,6 +62,9 @@ impl EvaluationReport {
         let mut value = serde_json::to_value(self.stats).expect("the statistics serialise");
         if !self.per_point.is_empty() {
             value["per_point"] = serde_json::to_value(&self.per_point).expect("the statistics serialise");
+        }
+        if let Some(o) = &self.orientation {
+            value["orientation"] = serde_json::to_value(o).expect("the statistics serialise");
         }
         value
     }

@@ -99,6 +99,9 @@ pub struct EvidenceReport {
     pub noise_mm: f64,
     /// Its standard error (mm), from the residual degrees of freedom.
     pub noise_std_mm: f64,
+    /// The orientation noise per axis (deg), when the robot measures poses: estimated from
+    /// the orientation residuals alone, its own degrees of freedom, as the positions' is.
+    pub orientation_noise_deg: Option<f64>,
     /// The residual RMS of each axis of the measurement frame (mm): unequal values say the
     /// tracker is better along some axes.
     pub rms_per_axis_mm: [f64; 3],
@@ -129,9 +132,24 @@ pub struct EvidenceReport {
 struct Update {
     /// Per free parameter, how much the data determine it (`γₖ`).
     gamma: Vec<f64>,
-    /// `‖r‖²` in m².
-    sse: f64,
+    /// Per residual kind (positions, orientations): the squared residuals in SI units, the
+    /// equations, and the share of the determined parameters (`γ`) its rows carry.
+    kinds: [Kind; 2],
     log_evidence: f64,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Kind {
+    sse: f64,
+    n: f64,
+    gamma: f64,
+}
+
+impl Kind {
+    /// The noise the evidence sets for this kind: `σ² = SSE / (N − γ)`.
+    fn noise(&self) -> f64 {
+        (self.sse / (self.n - self.gamma).max(1.0)).sqrt().max(1e-12)
+    }
 }
 
 fn update(lin: &Linearisation) -> Update {
@@ -159,8 +177,27 @@ fn update(lin: &Linearisation) -> Update {
     }
     let gamma: Vec<f64> = (0..n).map(|c| (1.0 - alpha[c] * inv_diag[c]).clamp(0.0, 1.0)).collect();
     let chi2 = lin.residuals.norm_squared();
-    let sse = chi2 * noise2;
+    // Each kind's share of γ is the sum of its rows' leverages (J A⁻¹ Jᵀ)ᵢᵢ, so the kinds'
+    // noises follow MacKay's update each over its own equations.
+    let mut kinds = [Kind::default(); 2];
+    let scaled = &lin.jacobian * &eig.eigenvectors;
+    for (i, r) in lin.residuals.iter().enumerate() {
+        let (k, sigma) = if i < lin.position_rows {
+            (0, lin.noise)
+        } else {
+            (1, lin.orientation_noise)
+        };
+        let leverage: f64 = (0..n)
+            .map(|l| scaled[(i, l)].powi(2) / eig.eigenvalues[l].max(floor).max(f64::MIN_POSITIVE))
+            .sum();
+        kinds[k].sse += (r * sigma).powi(2);
+        kinds[k].n += 1.0;
+        kinds[k].gamma += leverage;
+    }
     let m = lin.residuals.len() as f64;
+    let log_noise: f64 = kinds[0].n * (2.0 * std::f64::consts::PI * noise2).ln()
+        + kinds[1].n * (2.0 * std::f64::consts::PI * lin.orientation_noise.powi(2)).ln();
+    debug_assert_eq!(kinds[0].n + kinds[1].n, m);
     let prior: f64 = lin
         .free
         .iter()
@@ -175,12 +212,10 @@ fn update(lin: &Linearisation) -> Update {
         .sum();
     let log_alpha: f64 = alpha.iter().filter(|&&al| al > 0.0).map(|al| al.ln()).sum();
     // In the parameters' SI units: A above is JᵀJ/σ² + α (the Jacobian is of r/σ).
-    let log_evidence = -0.5 * chi2 - 0.5 * prior + 0.5 * log_alpha
-        - 0.5 * log_det
-        - 0.5 * m * (2.0 * std::f64::consts::PI * noise2).ln();
+    let log_evidence = -0.5 * chi2 - 0.5 * prior + 0.5 * log_alpha - 0.5 * log_det - 0.5 * log_noise;
     Update {
         gamma,
-        sse,
+        kinds,
         log_evidence,
     }
 }
@@ -211,10 +246,14 @@ pub fn calibrate_with_evidence(
         let mut changed: f64 = 0.0;
         let mut next = p.clone();
         if evidence.estimate_noise {
-            let dof = (lin.residuals.len() as f64 - u.gamma.iter().sum::<f64>()).max(1.0);
-            let noise = (u.sse / dof).sqrt().max(1e-9);
+            let noise = u.kinds[0].noise().max(1e-9);
             changed = changed.max((noise / p.measurement_std).ln().abs());
             next.measurement_std = noise;
+            if u.kinds[1].n > 0.0 {
+                let noise = u.kinds[1].noise().max(1e-9);
+                changed = changed.max((noise / p.orientation_std).ln().abs());
+                next.orientation_std = noise;
+            }
         }
         if estimate_priors {
             let scales = scale_updates(lin, &u, &p, evidence);
@@ -256,7 +295,7 @@ fn report(
     converged: bool,
 ) -> EvidenceReport {
     let u = update(lin);
-    let dof = (lin.residuals.len() as f64 - u.gamma.iter().sum::<f64>()).max(1.0);
+    let dof = (u.kinds[0].n - u.kinds[0].gamma).max(1.0);
     let space = ParameterSpace::new(robot);
     // Per group: parameters, determined, and the sum of log scales (for the geometric mean).
     let mut groups: Vec<(GroupScale, f64)> = Vec::new();
@@ -300,7 +339,7 @@ fn report(
         .collect();
     groups.sort_by_key(|g| g.group);
     let mut axis = [0.0; 3];
-    for (i, r) in lin.residuals.iter().enumerate() {
+    for (i, r) in lin.residuals.iter().take(lin.position_rows).enumerate() {
         axis[i % 3] += (r * lin.noise).powi(2);
     }
     let n = samples.len().max(1) as f64;
@@ -308,6 +347,7 @@ fn report(
         noise_estimated: evidence.estimate_noise,
         noise_mm: lin.noise * 1e3,
         noise_std_mm: lin.noise * 1e3 / (2.0 * dof).sqrt(),
+        orientation_noise_deg: (u.kinds[1].n > 0.0).then(|| lin.orientation_noise.to_degrees()),
         rms_per_axis_mm: axis.map(|s| (s / n).sqrt() * 1e3),
         determined: u.gamma.iter().sum(),
         n_free: lin.free.len(),

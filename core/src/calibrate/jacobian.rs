@@ -5,7 +5,7 @@
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3, Vector6};
 
 use crate::error::Result;
-use crate::geom::exp_twist;
+use crate::geom::{exp_twist, so3_right_jacobian_inverse};
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::perturbation::Perturbation;
@@ -18,7 +18,7 @@ use super::*;
 /// The model's point and marker rotation at every sample, evaluated in parallel (each sample
 /// on its own, so the result does not depend on the thread count).
 pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample]) -> Evaluation {
-    let (world, marker_rot) = samples
+    let (world, (marker_rot, rotation)) = samples
         .par_iter()
         .map_init(
             || robot.workspace(),
@@ -31,11 +31,23 @@ pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample]) -> Evalua
                         .rotation
                         .to_rotation_matrix()
                         .into_inner();
-                (ws.frames.point[s.point].translation.vector, rot)
+                let frame = &ws.frames.point[s.point];
+                (frame.translation.vector, (rot, frame.rotation))
             },
         )
         .unzip();
-    Evaluation { world, marker_rot }
+    Evaluation {
+        world,
+        marker_rot,
+        rotation,
+    }
+}
+
+/// `log(R_measᵀ R̂)` of sample `i` (rad, in the model's frame): the turn from the measured
+/// orientation to the modelled one.
+fn orientation_residual(d: &Decoded, e: &Evaluation, s: &Sample, i: usize) -> Vector3<f64> {
+    let measured = s.orientation.unwrap_or_default();
+    (measured.inverse() * d.t_meas_base.rotation * e.rotation[i]).scaled_axis()
 }
 
 pub(super) fn to_meas(t: &Isometry3<f64>, world: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
@@ -53,7 +65,7 @@ impl Problem<'_> {
     /// ½χ² of `stage` with the priors of `free` centred at `theta0`: what Levenberg–Marquardt
     /// minimises.
     pub(super) fn cost(&self, stage: &Stage, theta0: &[f64], free: &[usize]) -> f64 {
-        let r = self.residuals(&to_meas(&stage.d.t_meas_base, &stage.e.world));
+        let r = self.residuals(&stage.d, &stage.e);
         self.cost_of(&stage.theta, theta0, free, &r)
     }
 
@@ -65,21 +77,38 @@ impl Problem<'_> {
         0.5 * (r.norm_squared() + prior)
     }
 
-    /// The RMS of `stage`'s 3-D residuals over what the noise alone gives (√3 σ).
+    /// The RMS of `stage`'s 3-D position residuals over what the noise alone gives (√3 σ).
     pub(super) fn rms_over_noise(&self, stage: &Stage) -> f64 {
-        let r = self.residuals(&to_meas(&stage.d.t_meas_base, &stage.e.world));
-        (r.norm_squared() / (3.0 * self.samples.len() as f64)).sqrt()
+        let r = self.residuals(&stage.d, &stage.e);
+        let n = 3 * self.samples.len();
+        (r.rows(0, n).norm_squared() / n as f64).sqrt()
     }
 
-    /// Measurement residuals `(p̂ − p) / σ`, three per sample.
-    pub(super) fn residuals(&self, predicted: &[Vector3<f64>]) -> DVector<f64> {
-        DVector::from_iterator(
-            3 * self.samples.len(),
-            predicted.iter().zip(self.samples).flat_map(|(p, s)| {
-                let r = (p - s.position) / self.sigma;
-                [r.x, r.y, r.z]
-            }),
-        )
+    /// Measurement residuals, whitened by their noise: `(p̂ − p) / σ`, three per sample, then
+    /// `log(R_measᵀ R̂) / σ_rot`, three per oriented sample.
+    pub(super) fn residuals(&self, d: &Decoded, e: &Evaluation) -> DVector<f64> {
+        let predicted = to_meas(&d.t_meas_base, &e.world);
+        let positions = predicted.iter().zip(self.samples).flat_map(|(p, s)| {
+            let r = (p - s.position) / self.sigma;
+            [r.x, r.y, r.z]
+        });
+        let orientations = self.oriented.iter().flat_map(|&i| {
+            let r = orientation_residual(d, e, &self.samples[i], i) / self.sigma_rot;
+            [r.x, r.y, r.z]
+        });
+        DVector::from_iterator(self.n_residuals(), positions.chain(orientations))
+    }
+
+    /// Statistics of the orientation residuals (`None` without pose samples).
+    pub(super) fn orientation_stats(&self, d: &Decoded, e: &Evaluation) -> Option<AngleStats> {
+        (!self.oriented.is_empty()).then(|| {
+            let angles: Vec<f64> = self
+                .oriented
+                .iter()
+                .map(|&i| orientation_residual(d, e, &self.samples[i], i).norm())
+                .collect();
+            AngleStats::from_angles(&angles)
+        })
     }
 
     /// How each Jacobian column of `free` is computed at `theta`.
@@ -97,7 +126,7 @@ impl Problem<'_> {
                 Ok(match p.group {
                     ParamGroup::Marker(i) => ColumnPlan::Marker {
                         point: self.robot.markers()[i],
-                        axis: (k - space.marker_offset) % 3,
+                        axis: (k - space.marker_offset) % space.marker_dofs,
                     },
                     ParamGroup::Base => {
                         let (mut t, h) = step(theta, k, p);
@@ -112,12 +141,17 @@ impl Problem<'_> {
                         let (_, h) = step(theta, k, p);
                         let mut values = d.errors[i].clone();
                         values[k - space.error_offsets[i]] += h;
+                        let mut errors = d.errors.clone();
+                        errors[i] = values.clone();
                         if self.robot.error_models()[i].adjusts_loads() {
-                            let mut errors = d.errors.clone();
-                            errors[i] = values;
                             ColumnPlan::Loads { errors, h }
                         } else {
-                            ColumnPlan::Model { model: i, values, h }
+                            ColumnPlan::Model {
+                                model: i,
+                                values,
+                                errors,
+                                h,
+                            }
                         }
                     }
                     ParamGroup::Geometry => {
@@ -205,42 +239,81 @@ impl Problem<'_> {
                         let w = f.rotation * xi.fixed_rows::<3>(3);
                         v + w.cross(&(p - f.translation.vector))
                     };
-                    let mut row = vec![0.0; 3 * ncols];
+                    let oriented = self.oriented.binary_search(&s_idx).ok();
+                    // Rows of the orientation block: J_r⁻¹(r) R̂ᵀ per unit turn of the model
+                    // (measurement frame), so a turn maps to the change of log(R_measᵀ R̂).
+                    let turn_map = oriented.map(|_| {
+                        let model = d.t_meas_base.rotation * e.rotation[s_idx];
+                        let r = orientation_residual(d, e, s, s_idx);
+                        so3_right_jacobian_inverse(&r) * model.inverse().to_rotation_matrix().into_inner()
+                            / self.sigma_rot
+                    });
+                    // A turn of the point (world) from the full model re-evaluated into `ws_fd`.
+                    let turn_of = |ws_fd: &crate::robot::RobotWorkspace, h: f64| -> Vector3<f64> {
+                        (ws_fd.frames.point[s.point].rotation * ws.frames.point[s.point].rotation.inverse())
+                            .scaled_axis()
+                            / h
+                    };
+                    let width = if oriented.is_some() { 6 } else { 3 };
+                    let mut row = vec![0.0; width * ncols];
                     for (c, plan) in plans.iter().enumerate() {
-                        let dp_meas = match plan {
+                        // The change of the point's position and orientation, measurement frame.
+                        let (dp_meas, dw_meas) = match plan {
                             ColumnPlan::Marker { point, axis } => {
                                 if *point != s.point {
                                     continue;
                                 }
-                                r_meas * e.marker_rot[s_idx].column(*axis)
+                                if *axis < 3 {
+                                    (r_meas * e.marker_rot[s_idx].column(*axis), Vector3::zeros())
+                                } else {
+                                    // A turn about the point's own axis, before its deformation.
+                                    let axis = point_frame.rotation * Vector3::ith(*axis - 3, 1.0);
+                                    (Vector3::zeros(), r_meas * axis)
+                                }
                             }
-                            ColumnPlan::Base { from, to, h } => {
-                                (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h
-                            }
+                            ColumnPlan::Base { from, to, h } => (
+                                (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h,
+                                (to.rotation * from.rotation.inverse()).scaled_axis() / *h,
+                            ),
                             ColumnPlan::Twists {
                                 joints,
                                 points,
                                 deformation,
                             } => {
                                 let mut dp = Vector3::zeros();
+                                let mut dw = Vector3::zeros();
+                                let mut turn_known = false;
                                 if let Some((tree, stepped, h)) = deformation {
                                     self.robot.deformation_restepped_into(
                                         tree, &d.errors, &s.q, cond, &ws.rigid, stepped, ws_fd,
                                     );
                                     scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
                                     dp += sensitivity.effect(scratch);
+                                    if oriented.is_some() {
+                                        // The deformation's turn has no cheap map: the full
+                                        // model differenced, on pose samples only.
+                                        self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
+                                        dw = turn_of(ws_fd, *h);
+                                        turn_known = true;
+                                    }
                                 }
                                 for (j, xi) in joints {
                                     if support.contains(j) {
                                         dp += effect_at(&placed[*j], xi);
+                                        if !turn_known {
+                                            dw += placed[*j].rotation * xi.fixed_rows::<3>(3);
+                                        }
                                     }
                                 }
                                 for (i, xi) in points {
                                     if *i == s.point {
                                         dp += effect_at(&point_frame, xi);
+                                        if !turn_known {
+                                            dw += point_frame.rotation * xi.fixed_rows::<3>(3);
+                                        }
                                     }
                                 }
-                                r_meas * dp
+                                (r_meas * dp, r_meas * dw)
                             }
                             ColumnPlan::Loads { errors, h } => {
                                 // A changed load changes what every elastic model does.
@@ -248,36 +321,60 @@ impl Problem<'_> {
                                 let dp = (ws_fd.frames.point[s.point].translation.vector
                                     - ws.frames.point[s.point].translation.vector)
                                     / *h;
-                                r_meas * dp
+                                (r_meas * dp, r_meas * turn_of(ws_fd, *h))
                             }
                             ColumnPlan::Finite { tree, h } => {
                                 self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
                                 let dp = (ws_fd.frames.point[s.point].translation.vector
                                     - ws.frames.point[s.point].translation.vector)
                                     / *h;
-                                r_meas * dp
+                                (r_meas * dp, r_meas * turn_of(ws_fd, *h))
                             }
-                            ColumnPlan::Model { model, values, h } => {
+                            ColumnPlan::Model {
+                                model,
+                                values,
+                                errors,
+                                h,
+                            } => {
                                 stepped.clear();
                                 self.robot
                                     .model_perturbation_into(*model, &d.tree, values, s, ws, stepped);
                                 scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
-                                r_meas * sensitivity.effect(scratch)
+                                let dw = if oriented.is_some() {
+                                    self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
+                                    turn_of(ws_fd, *h)
+                                } else {
+                                    Vector3::zeros()
+                                };
+                                (r_meas * sensitivity.effect(scratch), r_meas * dw)
                             }
                         };
                         for a in 0..3 {
-                            row[3 * c + a] = dp_meas[a] / self.sigma;
+                            row[width * c + a] = dp_meas[a] / self.sigma;
+                        }
+                        if let Some(map) = &turn_map {
+                            let dr = map * dw_meas;
+                            for a in 0..3 {
+                                row[width * c + 3 + a] = dr[a];
+                            }
                         }
                     }
                     row
                 },
             )
             .collect();
-        let mut jac = DMatrix::zeros(3 * self.samples.len(), ncols);
+        // Position rows in sample order, then the orientation rows of the oriented samples.
+        let n = self.samples.len();
+        let mut jac = DMatrix::zeros(self.n_residuals(), ncols);
         for (s_idx, row) in rows.iter().enumerate() {
+            let width = row.len() / ncols.max(1);
+            let turn_row = self.oriented.binary_search(&s_idx).ok().map(|k| 3 * (n + k));
             for c in 0..ncols {
                 for a in 0..3 {
-                    jac[(3 * s_idx + a, c)] = row[3 * c + a];
+                    jac[(3 * s_idx + a, c)] = row[width * c + a];
+                    if let Some(r0) = turn_row {
+                        jac[(r0 + a, c)] = row[width * c + 3 + a];
+                    }
                 }
             }
         }
@@ -406,12 +503,7 @@ pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) 
     }
     let space = ParameterSpace::new(robot);
     let selected = space.select(robot, identify)?;
-    let problem = Problem {
-        robot,
-        space: &space,
-        samples,
-        sigma: 1.0,
-    };
+    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
     let theta = space.initial();
     let (d, e, _) = problem.predict(&theta)?;
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;

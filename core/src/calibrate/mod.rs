@@ -22,7 +22,7 @@
 //! determine. Each is named; it is left to the priors when one of its parameters has a prior,
 //! otherwise its dominant parameter is fixed at the starting value, so nothing drifts.
 
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -30,7 +30,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::evaluate::ErrorStats;
+use crate::evaluate::{AngleStats, ErrorStats};
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::robot::Robot;
@@ -125,6 +125,8 @@ pub struct ParameterSpace {
     error_offsets: Vec<usize>,
     base_offset: usize,
     marker_offset: usize,
+    /// Parameters per marker: 3 (position), or 6 with its orientation.
+    marker_dofs: usize,
 }
 
 /// A parameter vector made ready for evaluation.
@@ -135,11 +137,12 @@ struct Decoded {
     t_meas_base: Isometry3<f64>,
 }
 
-/// Per-sample intermediate results: the point in the robot base frame and the rotation that
-/// maps a marker offset into it.
+/// Per-sample intermediate results: the point in the robot base frame, the rotation that
+/// maps a marker offset into it, and the point's orientation in that frame.
 struct Evaluation {
     world: Vec<Vector3<f64>>,
     marker_rot: Vec<Matrix3<f64>>,
+    rotation: Vec<UnitQuaternion<f64>>,
 }
 
 /// Settings of [`calibrate`].
@@ -149,6 +152,9 @@ pub struct CalibrationParams {
     pub identify: Vec<String>,
     /// Standard deviation of the tracker noise per axis (m); weighs data against priors.
     pub measurement_std: f64,
+    /// Standard deviation of the measured orientation's noise per axis (rad), when the robot
+    /// measures poses: weighs orientations against positions and priors.
+    pub orientation_std: f64,
     /// Most Levenberg–Marquardt iterations, over all stages of the fit.
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this fraction.
@@ -201,6 +207,7 @@ impl Default for CalibrationParams {
         CalibrationParams {
             identify: Vec::new(),
             measurement_std: 1e-4,
+            orientation_std: 1e-3,
             max_iterations: 100,
             tolerance: 1e-10,
             min_improvement: 1e-4,
@@ -321,6 +328,10 @@ pub struct CalibrationReport {
     pub before: ErrorStats,
     /// Residuals on the calibration data after.
     pub after: ErrorStats,
+    /// Orientation residuals before, when the robot measures poses.
+    pub before_orientation: Option<AngleStats>,
+    /// Orientation residuals after, when the robot measures poses.
+    pub after_orientation: Option<AngleStats>,
     /// The 3-D RMS after, over what the declared noise alone gives (`√3 σ`); above
     /// [`FAR_ABOVE_NOISE`] the model or the data is wrong, not just noisy.
     pub rms_over_noise: f64,
@@ -485,7 +496,12 @@ pub struct Linearisation {
     pub groups: Vec<PriorGroup>,
     /// The noise standard deviation per axis the fit weighed the data with (m).
     pub noise: f64,
-    /// Measurement residuals `(p̂ − p) / noise`, three per sample.
+    /// The orientation noise per axis it weighed orientations with (rad).
+    pub orientation_noise: f64,
+    /// How many leading residuals are positions; the rest are orientations.
+    pub position_rows: usize,
+    /// Measurement residuals `(p̂ − p) / noise`, three per sample, then
+    /// `log(R_measᵀ R̂) / orientation_noise`, three per oriented sample.
     pub residuals: DVector<f64>,
     /// Their Jacobian with respect to the free parameters (per SI unit).
     pub jacobian: DMatrix<f64>,
@@ -496,7 +512,37 @@ struct Problem<'a> {
     robot: &'a Robot,
     space: &'a ParameterSpace,
     samples: &'a [Sample],
+    /// The position noise per axis (m).
     sigma: f64,
+    /// The orientation noise per axis (rad).
+    sigma_rot: f64,
+    /// The samples whose orientation is a residual block (the robot measures poses), in order.
+    oriented: Vec<usize>,
+}
+
+impl<'a> Problem<'a> {
+    fn new(robot: &'a Robot, space: &'a ParameterSpace, samples: &'a [Sample], sigma: f64, sigma_rot: f64) -> Self {
+        let oriented = if robot.measures_pose() {
+            (0..samples.len())
+                .filter(|&i| samples[i].orientation.is_some())
+                .collect()
+        } else {
+            Vec::new()
+        };
+        Problem {
+            robot,
+            space,
+            samples,
+            sigma,
+            sigma_rot,
+            oriented,
+        }
+    }
+
+    /// Number of residuals: three per position, three per orientation.
+    fn n_residuals(&self) -> usize {
+        3 * (self.samples.len() + self.oriented.len())
+    }
 }
 
 /// How the Jacobian treats the deformation of a robot with error models.
@@ -528,8 +574,15 @@ enum ColumnPlan {
     Finite { tree: KinematicTree, h: f64 },
     /// An error-model parameter: the difference of that model's deformation at `values` (the
     /// model's parameters with this one stepped by `h`), to first order at the deformed
-    /// frames (the rigid kinematics and the other models' share are reused).
-    Model { model: usize, values: Vec<f64>, h: f64 },
+    /// frames (the rigid kinematics and the other models' share are reused). `errors` are all
+    /// the models' parameters with this one stepped: the orientation of pose samples is
+    /// differenced through the full model.
+    Model {
+        model: usize,
+        values: Vec<f64>,
+        errors: Vec<Vec<f64>>,
+        h: f64,
+    },
     /// A parameter of a load-adjusting model (a payload mass, a base tilt): finite differences
     /// of the full model, since every elastic model responds to the load. `errors` are all the
     /// models' parameters with this one stepped by `h`.
@@ -541,7 +594,8 @@ enum ColumnPlan {
         to: Isometry3<f64>,
         h: f64,
     },
-    /// A marker offset along `axis` of its link frame: exact.
+    /// A marker offset along `axis` 0–2 of its link frame, or a turn about axis `axis − 3` of
+    /// the point's own frame: exact.
     Marker { point: usize, axis: usize },
 }
 
@@ -616,12 +670,7 @@ pub fn calibrate(
     }
     let space = prior_space(robot, params);
     let selected = space.select(robot, &params.identify)?;
-    let problem = Problem {
-        robot,
-        space: &space,
-        samples,
-        sigma: params.measurement_std,
-    };
+    let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
     // The priors' centre: the robot's values, the measurement frame as registered.
     let mut theta0 = space.initial();
     let (_, _, pred) = problem.predict(&theta0)?;
@@ -638,6 +687,8 @@ pub fn calibrate(
         });
     }
     let before = stats(samples, &pred);
+    let (d0, e0, _) = problem.predict(&theta0)?;
+    let before_orientation = problem.orientation_stats(&d0, &e0);
     let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
     let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
     let start = match &params.start {
@@ -744,7 +795,7 @@ pub fn calibrate(
 
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
     let pred = to_meas(&d.t_meas_base, &e.world);
-    let r = problem.residuals(&pred);
+    let r = problem.residuals(&d, &e);
     // The fit's last iteration computed it when its convergence test needed it.
     let j = match exact_jacobian {
         Some((columns, j)) if columns == free => j,
@@ -824,6 +875,8 @@ pub fn calibrate(
         theta,
         centre: theta0,
         noise: params.measurement_std,
+        orientation_noise: params.orientation_std,
+        position_rows: 3 * samples.len(),
         residuals: r,
         jacobian: j,
     };
@@ -843,6 +896,8 @@ pub fn calibrate(
             stop_reason: outcome.stop_reason,
             before,
             after,
+            before_orientation,
+            after_orientation: problem.orientation_stats(&d, &e),
             rms_over_noise,
             units_mislabelled,
             warnings,

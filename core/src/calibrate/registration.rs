@@ -78,7 +78,7 @@ pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) 
 /// the other unit. The message names the mistake and the fix.
 pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Option<String>> {
     let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
-        let p = Problem { samples, ..*problem };
+        let p = Problem::new(problem.robot, problem.space, samples, problem.sigma, problem.sigma_rot);
         Ok(p.predict(theta0)?.1.world)
     };
     let measured: Vec<Vector3<f64>> = problem.samples.iter().map(|s| s.position).collect();

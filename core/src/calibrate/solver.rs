@@ -37,7 +37,7 @@ impl LeastSquares for StageFit<'_, '_> {
     }
 
     fn n_residuals(&self) -> usize {
-        3 * self.problem.samples.len()
+        self.problem.n_residuals()
     }
 
     fn residuals_into(&mut self, x: &[f64], r: &mut DVector<f64>) -> Result<()> {
@@ -45,8 +45,8 @@ impl LeastSquares for StageFit<'_, '_> {
         for (&k, &v) in self.free.iter().zip(x) {
             theta[k] = v;
         }
-        let (d, e, pred) = self.problem.predict(&theta)?;
-        *r = self.problem.residuals(&pred);
+        let (d, e, _) = self.problem.predict(&theta)?;
+        *r = self.problem.residuals(&d, &e);
         self.trial = Some((theta, d, e));
         Ok(())
     }
@@ -94,10 +94,11 @@ impl LeastSquares for StageFit<'_, '_> {
     }
 
     fn iteration(&mut self, it: &LmIteration<'_>) -> ControlFlow<()> {
+        let n = self.problem.samples.len();
         (self.observer)(&IterationInfo {
             iteration: self.before + it.iteration,
             max_iterations: self.params.max_iterations,
-            rms: (it.residuals.norm_squared() / self.problem.samples.len() as f64).sqrt() * self.params.measurement_std,
+            rms: (it.residuals.rows(0, 3 * n).norm_squared() / n as f64).sqrt() * self.params.measurement_std,
             lambda: it.damping,
         });
         ControlFlow::Continue(())

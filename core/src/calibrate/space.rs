@@ -1,7 +1,7 @@
 //! The parameter space: every parameter calibration can touch, by name, and the robot with
 //! a parameter vector written into its description.
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
 use crate::geom::xyz_rpy;
@@ -66,12 +66,13 @@ impl ParameterSpace {
             });
         }
         let marker_offset = params.len();
+        let marker_dofs = robot.marker_dofs();
         for i in 0..robot.markers().len() {
-            for _ in 0..3 {
+            for a in 0..marker_dofs {
                 params.push(SpaceParam {
                     info: ParamInfo::new(
-                        setup.next().expect("three names per marker"),
-                        Quantity::Length,
+                        setup.next().expect("a name per marker parameter"),
+                        if a < 3 { Quantity::Length } else { Quantity::Angle },
                         0.0,
                         f64::INFINITY,
                     ),
@@ -86,6 +87,7 @@ impl ParameterSpace {
             error_offsets,
             base_offset,
             marker_offset,
+            marker_dofs,
         }
     }
 
@@ -185,17 +187,30 @@ impl ParameterSpace {
     pub(super) fn tree(&self, robot: &Robot, theta: &[f64]) -> Result<KinematicTree> {
         let mut tree = robot.tree_for(&theta[..self.n_chain])?;
         for (i, &m) in robot.markers().iter().enumerate() {
-            let o = self.marker_offset + 3 * i;
+            let o = self.marker_offset + self.marker_dofs * i;
             let delta = Vector3::new(theta[o], theta[o + 1], theta[o + 2]);
-            if delta != Vector3::zeros() {
+            let turn = self.marker_turn(theta, i);
+            if delta != Vector3::zeros() || turn != Vector3::zeros() {
                 let point = &tree.points()[m];
                 let mut local = point.local;
                 // Offsets are in the body's convention frame, as the file's coordinates.
                 local.translation.vector += tree.bodies()[point.body].convention_frame.rotation * delta;
+                // Turns are about the point's own axes, which the file's rpy then absorbs.
+                local.rotation *= UnitQuaternion::from_scaled_axis(turn);
                 tree.set_point_local(m, local);
             }
         }
         Ok(tree)
+    }
+
+    /// Marker `i`'s orientation offset in `theta` (rotation vector, rad; zero when the robot
+    /// measures positions only).
+    pub(super) fn marker_turn(&self, theta: &[f64], i: usize) -> Vector3<f64> {
+        if self.marker_dofs < 6 {
+            return Vector3::zeros();
+        }
+        let o = self.marker_offset + self.marker_dofs * i + 3;
+        Vector3::new(theta[o], theta[o + 1], theta[o + 2])
     }
 
     pub(super) fn base_pose(&self, theta: &[f64]) -> Isometry3<f64> {
@@ -294,10 +309,17 @@ pub(super) fn apply(robot: &Robot, space: &ParameterSpace, theta: &[f64]) -> Res
     measurement.base_rpy = [b[3], b[4], b[5]].map(|v| units.ang_out(v));
     for (i, &m) in robot.markers().iter().enumerate() {
         let name = &robot.tree().points()[m].name;
-        let o = space.marker_offset + 3 * i;
+        let o = space.marker_offset + space.marker_dofs * i;
+        let turn = space.marker_turn(theta, i);
         if let Some(p) = file.points.iter_mut().find(|p| &p.name == name) {
             for a in 0..3 {
                 p.xyz[a] += units.len_out(theta[o + a]);
+            }
+            if turn != Vector3::zeros() {
+                let rpy = units.ang3(p.rpy);
+                let r = xyz_rpy([0.0; 3], rpy).rotation * UnitQuaternion::from_scaled_axis(turn);
+                let (roll, pitch, yaw) = r.euler_angles();
+                p.rpy = [roll, pitch, yaw].map(|v| units.ang_out(v));
             }
         }
     }
