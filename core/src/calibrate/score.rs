@@ -17,7 +17,8 @@ use super::*;
 /// What adding parameters to a fitted model is predicted to gain.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScoreTest {
-    /// Sum of squared residuals (m²) predicted after refitting with the added parameters.
+    /// Sum of squared residuals (m²) predicted after refitting with the added parameters
+    /// (orientation residuals of pose measurements counted in units of the position noise).
     pub predicted_sse: f64,
 }
 
@@ -49,15 +50,10 @@ pub fn score_test(
 ) -> Result<ScoreTest> {
     let space = prior_space(robot, params);
     let selected = space.select(robot, &params.identify)?;
-    let problem = Problem {
-        robot,
-        space: &space,
-        samples,
-        sigma: params.measurement_std,
-    };
+    let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
     let theta = space.initial();
-    let (d, e, predicted) = problem.predict(&theta)?;
-    let r = problem.residuals(&predicted);
+    let (d, e, _) = problem.predict(&theta)?;
+    let r = problem.residuals(&d, &e);
     let j = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     let mut a = j.tr_mul(&j);
     for (c, &k) in selected.iter().enumerate() {
@@ -78,10 +74,10 @@ pub fn score_test(
         for v in probes(&space.params[k].info) {
             let mut probe = theta.clone();
             probe[k] = v;
-            let Ok((_, _, predicted)) = problem.predict(&probe) else {
+            let Ok((d, e, _)) = problem.predict(&probe) else {
                 continue;
             };
-            let r = problem.residuals(&predicted);
+            let r = problem.residuals(&d, &e);
             let cost = r.norm_squared() - gauss_newton_drop(&a, &j.tr_mul(&r), &own);
             if cost.is_finite() {
                 best = best.min(cost);
