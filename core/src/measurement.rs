@@ -666,7 +666,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
 }
 
 /// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
-fn listed(names: &[&str]) -> String {
+pub fn listed(names: &[&str]) -> String {
     let mut text = names
         .iter()
         .take(10)
