@@ -375,6 +375,19 @@ impl Robot {
             .collect()
     }
 
+    /// Names of the joints a measurement file must give a column for: the measured chain's
+    /// independent coordinates (a mimic joint's driving joint, never the mimic) whose value
+    /// the robot file does not `hold`, in coordinate order.
+    pub fn csv_joint_names(&self) -> Vec<String> {
+        self.csv_layout()
+            .hold
+            .iter()
+            .zip(self.tree.coordinate_names())
+            .filter(|(held, _)| held.is_none())
+            .map(|(_, name)| name.clone())
+            .collect()
+    }
+
     /// Per independent coordinate, whether it moves a marker: the measured chain, whose
     /// joints a measurement file must give.
     pub fn measured_coordinates(&self) -> Vec<bool> {
