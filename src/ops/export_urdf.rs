@@ -40,15 +40,12 @@ pub fn summary(robot: &Robot, urdf: &CalibratedUrdf, dropped: &[String]) -> Vec<
     let pose = |p: &Isometry3<f64>| {
         let v = p.translation.vector;
         let (r, pitch, y) = p.rotation.euler_angles();
+        // `+ 0.0` turns -0 into 0, which prints without a sign.
+        let [x, yy, z] = [v.x, v.y, v.z].map(|c| units.len_out(c) + 0.0);
+        let [r, pitch, y] = [r, pitch, y].map(|a| units.ang_out(a) + 0.0);
         format!(
-            "xyz [{:.6}, {:.6}, {:.6}] {}, rpy [{:.6}, {:.6}, {:.6}] {}",
-            units.len_out(v.x),
-            units.len_out(v.y),
-            units.len_out(v.z),
+            "xyz [{x:.6}, {yy:.6}, {z:.6}] {}, rpy [{r:.6}, {pitch:.6}, {y:.6}] {}",
             units.length.symbol(),
-            units.ang_out(r),
-            units.ang_out(pitch),
-            units.ang_out(y),
             units.angle.symbol()
         )
     };
