@@ -90,6 +90,8 @@ pub struct Validation {
     pub not_loaded: Vec<Diagnostic>,
     /// The run-time plugin libraries the file made this run load (and their configs checked).
     pub loaded: Vec<PathBuf>,
+    /// What is legal but unlikely (implausible values with their bounds, skipped meshes).
+    pub warnings: Vec<String>,
 }
 
 /// Checks one robot file (a bare URDF is read and built): syntax and types, then semantics
@@ -102,7 +104,8 @@ pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
 
 /// [`validate_file`], with the plugin libraries that were not loaded apart from the problems.
 pub fn check_file(path: &Path, schema: &Value) -> Validation {
-    let (diagnostics, inputs) = armcomp_core::io::recording_reads(|| diagnose_file(path, schema));
+    let mut warnings = Vec::new();
+    let (diagnostics, inputs) = armcomp_core::io::recording_reads(|| diagnose_file(path, schema, &mut warnings));
     let (not_loaded, problems) = diagnostics
         .into_iter()
         .partition(|d| d.message.starts_with(armcomp_sdk::NOT_ALLOWED));
@@ -112,13 +115,18 @@ pub fn check_file(path: &Path, schema: &Value) -> Validation {
         problems,
         not_loaded,
         loaded,
+        warnings,
     }
 }
 
-fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
+/// The problems of the file at `path`; a robot that builds adds its warnings to `warnings`.
+fn diagnose_file(path: &Path, schema: &Value, warnings: &mut Vec<String>) -> Vec<Diagnostic> {
     if crate::load::is_urdf(path) {
         return match armcomp_urdf::robot_from_urdf(path) {
-            Ok(_) => Vec::new(),
+            Ok(r) => {
+                warnings.extend_from_slice(r.warnings());
+                Vec::new()
+            }
             Err(e) => from_error(path, e),
         };
     }
@@ -140,7 +148,10 @@ fn diagnose_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
     // Semantic checks first: they name non-finite numbers plainly, where the schema (which
     // sees them as null) would print the whole plugin table.
     let built = match Robot::from_source(file, &src) {
-        Ok(_) => Vec::new(),
+        Ok(r) => {
+            warnings.extend_from_slice(r.warnings());
+            Vec::new()
+        }
         Err(e) => from_error(path, e),
     };
     if built.iter().any(|d| !d.message.starts_with(armcomp_sdk::NOT_ALLOWED)) {

@@ -17,6 +17,26 @@ fn justin() -> Robot {
     robot("agile-justin.toml")
 }
 
+/// The torso's passive frame `t4` follows `t2` and `t3`: it is on the measured chain, but the
+/// columns a measurement file needs are the joints that drive it.
+#[test]
+fn the_csv_holds_the_driving_joints_not_the_mimic() {
+    let r = justin();
+    assert!(r.measured_joint_names().contains(&"t4".to_string()));
+    let columns = r.csv_joint_names();
+    let expected: Vec<String> = ["t1", "t2", "t3"]
+        .into_iter()
+        .map(String::from)
+        .chain((1..=7).map(|k| format!("r{k}")))
+        .chain((1..=7).map(|k| format!("l{k}")))
+        .collect();
+    let mut sorted = columns.clone();
+    sorted.sort();
+    let mut expected_sorted = expected;
+    expected_sorted.sort();
+    assert_eq!(sorted, expected_sorted);
+}
+
 #[test]
 fn reader_maps_joints_and_markers_exactly() {
     let r = justin();

@@ -1,7 +1,7 @@
 //! Compensation: commanding the truth robot with the computed command lands on the target.
 
 use armcomp_core::PredictorSpec;
-use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
+use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range, tool_chain};
 use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, position_errors};
 use armcomp_core::ik::{IkParams, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
 use armcomp_core::measurement::{read_csv, write_csv};
@@ -481,4 +481,157 @@ fn learn_fits_the_predictor_named_on_the_command_line() {
     let (code, _, err) = run(&["--predictor", "nope"]);
     assert_ne!(code, 0);
     assert!(err.contains("nope") && err.contains("gp"), "{err}");
+}
+
+/// TALOS, a humanoid whose marker is on the left gripper: the coordinate named `name`.
+fn coordinate(r: &armcomp_core::Robot, name: &str) -> usize {
+    r.tree().coordinate_names().iter().position(|n| n == name).unwrap()
+}
+
+/// Compensating the left arm's marker of a humanoid moves only the torso and left arm, from
+/// any start; a locked joint keeps its value exactly; the target is still reached (by FK).
+#[test]
+fn compensation_moves_only_the_measured_chain_and_keeps_locked_joints() {
+    let r = robot("talos-left-arm.toml");
+    let chain = tool_chain(&r);
+    assert_eq!(chain, r.measured_coordinates());
+    assert_eq!(chain.iter().filter(|c| **c).count(), 9);
+    assert!(r.tree().nq() > 30);
+    let locked_joint = coordinate(&r, "arm_left_2_joint");
+    let mut locked = vec![false; r.tree().nq()];
+    locked[locked_joint] = true;
+    let mut comp = Compensator::for_model(&r, CompensationParams::default()).unwrap();
+    comp.lock(&locked).unwrap();
+    // Starts with every joint somewhere (legs bent, head turned, the other arm raised), and
+    // truths that differ from them only in the free joints.
+    let starts = random_configurations(&r, 6, 91);
+    let moves = random_configurations(&r, 6, 92);
+    for (start, moved) in starts.iter().zip(&moves) {
+        let truth: Vec<f64> = (0..start.len())
+            .map(|c| if chain[c] && !locked[c] { moved[c] } else { start[c] })
+            .collect();
+        let target = r.forward(&truth).unwrap().point[r.tool()].translation.vector;
+        comp.compensate(&target, start, CompensationMode::Exact).unwrap();
+        let q = comp.q().to_vec();
+        for (c, name) in r.tree().coordinate_names().iter().enumerate() {
+            if !chain[c] || locked[c] {
+                assert_eq!(q[c].to_bits(), start[c].to_bits(), "{name} moved");
+            }
+        }
+        let landed = r.forward(&q).unwrap().point[r.tool()].translation.vector;
+        assert!((landed - target).norm() < 1e-8, "{:e}", (landed - target).norm());
+    }
+    // A locked joint outside its limits cannot be kept: refused, named.
+    let mut outside = starts[0].clone();
+    let limits = r.tree().coordinate_limits()[locked_joint].unwrap();
+    outside[locked_joint] = limits.upper + 0.1;
+    let target = r.forward(&starts[0]).unwrap().point[r.tool()].translation.vector;
+    let err = comp.compensate(&target, &outside, CompensationMode::Exact).unwrap_err();
+    assert!(err.to_string().contains("locked joint `arm_left_2_joint`"), "{err}");
+}
+
+/// `armcomp compensate --start S --lock …` on the humanoid: the commands keep every joint
+/// outside the left arm at the start file's value (or the robot file's hold value, 0), the
+/// locked torso where the start puts it, and land on the targets by FK.
+#[test]
+fn compensate_cli_keeps_the_start_outside_the_measured_chain() {
+    let dir = Scratch::new("compensate-talos");
+    let r = robot("talos-left-arm.toml");
+    let names = r.tree().coordinate_names();
+    let given = [
+        ("torso_1_joint", 0.2),
+        ("torso_2_joint", 0.1),
+        ("head_1_joint", 0.3),
+        ("leg_left_4_joint", 0.5),
+        ("arm_right_4_joint", -0.4),
+    ];
+    let header: Vec<String> = given.iter().map(|(n, _)| format!("{n}[rad]")).collect();
+    let values: Vec<String> = given.iter().map(|(_, v)| v.to_string()).collect();
+    let start_path = dir.file("start.csv", &format!("{}\n{}\n", header.join(","), values.join(",")));
+    // The start, by hand: the given joints, every other one at 0, or the middle of its limits
+    // where they exclude 0 (what a measurement file holds a joint at without a column).
+    let mut start: Vec<f64> = r
+        .tree()
+        .coordinate_limits()
+        .iter()
+        .map(|l| match l {
+            Some(l) if l.lower > 0.0 || l.upper < 0.0 => 0.5 * (l.lower + l.upper),
+            _ => 0.0,
+        })
+        .collect();
+    for (n, v) in given {
+        start[coordinate(&r, n)] = v;
+    }
+    let arm: Vec<usize> = (1..=7)
+        .map(|k| coordinate(&r, &format!("arm_left_{k}_joint")))
+        .collect();
+    let mut targets = Vec::new();
+    let mut csv = String::from("x[m],y[m],z[m]\n");
+    for moved in random_configurations(&r, 4, 17) {
+        let mut truth = start.clone();
+        arm.iter().for_each(|&c| truth[c] = moved[c]);
+        let p = r.forward(&truth).unwrap().point[r.tool()].translation.vector;
+        csv.push_str(&format!("{},{},{}\n", p.x, p.y, p.z));
+        targets.push(p);
+    }
+    let targets_path = dir.file("targets.csv", &csv);
+    let out = dir.0.join("commands.csv");
+    let (code, _, err) = compensate_cli(
+        "robots/talos-left-arm.toml",
+        &targets_path,
+        &out,
+        &[
+            "--frame",
+            "base",
+            "--start",
+            start_path.to_str().unwrap(),
+            "--lock",
+            "torso_1_joint,torso_2_joint",
+        ],
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains(&format!("changed 7 of {} joints: arm_left_1_joint", names.len())),
+        "{err}"
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let nq = r.tree().nq();
+    let joint_columns: String = text
+        .lines()
+        .map(|l| l.split(',').take(nq).collect::<Vec<_>>().join(","))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let commands = armcomp_core::measurement::parse_poses(&joint_columns, &out, &r.csv_layout()).unwrap();
+    assert_eq!(commands.len(), targets.len());
+    for (q, target) in commands.iter().zip(&targets) {
+        for (c, name) in names.iter().enumerate() {
+            if !arm.contains(&c) {
+                assert!(
+                    (q[c] - start[c]).abs() < 1e-12,
+                    "{name}: {} instead of {}",
+                    q[c],
+                    start[c]
+                );
+            }
+        }
+        let landed = r.forward(q).unwrap().point[r.tool()].translation.vector;
+        assert!((landed - target).norm() < 1e-6, "{:e}", (landed - target).norm());
+    }
+
+    for (lock, expected) in [
+        (
+            "arm_left_9_joint",
+            "locked joint `arm_left_9_joint` is not a joint of `talos-left-arm`",
+        ),
+        ("gripper_left_base_link_joint", "is a fixed joint"),
+    ] {
+        let (code, _, err) = compensate_cli(
+            "robots/talos-left-arm.toml",
+            &targets_path,
+            &out,
+            &["--frame", "base", "--lock", lock],
+        );
+        assert_ne!(code, 0);
+        assert!(err.contains(expected), "{err}");
+    }
 }

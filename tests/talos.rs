@@ -239,16 +239,92 @@ fn export_urdf_rewrites_only_identified_joints_and_matches_the_model() {
     let first = identified.iter().map(|j| j.range.start).min().unwrap();
     let last = identified.iter().map(|j| j.range.end).max().unwrap();
     assert_eq!(original[..first], exported[..first]);
+    // The identified marker is added last, as a link of its own on a fixed joint.
+    let added = exported.rfind("  <link name=\"marker\"/>").unwrap();
+    let end = exported.rfind("</robot>").unwrap();
+    assert!(exported[added..end].contains("<parent link=\"gripper_left_base_link\"/>"));
+    let without = format!("{}{}", &exported[..added], &exported[end..]);
     let tail = original.len() - last;
-    assert_eq!(original[last..], exported[exported.len() - tail..]);
-    // The exported URDF, read as any URDF, puts the marker's link where the model does.
+    assert_eq!(original[last..], without[without.len() - tail..]);
+    // The exported URDF, read as any URDF, puts the marker's link and the marker where the
+    // model does.
     let bare = armcomp_urdf::robot_from_urdf(&out).unwrap();
     let link = bare.tree().body_index("gripper_left_base_link").unwrap();
-    let marker_body = fitted.robot.tree().points()[fitted.robot.tool()].body;
-    for q in random_configurations(&fitted.robot, 5, 11) {
-        let a = fitted.robot.forward(&q).unwrap().body[marker_body];
-        let b = bare.forward(&q).unwrap().body[link];
-        assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
-        assert!(a.rotation.angle_to(&b.rotation) < 1e-9);
+    let marker = bare.tree().point_index("marker").unwrap();
+    let model = &fitted.robot;
+    let marker_body = model.tree().points()[model.tool()].body;
+    assert!(model.tree().points()[model.tool()].local.translation.vector.norm() > 1e-3);
+    for q in random_configurations(model, 5, 11) {
+        let (a, b) = (model.forward(&q).unwrap(), bare.forward(&q).unwrap());
+        for (a, b) in [
+            (a.body[marker_body], b.body[link]),
+            (a.point[model.tool()], b.point[marker]),
+        ] {
+            assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
+            assert!(a.rotation.angle_to(&b.rotation) < 1e-9);
+        }
+    }
+    // The table says what was written and what was not.
+    for (status, item) in [
+        ("written ", "joint `arm_left_1_joint`"),
+        ("written ", "marker `marker`"),
+        ("not written ", "measurement frame"),
+    ] {
+        assert!(row(&log, status, item), "{status}{item}: {log}");
+    }
+}
+
+/// Whether `log` has a table row of `status` about `item`.
+fn row(log: &str, status: &str, item: &str) -> bool {
+    log.lines()
+        .any(|l| l.trim_start().starts_with(status) && l.contains(item))
+}
+
+/// Values a fit leaves at rounding level are written as exactly 0, with a count in the table,
+/// and the marker's offset is written; the export still matches the model.
+#[test]
+fn export_urdf_writes_rounding_as_zero() {
+    let s = Scratch::new("talos-export-zero");
+    let urdf = root().join("data/talos-left-arm/talos_full_v2.urdf");
+    let model = s.file(
+        "model.toml",
+        &format!(
+            r#"name = "talos-left-arm"
+kinematics = {{ type = "urdf", path = {:?}, joints = [{{ name = "arm_left_3_joint", xyz = [-3.09e-11, 0.0, 2e-9] }}] }}
+points = [{{ name = "marker", link = "gripper_left_base_link", xyz = [0.01, 4e-11, -0.02] }}]
+tool = "marker"
+
+[measurement]
+markers = ["marker"]
+"#,
+            urdf.display().to_string()
+        ),
+    );
+    let out = s.0.join("calibrated.urdf");
+    let (ok, log) = armcomp(&[
+        "export-urdf",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{log}");
+    assert!(row(&log, "written as 0 ", "2 value(s)"), "{log}");
+    let exported = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        exported.contains("<origin xyz=\"0.0 0.0 2e-9\" rpy=\"0.0 0.0 0.0\"/>"),
+        "{exported}"
+    );
+    assert!(
+        exported.contains("<origin xyz=\"0.01 0.0 -0.02\" rpy=\"0.0 0.0 0.0\"/>"),
+        "{exported}"
+    );
+    let r = armcomp_core::Robot::from_path(&model).unwrap();
+    let bare = armcomp_urdf::robot_from_urdf(&out).unwrap();
+    let marker = bare.tree().point_index("marker").unwrap();
+    for q in random_configurations(&r, 5, 12) {
+        let a = r.forward(&q).unwrap().point[r.tool()].translation.vector;
+        let b = bare.forward(&q).unwrap().point[marker].translation.vector;
+        assert!((a - b).norm() < 1e-9, "{:e}", (a - b).norm());
     }
 }

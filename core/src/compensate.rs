@@ -14,6 +14,11 @@
 //!   after the first on the rock-drill twin. Predictors without a derivative get the
 //!   fixed-point version (the residual held constant within each solve), which converges
 //!   linearly at the rate of the residual's sensitivity.
+//!
+//! Only the joints that move the tool (the measured chain, for a tool that is a marker) change:
+//! every other joint keeps its start value, so compensating one arm of a humanoid leaves its
+//! legs, head and other arm where they were. More joints can be locked
+//! ([`Compensator::lock`]).
 
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 
@@ -129,12 +134,14 @@ impl<'a> Compensator<'a> {
                 ),
             });
         }
+        let mut ik = IkWorkspace::new(robot);
+        ik.lock(&tool_chain(robot).iter().map(|moving| !moving).collect::<Vec<_>>())?;
         Ok(Compensator {
             robot,
             predictor,
             base_from_meas: robot.t_meas_base().rotation.inverse(),
             params,
-            ik: IkWorkspace::new(robot),
+            ik,
             offset: LinearOffset::zeros(robot.tree().nq()),
             out: [0.0; 3],
             input: {
@@ -155,6 +162,27 @@ impl<'a> Compensator<'a> {
     /// The joint command of the last [`compensate`](Compensator::compensate).
     pub fn q(&self) -> &[f64] {
         self.ik.q()
+    }
+
+    /// Keeps the coordinates flagged in `locked` (one flag per coordinate) at their start
+    /// values, besides those that do not move the tool, which stay locked.
+    pub fn lock(&mut self, locked: &[bool]) -> Result<()> {
+        let chain = tool_chain(self.robot);
+        let nq = chain.len();
+        if locked.len() != nq {
+            return Err(Error::Dimension {
+                what: "locked joints".into(),
+                expected: nq,
+                got: locked.len(),
+            });
+        }
+        let all: Vec<bool> = locked.iter().zip(&chain).map(|(l, moving)| *l || !moving).collect();
+        self.ik.lock(&all)
+    }
+
+    /// Per coordinate, whether compensation keeps it at its start value.
+    pub fn locked(&self) -> &[bool] {
+        self.ik.locked()
     }
 
     /// Whether a predictor takes part.
@@ -315,5 +343,27 @@ pub fn mid_range(robot: &Robot) -> Vec<f64> {
         .coordinate_limits()
         .iter()
         .map(|l| l.map_or(0.0, |l| 0.5 * (l.lower + l.upper)))
+        .collect()
+}
+
+/// Per coordinate, whether it moves the tool: the joints compensation may change.
+pub fn tool_chain(robot: &Robot) -> Vec<bool> {
+    robot
+        .tree()
+        .coordinates_moving(&[robot.tree().points()[robot.tool()].body])
+}
+
+/// Where compensation starts when no configuration is given: the joints that move the tool
+/// at the middle of their limits ([`mid_range`]), every other joint where a measurement file
+/// holds it when it has no column for it (the robot file's `hold`, else 0, else the middle of
+/// the limits).
+pub fn default_start(robot: &Robot) -> Vec<f64> {
+    robot
+        .csv_layout()
+        .hold
+        .iter()
+        .zip(mid_range(robot))
+        .zip(tool_chain(robot))
+        .map(|((held, mid), moving)| if moving { mid } else { held.unwrap_or(mid) })
         .collect()
 }

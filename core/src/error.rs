@@ -77,7 +77,7 @@ impl Issue {
     }
 
     /// `path: message`, or the message alone when the path is empty.
-    fn in_model(&self) -> String {
+    pub(crate) fn in_model(&self) -> String {
         if self.path.is_empty() {
             self.message.clone()
         } else {

@@ -10,8 +10,10 @@
 //! - [`IkMethod::DampedLeastSquares`]: `Δq = Jᵀ (J Jᵀ + μ I)⁻¹ e` with `μ` adapted
 //!   Levenberg–Marquardt style, robust near singular configurations.
 //!
-//! Joint limits are respected by projecting every iterate onto them. A start that stalls is
-//! followed by deterministic restarts spread over the limits (Sobol points). When no start
+//! Joint limits are respected by projecting every iterate onto them. Locked coordinates
+//! ([`IkWorkspace::lock`]) keep their start value exactly: their Jacobian columns are left out
+//! and restarts do not move them. A start that stalls is followed by deterministic restarts
+//! spread over the limits (Sobol points). When no start
 //! reaches the tolerance the error carries the closest configuration found and its distance;
 //! the iteration count is capped, so the solver always returns.
 
@@ -187,6 +189,8 @@ pub struct IkWorkspace {
     trial: Vec<f64>,
     best: Vec<f64>,
     dq: Vec<f64>,
+    /// Per coordinate, whether the solver keeps it at its start value.
+    locked: Vec<bool>,
 }
 
 impl IkWorkspace {
@@ -201,7 +205,27 @@ impl IkWorkspace {
             trial: vec![0.0; n],
             best: vec![0.0; n],
             dq: vec![0.0; n],
+            locked: vec![false; n],
         }
+    }
+
+    /// Which coordinates later solves keep at their start value (one flag per coordinate;
+    /// none by default).
+    pub fn lock(&mut self, locked: &[bool]) -> Result<(), Error> {
+        if locked.len() != self.locked.len() {
+            return Err(Error::Dimension {
+                what: "locked joints".into(),
+                expected: self.locked.len(),
+                got: locked.len(),
+            });
+        }
+        self.locked.copy_from_slice(locked);
+        Ok(())
+    }
+
+    /// Per coordinate, whether solves keep it at its start value.
+    pub fn locked(&self) -> &[bool] {
+        &self.locked
     }
 
     /// Joint values of the last solve (the solution, or the closest configuration found).
@@ -355,6 +379,25 @@ pub(crate) fn solve_from(
         }
         Start::Previous => ws.start.copy_from_slice(&ws.q),
     }
+    // A locked coordinate is kept exactly, so projecting it onto its limits is no option.
+    for (k, l) in tree.coordinate_limits().iter().enumerate() {
+        if let Some(l) = l
+            && ws.locked[k]
+            && !(l.lower..=l.upper).contains(&ws.start[k])
+        {
+            return Err(Error::InvalidArgument {
+                what: format!("locked joint `{}`", tree.coordinate_names()[k]),
+                reason: {
+                    let unit = if tree.coordinate_is_prismatic()[k] { "m" } else { "rad" };
+                    format!(
+                        "held at {} {unit}, outside its limits [{}, {}] {unit}",
+                        ws.start[k], l.lower, l.upper
+                    )
+                },
+            }
+            .into());
+        }
+    }
     if point >= tree.points().len() {
         return Err(Error::InvalidArgument {
             what: format!("point {point}"),
@@ -402,6 +445,7 @@ pub(crate) fn solve_from(
             for (k, v) in ws.q.iter_mut().enumerate() {
                 let h = crate::sampling::sobol_coordinate(start as u32, k, 0);
                 *v = match limits[k] {
+                    _ if ws.locked[k] => ws.start[k],
                     Some(l) => l.lower + (l.upper - l.lower) * h,
                     None if tree.coordinate_is_prismatic()[k] => ws.start[k],
                     None => -std::f64::consts::PI + 2.0 * std::f64::consts::PI * h,
@@ -424,6 +468,10 @@ pub(crate) fn solve_from(
             // Task Jacobian of the deformed arm, orientation rows weighted.
             tree.pose_jacobian_into(&ws.robot.frames, point, &mut ws.jac);
             for c in 0..n {
+                if ws.locked[c] {
+                    ws.jac.column_mut(c).fill(0.0);
+                    continue;
+                }
                 if let Some(o) = offset {
                     for r in 0..3 {
                         ws.jac[(r, c)] += o.jacobian[(r, c)];

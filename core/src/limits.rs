@@ -12,6 +12,14 @@ pub const MEMORY_BYTES: f64 = 4.0 * 1024.0 * 1024.0 * 1024.0;
 /// at the billion a second one core sustains on this code's small, branchy loops.
 pub const WORK_FLOPS: f64 = 1e12;
 
+/// What one data row of a measurement file costs the work it goes into: calibration's
+/// Jacobian holds three rows a measured position for each of up to a hundred parameters
+/// (2.4 kB), and each of some fifty iterations forms its normal equations from them (3 · 100²
+/// operations a row each time). Rows are counted and checked against this before any is read.
+pub fn measurement_row_cost(rows: usize) -> Cost {
+    Cost::per_unit(rows, 3.0 * 100.0 * 8.0, 50.0 * 3.0 * 100.0 * 100.0)
+}
+
 /// What a request of some size costs in total.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cost {
@@ -121,6 +129,13 @@ mod tests {
         assert!(e.starts_with("--n 100001: at most 100000 poses"), "{e}");
         // Free: any size fits.
         assert_eq!(largest(&|_| Cost::per_unit(1, 0.0, 0.0)), usize::MAX);
+    }
+
+    #[test]
+    fn the_row_limit_is_set_by_the_time_of_a_calibration() {
+        // 1.5e6 operations a row: 1e12 allow 666 666 rows; memory (2.4 kB a row) would allow
+        // 1.8 million.
+        assert_eq!(largest(&measurement_row_cost), 666_666);
     }
 
     #[test]

@@ -356,6 +356,19 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         crate::limits::Cost::per_unit(n, 64.0 + 16.0 * lines, 50.0 * lines)
     })
     .map_err(|e| err(Some(header_line), e.to_string()))?;
+    // Counted before any row is parsed: a file of millions of rows is refused at once.
+    let rows = text
+        .lines()
+        .skip(header_line)
+        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .count();
+    crate::limits::check(
+        "data rows of a measurement file",
+        rows,
+        "rows",
+        &crate::limits::measurement_row_cost,
+    )
+    .map_err(|e| err(None, e.to_string()))?;
     // Spreadsheets export `;`- or tab-separated files, whose header reads as one mangled column.
     if let Some((_, words)) = [(';', "semicolons"), ('\t', "tabs")]
         .into_iter()
@@ -766,7 +779,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
 }
 
 /// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
-fn listed(names: &[&str]) -> String {
+pub fn listed(names: &[&str]) -> String {
     let mut text = names
         .iter()
         .take(10)

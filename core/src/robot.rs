@@ -102,6 +102,10 @@ pub struct RobotWorkspace {
 /// Gravity (m/s²) no robot works in: a hundred times Earth's.
 const ABSURD_GRAVITY: f64 = 1e3;
 
+/// Gravity (m/s²) beyond which a robot file is warned about: twice Earth's, more than any
+/// planet a robot is calibrated on, and what a unit slip (cm/s²) or a typo gives.
+const PLAUSIBLE_GRAVITY: f64 = 20.0;
+
 /// Names of the base frame's six parameters (`base.<name>`), in the order of
 /// [`xyz_rpy`](crate::geom::xyz_rpy): position, then roll, pitch, yaw.
 pub(crate) const BASE_NAMES: [&str; 6] = ["x", "y", "z", "roll", "pitch", "yaw"];
@@ -120,7 +124,7 @@ impl Robot {
     /// Checks and builds a parsed robot file, mapping problems to lines of `src`.
     pub fn from_source(file: RobotFile, src: &SourceFile) -> Result<Robot> {
         let dir = src.path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut robot = Robot::build(file, &dir).map_err(|issues| src.invalid(issues))?;
+        let mut robot = Robot::build_from(file, &dir, Some(src)).map_err(|issues| src.invalid(issues))?;
         robot.source = Some(src.path.clone());
         Ok(robot)
     }
@@ -128,13 +132,18 @@ impl Robot {
     /// Checks and builds a robot description; `base_dir` resolves relative paths in it. The
     /// files read meanwhile on this thread are the robot's [`inputs`](Robot::inputs).
     pub fn build(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
-        let (built, files) = crate::io::recording_reads(|| Robot::build_unrecorded(file, base_dir));
+        Robot::build_from(file, base_dir, None)
+    }
+
+    /// [`build`](Robot::build); warnings name their line in `src`, when given.
+    fn build_from(file: RobotFile, base_dir: &Path, src: Option<&SourceFile>) -> Result<Robot, Vec<Issue>> {
+        let (built, files) = crate::io::recording_reads(|| Robot::build_unrecorded(file, base_dir, src));
         let mut robot = built?;
         robot.reads = files;
         Ok(robot)
     }
 
-    fn build_unrecorded(mut file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
+    fn build_unrecorded(mut file: RobotFile, base_dir: &Path, src: Option<&SourceFile>) -> Result<Robot, Vec<Issue>> {
         let mut issues = Issues::default();
         let units = file.units;
         let ctx = BuildContext {
@@ -230,6 +239,14 @@ impl Robot {
             .map(|m| m.params().iter().map(|p| p.nominal).collect())
             .collect();
         robot.error_models = models;
+        let implausible = implausible_values(&robot);
+        robot.warnings.extend(implausible.0.into_iter().map(|mut i| match src {
+            Some(src) => {
+                i.line = src.line_of_path(&i.path);
+                i.in_file(&src.path)
+            }
+            None => i.in_model(),
+        }));
         Ok(robot)
     }
 
@@ -372,6 +389,19 @@ impl Robot {
             .zip(on)
             .filter(|(j, on)| *on && j.motion != crate::tree::Motion::Fixed)
             .map(|(j, _)| j.name.clone())
+            .collect()
+    }
+
+    /// Names of the joints a measurement file must give a column for: the measured chain's
+    /// independent coordinates (a mimic joint's driving joint, never the mimic) whose value
+    /// the robot file does not `hold`, in coordinate order.
+    pub fn csv_joint_names(&self) -> Vec<String> {
+        self.csv_layout()
+            .hold
+            .iter()
+            .zip(self.tree.coordinate_names())
+            .filter(|(held, _)| held.is_none())
+            .map(|(_, name)| name.clone())
             .collect()
     }
 
@@ -1150,6 +1180,37 @@ fn measurement_setup(
         markers.push(t);
     }
     (t_meas_base, markers, hold)
+}
+
+/// Legal values no robot is likely to have (a typo, a unit slip), each with the bound it
+/// passes: gravity beyond [`PLAUSIBLE_GRAVITY`], error-model parameters outside the range their
+/// model calls plausible. Absurd values are errors before this is reached.
+fn implausible_values(robot: &Robot) -> Issues {
+    let mut found = Issues::default();
+    let g = robot.gravity.norm();
+    if g > PLAUSIBLE_GRAVITY {
+        found.push(
+            "gravity",
+            format!(
+                "a magnitude of {g:.3} m/s² is implausible; expected at most {PLAUSIBLE_GRAVITY} m/s² (Earth's is 9.81)"
+            ),
+        );
+    }
+    for (i, m) in robot.error_models.iter().enumerate() {
+        for p in m.params().iter().filter(|p| !p.is_plausible(p.nominal)) {
+            found.push(
+                format!("error_models[{i}]"),
+                format!(
+                    "`{}` = {} is implausible; its model expects {} to {}",
+                    p.name,
+                    p.quantity.readable(p.nominal),
+                    p.quantity.readable(p.plausible.0),
+                    p.quantity.readable(p.plausible.1)
+                ),
+            );
+        }
+    }
+    found
 }
 
 /// The file's error models built against the finished tree and mass model of `robot`, with

@@ -1,6 +1,6 @@
 //! `compensate`: joint commands for a batch of targets, as `armcomp compensate` computes them.
 
-use armcomp::ops::compensate::{Frame, Target, orientation, run};
+use armcomp::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run};
 use armcomp_core::compensate::CompensationMode;
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
@@ -19,15 +19,19 @@ type Commands<'py> = (
 );
 
 /// Joint commands that put `model`'s tool on `targets`: n × 3 positions (m), or n × 7 with a
-/// tool orientation `qw, qx, qy, qz` to keep, in the measurement or base `frame`.
+/// tool orientation `qw, qx, qy, qz` to keep, in the measurement or base `frame`; from `start`
+/// (1 or n rows of joint values, SI), changing only the joints that move the tool and are not
+/// in `lock`.
 #[pyfunction]
-#[pyo3(signature = (model, targets, mode = "exact", frame = "measurement"))]
+#[pyo3(signature = (model, targets, mode = "exact", frame = "measurement", start = None, lock = Vec::new()))]
 pub fn compensate<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyRobot>,
     targets: PyArrayLike2<'py, f64, AllowTypeChange>,
     mode: &str,
     frame: &str,
+    start: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
+    lock: Vec<String>,
 ) -> PyResult<Commands<'py>> {
     let bad = |field: &str, message: String| input_error(&message, None, None, Some(field));
     let mode = match mode {
@@ -67,8 +71,14 @@ pub fn compensate<'py>(
         })
         .collect::<PyResult<Vec<_>>>()?;
     let robot = model.robot.clone();
+    let starts = match &start {
+        Some(s) => crate::arrays::rows(s, "start", Some(robot.tree().nq()))?,
+        None => Vec::new(),
+    };
+    let locked = locked_by_name(&robot, &lock).map_err(|e| bad("lock", format!("{e:#}")))?;
+    let joints = Joints::new(&robot, starts, locked).map_err(|e| bad("start", format!("{e:#}")))?;
     let describe = |i: usize| format!("target {i}");
-    let out = crate::interrupt::run(py, || run(&robot, &targets, mode, frame, &describe))?.py()?;
+    let out = crate::interrupt::run(py, || run(&robot, &targets, &joints, mode, frame, &describe))?.py()?;
     let std = out
         .std
         .iter()

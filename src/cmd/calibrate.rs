@@ -16,10 +16,8 @@ pub struct Args {
     /// Measurement CSV to identify from.
     #[arg(long)]
     data: PathBuf,
-    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
-    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
-    #[arg(long)]
-    rows: Option<armcomp_core::measurement::RowSelection>,
+    #[command(flatten)]
+    rows: super::Rows,
     /// Where to write the identified model: the robot file with identified values (TOML, or
     /// JSON for a .json extension), written atomically.
     #[arg(long)]
@@ -66,7 +64,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
-    let mut data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let mut data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
@@ -244,6 +242,10 @@ fn print_report(r: &CalibrationReport) {
         "measured chain: {} moving joint(s) from the base to the markers: {}",
         r.measured_chain.len(),
         r.measured_chain.join(", ")
+    );
+    println!(
+        "joint columns the measurement CSV must hold: {}",
+        r.csv_joints.join(", ")
     );
     if r.registered {
         println!("measurement frame registered in closed form before the fit");

@@ -27,6 +27,17 @@ pub struct Args {
     /// as in measurement files) or `base` (the robot base).
     #[arg(long, value_enum, default_value = "measurement")]
     frame: Frame,
+    /// Start configurations: a CSV of joint columns as in measurement files, one row for all
+    /// targets or one per target. Joints that do not move the tool (other limbs, the head) and
+    /// locked joints keep these values; a joint without a column starts at the robot file's
+    /// `hold` value (else 0, or the middle of its limits), one that moves the tool at the
+    /// middle of its limits.
+    #[arg(long)]
+    start: Option<PathBuf>,
+    /// Joints to keep at their start values besides those that do not move the tool,
+    /// comma-separated (e.g. `--lock torso_1_joint,torso_2_joint`).
+    #[arg(long, value_delimiter = ',')]
+    lock: Vec<String>,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -44,8 +55,16 @@ enum Frame {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.model)?;
     let units = robot.units();
-    super::check_output(&args.out, &robot, &[&args.targets])?;
+    let inputs: Vec<&std::path::Path> = std::iter::once(args.targets.as_path())
+        .chain(args.start.as_deref())
+        .collect();
+    super::check_output(&args.out, &robot, &inputs)?;
     let targets = ops::read_targets(&args.targets, units)?;
+    let starts = match &args.start {
+        Some(path) => ops::read_starts(path, &robot)?,
+        None => Vec::new(),
+    };
+    let joints = ops::Joints::new(&robot, starts, ops::locked_by_name(&robot, &args.lock)?)?;
     let mode = match args.mode {
         Mode::Paper => CompensationMode::Paper,
         Mode::Exact => CompensationMode::Exact,
@@ -56,7 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let (lines, targets): (Vec<usize>, Vec<ops::Target>) = targets.into_iter().unzip();
     let describe = |i: usize| format!("{}:{}", args.targets.display(), lines[i]);
-    let run = ops::run(&robot, &targets, mode, frame, &describe)?;
+    let run = ops::run(&robot, &targets, &joints, mode, frame, &describe)?;
     write_atomic(&args.out, run.to_csv(&robot).as_bytes())?;
     eprintln!(
         "wrote {} joint commands to {} ({} mode, targets in the {} frame{})",
@@ -74,6 +93,24 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             ", with the fitted predictor"
         } else {
             ", no fitted predictor"
+        }
+    );
+    let names = robot.tree().coordinate_names();
+    let moved: Vec<&str> = names
+        .iter()
+        .zip(&run.locked)
+        .filter(|(_, locked)| !**locked)
+        .map(|(n, _)| n.as_str())
+        .collect();
+    eprintln!(
+        "changed {} of {} joints: {}; the others keep their start{}",
+        moved.len(),
+        names.len(),
+        moved.join(", "),
+        if args.lock.is_empty() {
+            String::new()
+        } else {
+            format!(" (locked: {})", args.lock.join(", "))
         }
     );
     if run.unconverged.is_empty() {

@@ -31,10 +31,8 @@ pub struct Args {
     /// Measurement CSV.
     #[arg(long)]
     data: PathBuf,
-    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
-    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
-    #[arg(long)]
-    rows: Option<armcomp_core::measurement::RowSelection>,
+    #[command(flatten)]
+    rows: super::Rows,
     /// Where to write the improved robot file (found effects added, calibrated on all the
     /// data), written atomically; never over an input.
     #[arg(long)]
@@ -95,7 +93,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(dir) = &args.report {
         armcomp::diagnosis_report::check(dir, &inputs(&robot, &read))?;
     }
-    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let params = DiagnoseParams {
         folds: args.folds,
         seed: args.seed,

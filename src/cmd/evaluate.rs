@@ -14,10 +14,8 @@ pub struct Args {
     /// Measurement CSV to compare the model with (held-out data).
     #[arg(long)]
     data: PathBuf,
-    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
-    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
-    #[arg(long)]
-    rows: Option<armcomp_core::measurement::RowSelection>,
+    #[command(flatten)]
+    rows: super::Rows,
     /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}},
     /// and with pose measurements "orientation": {"n", "mean_deg", "rms_deg", "max_deg"}.
     #[arg(long)]
@@ -34,7 +32,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(out) = &args.residuals {
         check_output(out, &robot, &[&args.data])?;
     }
-    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let report = armcomp::ops::evaluate::run(&robot, &data.samples);
     if let Some(out) = &args.residuals {
         write_atomic(out, report.residuals_csv(&robot, &data.samples).as_bytes())?;

@@ -48,11 +48,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     write_atomic(&args.out, urdf.text.as_bytes())?;
     eprintln!(
-        "wrote {} ({} identified joint(s) of {} rewritten, every other byte kept)",
+        "wrote {} from {} (every byte outside the rows below kept):",
         args.out.display(),
-        urdf.identified.len(),
         urdf.source.display()
     );
+    let rows = armcomp::ops::export_urdf::summary(&robot, &urdf, &dropped);
+    let width = |k: usize| rows.iter().map(|r| r[k].chars().count()).max().unwrap_or(0);
+    let (w0, w1) = (width(0), width(1));
+    for [status, item, details] in &rows {
+        eprintln!("  {status:<w0$}  {item:<w1$}  {details}");
+    }
     if let Some((max, n)) = deviation {
         eprintln!(
             "warning: dropped {}; over the {n} measured positions of the data they move the points by up to {:.3} mm, which the exported URDF does not have",

@@ -15,10 +15,8 @@ pub struct Args {
     /// Measurement CSV to choose and fit the model on.
     #[arg(long)]
     data: PathBuf,
-    /// Use only these rows of the data (0-based, header excluded; `A..B` excludes B),
-    /// comma-separated: `even`, `odd`, a row `N`, or a range `A..B`, `A..`, `..B`.
-    #[arg(long)]
-    rows: Option<armcomp_core::measurement::RowSelection>,
+    #[command(flatten)]
+    rows: super::Rows,
     /// Where to write the chosen model (TOML, or JSON for a .json extension), atomically.
     #[arg(long)]
     out: PathBuf,
@@ -48,7 +46,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
-    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let fold_groups = match &args.group_by {
         Some(column) => {
             let text = armcomp_core::io::read_text(&args.data)?;

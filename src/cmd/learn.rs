@@ -20,10 +20,8 @@ pub struct Args {
     /// Measurement CSV to learn the model's residual from (one or several points).
     #[arg(long)]
     data: PathBuf,
-    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
-    /// `odd`, a row `N`, or a range `A..B`, `A..`, `..B` (e.g. a training split).
-    #[arg(long)]
-    rows: Option<armcomp_core::measurement::RowSelection>,
+    #[command(flatten)]
+    rows: super::Rows,
     /// Where to write the model with the fitted predictor (written atomically).
     #[arg(long)]
     out: PathBuf,
@@ -43,7 +41,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     check_output(&args.out, &robot, &[&args.data])?;
-    let data = read_measurements(&robot, &args.data, args.rows.as_ref())?;
+    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     // The written file is the model's own text re-read, so everything in it is kept.
     let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
     let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor)?;

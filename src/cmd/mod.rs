@@ -37,6 +37,16 @@ pub fn inputs(robot: &Robot, others: &[&Path]) -> Vec<PathBuf> {
     files
 }
 
+/// `--rows`, for every command that reads measurements.
+#[derive(clap::Args)]
+pub struct Rows {
+    /// Use only these rows of the data (0-based, header excluded), comma-separated: `even`,
+    /// `odd`, a row `N`, or a half-open range: `A..B` is rows A to B−1 (B excluded, so `0..40`
+    /// and `40..` split a file), `A..`, `..B`.
+    #[arg(long)]
+    pub rows: Option<RowSelection>,
+}
+
 /// A count of at least one (`--n`): an empty output is never what was asked for.
 pub fn at_least_one(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {

@@ -19,7 +19,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             problems,
             not_loaded,
             loaded,
+            warnings,
         } = armcomp::check_file(f, &schema);
+        for w in &warnings {
+            eprintln!("warning: {w}");
+        }
         // Not a problem of the file: the user has not allowed its code to run.
         for n in &not_loaded {
             eprintln!(

@@ -4,9 +4,10 @@
 use std::path::Path;
 
 use anyhow::{Context, bail};
-use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
+use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
 use armcomp_core::ik::IkTarget;
-use armcomp_core::measurement::{csv_text, joint_header, joint_row, split_header};
+use armcomp_core::measurement::{CsvLayout, csv_text, joint_header, joint_row, listed, parse_poses, split_header};
+use armcomp_core::tree::Coordinate;
 use armcomp_core::units::LengthUnit;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
@@ -43,6 +44,81 @@ pub struct CompensationRun {
     pub unconverged: Vec<(usize, f64)>,
     /// Whether the model's fitted predictor took part.
     pub has_predictor: bool,
+    /// Per coordinate, whether it kept its start value (locked, or not moving the tool).
+    pub locked: Vec<bool>,
+}
+
+/// Where compensation starts and which joints it keeps.
+#[derive(Debug, Clone, Default)]
+pub struct Joints {
+    /// Start configurations (SI, one value per coordinate): one for every target, or one per
+    /// target; none for [`default_start`].
+    pub starts: Vec<Vec<f64>>,
+    /// Coordinates kept at their start value besides those that do not move the tool.
+    pub locked: Vec<bool>,
+}
+
+impl Joints {
+    /// `starts`, each checked to be a configuration of `robot`, and the `locked` coordinates
+    /// ([`locked_by_name`]).
+    pub fn new(robot: &Robot, starts: Vec<Vec<f64>>, locked: Vec<bool>) -> anyhow::Result<Self> {
+        for (k, q) in starts.iter().enumerate() {
+            robot
+                .tree()
+                .check_q(q)
+                .with_context(|| format!("start configuration {}", k + 1))?;
+        }
+        Ok(Joints { starts, locked })
+    }
+}
+
+/// Per coordinate, whether `names` (coordinate names) lock it; a mimic joint is refused with
+/// the joint that drives it, an unknown name with the robot's joints.
+pub fn locked_by_name(robot: &Robot, names: &[String]) -> anyhow::Result<Vec<bool>> {
+    let tree = robot.tree();
+    let coordinates = tree.coordinate_names();
+    let mut locked = vec![false; tree.nq()];
+    for name in names {
+        if let Some(c) = coordinates.iter().position(|n| n == name) {
+            locked[c] = true;
+            continue;
+        }
+        let reason = match tree.joint_index(name).map(|j| &tree.joints()[j].coordinate) {
+            Some(Coordinate::Mimic(c)) => format!(
+                "is a mimic joint; lock the joint it follows: {}",
+                listed(
+                    &c.terms
+                        .iter()
+                        .map(|(i, _)| coordinates[*i].as_str())
+                        .collect::<Vec<_>>()
+                )
+            ),
+            Some(_) => "is a fixed joint, which never moves".into(),
+            None => format!(
+                "is not a joint of `{}`; its joints are {}",
+                robot.name(),
+                listed(&coordinates.iter().map(String::as_str).collect::<Vec<_>>())
+            ),
+        };
+        bail!("locked joint `{name}` {reason}");
+    }
+    Ok(locked)
+}
+
+/// Start configurations from a CSV of joint columns (the rules of measurement files; a joint
+/// without a column starts where [`default_start`] puts it), one row per target or one row
+/// for all.
+pub fn read_starts(path: &Path, robot: &Robot) -> anyhow::Result<Vec<Vec<f64>>> {
+    let text = armcomp_core::io::read_text(path)?;
+    let layout = CsvLayout {
+        hold: default_start(robot).into_iter().map(Some).collect(),
+        ..robot.csv_layout()
+    };
+    let starts = parse_poses(&text, path, &layout)?;
+    if starts.is_empty() {
+        bail!("{}: no start configurations", path.display());
+    }
+    Ok(starts)
 }
 
 /// The solver settings every caller uses.
@@ -50,29 +126,43 @@ pub fn options() -> CompensationParams {
     CompensationParams::default()
 }
 
-/// Compensates `targets` in order (each from the middle of the joint ranges); an error names
-/// the target through `describe(index)`. Stops between targets on an interrupt request.
+/// Compensates `targets` in order, each from its start in `joints` (else [`default_start`]),
+/// changing only the joints that move the tool and are not locked; an error names the target
+/// through `describe(index)`. Stops between targets on an interrupt request.
 pub fn run(
     robot: &Robot,
     targets: &[Target],
+    joints: &Joints,
     mode: CompensationMode,
     frame: Frame,
     describe: &dyn Fn(usize) -> String,
 ) -> anyhow::Result<CompensationRun> {
     let options = options();
     let mut comp = Compensator::for_model(robot, options)?;
+    if !joints.locked.is_empty() {
+        comp.lock(&joints.locked)?;
+    }
+    let default = [default_start(robot)];
+    let starts = match joints.starts.len() {
+        0 => &default[..],
+        n if n == 1 || n == targets.len() => &joints.starts[..],
+        n => bail!(
+            "{n} start configurations for {} targets; give one for all or one per target",
+            targets.len()
+        ),
+    };
     let t_meas_base = robot.t_meas_base();
     let to_base = match frame {
         Frame::Measurement => t_meas_base.inverse(),
         Frame::Base => Isometry3::identity(),
     };
-    let q0 = mid_range(robot);
     let mut run = CompensationRun {
         q: Vec::with_capacity(targets.len()),
         corrected: Vec::with_capacity(targets.len()),
         std: Vec::with_capacity(targets.len()),
         unconverged: Vec::new(),
         has_predictor: comp.has_predictor(),
+        locked: comp.locked().to_vec(),
     };
     for (i, t) in targets.iter().enumerate() {
         armcomp_core::interrupt::check()?;
@@ -82,7 +172,7 @@ pub fn run(
             None => IkTarget::Position(position),
         };
         let c = comp
-            .compensate_target(&target, &q0, mode)
+            .compensate_target(&target, &starts[i.min(starts.len() - 1)], mode)
             .with_context(|| describe(i))?;
         if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
             run.unconverged.push((i, c.mismatch));

@@ -49,7 +49,8 @@ struct Case {
     /// Then these steps: `["symlink", LINK, TARGET]`, `["fifo", NAME]`, `["readonly", NAME]`,
     /// `["mkdir", NAME]`, `["pad", NAME, BYTES]` (comment lines appended),
     /// `["bytes", NAME, HEX]` (raw bytes appended), `["bom", NAME]` (a UTF-8 byte-order mark
-    /// prepended), `["columns", NAME, COUNT]` (columns `extra1`, ... added to the header).
+    /// prepended), `["columns", NAME, COUNT]` (columns `extra1`, ... added to the header),
+    /// `["rows", NAME, COUNT]` (the last row repeated COUNT more times).
     #[serde(default)]
     setup: Vec<Vec<String>>,
     /// Files that must keep their content (and kind) through the run.
@@ -137,6 +138,12 @@ fn setup(step: &[String], dir: &Path) -> Result<(), String> {
             let (header, rest) = text.split_once('\n').unwrap_or((&text, ""));
             let extra: String = (1..=n).map(|k| format!(",extra{k}")).collect();
             std::fs::write(p(name), format!("{header}{extra}\n{rest}")).map_err(io)
+        }
+        [what, name, count] if what == "rows" => {
+            let n: usize = count.parse().map_err(|_| format!("{step:?}: not a count"))?;
+            let text = std::fs::read_to_string(p(name)).map_err(io)?;
+            let last = text.lines().last().unwrap_or_default();
+            std::fs::write(p(name), text.clone() + &format!("{last}\n").repeat(n)).map_err(io)
         }
         [what, name] if what == "readonly" => {
             let mut perms = std::fs::metadata(p(name)).map_err(io)?.permissions();

@@ -307,6 +307,9 @@ pub struct CalibrationReport {
     /// The joints that move the measured points, base first: the chain whose geometry
     /// `geometry` and `offsets` select.
     pub measured_chain: Vec<String>,
+    /// The joints a measurement file must give (the measured chain's driving joints, mimic
+    /// joints left out, minus those the robot file holds).
+    pub csv_joints: Vec<String>,
     /// Whether the measurement frame was first registered in closed form.
     pub registered: bool,
     /// The factor applied to the robot file's prior standard deviations (none without priors).
@@ -886,6 +889,7 @@ pub fn calibrate(
         report: CalibrationReport {
             n_samples: samples.len(),
             measured_chain: robot.measured_joint_names(),
+            csv_joints: robot.csv_joint_names(),
             registered,
             prior_scale: params.use_priors.then_some(params.prior_scale),
             identifiability,

@@ -2,14 +2,23 @@
 //! the model overrides replaced by the identified geometry, and everything else (other joints,
 //! links, inertials, meshes, transmissions, comments) kept byte for byte, so ROS and MoveIt load
 //! it under the same names. The URDF parameters are URDF's own origin and axis, so every
-//! identified joint is expressible without adding frames.
+//! identified joint is expressible without adding frames. Each marker (the measured points,
+//! whose offsets calibration identifies on their links) is added as a link of its own on a
+//! fixed joint, so the exported URDF puts the measured point where the model does.
 
 use std::path::{Path, PathBuf};
 
 use armcomp_core::{Error, KinematicTree, Motion, Result, Robot};
+use nalgebra::Isometry3;
 
 use crate::chain::UrdfSpec;
 use crate::document::{UrdfDocument, UrdfJointType};
+
+/// Values closer to zero than this (m or rad) are written as 0: what calibration leaves in a
+/// parameter the data do not fix (a joint origin the measurement frame absorbs) is rounding,
+/// and `-3.09e-11` would read as an identified offset. Zeroing moves a point by at most this
+/// times the arm's length, far below any measurement.
+pub const ZERO_BELOW: f64 = 1e-10;
 
 /// A calibrated URDF and what it was made from.
 #[derive(Debug, Clone)]
@@ -20,6 +29,24 @@ pub struct CalibratedUrdf {
     pub text: String,
     /// The joints whose origin (and axis) were rewritten.
     pub identified: Vec<String>,
+    /// The markers added as fixed joints.
+    pub markers: Vec<MarkerJoint>,
+    /// How many written values were below [`ZERO_BELOW`] and written as 0.
+    pub zeroed: usize,
+}
+
+/// A marker written as a fixed joint from its link to a new link named as the marker.
+#[derive(Debug, Clone)]
+pub struct MarkerJoint {
+    /// The marker's (and the new link's) name.
+    pub name: String,
+    /// The fixed joint's name; `None` for a marker at the origin of a link of its own name,
+    /// which the URDF already holds.
+    pub joint: Option<String>,
+    /// The link the marker is on.
+    pub parent: String,
+    /// The marker in the parent link's frame (written with values below [`ZERO_BELOW`] as 0).
+    pub offset: Isometry3<f64>,
 }
 
 /// The URDF text of `robot` at its current chain parameters; the robot's kinematics must be
@@ -54,16 +81,114 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
     })?;
     let identified: Vec<String> = spec.joints.iter().map(|o| o.name.clone()).collect();
     let names: Vec<&str> = identified.iter().map(String::as_str).collect();
+    let mut zeroed = 0;
+    let mut text = rewrite_counting(&doc, robot.tree(), &names, &mut zeroed);
+    let markers = marker_joints(&doc, robot)?;
+    let added: String = markers
+        .iter()
+        .filter_map(|m| {
+            Some(format!(
+                "  <link name=\"{}\"/>\n  <joint name=\"{}\" type=\"fixed\">\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    {}\n  </joint>\n",
+                m.name,
+                m.joint.as_ref()?,
+                m.parent,
+                m.name,
+                origin(&m.offset, &mut zeroed)
+            ))
+        })
+        .collect();
+    // The root element's closing tag, which a URDF that parsed has.
+    let end = text.rfind("</robot").ok_or_else(|| Error::InvalidArgument {
+        what: path.display().to_string(),
+        reason: "no closing `</robot>` to add the markers before".into(),
+    })?;
+    text.insert_str(end, &added);
     Ok(CalibratedUrdf {
-        text: rewrite(&doc, robot.tree(), &names),
+        text,
         source: path,
         identified,
+        markers,
+        zeroed,
     })
 }
 
+/// The markers of `robot` (its tool when it names none) as fixed joints to links of their own;
+/// refused, with the offset that would be lost, where the URDF already uses the name.
+fn marker_joints(doc: &UrdfDocument, robot: &Robot) -> Result<Vec<MarkerJoint>> {
+    let tree = robot.tree();
+    let markers = match robot.markers() {
+        [] => vec![robot.tool()],
+        m => m.to_vec(),
+    };
+    markers
+        .into_iter()
+        .map(|m| {
+            let point = &tree.points()[m];
+            let parent = tree.bodies()[point.body].name.clone();
+            let joint = format!("{}_joint", point.name);
+            let at_origin = origin(&point.local, &mut 0) == origin(&Isometry3::identity(), &mut 0);
+            if parent == point.name && at_origin {
+                return Ok(MarkerJoint {
+                    name: point.name.clone(),
+                    joint: None,
+                    parent,
+                    offset: point.local,
+                });
+            }
+            let taken = if doc.links.iter().any(|l| l.name == point.name) {
+                Some(format!("a link `{}`", point.name))
+            } else if doc.joints.iter().any(|j| j.name == joint) {
+                Some(format!("a joint `{joint}`"))
+            } else {
+                None
+            };
+            if let Some(taken) = taken {
+                return Err(Error::InvalidArgument {
+                    what: format!("marker `{}`", point.name),
+                    reason: format!(
+                        "its offset on `{parent}`, {}, cannot be written as the fixed joint `{joint}` to a link `{}`: the URDF already has {taken}; rename the point in the robot file",
+                        origin(&point.local, &mut 0),
+                        point.name
+                    ),
+                });
+            }
+            Ok(MarkerJoint {
+                name: point.name.clone(),
+                joint: Some(joint),
+                parent,
+                offset: point.local,
+            })
+        })
+        .collect()
+}
+
+/// `v`, or 0 below [`ZERO_BELOW`] (never `-0.0`), counting the non-zero values zeroed.
+fn exported(v: f64, zeroed: &mut usize) -> f64 {
+    if v.abs() >= ZERO_BELOW {
+        return v;
+    }
+    if v != 0.0 {
+        *zeroed += 1;
+    }
+    0.0
+}
+
+/// `<origin xyz=… rpy=…/>` of `p`, tiny values zeroed.
+fn origin(p: &Isometry3<f64>, zeroed: &mut usize) -> String {
+    let (r, pitch, y) = p.rotation.euler_angles();
+    let v = p.translation.vector;
+    let [x, yy, z, r, pitch, y] = [v.x, v.y, v.z, r, pitch, y].map(|v| exported(v, zeroed));
+    format!("<origin xyz=\"{x:?} {yy:?} {z:?}\" rpy=\"{r:?} {pitch:?} {y:?}\"/>")
+}
+
 /// `doc`'s text with the origins and axes of the joints named `joints` taken from `tree`
-/// (matched by name); every other byte as it was.
+/// (matched by name, values below [`ZERO_BELOW`] written as 0); every other byte as it was.
 pub fn rewrite(doc: &UrdfDocument, tree: &KinematicTree, joints: &[&str]) -> String {
+    rewrite_counting(doc, tree, joints, &mut 0)
+}
+
+/// [`rewrite`], counting the values written as 0 into `zeroed`.
+fn rewrite_counting(doc: &UrdfDocument, tree: &KinematicTree, joints: &[&str], zeroed: &mut usize) -> String {
     let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();
     for j in doc.joints.iter().filter(|j| joints.contains(&j.name.as_str())) {
         let Some(t) = tree.joint_index(&j.name).map(|k| &tree.joints()[k]) else {
@@ -73,13 +198,7 @@ pub fn rewrite(doc: &UrdfDocument, tree: &KinematicTree, joints: &[&str]) -> Str
         let close = doc.text[j.range.clone()]
             .rfind("</")
             .map_or(j.range.end, |k| j.range.start + k);
-        let p = t.placement;
-        let (r, pitch, y) = p.rotation.euler_angles();
-        let v = p.translation.vector;
-        let origin = format!(
-            "<origin xyz=\"{:?} {:?} {:?}\" rpy=\"{r:?} {pitch:?} {y:?}\"/>",
-            v.x, v.y, v.z
-        );
+        let origin = origin(&t.placement, zeroed);
         edits.push(match &j.origin_range {
             Some(range) => (range.clone(), origin),
             None => (close..close, format!("  {origin}\n  ")),
@@ -89,7 +208,8 @@ pub fn rewrite(doc: &UrdfDocument, tree: &KinematicTree, joints: &[&str]) -> Str
             Motion::Fixed => continue,
         };
         debug_assert_ne!(j.kind, UrdfJointType::Fixed);
-        let axis = format!("<axis xyz=\"{:?} {:?} {:?}\"/>", axis.x, axis.y, axis.z);
+        let [x, y, z] = [axis.x, axis.y, axis.z].map(|v| exported(v, zeroed));
+        let axis = format!("<axis xyz=\"{x:?} {y:?} {z:?}\"/>");
         edits.push(match &j.axis_range {
             Some(range) => (range.clone(), axis),
             None => (close..close, format!("  {axis}\n  ")),

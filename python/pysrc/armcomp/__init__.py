@@ -251,14 +251,23 @@ def compensate(
     targets: np.ndarray,
     mode: str = "exact",
     frame: str = "measurement",
+    start: Optional[np.ndarray] = None,
+    lock: Union[None, str, Sequence[str]] = None,
 ) -> Compensation:
     """Joint commands that put ``model``'s tool on ``targets`` (n × 3 positions in m, or
     n × 7 with a tool orientation ``qw, qx, qy, qz`` to keep), in one call, as
     ``armcomp compensate`` computes them. ``mode``: ``exact`` (the model with its predicted
     residual) or ``paper`` (the two-step of the deflection paper); ``frame``: ``measurement``
-    or ``base``."""
+    or ``base``. Only the joints that move the tool change; the others keep ``start`` (one
+    configuration for all targets or one per target, SI; default: the robot file's ``hold``
+    values), and so do the joints named in ``lock`` (``"j1,j2"`` or a list)."""
     q, corrected, std, unconverged = _native.compensate(
-        model, np.atleast_2d(np.asarray(targets, dtype=float)), mode=mode, frame=frame
+        model,
+        np.atleast_2d(np.asarray(targets, dtype=float)),
+        mode=mode,
+        frame=frame,
+        start=None if start is None else np.atleast_2d(np.asarray(start, dtype=float)),
+        lock=_names(lock) or [],
     )
     return Compensation(q=q, corrected=corrected, std=std, unconverged=list(unconverged))
 

@@ -122,7 +122,12 @@ def diagnose(
 ) -> Tuple[Robot, str]: ...
 def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, str]: ...
 def compensate(
-    model: Robot, targets: _Array, mode: str = "exact", frame: str = "measurement"
+    model: Robot,
+    targets: _Array,
+    mode: str = "exact",
+    frame: str = "measurement",
+    start: Optional[_Array] = None,
+    lock: List[str] = ...,
 ) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray], List[Tuple[int, float]]]: ...
 def plan(
     robot: Robot,

@@ -124,6 +124,7 @@ class CalibrationReport(Report):
 
     n_samples: int
     measured_chain: List[str]
+    csv_joints: List[str]
     registered: bool
     prior_scale: Optional[float]
     identifiability: Identifiability
