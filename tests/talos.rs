@@ -150,6 +150,20 @@ fn the_prior_scale_is_chosen_on_training_folds_deterministically() {
     assert!(DEFAULT_GRID.contains(&f64::INFINITY));
 }
 
+/// `armcomp export-urdf` of `model` into `calibrated.urdf` in `s`: the file and the output.
+fn export_urdf(s: &Scratch, model: &std::path::Path) -> (std::path::PathBuf, String) {
+    let out = s.0.join("calibrated.urdf");
+    let (ok, log) = armcomp(&[
+        "export-urdf",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{log}");
+    (out, log)
+}
+
 fn armcomp(args: &[&str]) -> (bool, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_armcomp")).args(args).output().unwrap();
     (
@@ -217,15 +231,7 @@ fn export_urdf_rewrites_only_identified_joints_and_matches_the_model() {
         "model.toml",
         &fitted.robot.to_file().to_text_for("model.toml".as_ref()).unwrap(),
     );
-    let out = s.0.join("calibrated.urdf");
-    let (ok, log) = armcomp(&[
-        "export-urdf",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(ok, "{log}");
+    let (out, log) = export_urdf(&s, &model);
     // Byte-identical outside the identified joints' elements.
     let original = std::fs::read_to_string(root().join("data/talos-left-arm/talos_full_v2.urdf")).unwrap();
     let exported = std::fs::read_to_string(&out).unwrap();
@@ -300,15 +306,7 @@ markers = ["marker"]
             urdf.display().to_string()
         ),
     );
-    let out = s.0.join("calibrated.urdf");
-    let (ok, log) = armcomp(&[
-        "export-urdf",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(ok, "{log}");
+    let (out, log) = export_urdf(&s, &model);
     assert!(row(&log, "written as 0 ", "2 value(s)"), "{log}");
     let exported = std::fs::read_to_string(&out).unwrap();
     assert!(
