@@ -139,19 +139,12 @@ impl Problem<'_> {
                     }
                     ParamGroup::ErrorModel(i) => {
                         let (_, h) = step(theta, k, p);
-                        let mut values = d.errors[i].clone();
-                        values[k - space.error_offsets[i]] += h;
                         let mut errors = d.errors.clone();
-                        errors[i] = values.clone();
+                        errors[i][k - space.error_offsets[i]] += h;
                         if self.robot.error_models()[i].adjusts_loads() {
                             ColumnPlan::Loads { errors, h }
                         } else {
-                            ColumnPlan::Model {
-                                model: i,
-                                values,
-                                errors,
-                                h,
-                            }
+                            ColumnPlan::Model { model: i, errors, h }
                         }
                     }
                     ParamGroup::Geometry => {
@@ -330,15 +323,10 @@ impl Problem<'_> {
                                     / *h;
                                 (r_meas * dp, r_meas * turn_of(ws_fd, *h))
                             }
-                            ColumnPlan::Model {
-                                model,
-                                values,
-                                errors,
-                                h,
-                            } => {
+                            ColumnPlan::Model { model, errors, h } => {
                                 stepped.clear();
                                 self.robot
-                                    .model_perturbation_into(*model, &d.tree, values, s, ws, stepped);
+                                    .model_perturbation_into(*model, &d.tree, &errors[*model], s, ws, stepped);
                                 scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
                                 let dw = if oriented.is_some() {
                                     self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);

@@ -575,14 +575,12 @@ enum ColumnPlan {
     },
     /// Geometry that changes a joint's motion: finite differences of the full model.
     Finite { tree: KinematicTree, h: f64 },
-    /// An error-model parameter: the difference of that model's deformation at `values` (the
-    /// model's parameters with this one stepped by `h`), to first order at the deformed
-    /// frames (the rigid kinematics and the other models' share are reused). `errors` are all
-    /// the models' parameters with this one stepped: the orientation of pose samples is
-    /// differenced through the full model.
+    /// An error-model parameter: the difference of that model's deformation at
+    /// `errors[model]` (every model's parameters, this one stepped by `h`), to first order at
+    /// the deformed frames (the rigid kinematics and the other models' share are reused); the
+    /// orientation of pose samples is differenced through the full model at `errors`.
     Model {
         model: usize,
-        values: Vec<f64>,
         errors: Vec<Vec<f64>>,
         h: f64,
     },
