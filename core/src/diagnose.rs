@@ -52,7 +52,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, ParamResult, calibrate, score_test};
+use crate::calibrate::{CalibrationParams, ParamResult, calibrate, carried_start, score_test};
 use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
@@ -327,17 +327,22 @@ pub fn diagnose(
             progress(DiagnoseProgress { stage, done, total });
         }
     };
+    // The fit on all the data, where every fold's calibration of this model (and of a
+    // candidate added to it) starts: the folds' optima are near it, and a start there saves
+    // the iterations from the robot file's values. Priors stay centred on `model`.
+    let full = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
+    let (mut fitted, mut full_theta) = (full.robot, full.linearisation.theta);
     let mut current = heldout(
         &model,
         samples,
         &splits,
         &params.calibration,
+        Some(&full_theta),
         &stage_counter(DiagnoseStage::Baseline, splits.len()),
     )?;
     let initial = ErrorStats::from_errors(&current.errors);
     let initial_residuals = describe_residuals(robot, samples, &current.errors);
     let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
-    let mut fitted = calibrate(&model, samples, &params.calibration, &mut |_| {})?.robot;
     let mut steps: Vec<DiagnosisStep> = Vec::new();
     let mut last_ranking = Vec::new();
     let mut interrupted = false;
@@ -350,10 +355,9 @@ pub fn diagnose(
                     .any(|s| s.effect == o.effect && s.location == o.candidate.location)
             })
             .collect();
-        let fit_sse = sse(&position_errors(&fitted, samples));
         let predicted: Vec<Option<f64>> = offers
             .par_iter()
-            .map(|o| predicted_share(&fitted, fit_sse, given, o, samples, params))
+            .map(|o| predicted_share(&fitted, given, o, samples, params))
             .collect();
         let refit = to_refit(&predicted, params);
         let tick = stage_counter(
@@ -366,7 +370,18 @@ pub fn diagnose(
             .zip(&refit)
             .map(|((o, &p), &r)| {
                 if r {
-                    score(&model, given, o, p, samples, &splits, &current, params, &tick)
+                    score(
+                        &model,
+                        &full_theta,
+                        given,
+                        o,
+                        p,
+                        samples,
+                        &splits,
+                        &current,
+                        params,
+                        &tick,
+                    )
                 } else {
                     screened_out(o, p, params)
                 }
@@ -377,9 +392,12 @@ pub fn diagnose(
             interrupted = true;
             break;
         }
+        // Those that earn their parameters first: one that does not (implausible values, at
+        // its neutral value) is no explanation, however well it scores.
         ranking.sort_by(|a, b| {
-            a.heldout_bic
-                .total_cmp(&b.heldout_bic)
+            b.earns_parameters
+                .cmp(&a.earns_parameters)
+                .then_with(|| a.heldout_bic.total_cmp(&b.heldout_bic))
                 .then_with(|| rank_key(b).total_cmp(&rank_key(a)))
                 .then_with(|| a.label.cmp(&b.label))
         });
@@ -398,7 +416,8 @@ pub fn diagnose(
             .find(|o| o.effect == best.effect && o.candidate.location == best.location)
             .expect("the ranking is made of the offers");
         model = with_effect(&model, offer)?;
-        fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
+        let full = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
+        (fitted, full_theta) = (full.robot, full.linearisation.theta);
         let before = ErrorStats::from_errors(&current.errors);
         let after = best.heldout.expect("an accepted candidate was evaluated");
         let values = new_model_values(&fitted);
@@ -468,7 +487,10 @@ pub fn diagnose(
             &current,
             name,
             spec,
-            &selection(&model, given, params),
+            &CalibrationParams {
+                start: Some(full_theta.clone()),
+                ..selection(&model, given, params)
+            },
             &stage_counter(DiagnoseStage::Learnable, splits.len()),
         ) {
             Err(Error::Interrupted) => {
@@ -528,7 +550,8 @@ fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
 /// robot file (those are always identified; an empty selection already includes them).
 fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> CalibrationParams {
     let mut out = params.calibration.clone();
-    // A candidate with a multimodal parameter is restarted: so is every fit it is compared with.
+    // Restarted even when converged: the fits on all the data are where every fold's fit
+    // starts (which restarts only where another minimum is likely, see `heldout`).
     out.restart_converged = true;
     if !out.identify.is_empty() {
         let added = model.error_models().iter().skip(given);
@@ -583,20 +606,29 @@ struct Heldout {
     params: Vec<Vec<ParamResult>>,
 }
 
-/// Calibrates `model` on each fold's training poses and scores it on the poses held out.
-/// `tick` hears of each fold's calibration.
+/// Calibrates `model` on each fold's training poses, from `start` when given (a parameter
+/// vector of `model`), and scores it on the poses held out. `tick` hears of each fold's
+/// calibration.
 fn heldout(
     model: &Robot,
     samples: &[Sample],
     splits: &[Split],
     calibration: &CalibrationParams,
+    start: Option<&[f64]>,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Heldout> {
     let mut errors = vec![Vector3::zeros(); samples.len()];
     let mut fixed = Vec::with_capacity(splits.len());
     let mut params = Vec::with_capacity(splits.len());
+    // From a fit on all the data that had its restarts, a fold's fit is restarted only where
+    // another minimum is likely (a multimodal parameter free, or no convergence).
+    let calibration = CalibrationParams {
+        start: start.map(<[f64]>::to_vec),
+        restart_converged: calibration.restart_converged && start.is_none(),
+        ..calibration.clone()
+    };
     for split in splits {
-        let fit = calibrate(model, &subset(samples, &split.train), calibration, &mut |_| {})?;
+        let fit = calibrate(model, &subset(samples, &split.train), &calibration, &mut |_| {})?;
         tick();
         fixed.push(
             fit.report
@@ -633,11 +665,9 @@ fn norms_mm(errors: &[Vector3<f64>]) -> Vec<f64> {
 }
 
 /// The share of the training RMS that the offered effect, added to `fitted` (the current model
-/// fitted to all `samples`, its squared residuals summing to `fit_sse`) at its starting value,
-/// is predicted to remove by the score test.
+/// fitted to all `samples`) at its starting value, is predicted to remove by the score test.
 fn predicted_share(
     fitted: &Robot,
-    fit_sse: f64,
     given: usize,
     offer: &Offer,
     samples: &[Sample],
@@ -650,7 +680,7 @@ fn predicted_share(
         .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
     score_test(&model, samples, &selection(&model, given, params), &added)
         .ok()
-        .map(|t| t.predicted_share(fit_sse))
+        .map(|t| t.predicted_share())
 }
 
 /// Which candidates to refit: those the score test gives at least [`SCREEN_SHARE`] of the
@@ -712,11 +742,13 @@ fn screened_out(offer: &Offer, predicted_share: Option<f64>, params: &DiagnosePa
     out
 }
 
-/// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
-/// against the held-out evaluation `current` of the model without it.
+/// Adds the offered effect to `model`, scores it by k-fold (each fold's fit starting from
+/// `full_theta`, `model`'s fit on all the data, with the effect at its neutral value) and
+/// applies the acceptance rule against the held-out evaluation `current` of the model without it.
 #[allow(clippy::too_many_arguments)]
 fn score(
     model: &Robot,
+    full_theta: &[f64],
     given: usize,
     offer: &Offer,
     predicted_share: Option<f64>,
@@ -729,14 +761,22 @@ fn score(
     let mut out = unscored(offer, predicted_share);
     out.refitted = true;
     let evaluated = (|| {
-        let model = with_effect(model, offer)?;
-        let names: Vec<String> = model
+        let candidate = with_effect(model, offer)?;
+        let names: Vec<String> = candidate
             .error_models()
             .last()
             .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
+        let start = carried_start(&candidate, model, full_theta);
         Ok::<_, Error>((
             names,
-            heldout(&model, samples, splits, &selection(&model, given, params), tick)?,
+            heldout(
+                &candidate,
+                samples,
+                splits,
+                &selection(&candidate, given, params),
+                start.as_deref(),
+                tick,
+            )?,
         ))
     })();
     match evaluated {

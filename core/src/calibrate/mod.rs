@@ -50,6 +50,7 @@ use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
 pub use score::{ScoreTest, score_test};
+pub use space::carried_start;
 use space::*;
 
 /// Which part of the model a parameter belongs to.

@@ -7,6 +7,9 @@
 //! parameters alone would lower it by `g₁ᵀA₁₁⁻¹g₁` (zero at an exact minimum, where this is
 //! the Schur form `g₂ᵀ(A₂₂ − A₂₁A₁₁⁻¹A₁₂)⁻¹g₂`). The difference is what the added parameters
 //! are worth to first order: a diagnosis refits only the candidates for which it is large.
+//! A fit that stopped short of its minimum (held parameters on their boxes, a budget run out)
+//! leaves a drop in its own parameters too; both predictions take the same step, so what the
+//! model alone would reach is the baseline the candidate is judged against.
 //! A candidate that starts away from the fit (a link bending at its nominal stiffness) is
 //! judged by the cost it reaches, not by the drop from where it starts.
 
@@ -20,12 +23,16 @@ pub struct ScoreTest {
     /// Sum of squared residuals (m²) predicted after refitting with the added parameters
     /// (orientation residuals of pose measurements counted in units of the position noise).
     pub predicted_sse: f64,
+    /// The same prediction for the model's own parameters alone (m²): the fit's sum of squares
+    /// at a minimum, lower when the fit stopped short of one.
+    pub baseline_sse: f64,
 }
 
 impl ScoreTest {
-    /// Share of the RMS of a fit whose sum of squared residuals is `sse` (m²) that refitting
-    /// with the added parameters is predicted to remove.
-    pub fn predicted_share(&self, sse: f64) -> f64 {
+    /// Share of the model's RMS that refitting with the added parameters is predicted to
+    /// remove.
+    pub fn predicted_share(&self) -> f64 {
+        let sse = self.baseline_sse;
         if sse > 0.0 {
             1.0 - (self.predicted_sse.clamp(0.0, sse) / sse).sqrt()
         } else {
@@ -66,7 +73,9 @@ pub fn score_test(
     let all: Vec<usize> = (0..selected.len()).collect();
     let own: Vec<usize> = all.iter().copied().filter(|&c| !is_added(selected[c])).collect();
     // In units of the noise: the cost after one Gauss–Newton step in every parameter.
-    let mut best = r.norm_squared() - gauss_newton_drop(&a, &j.tr_mul(&r), &all);
+    let g = j.tr_mul(&r);
+    let baseline = r.norm_squared() - gauss_newton_drop(&a, &g, &own);
+    let mut best = r.norm_squared() - gauss_newton_drop(&a, &g, &all);
     for &k in selected
         .iter()
         .filter(|&&k| is_added(k) && space.params[k].info.multimodal)
@@ -84,8 +93,10 @@ pub fn score_test(
             }
         }
     }
+    let to_m2 = params.measurement_std.powi(2);
     Ok(ScoreTest {
-        predicted_sse: best.max(0.0) * params.measurement_std.powi(2),
+        predicted_sse: best.max(0.0) * to_m2,
+        baseline_sse: baseline.max(0.0) * to_m2,
     })
 }
 
