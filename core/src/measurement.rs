@@ -46,6 +46,21 @@ pub struct Sample {
     pub fixed_point: Option<String>,
 }
 
+/// Refuses fixed-point samples for `what`, which scores models on held-out measured
+/// positions: a fixed-point row measures none.
+pub fn require_positions(samples: &[Sample], what: &str) -> Result<()> {
+    match samples.iter().position(|s| s.fixed_point.is_some()) {
+        Some(i) => Err(Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: format!(
+                "is a fixed-point measurement, which gives no position for {what} to score models on; calibrate it \
+                 (`armcomp calibrate`) and compare fixed points with `armcomp evaluate`"
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
 /// A set of measured poses, with the warnings raised while reading it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MeasurementSet {

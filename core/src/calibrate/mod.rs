@@ -296,7 +296,8 @@ pub struct ParamResult {
     pub quantity: Quantity,
     /// SI unit of the values.
     pub unit: &'static str,
-    /// Value before calibration (SI; marker entries are offsets from the file's position).
+    /// Value before calibration (SI; marker entries are offsets from the file's position, fixed points
+    /// the mean of the starting model's points).
     pub initial: f64,
     /// Identified value (SI).
     pub value: f64,
@@ -918,7 +919,13 @@ pub fn calibrate(
     let (condition_number_free, inv_diag) = normal_equations(&a);
     identifiability.condition_number_free = condition_number_free;
     let cov_diag: Vec<f64> = inv_diag.iter().map(|v| s2 * v).collect();
-    let initial = space.initial();
+    // A fixed point starts where the data put it (no file holds it).
+    let mut initial = space.initial();
+    for (k, p) in space.params.iter().enumerate() {
+        if matches!(p.group, ParamGroup::FixedPoint(_)) {
+            initial[k] = theta0[k];
+        }
+    }
     let params_out = selected
         .iter()
         .map(|&k| {
