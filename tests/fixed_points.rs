@@ -459,3 +459,70 @@ fn panda_sockets_held_out_places_are_consistent_to_a_third_of_a_millimetre() {
     eprintln!("panda_1 held out: {heldout:.3} mm, calibration {seconds:.2} s");
     assert!(heldout <= 0.35, "held-out consistency {heldout} mm");
 }
+
+#[test]
+fn simulate_calibrate_and_evaluate_fixed_points_on_the_command_line() {
+    let s = crate::common::Scratch::new("fixed-points");
+    let write = |name: &str, robot: &Robot| {
+        let path = s.0.join(name);
+        std::fs::write(&path, robot.to_file().to_text_for(&path).unwrap()).unwrap();
+        path.display().to_string()
+    };
+    let nominal = panda(KNOWN_50MM);
+    let truth = write("truth.toml", &truth_of(&nominal, &CHANGES));
+    let nominal = write("nominal.toml", &nominal);
+    let data = s.0.join("data.csv").display().to_string();
+    let model = s.0.join("model.toml").display().to_string();
+    let run = |args: &[&str]| {
+        let (code, out, err) = crate::cli::armcomp(args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        out
+    };
+    run(&[
+        "simulate",
+        "--robot",
+        &truth,
+        "--fixed-point",
+        "hole_0=450,-25,120",
+        "--fixed-point",
+        "hole_1=450,25,120",
+        "--fixed-point",
+        "far=250,350,350",
+        "--n",
+        "25",
+        "--joint-noise-deg",
+        "0.0005",
+        "--seed",
+        "2",
+        "--out",
+        &data,
+    ]);
+    run(&[
+        "calibrate",
+        "--robot",
+        &nominal,
+        "--data",
+        &data,
+        "--noise-mm",
+        "0.02",
+        "--out",
+        &model,
+    ]);
+    let spread = |model: &str| {
+        let json: serde_json::Value =
+            serde_json::from_str(&run(&["evaluate", "--model", model, "--data", &data, "--json"])).unwrap();
+        let f = &json["fixed_points"];
+        (
+            f["spread_mm"].as_f64().unwrap(),
+            f["distances"][0]["error_mm"].as_f64().unwrap(),
+        )
+    };
+    let (before, _) = spread(&nominal);
+    let (after, distance) = spread(&model);
+    assert!(
+        before > 0.3,
+        "the truth's points seen through the nominal model spread by {before} mm"
+    );
+    assert!(after < 0.03, "calibrated spread {after} mm (nominal {before} mm)");
+    assert!(distance < 0.02, "distance error {distance} mm");
+}
