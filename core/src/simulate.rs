@@ -144,7 +144,17 @@ pub fn simulate_fixed_points(
             if solve_ik(truth, marker, &target, q0, &opts, &mut ws).is_err() {
                 continue;
             }
-            let q: Vec<f64> = ws.q().iter().map(|v| v + normal.sample(&mut rng)).collect();
+            // An encoder reads a joint at its limit within the limit.
+            let limits = truth.tree().coordinate_limits();
+            let q: Vec<f64> = ws
+                .q()
+                .iter()
+                .zip(limits)
+                .map(|(v, l)| {
+                    let v = v + normal.sample(&mut rng);
+                    l.map_or(v, |l| v.clamp(l.lower, l.upper))
+                })
+                .collect();
             set.rows.push(set.samples.len());
             set.samples.push(Sample {
                 q,
