@@ -15,6 +15,7 @@ mod demo_report;
 mod diagnose;
 mod docs;
 mod evidence;
+mod fixed_points;
 mod fk;
 mod jacobian;
 mod learning_curve;

@@ -308,6 +308,7 @@ pub fn diagnose(
     params: &DiagnoseParams,
     progress: &(dyn Fn(DiagnoseProgress) + Sync),
 ) -> Result<Diagnosis> {
+    crate::measurement::require_positions(samples, "the diagnosis")?;
     if !(params.min_rms_reduction.is_finite() && (0.0..1.0).contains(&params.min_rms_reduction)) {
         return Err(Error::InvalidArgument {
             what: "smallest RMS reduction".into(),

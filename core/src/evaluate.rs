@@ -270,3 +270,115 @@ pub fn fit_residual_predictor(
         input_ranges: &ranges,
     })
 }
+
+/// How tightly a model puts the samples of one fixed point together.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FixedPointSpread {
+    /// The fixed point's name.
+    pub name: String,
+    /// Its samples.
+    pub n: usize,
+    /// Mean distance of its modelled points from their mean (mm): the consistency of MUKCa.
+    pub mean_mm: f64,
+    /// Largest distance of a modelled point from their mean (mm).
+    pub max_mm: f64,
+}
+
+/// A known distance between two fixed points against the model's.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DistanceCheck {
+    /// The two fixed points.
+    pub between: [String; 2],
+    /// The known distance (mm).
+    pub known_mm: f64,
+    /// The distance between the means of their modelled points (mm).
+    pub modelled_mm: f64,
+    /// `|modelled − known|` (mm).
+    pub error_mm: f64,
+}
+
+/// What a model makes of fixed-point samples: each fixed point's spread and the known
+/// distances between them.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FixedPointEvaluation {
+    /// Per fixed point, in order of first appearance.
+    pub points: Vec<FixedPointSpread>,
+    /// The points' `mean_mm` weighted by their sample counts (mm).
+    pub spread_mm: f64,
+    /// Per known distance of the robot file whose two points the samples hold.
+    pub distances: Vec<DistanceCheck>,
+}
+
+/// Evaluates `robot` on fixed-point samples whose position errors (measured minus modelled,
+/// the measured position unused and zero) are `errors`: since a fixed point's position is not
+/// measured, the mean of its modelled points stands for it. Rewrites each fixed-point sample's
+/// error as that mean minus its modelled point; `None` when no sample names a fixed point.
+pub fn evaluate_fixed_points(
+    robot: &Robot,
+    samples: &[Sample],
+    errors: &mut [Vector3<f64>],
+) -> Option<FixedPointEvaluation> {
+    let mut names: Vec<&str> = Vec::new();
+    let group: Vec<Option<usize>> = samples
+        .iter()
+        .map(|s| {
+            let name = s.fixed_point.as_deref()?;
+            Some(names.iter().position(|n| *n == name).unwrap_or_else(|| {
+                names.push(name);
+                names.len() - 1
+            }))
+        })
+        .collect();
+    if names.is_empty() {
+        return None;
+    }
+    let modelled: Vec<Vector3<f64>> = samples.iter().zip(errors.iter()).map(|(s, e)| s.position - e).collect();
+    let mut sums = vec![(Vector3::zeros(), 0usize); names.len()];
+    for (g, p) in group.iter().zip(&modelled) {
+        if let Some(g) = g {
+            sums[*g].0 += p;
+            sums[*g].1 += 1;
+        }
+    }
+    let means: Vec<Vector3<f64>> = sums.iter().map(|(s, n)| s / *n as f64).collect();
+    let mut points: Vec<FixedPointSpread> = names
+        .iter()
+        .zip(&sums)
+        .map(|(name, (_, n))| FixedPointSpread {
+            name: name.to_string(),
+            n: *n,
+            mean_mm: 0.0,
+            max_mm: 0.0,
+        })
+        .collect();
+    for ((g, p), e) in group.iter().zip(&modelled).zip(errors.iter_mut()) {
+        if let Some(g) = *g {
+            *e = means[g] - p;
+            let d = e.norm() * 1e3;
+            points[g].mean_mm += d / points[g].n as f64;
+            points[g].max_mm = points[g].max_mm.max(d);
+        }
+    }
+    let n: usize = points.iter().map(|p| p.n).sum();
+    let spread_mm = points.iter().map(|p| p.mean_mm * p.n as f64).sum::<f64>() / n as f64;
+    let distances = robot
+        .known_distances()
+        .iter()
+        .filter_map(|d| {
+            let a = names.iter().position(|n| *n == d.between[0])?;
+            let b = names.iter().position(|n| *n == d.between[1])?;
+            let modelled_mm = (means[a] - means[b]).norm() * 1e3;
+            Some(DistanceCheck {
+                between: d.between.clone(),
+                known_mm: d.mm,
+                modelled_mm,
+                error_mm: (modelled_mm - d.mm).abs(),
+            })
+        })
+        .collect();
+    Some(FixedPointEvaluation {
+        points,
+        spread_mm,
+        distances,
+    })
+}

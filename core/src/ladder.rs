@@ -212,6 +212,7 @@ pub fn climb(
     params: &LadderParams,
     progress: &(dyn Fn(LadderProgress) + Sync),
 ) -> Result<Ladder> {
+    crate::measurement::require_positions(samples, "the model ladder")?;
     let (splits, folds_by, groups) = match &params.fold_groups {
         Some(g) => {
             if g.len() != samples.len() {

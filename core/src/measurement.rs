@@ -11,7 +11,9 @@
 //! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
 //! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
 //! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
-//! `tau_<joint>[Nm]`. Other columns (timestamps, marker quality, joints of other limbs) are
+//! `tau_<joint>[Nm]`. A robot file of `kind = "fixed_point"` reads rows without a position:
+//! a `fixed_point` column names the unknown fixed point the marker was put into (`socket_a`).
+//! Other columns (timestamps, marker quality, joints of other limbs) are
 //! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
 use std::path::Path;
@@ -39,6 +41,24 @@ pub struct Sample {
     pub temperature: Option<f64>,
     /// Joint torques (N m), one per coordinate, when given.
     pub torque: Option<Vec<f64>>,
+    /// The unknown fixed point the measured point was put into, by name, for fixed-point
+    /// measurements (`position` is then unused).
+    pub fixed_point: Option<String>,
+}
+
+/// Refuses fixed-point samples for `what`, which scores models on held-out measured
+/// positions: a fixed-point row measures none.
+pub fn require_positions(samples: &[Sample], what: &str) -> Result<()> {
+    match samples.iter().position(|s| s.fixed_point.is_some()) {
+        Some(i) => Err(Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: format!(
+                "is a fixed-point measurement, which gives no position for {what} to score models on; calibrate it \
+                 (`armcomp calibrate`) and compare fixed points with `armcomp evaluate`"
+            ),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// A set of measured poses, with the warnings raised while reading it.
@@ -61,6 +81,8 @@ enum Column {
         scale: f64,
     },
     Point,
+    /// The name of the unknown fixed point the marker was put into.
+    FixedPoint,
     /// `slot`: which measured point a numbered column (`x2` → 1) is; `None` for plain `x`.
     Position {
         slot: Option<usize>,
@@ -92,7 +114,7 @@ impl Column {
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
-            Column::Point | Column::Ignored => None,
+            Column::Point | Column::FixedPoint | Column::Ignored => None,
         }
     }
 }
@@ -174,6 +196,9 @@ pub struct CsvLayout<'a> {
     /// Whether the robot measures poses: a file without orientation columns is then read as
     /// positions with a warning.
     pub orientation: bool,
+    /// Whether the robot measures fixed points: rows then name their fixed point in a
+    /// `fixed_point` column instead of giving a position.
+    pub fixed_points: bool,
 }
 
 impl<'a> CsvLayout<'a> {
@@ -185,6 +210,7 @@ impl<'a> CsvLayout<'a> {
             points: vec![point],
             hold: vec![None; tree.nq()],
             orientation: false,
+            fixed_points: false,
         }
     }
 }
@@ -454,6 +480,15 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         } else {
             match name {
                 "point" => Column::Point,
+                "fixed_point" if layout.fixed_points => Column::FixedPoint,
+                "fixed_point" => {
+                    return Err(err(
+                        Some(header_line),
+                        "column `fixed_point`: the robot file measures positions; a file of fixed points needs \
+                         `kind = \"fixed_point\"` in the robot file's [measurement]"
+                            .into(),
+                    ));
+                }
                 "x" | "y" | "z" => Column::Position {
                     slot: None,
                     axis: (name.as_bytes()[0] - b'x') as usize,
@@ -529,7 +564,24 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         s.dedup();
         s
     };
-    if with_positions {
+    if with_positions && layout.fixed_points {
+        if !has(&|k| matches!(k, Column::FixedPoint)) {
+            return Err(err(
+                Some(header_line),
+                "missing column `fixed_point` (the name of the fixed point each row's marker was put into); the \
+                 robot file measures fixed points"
+                    .into(),
+            ));
+        }
+        if !slots.is_empty() || has(&|k| matches!(k, Column::Orientation(..))) {
+            return Err(err(
+                Some(header_line),
+                "a fixed-point file gives no measured position or orientation (its fixed points are identified); \
+                 remove the x, y, z or orientation columns, or set the robot file's [measurement] kind to `point`"
+                    .into(),
+            ));
+        }
+    } else if with_positions {
         if slots.is_empty() {
             return Err(err(
                 Some(header_line),
@@ -637,6 +689,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             payload: None,
             temperature: None,
             torque: has_torque.then(|| vec![0.0; names.len()]),
+            fixed_point: None,
         };
         let mut angles = [0.0; 4];
         // Per slot, the position and how many of its cells were empty.
@@ -651,6 +704,16 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                             format!("column `point`: `{field}` is not a point of the robot"),
                         )
                     })?;
+                    continue;
+                }
+                Column::FixedPoint if field.is_empty() => {
+                    return Err(err(
+                        Some(line),
+                        "column `fixed_point` is empty; every row names the fixed point it was measured in".into(),
+                    ));
+                }
+                Column::FixedPoint => {
+                    s.fixed_point = Some(field.to_string());
                     continue;
                 }
                 Column::Position {
@@ -699,7 +762,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                         t[c] = v;
                     }
                 }
-                Column::Point | Column::Ignored => {}
+                Column::Point | Column::FixedPoint | Column::Ignored => {}
             }
         }
         if let Some(spelling) = spelling {
@@ -718,7 +781,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 o.2 = o.2.max(beyond);
             }
         }
-        if !with_positions {
+        if !with_positions || s.fixed_point.is_some() {
             set.samples.push(s);
             set.rows.push(row);
             continue;
@@ -772,7 +835,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     if set.samples.is_empty() {
         return Err(err(None, "no measurements (only a header)".into()));
     }
-    if with_positions {
+    if with_positions && !layout.fixed_points {
         check_magnitudes(&set, &columns, &headers, tree, path)?;
     }
     Ok(set)
@@ -953,7 +1016,8 @@ fn check_magnitudes(
 }
 
 /// Writes measurements as CSV in the given units (joint columns as `name[unit]`, positions as
-/// `x[unit]`); deterministic text for equal inputs.
+/// `x[unit]`, or the `fixed_point` column of fixed-point samples); deterministic text for equal
+/// inputs.
 pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> String {
     let lu = units.length.symbol();
     let mut header = joint_header(tree, units);
@@ -961,8 +1025,13 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
     if several_points {
         header.push("point".into());
     }
-    header.extend(["x", "y", "z"].map(|a| format!("{a}[{lu}]")));
     let first = set.samples.first();
+    let fixed_points = first.is_some_and(|s| s.fixed_point.is_some());
+    if fixed_points {
+        header.push("fixed_point".into());
+    } else {
+        header.extend(["x", "y", "z"].map(|a| format!("{a}[{lu}]")));
+    }
     let with_quat = first.is_some_and(|s| s.orientation.is_some());
     let with_payload = first.is_some_and(|s| s.payload.is_some());
     let with_temp = first.is_some_and(|s| s.temperature.is_some());
@@ -980,7 +1049,10 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
         if several_points {
             row.push(tree.points()[s.point].name.clone());
         }
-        row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v))));
+        match &s.fixed_point {
+            Some(name) if fixed_points => row.push(name.clone()),
+            _ => row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v)))),
+        }
         if with_quat && let Some(q) = s.orientation {
             row.extend([q.w, q.i, q.j, q.k].map(|v| format!("{v}")));
         }

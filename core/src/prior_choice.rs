@@ -54,6 +54,7 @@ pub fn choose_prior_scale(
     folds: usize,
     seed: u64,
 ) -> Result<PriorChoice> {
+    crate::measurement::require_positions(samples, "the prior's cross-validation")?;
     if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
         return Err(Error::InvalidArgument {
             what: "prior scales to try".into(),

@@ -441,7 +441,22 @@ impl Robot {
             },
             hold,
             orientation: self.measures_pose(),
+            fixed_points: self.measures_fixed_points(),
         }
+    }
+
+    /// Whether the robot file declares fixed-point measurements
+    /// (`[measurement] kind = "fixed_point"`).
+    pub fn measures_fixed_points(&self) -> bool {
+        self.file
+            .measurement
+            .as_ref()
+            .is_some_and(|m| m.kind == crate::robot_file::MeasurementKind::FixedPoint)
+    }
+
+    /// The known distances between fixed points the robot file declares.
+    pub fn known_distances(&self) -> &[crate::robot_file::DistanceSpec] {
+        self.file.measurement.as_ref().map_or(&[], |m| &m.distances)
     }
 
     /// Whether the robot file declares pose measurements (`[measurement] kind = "pose"`).
@@ -1110,6 +1125,37 @@ fn measurement_setup(
                 format!("measurement.{field}"),
                 format!("expected three finite numbers, got {v:?}"),
             );
+        }
+    }
+    if let Some(m) = &file.measurement {
+        for (i, d) in m.distances.iter().enumerate() {
+            let field = format!("measurement.distances[{i}]");
+            if m.kind != crate::robot_file::MeasurementKind::FixedPoint {
+                issues.push(
+                    field.clone(),
+                    "a known distance is between fixed points; expected `kind = \"fixed_point\"` in [measurement]",
+                );
+            }
+            if d.between[0] == d.between[1] {
+                issues.push(
+                    format!("{field}.between"),
+                    format!("names `{}` twice; expected two different fixed points", d.between[0]),
+                );
+            }
+            if !(d.mm.is_finite() && d.mm > 0.0) {
+                issues.push(
+                    format!("{field}.mm"),
+                    format!("expected a positive distance in mm, got {}", d.mm),
+                );
+            }
+            if let Some(n) = d.noise_mm
+                && !(n.is_finite() && n > 0.0)
+            {
+                issues.push(
+                    format!("{field}.noise_mm"),
+                    format!("expected a positive standard deviation in mm, got {n}"),
+                );
+            }
         }
     }
     let names = base_tree.coordinate_names();

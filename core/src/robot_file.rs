@@ -207,9 +207,10 @@ pub struct PayloadSpec {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct MeasurementSpec {
-    /// What each row of a measurement file measures at the markers: `point` (a position) or
+    /// What each row of a measurement file measures at the markers: `point` (a position),
     /// `pose` (a position and an orientation; the markers' orientations on their links are
-    /// identified with their positions).
+    /// identified with their positions) or `fixed_point` (no position: the marker was put into
+    /// the unknown fixed point its `fixed_point` column names, whose position is identified).
     #[serde(default, skip_serializing_if = "MeasurementKind::is_point")]
     pub kind: MeasurementKind,
     /// Guess of the robot base position in the tracker frame (length unit).
@@ -227,6 +228,24 @@ pub struct MeasurementSpec {
     /// marker and is not named here holds 0, or the middle of its limits if 0 is outside them.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub hold: BTreeMap<String, f64>,
+    /// Known distances between fixed points (`kind = "fixed_point"`): without one the scale of
+    /// the robot is not observable from fixed points alone.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub distances: Vec<DistanceSpec>,
+}
+
+/// A known distance between two fixed points, e.g. two sockets of a printed tool.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DistanceSpec {
+    /// The two fixed points, as the measurement file's `fixed_point` column names them.
+    pub between: [String; 2],
+    /// The distance (mm, whatever the file's length unit).
+    pub mm: f64,
+    /// Standard deviation of that distance (mm); default: the tracker noise per axis the
+    /// calibration weighs positions with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_mm: Option<f64>,
 }
 
 /// What the rows of a measurement file measure at the markers.
@@ -238,6 +257,9 @@ pub enum MeasurementKind {
     Point,
     /// A position and an orientation (a motion-capture rigid body, a 6-DoF probe).
     Pose,
+    /// No position: the marker put into an unknown fixed point (a ball in a socket, a tip on
+    /// a divot) named by the row's `fixed_point` column.
+    FixedPoint,
 }
 
 impl MeasurementKind {

@@ -75,6 +75,106 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
                 payload: None,
                 temperature: None,
                 torque: None,
+                fixed_point: None,
+            });
+        }
+    }
+    Ok(set)
+}
+
+/// Settings of a simulated fixed-point campaign.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FixedPointParams {
+    /// Configurations per fixed point.
+    pub per_point: usize,
+    /// Standard deviation of the joint encoders' noise (rad, or m for a prismatic joint): what
+    /// a fixed-point measurement's noise is, since no position is measured.
+    pub joint_noise_std: f64,
+    /// Seed of the starting configurations and the noise.
+    pub seed: u64,
+}
+
+/// Puts the tool of `truth` (its first marker) into each named fixed point (measurement frame,
+/// m) from `per_point` configurations, found by inverse kinematics of the full model from
+/// seeded starts spread over the joint ranges: the rows a fixed-point campaign records (a
+/// ball put into a socket again and again). Fails when a point is reached from too few starts.
+pub fn simulate_fixed_points(
+    truth: &Robot,
+    points: &[(String, nalgebra::Vector3<f64>)],
+    params: FixedPointParams,
+) -> Result<MeasurementSet> {
+    use crate::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
+    if !(params.joint_noise_std.is_finite() && params.joint_noise_std >= 0.0) {
+        return Err(Error::InvalidArgument {
+            what: "joint noise".into(),
+            reason: format!("must be zero or positive, got {}", params.joint_noise_std),
+        });
+    }
+    let normal = Normal::new(0.0, params.joint_noise_std).map_err(|e| Error::InvalidArgument {
+        what: "joint noise".into(),
+        reason: e.to_string(),
+    })?;
+    let mut rng = StdRng::seed_from_u64(params.seed);
+    let marker = truth.markers().first().copied().ok_or_else(|| Error::InvalidArgument {
+        what: "robot".into(),
+        reason: "has no marker to put into the fixed points".into(),
+    })?;
+    // Many more starts than rows: some do not reach a point within the joint limits.
+    let tries = 20 * params.per_point.max(1);
+    let starts = crate::sampling::configurations(
+        truth.tree(),
+        crate::sampling::Sampler::Sobol,
+        tries * points.len(),
+        params.seed,
+    )?;
+    let opts = IkParams {
+        restarts: 0,
+        ..IkParams::default()
+    };
+    let mut ws = IkWorkspace::new(truth);
+    let t_base_meas = truth.t_meas_base().inverse();
+    let mut set = MeasurementSet::default();
+    for (k, (name, p)) in points.iter().enumerate() {
+        let target = IkTarget::Position(t_base_meas.transform_point(&(*p).into()).coords);
+        let mut found = 0;
+        for q0 in &starts[k * tries..(k + 1) * tries] {
+            if found == params.per_point {
+                break;
+            }
+            if solve_ik(truth, marker, &target, q0, &opts, &mut ws).is_err() {
+                continue;
+            }
+            // An encoder reads a joint at its limit within the limit.
+            let limits = truth.tree().coordinate_limits();
+            let q: Vec<f64> = ws
+                .q()
+                .iter()
+                .zip(limits)
+                .map(|(v, l)| {
+                    let v = v + normal.sample(&mut rng);
+                    l.map_or(v, |l| v.clamp(l.lower, l.upper))
+                })
+                .collect();
+            set.rows.push(set.samples.len());
+            set.samples.push(Sample {
+                q,
+                point: marker,
+                position: nalgebra::Vector3::zeros(),
+                orientation: None,
+                payload: None,
+                temperature: None,
+                torque: None,
+                fixed_point: Some(name.clone()),
+            });
+            found += 1;
+        }
+        if found < params.per_point {
+            return Err(Error::InvalidArgument {
+                what: format!("fixed point `{name}`"),
+                reason: format!(
+                    "reached from {found} of {tries} starts, fewer than the {} asked for; is it within the arm's reach?",
+                    params.per_point
+                ),
             });
         }
     }

@@ -189,6 +189,7 @@ fn map_by_name(
             q,
             point,
             torque: if same_joints { s.torque.clone() } else { None },
+            fixed_point: None,
             ..s.clone()
         });
     }
@@ -269,6 +270,7 @@ impl PyMeasurements {
                 payload: None,
                 temperature: None,
                 torque: None,
+                fixed_point: None,
             })
             .collect::<Vec<_>>();
         let rows = (0..samples.len()).collect();

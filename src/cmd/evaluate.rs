@@ -17,7 +17,10 @@ pub struct Args {
     #[command(flatten)]
     rows: super::Rows,
     /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}},
-    /// and with pose measurements "orientation": {"n", "mean_deg", "rms_deg", "max_deg"}.
+    /// with pose measurements "orientation": {"n", "mean_deg", "rms_deg", "max_deg"}, and with
+    /// fixed-point measurements "fixed_points": {"points": [{"name", "n", "mean_mm", "max_mm"}],
+    /// "spread_mm", "distances": [{"between", "known_mm", "modelled_mm", "error_mm"}]} (a fixed
+    /// point's errors are from the mean of its modelled points).
     #[arg(long)]
     json: bool,
     /// Also write every sample's residual to this CSV (atomically): its row among the data rows,
@@ -49,6 +52,24 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         for (name, s) in &report.per_point {
             println!("  point {name}: {}", stats_line(s));
+        }
+        if let Some(f) = &report.fixed_points {
+            println!(
+                "  fixed points: spread {:.4} mm (mean distance from their mean, weighted by samples)",
+                f.spread_mm
+            );
+            for p in &f.points {
+                println!(
+                    "    {}: n {}  spread {:.4} mm  max {:.4} mm",
+                    p.name, p.n, p.mean_mm, p.max_mm
+                );
+            }
+            for d in &f.distances {
+                println!(
+                    "  distance {}–{}: known {:.4} mm  modelled {:.4} mm  error {:.4} mm",
+                    d.between[0], d.between[1], d.known_mm, d.modelled_mm, d.error_mm
+                );
+            }
         }
     }
     Ok(ExitCode::SUCCESS)

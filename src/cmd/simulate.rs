@@ -24,13 +24,64 @@ pub struct Args {
     /// Seed for pose sampling and noise; the same seed gives the same bytes.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// For a truth of `kind = "fixed_point"`: a fixed point the tool is put into from --n
+    /// configurations each (found by inverse kinematics), as `name=x,y,z` in mm in the
+    /// measurement frame; repeat for several.
+    #[arg(long = "fixed-point", value_name = "NAME=X,Y,Z")]
+    fixed_points: Vec<String>,
+    /// Standard deviation of the joint encoders' noise, in degrees (fixed points).
+    #[arg(long, default_value_t = 0.0)]
+    joint_noise_deg: f64,
     /// Output CSV (written atomically; in the robot file's units).
     #[arg(long)]
     out: PathBuf,
 }
 
+/// `name=x,y,z` (mm) → the name and the point (m).
+fn fixed_point(text: &str) -> anyhow::Result<(String, nalgebra::Vector3<f64>)> {
+    let parsed = text.split_once('=').and_then(|(name, xyz)| {
+        let v: Vec<f64> = xyz.split(',').map(|c| c.trim().parse().ok()).collect::<Option<_>>()?;
+        (v.len() == 3 && v.iter().all(|x| x.is_finite()) && !name.trim().is_empty())
+            .then(|| (name.trim().to_string(), nalgebra::Vector3::new(v[0], v[1], v[2]) * 1e-3))
+    });
+    parsed.ok_or_else(|| anyhow::anyhow!("--fixed-point `{text}`: expected name=x,y,z in mm, e.g. hole_0=450,-25,120"))
+}
+
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let truth = armcomp::load_robot(&args.robot)?;
+    if truth.measures_fixed_points() {
+        if args.fixed_points.is_empty() {
+            anyhow::bail!(
+                "{} measures fixed points: name them with --fixed-point name=x,y,z (mm, measurement frame)",
+                args.robot.display()
+            );
+        }
+        super::check_output(&args.out, &truth, &[])?;
+        let points = args
+            .fixed_points
+            .iter()
+            .map(|t| fixed_point(t))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let params = armcomp_core::simulate::FixedPointParams {
+            per_point: args.n,
+            joint_noise_std: args.joint_noise_deg.to_radians(),
+            seed: args.seed,
+        };
+        let set = armcomp_core::simulate::simulate_fixed_points(&truth, &points, params)?;
+        write_atomic(&args.out, write_csv(&set, truth.tree(), truth.units()).as_bytes())?;
+        eprintln!(
+            "wrote {} configurations in {} fixed points to {} (joint noise {} deg, seed {})",
+            set.samples.len(),
+            points.len(),
+            args.out.display(),
+            args.joint_noise_deg,
+            args.seed
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    if !args.fixed_points.is_empty() {
+        anyhow::bail!("--fixed-point needs a truth robot file of `kind = \"fixed_point\"` in its [measurement]");
+    }
     let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
     super::check_output(&args.out, &truth, &poses_file)?;
     let poses = match &args.poses {

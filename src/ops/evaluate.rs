@@ -3,7 +3,9 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
-use armcomp_core::evaluate::{AngleStats, ErrorStats, orientation_errors, position_errors};
+use armcomp_core::evaluate::{
+    AngleStats, ErrorStats, FixedPointEvaluation, evaluate_fixed_points, orientation_errors, position_errors,
+};
 use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
 
@@ -16,13 +18,17 @@ pub struct EvaluationReport {
     pub per_point: BTreeMap<String, ErrorStats>,
     /// Over every sample with a measured orientation, when the robot measures poses.
     pub orientation: Option<AngleStats>,
-    /// Measured minus modelled position of every sample, measurement frame (m).
+    /// Measured minus modelled position of every sample, measurement frame (m); for a
+    /// fixed-point sample, the mean of its fixed point's modelled points minus its own.
     pub errors: Vec<Vector3<f64>>,
+    /// The fixed points' spreads and the known distances, for fixed-point measurements.
+    pub fixed_points: Option<FixedPointEvaluation>,
 }
 
 /// Evaluates `robot` (with its fitted predictor) on `samples`.
 pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
-    let errors = position_errors(robot, samples);
+    let mut errors = position_errors(robot, samples);
+    let fixed_points = evaluate_fixed_points(robot, samples, &mut errors);
     let stats = ErrorStats::from_errors(&errors);
     let mut points: Vec<usize> = samples.iter().map(|s| s.point).collect();
     points.sort_unstable();
@@ -53,6 +59,7 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
         per_point,
         orientation: (!angles.is_empty()).then(|| AngleStats::from_angles(&angles)),
         errors,
+        fixed_points,
     }
 }
 
@@ -65,6 +72,9 @@ impl EvaluationReport {
         }
         if let Some(o) = &self.orientation {
             value["orientation"] = serde_json::to_value(o).expect("the statistics serialise");
+        }
+        if let Some(f) = &self.fixed_points {
+            value["fixed_points"] = serde_json::to_value(f).expect("the statistics serialise");
         }
         value
     }

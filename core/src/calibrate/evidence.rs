@@ -181,7 +181,8 @@ fn update(lin: &Linearisation) -> Update {
     // noises follow MacKay's update each over its own equations.
     let mut kinds = [Kind::default(); 2];
     let scaled = &lin.jacobian * &eig.eigenvectors;
-    for (i, r) in lin.residuals.iter().enumerate() {
+    let measured_rows = lin.residuals.len() - lin.distance_rows;
+    for (i, r) in lin.residuals.iter().take(measured_rows).enumerate() {
         let (k, sigma) = if i < lin.position_rows {
             (0, lin.noise)
         } else {
@@ -194,10 +195,9 @@ fn update(lin: &Linearisation) -> Update {
         kinds[k].n += 1.0;
         kinds[k].gamma += leverage;
     }
-    let m = lin.residuals.len() as f64;
     let log_noise: f64 = kinds[0].n * (2.0 * std::f64::consts::PI * noise2).ln()
         + kinds[1].n * (2.0 * std::f64::consts::PI * lin.orientation_noise.powi(2)).ln();
-    debug_assert_eq!(kinds[0].n + kinds[1].n, m);
+    debug_assert_eq!(kinds[0].n + kinds[1].n, measured_rows as f64);
     let prior: f64 = lin
         .free
         .iter()
@@ -296,7 +296,7 @@ fn report(
 ) -> EvidenceReport {
     let u = update(lin);
     let dof = (u.kinds[0].n - u.kinds[0].gamma).max(1.0);
-    let space = ParameterSpace::new(robot);
+    let space = ParameterSpace::new(robot).with_fixed_points(samples);
     // Per group: parameters, determined, and the sum of log scales (for the geometric mean).
     let mut groups: Vec<(GroupScale, f64)> = Vec::new();
     let mut parameters = Vec::new();

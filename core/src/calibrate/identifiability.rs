@@ -308,13 +308,14 @@ pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationPa
             reason: "an identifiability report needs at least one".into(),
         });
     }
-    let space = prior_space(robot, params);
+    let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
-    let theta = space.initial();
+    let theta = problem.start()?;
     let (d, e, _) = problem.predict(&theta)?;
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
+    note_fixed_points(robot, &space, &selected, &mut report);
     let cols: Vec<usize> = free
         .iter()
         .map(|k| {

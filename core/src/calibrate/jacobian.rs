@@ -84,19 +84,24 @@ impl Problem<'_> {
         (r.rows(0, n).norm_squared() / n as f64).sqrt()
     }
 
-    /// Measurement residuals, whitened by their noise: `(p̂ − p) / σ`, three per sample, then
-    /// `log(R_measᵀ R̂) / σ_rot`, three per oriented sample.
+    /// Measurement residuals, whitened by their noise: `(p̂ − p) / σ`, three per sample (`p`
+    /// its fixed point's position for fixed-point samples), then `log(R_measᵀ R̂) / σ_rot`,
+    /// three per oriented sample, then `(‖p_a − p_b‖ − d) / σ_d` per known distance.
     pub(super) fn residuals(&self, d: &Decoded, e: &Evaluation) -> DVector<f64> {
         let predicted = to_meas(&d.t_meas_base, &e.world);
-        let positions = predicted.iter().zip(self.samples).flat_map(|(p, s)| {
-            let r = (p - s.position) / self.sigma;
+        let positions = predicted.iter().enumerate().flat_map(|(i, p)| {
+            let r = (p - self.target(d, i)) / self.sigma;
             [r.x, r.y, r.z]
         });
         let orientations = self.oriented.iter().flat_map(|&i| {
             let r = orientation_residual(d, e, &self.samples[i], i) / self.sigma_rot;
             [r.x, r.y, r.z]
         });
-        DVector::from_iterator(self.n_residuals(), positions.chain(orientations))
+        let distances = (0..self.distances.len()).map(|k| {
+            let known = &self.distances[k];
+            (self.distance(d, k).0 - known.metres) / known.sigma
+        });
+        DVector::from_iterator(self.n_residuals(), positions.chain(orientations).chain(distances))
     }
 
     /// Statistics of the orientation residuals (`None` without pose samples).
@@ -127,6 +132,10 @@ impl Problem<'_> {
                     ParamGroup::Marker(i) => ColumnPlan::Marker {
                         point: self.robot.markers()[i],
                         axis: (k - space.marker_offset) % space.marker_dofs,
+                    },
+                    ParamGroup::FixedPoint(index) => ColumnPlan::FixedPoint {
+                        index,
+                        axis: (k - space.fixed_point_offset) % 3,
                     },
                     ParamGroup::Base => {
                         let (mut t, h) = step(theta, k, p);
@@ -264,6 +273,13 @@ impl Problem<'_> {
                                     (Vector3::zeros(), r_meas * axis)
                                 }
                             }
+                            // The target moves, not the model: minus the axis.
+                            ColumnPlan::FixedPoint { index, axis } => {
+                                if self.fixed[s_idx] != Some(*index) {
+                                    continue;
+                                }
+                                (-Vector3::ith(*axis, 1.0), Vector3::zeros())
+                            }
                             ColumnPlan::Base { from, to, h } => (
                                 (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h,
                                 (to.rotation * from.rotation.inverse()).scaled_axis() / *h,
@@ -363,6 +379,23 @@ impl Problem<'_> {
                     if let Some(r0) = turn_row {
                         jac[(r0 + a, c)] = row[width * c + 3 + a];
                     }
+                }
+            }
+        }
+        // Known distances: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to a.
+        let r0 = 3 * (n + self.oriented.len());
+        for (k, known) in self.distances.iter().enumerate() {
+            let (_, u) = self.distance(d, k);
+            for (c, plan) in plans.iter().enumerate() {
+                if let ColumnPlan::FixedPoint { index, axis } = *plan {
+                    let sign = if index == known.a {
+                        1.0
+                    } else if index == known.b {
+                        -1.0
+                    } else {
+                        continue;
+                    };
+                    jac[(r0 + k, c)] = sign * u[axis] / known.sigma;
                 }
             }
         }
@@ -478,6 +511,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             payload: None,
             temperature: None,
             torque: None,
+            fixed_point: None,
         })
         .collect()
 }
@@ -489,10 +523,10 @@ pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) 
     for s in samples {
         robot.tree().check_q(&s.q)?;
     }
-    let space = ParameterSpace::new(robot);
+    let space = ParameterSpace::new(robot).with_fixed_points(samples);
     let selected = space.select(robot, identify)?;
     let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
-    let theta = space.initial();
+    let theta = problem.start()?;
     let (d, e, _) = problem.predict(&theta)?;
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     Ok((

@@ -65,6 +65,10 @@ pub enum ParamGroup {
     Base,
     /// Marker `i` (index into [`Robot::markers`]).
     Marker(usize),
+    /// Fixed point `i` of fixed-point measurements (index into
+    /// [`ParameterSpace::fixed_points`]): its position in the measurement frame, a nuisance
+    /// parameter identified with the robot.
+    FixedPoint(usize),
 }
 
 /// Parameters whose prior standard deviations share one scale when the scales are chosen from
@@ -84,6 +88,8 @@ pub enum PriorGroup {
     Angles,
     /// Every parameter of error model `i`.
     ErrorModel(usize),
+    /// The positions of the fixed points of fixed-point measurements.
+    FixedPoints,
     /// Parameter `k` of the [`ParameterSpace`] alone (a scale of its own: automatic relevance
     /// determination).
     Parameter(usize),
@@ -96,6 +102,7 @@ impl PriorGroup {
         match self {
             PriorGroup::Frame => "frame".into(),
             PriorGroup::Markers => "markers".into(),
+            PriorGroup::FixedPoints => "fixed_points".into(),
             PriorGroup::JointOffsets => "joint_offsets".into(),
             PriorGroup::Lengths => "lengths".into(),
             PriorGroup::Angles => "angles".into(),
@@ -117,11 +124,16 @@ pub struct SpaceParam {
 }
 
 /// Every parameter of a robot calibration can touch, in a fixed order: chain, error models,
-/// base frame (`base.x … base.yaw`), markers (`marker.<point>.x|y|z`).
+/// base frame (`base.x … base.yaw`), markers (`marker.<point>.x|y|z`), then the fixed points
+/// of fixed-point measurements (`fixed_point.<name>.x|y|z`, see
+/// [`with_fixed_points`](Self::with_fixed_points)).
 #[derive(Debug, Clone)]
 pub struct ParameterSpace {
     /// The parameters.
     pub params: Vec<SpaceParam>,
+    /// The fixed points' names, in the order of their parameters.
+    pub fixed_points: Vec<String>,
+    fixed_point_offset: usize,
     n_chain: usize,
     error_offsets: Vec<usize>,
     base_offset: usize,
@@ -136,6 +148,8 @@ struct Decoded {
     tree: KinematicTree,
     errors: Vec<Vec<f64>>,
     t_meas_base: Isometry3<f64>,
+    /// The fixed points' positions, measurement frame (m).
+    fixed_points: Vec<Vector3<f64>>,
 }
 
 /// Per-sample intermediate results: the point in the robot base frame, the rotation that
@@ -283,7 +297,8 @@ pub struct ParamResult {
     pub quantity: Quantity,
     /// SI unit of the values.
     pub unit: &'static str,
-    /// Value before calibration (SI; marker entries are offsets from the file's position).
+    /// Value before calibration (SI; marker entries are offsets from the file's position, fixed points
+    /// the mean of the starting model's points).
     pub initial: f64,
     /// Identified value (SI).
     pub value: f64,
@@ -502,8 +517,12 @@ pub struct Linearisation {
     pub noise: f64,
     /// The orientation noise per axis it weighed orientations with (rad).
     pub orientation_noise: f64,
-    /// How many leading residuals are positions; the rest are orientations.
+    /// How many leading residuals are positions; the rest are orientations, then the
+    /// `distance_rows` known distances.
     pub position_rows: usize,
+    /// How many trailing residuals are known distances between fixed points (weighed by their
+    /// own declared noise, which the evidence does not estimate).
+    pub distance_rows: usize,
     /// Measurement residuals `(p̂ − p) / noise`, three per sample, then
     /// `log(R_measᵀ R̂) / orientation_noise`, three per oriented sample.
     pub residuals: DVector<f64>,
@@ -522,6 +541,20 @@ struct Problem<'a> {
     sigma_rot: f64,
     /// The samples whose orientation is a residual block (the robot measures poses), in order.
     oriented: Vec<usize>,
+    /// Per sample, the fixed point it was measured in (index into the space's fixed points).
+    fixed: Vec<Option<usize>>,
+    /// The known distances between fixed points: a residual row each, after the orientations.
+    distances: Vec<KnownDistance>,
+}
+
+/// A known distance between fixed points `a` and `b` (indices into the space's fixed points),
+/// in metres, with its standard deviation.
+#[derive(Debug, Clone, Copy)]
+struct KnownDistance {
+    a: usize,
+    b: usize,
+    metres: f64,
+    sigma: f64,
 }
 
 impl<'a> Problem<'a> {
@@ -533,6 +566,24 @@ impl<'a> Problem<'a> {
         } else {
             Vec::new()
         };
+        let index = |name: &str| space.fixed_points.iter().position(|f| f == name);
+        let fixed = samples
+            .iter()
+            .map(|s| s.fixed_point.as_deref().and_then(index))
+            .collect();
+        // Distances between fixed points the data lack are refused by `calibrate`.
+        let distances = robot
+            .known_distances()
+            .iter()
+            .filter_map(|d| {
+                Some(KnownDistance {
+                    a: index(&d.between[0])?,
+                    b: index(&d.between[1])?,
+                    metres: d.mm * 1e-3,
+                    sigma: d.noise_mm.map_or(sigma, |n| n * 1e-3),
+                })
+            })
+            .collect();
         Problem {
             robot,
             space,
@@ -540,12 +591,60 @@ impl<'a> Problem<'a> {
             sigma,
             sigma_rot,
             oriented,
+            fixed,
+            distances,
         }
     }
 
-    /// Number of residuals: three per position, three per orientation.
+    /// Number of residuals: three per position, three per orientation, one per known distance.
     fn n_residuals(&self) -> usize {
-        3 * (self.samples.len() + self.oriented.len())
+        3 * (self.samples.len() + self.oriented.len()) + self.distances.len()
+    }
+
+    /// What sample `i`'s modelled point is compared with: its measured position, or the
+    /// position of the fixed point it was put into (measurement frame, m).
+    fn target(&self, d: &Decoded, i: usize) -> Vector3<f64> {
+        match self.fixed[i] {
+            Some(g) => d.fixed_points[g],
+            None => self.samples[i].position,
+        }
+    }
+
+    /// The targets of every sample (see [`target`](Self::target)).
+    fn targets(&self, d: &Decoded) -> Vec<Vector3<f64>> {
+        (0..self.samples.len()).map(|i| self.target(d, i)).collect()
+    }
+
+    /// The space's starting values with each fixed point started in closed form: the mean of
+    /// the points the starting model puts its samples at (measurement frame).
+    fn start(&self) -> Result<Vec<f64>> {
+        let mut theta = self.space.initial();
+        if self.space.fixed_points.is_empty() {
+            return Ok(theta);
+        }
+        let (_, _, predicted) = self.predict(&theta)?;
+        let mut sums = vec![(Vector3::zeros(), 0usize); self.space.fixed_points.len()];
+        for (g, p) in self.fixed.iter().zip(&predicted) {
+            if let Some(g) = g {
+                sums[*g].0 += p;
+                sums[*g].1 += 1;
+            }
+        }
+        for (g, (sum, n)) in sums.iter().enumerate() {
+            if *n > 0 {
+                let o = self.space.fixed_point_offset + 3 * g;
+                theta[o..o + 3].copy_from_slice((sum / *n as f64).as_slice());
+            }
+        }
+        Ok(theta)
+    }
+
+    /// ‖p_a − p_b‖ of known distance `k` at `d` and the unit vector from b to a.
+    fn distance(&self, d: &Decoded, k: usize) -> (f64, Vector3<f64>) {
+        let KnownDistance { a, b, .. } = self.distances[k];
+        let v = d.fixed_points[a] - d.fixed_points[b];
+        let n = v.norm();
+        (n, if n > 0.0 { v / n } else { Vector3::zeros() })
     }
 }
 
@@ -599,6 +698,8 @@ enum ColumnPlan {
     /// A marker offset along `axis` 0–2 of its link frame, or a turn about axis `axis − 3` of
     /// the point's own frame: exact.
     Marker { point: usize, axis: usize },
+    /// Fixed point `index`'s coordinate `axis` (measurement frame): exact.
+    FixedPoint { index: usize, axis: usize },
 }
 
 /// How many prior standard deviations a parameter the data barely determine may move.
@@ -670,11 +771,12 @@ pub fn calibrate(
             });
         }
     }
-    let space = prior_space(robot, params);
+    check_fixed_points(robot, samples)?;
+    let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
     // The priors' centre: the robot's values, the measurement frame as registered.
-    let mut theta0 = space.initial();
+    let mut theta0 = problem.start()?;
     let (_, _, pred) = problem.predict(&theta0)?;
     // A model whose residuals overflow cannot be fitted; say which value to look at.
     if let Some(i) = (0..samples.len()).find(|&i| !(pred[i] - samples[i].position).norm_squared().is_finite()) {
@@ -688,8 +790,8 @@ pub fn calibrate(
             ),
         });
     }
-    let before = stats(samples, &pred);
     let (d0, e0, _) = problem.predict(&theta0)?;
+    let before = stats(&problem.targets(&d0), &pred);
     let before_orientation = problem.orientation_stats(&d0, &e0);
     let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
     let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
@@ -713,6 +815,7 @@ pub fn calibrate(
         free,
         held,
     } = assess(&space, &jac0, &selected, params.rank_tolerance);
+    note_fixed_points(robot, &space, &selected, &mut identifiability);
     let mut held_space = space.clone();
     for &k in &held {
         let info = &mut held_space.params[k].info;
@@ -726,7 +829,12 @@ pub fn calibrate(
     let frames: Vec<usize> = free
         .iter()
         .copied()
-        .filter(|&k| matches!(space.params[k].group, ParamGroup::Base | ParamGroup::Marker(_)))
+        .filter(|&k| {
+            matches!(
+                space.params[k].group,
+                ParamGroup::Base | ParamGroup::Marker(_) | ParamGroup::FixedPoint(_)
+            )
+        })
         .collect();
     let mut stage = Stage {
         theta: start,
@@ -812,7 +920,13 @@ pub fn calibrate(
     let (condition_number_free, inv_diag) = normal_equations(&a);
     identifiability.condition_number_free = condition_number_free;
     let cov_diag: Vec<f64> = inv_diag.iter().map(|v| s2 * v).collect();
-    let initial = space.initial();
+    // A fixed point starts where the data put it (no file holds it).
+    let mut initial = space.initial();
+    for (k, p) in space.params.iter().enumerate() {
+        if matches!(p.group, ParamGroup::FixedPoint(_)) {
+            initial[k] = theta0[k];
+        }
+    }
     let params_out = selected
         .iter()
         .map(|&k| {
@@ -834,7 +948,7 @@ pub fn calibrate(
         .collect();
 
     // Measured minus modelled, once for the statistics, the gross errors and the trend.
-    let residual_vectors = measured_minus_modelled(samples, &pred);
+    let residual_vectors = measured_minus_modelled(&problem.targets(&d), &pred);
     let after = ErrorStats::from_errors(&residual_vectors);
     let outliers = gross_errors(&residual_vectors);
     let trend = drift(&residual_vectors);
@@ -879,6 +993,7 @@ pub fn calibrate(
         noise: params.measurement_std,
         orientation_noise: params.orientation_std,
         position_rows: 3 * samples.len(),
+        distance_rows: problem.distances.len(),
         residuals: r,
         jacobian: j,
     };
@@ -926,10 +1041,75 @@ struct StageOutcome {
     stop_reason: String,
 }
 
-fn measured_minus_modelled(samples: &[Sample], predicted: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-    samples.iter().zip(predicted).map(|(s, p)| s.position - p).collect()
+/// Each sample's target (see [`Problem::target`]) minus its modelled point.
+fn measured_minus_modelled(targets: &[Vector3<f64>], predicted: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    targets.iter().zip(predicted).map(|(t, p)| t - p).collect()
 }
 
-fn stats(samples: &[Sample], predicted: &[Vector3<f64>]) -> ErrorStats {
-    ErrorStats::from_errors(&measured_minus_modelled(samples, predicted))
+fn stats(targets: &[Vector3<f64>], predicted: &[Vector3<f64>]) -> ErrorStats {
+    ErrorStats::from_errors(&measured_minus_modelled(targets, predicted))
+}
+
+/// Refuses fixed-point samples on a robot that measures positions and the reverse, and known
+/// distances naming a fixed point the samples lack.
+fn check_fixed_points(robot: &Robot, samples: &[Sample]) -> Result<()> {
+    let expected = robot.measures_fixed_points();
+    if let Some(i) = samples.iter().position(|s| s.fixed_point.is_some() != expected) {
+        return Err(Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: if expected {
+                "names no fixed point, but the robot file measures fixed points (`kind = \"fixed_point\"`)".into()
+            } else {
+                "names a fixed point, but the robot file measures positions; set `kind = \"fixed_point\"` in its \
+                 [measurement]"
+                    .into()
+            },
+        });
+    }
+    for (i, d) in robot.known_distances().iter().enumerate() {
+        for name in &d.between {
+            if !samples.iter().any(|s| s.fixed_point.as_deref() == Some(name)) {
+                let mut names: Vec<&str> = samples.iter().filter_map(|s| s.fixed_point.as_deref()).collect();
+                names.sort_unstable();
+                names.dedup();
+                return Err(Error::InvalidArgument {
+                    what: format!("measurement.distances[{i}]"),
+                    reason: format!(
+                        "`{name}` is no fixed point of the data; its `fixed_point` column names {}",
+                        crate::measurement::listed(&names)
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Says in the identifiability report what fixed-point measurements cannot see: the base frame
+/// (a robot moved with every fixed point leaves every residual as it was) and, without a known
+/// distance, the robot's scale (lengths and fixed points scaled together scale the residuals,
+/// which a fit then shrinks).
+fn note_fixed_points(robot: &Robot, space: &ParameterSpace, selected: &[usize], report: &mut IdentifiabilityReport) {
+    if !robot.measures_fixed_points() {
+        return;
+    }
+    let mut notes = vec![
+        "a fixed-point-only calibration cannot see the base frame: moving the robot together with every fixed point \
+         changes no residual, so base.x … base.yaw keep the robot file's values"
+            .to_string(),
+    ];
+    let lengths = selected
+        .iter()
+        .any(|&k| space.params[k].group == ParamGroup::Geometry && space.params[k].info.quantity == Quantity::Length);
+    if robot.known_distances().is_empty() && lengths {
+        notes.push(
+            "without a known distance between two fixed points ([[measurement.distances]]) the robot's scale is not \
+             observable: only the priors hold its lengths"
+                .into(),
+        );
+    }
+    for note in notes {
+        let sep = if report.message.is_empty() { "" } else { "; " };
+        report.message.push_str(&format!("{sep}{note}"));
+    }
 }

@@ -77,6 +77,10 @@ pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) 
 /// points fits ten times better once the positions or the revolute joint values are read in
 /// the other unit. The message names the mistake and the fix.
 pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Option<String>> {
+    // Fixed-point samples measure no position whose unit could be wrong.
+    if problem.fixed.iter().any(Option::is_some) {
+        return Ok(None);
+    }
     let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
         let p = Problem::new(problem.robot, problem.space, samples, problem.sigma, problem.sigma_rot);
         Ok(p.predict(theta0)?.1.world)

@@ -55,10 +55,10 @@ pub fn score_test(
     params: &CalibrationParams,
     added: &[String],
 ) -> Result<ScoreTest> {
-    let space = prior_space(robot, params);
+    let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
-    let theta = space.initial();
+    let theta = problem.start()?;
     let (d, e, _) = problem.predict(&theta)?;
     let r = problem.residuals(&d, &e);
     let j = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;

@@ -82,6 +82,8 @@ impl ParameterSpace {
             }
         }
         ParameterSpace {
+            fixed_point_offset: params.len(),
+            fixed_points: Vec::new(),
             params,
             n_chain,
             error_offsets,
@@ -89,6 +91,31 @@ impl ParameterSpace {
             marker_offset,
             marker_dofs,
         }
+    }
+
+    /// The space with a position parameter triple (`fixed_point.<name>.x|y|z`, measurement
+    /// frame, no prior) for every fixed point `samples` name, in order of first appearance.
+    pub fn with_fixed_points(mut self, samples: &[Sample]) -> Self {
+        for name in samples.iter().filter_map(|s| s.fixed_point.as_ref()) {
+            if self.fixed_points.contains(name) {
+                continue;
+            }
+            let i = self.fixed_points.len();
+            for axis in ["x", "y", "z"] {
+                self.params.push(SpaceParam {
+                    info: ParamInfo::new(
+                        format!("fixed_point.{name}.{axis}"),
+                        Quantity::Length,
+                        0.0,
+                        f64::INFINITY,
+                    ),
+                    group: ParamGroup::FixedPoint(i),
+                    model_type: String::new(),
+                });
+            }
+            self.fixed_points.push(name.clone());
+        }
+        self
     }
 
     /// Starting values of every parameter (SI; marker entries are offsets from the file's).
@@ -102,7 +129,8 @@ impl ParameterSpace {
     /// joints), `errors` (every error model), `all`, an error model's type name
     /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
     /// Empty means `base, markers, geometry, errors`. What the robot file's `fixed` names is
-    /// left out.
+    /// left out. The fixed points of fixed-point measurements are always selected, and the base
+    /// frame never is then (fixed points cannot see it).
     pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
         let default = ["base", "markers", "geometry", "errors"].map(String::from);
         let words: &[String] = if identify.is_empty() { &default } else { identify };
@@ -125,6 +153,7 @@ impl ParameterSpace {
                     "markers" => matches!(p.group, ParamGroup::Marker(_)),
                     "geometry" => p.group == ParamGroup::Geometry && on_measured_chain(&p.info.name),
                     "errors" => matches!(p.group, ParamGroup::ErrorModel(_)),
+                    "fixed_points" => matches!(p.group, ParamGroup::FixedPoint(_)),
                     "offsets" => {
                         p.group == ParamGroup::Geometry
                             && on_measured_chain(&p.info.name)
@@ -148,20 +177,25 @@ impl ParameterSpace {
                 return Err(Error::InvalidArgument {
                     what: "--identify".into(),
                     reason: format!(
-                        "`{word}` matches no parameter; use base, markers, geometry, offsets, errors, all, an error \
-                         model of this robot ({types}), or a name pattern such as `j2.*`"
+                        "`{word}` matches no parameter; use base, markers, geometry, offsets, errors, fixed_points, \
+                         all, an error model of this robot ({types}), or a name pattern such as `j2.*`"
                     ),
                 });
             }
         }
         // What the robot file fixes is known: never refitted, whatever the words select.
         let fixed = robot.fixed();
+        let fixed_points = robot.measures_fixed_points();
         Ok((0..self.params.len())
+            .filter(|&k| match self.params[k].group {
+                ParamGroup::FixedPoint(_) => true,
+                ParamGroup::Base if fixed_points => false,
+                _ => chosen[k],
+            })
             .filter(|&k| {
-                chosen[k]
-                    && !fixed
-                        .iter()
-                        .any(|f| crate::param::name_matches(f, &self.params[k].info.name))
+                !fixed
+                    .iter()
+                    .any(|f| crate::param::name_matches(f, &self.params[k].info.name))
             })
             .collect())
     }
@@ -178,6 +212,9 @@ impl ParameterSpace {
             tree: self.tree(robot, theta)?,
             errors,
             t_meas_base: self.base_pose(theta),
+            fixed_points: (0..self.fixed_points.len())
+                .map(|i| Vector3::from_column_slice(&theta[self.fixed_point_offset + 3 * i..][..3]))
+                .collect(),
         })
     }
 
@@ -264,10 +301,10 @@ pub(super) fn base_xyz_rpy(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
     ([v.x, v.y, v.z], [r, p, y])
 }
 
-/// The robot's parameter space with the priors `params` asks for (scaled by its
-/// `prior_scale`, or none).
-pub(super) fn prior_space(robot: &Robot, params: &CalibrationParams) -> ParameterSpace {
-    let mut space = ParameterSpace::new(robot);
+/// The robot's parameter space with the fixed points of `samples` and the priors `params`
+/// asks for (scaled by its `prior_scale`, or none).
+pub(super) fn prior_space(robot: &Robot, params: &CalibrationParams, samples: &[Sample]) -> ParameterSpace {
+    let mut space = ParameterSpace::new(robot).with_fixed_points(samples);
     for k in 0..space.params.len() {
         let group = space.prior_group(robot, k);
         let group_scale: f64 = params
@@ -293,6 +330,7 @@ impl ParameterSpace {
         match p.group {
             ParamGroup::Base => PriorGroup::Frame,
             ParamGroup::Marker(_) => PriorGroup::Markers,
+            ParamGroup::FixedPoint(_) => PriorGroup::FixedPoints,
             ParamGroup::ErrorModel(i) => PriorGroup::ErrorModel(i),
             ParamGroup::Geometry if is_joint_offset(robot.tree(), &p.info.name) => PriorGroup::JointOffsets,
             ParamGroup::Geometry if p.info.quantity == Quantity::Angle => PriorGroup::Angles,

@@ -1,0 +1,528 @@
+//! Fixed-point measurements and known distances: simulated truths recovered with their unknown
+//! points, the residuals' Jacobian against finite differences, what fixed points cannot see,
+//! and the MUKCa Panda sockets (real data beside the repository).
+
+use std::path::Path;
+
+use armcomp_core::Robot;
+use armcomp_core::calibrate::{
+    CalibrationParams, ParamGroup, ParameterSpace, calibrate, identifiability, samples_jacobian,
+};
+use armcomp_core::measurement::{Sample, parse_csv};
+use armcomp_core::robot::Conditions;
+use armcomp_core::simulate::{FixedPointParams, simulate_fixed_points};
+use nalgebra::Vector3;
+
+use crate::common::{robot_from_toml, root};
+
+/// The Panda of `robots/panda-sockets.toml` with its `[measurement] distances` line replaced by
+/// `distances` (empty for none).
+fn panda(distances: &str) -> Robot {
+    let text = std::fs::read_to_string(root().join("robots/panda-sockets.toml")).unwrap();
+    let urdf = root().join("tests/data/urdf/panda_sockets.urdf");
+    let text: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("distances") {
+                distances.to_string()
+            } else {
+                l.replace("../tests/data/urdf/panda_sockets.urdf", &urdf.display().to_string())
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    robot_from_toml(&text)
+}
+
+const KNOWN_50MM: &str = r#"distances = [{ between = ["hole_0", "hole_1"], mm = 50.0 }]"#;
+
+/// The truth's sockets (measurement frame, m): two 50 mm apart and a third elsewhere.
+fn sockets() -> Vec<(String, Vector3<f64>)> {
+    vec![
+        ("hole_0".into(), Vector3::new(0.45, -0.025, 0.12)),
+        ("hole_1".into(), Vector3::new(0.45, 0.025, 0.12)),
+        ("far".into(), Vector3::new(0.25, 0.35, 0.35)),
+    ]
+}
+
+/// `nominal` with the named parameters moved (SI).
+fn truth_of(nominal: &Robot, changes: &[(&str, f64)]) -> Robot {
+    let space = ParameterSpace::new(nominal);
+    let mut theta = space.initial();
+    for (name, delta) in changes {
+        theta[space.index(name).unwrap_or_else(|| panic!("no parameter {name}"))] += delta;
+    }
+    space.apply(nominal, &theta).unwrap()
+}
+
+/// The tool's position through `robot`'s full model and measurement frame.
+fn model_point(robot: &Robot, q: &[f64]) -> Vector3<f64> {
+    let mut ws = robot.workspace();
+    let m = robot.markers()[0];
+    robot.forward_with_into(robot.tree(), robot.error_values(), q, Conditions::default(), &mut ws);
+    robot
+        .t_meas_base()
+        .transform_point(&ws.frames.point[m].translation.vector.into())
+        .coords
+}
+
+/// Joint offsets and lengths of the truth, a few tenths of a millimetre to a millimetre at the
+/// tool: what a Panda's calibration finds.
+const CHANGES: [(&str, f64); 5] = [
+    ("panda_joint2.offset", 1.5e-3),
+    ("panda_joint4.offset", -1.0e-3),
+    ("panda_joint6.offset", 2.0e-3),
+    ("panda_joint3.y", 0.8e-3),
+    ("panda_joint5.y", -0.6e-3),
+];
+
+#[test]
+fn a_fixed_point_truth_is_recovered_with_its_points() {
+    let nominal = panda(KNOWN_50MM);
+    let truth = truth_of(&nominal, &CHANGES);
+    let noise = 2e-5; // rad per encoder: about 20 µm at the ball
+    let params = FixedPointParams {
+        per_point: 30,
+        joint_noise_std: noise,
+        seed: 7,
+    };
+    let data = simulate_fixed_points(&truth, &sockets(), params).unwrap();
+    assert!(data.samples.iter().all(|s| s.fixed_point.is_some()));
+    // The parameters the truth moved, and (always, with fixed points) the points themselves.
+    let cal = calibrate(
+        &nominal,
+        &data.samples,
+        &CalibrationParams {
+            identify: CHANGES.iter().map(|(n, _)| n.to_string()).collect(),
+            measurement_std: 3e-5,
+            ..CalibrationParams::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let report = &cal.report;
+    for (name, delta) in CHANGES {
+        let r = report.params.iter().find(|r| r.name == name).unwrap();
+        let err = (r.value - r.initial - delta).abs();
+        assert!(
+            err < 4.0 * r.std && r.std < 0.2 * delta.abs(),
+            "{name}: moved by {}, truth {delta} (std {})",
+            r.value - r.initial,
+            r.std
+        );
+    }
+    assert!(
+        report.params.iter().all(|p| !p.name.starts_with("base.")),
+        "the base frame is not identified from fixed points"
+    );
+    // The unknown points, as the truth put them, within 4 of their standard deviations and
+    // 0.1 mm.
+    for (name, p) in sockets() {
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let r = report
+                .params
+                .iter()
+                .find(|r| r.name == format!("fixed_point.{name}.{axis}"))
+                .unwrap_or_else(|| panic!("fixed point {name} is reported"));
+            let err = (r.value - p[a]).abs();
+            assert!(
+                err < 1e-4 && err < 4.0 * r.std.max(5e-6),
+                "{}: {} m, truth {} m (std {} m)",
+                r.name,
+                r.value,
+                p[a],
+                r.std
+            );
+        }
+    }
+    // The identified model puts the tool where the truth does, across the workspace.
+    let before_mm = spread_to(&nominal, &truth);
+    let after_mm = spread_to(&cal.robot, &truth);
+    assert!(
+        before_mm > 0.5,
+        "the truth differs from the nominal model: {before_mm} mm"
+    );
+    assert!(
+        after_mm < 0.05,
+        "calibrated model off the truth by {after_mm} mm RMS (nominal {before_mm} mm)"
+    );
+}
+
+/// RMS distance (mm) between the tool of `a` and of `b` over configurations spread over the
+/// ranges.
+fn spread_to(a: &Robot, b: &Robot) -> f64 {
+    let qs = armcomp_core::sampling::configurations(a.tree(), armcomp_core::sampling::Sampler::Sobol, 50, 11).unwrap();
+    let sum: f64 = qs
+        .iter()
+        .map(|q| (model_point(a, q) - model_point(b, q)).norm_squared())
+        .sum();
+    (sum / qs.len() as f64).sqrt() * 1e3
+}
+
+#[test]
+fn the_known_distance_fixes_the_scale_the_fixed_points_cannot_see() {
+    // A truth 2 % larger than its nominal model in every length.
+    let nominal = panda(KNOWN_50MM);
+    let space = ParameterSpace::new(&nominal);
+    let mut theta = space.initial();
+    for (k, p) in space.params.iter().enumerate() {
+        if p.info.quantity == armcomp_core::param::Quantity::Length && p.group == ParamGroup::Geometry {
+            theta[k] *= 1.02;
+        }
+    }
+    let truth = space.apply(&nominal, &theta).unwrap();
+    let sockets: Vec<(String, Vector3<f64>)> = sockets().into_iter().take(2).collect();
+    let params = FixedPointParams {
+        per_point: 25,
+        joint_noise_std: 1e-5,
+        seed: 3,
+    };
+    let data = simulate_fixed_points(&truth, &sockets, params).unwrap();
+    let fit = |robot: &Robot| {
+        let cal = calibrate(
+            robot,
+            &data.samples,
+            &CalibrationParams {
+                measurement_std: 2e-5,
+                use_priors: false,
+                ..CalibrationParams::default()
+            },
+            &mut |_| {},
+        )
+        .unwrap();
+        let at = |name: &str| {
+            Vector3::from_fn(|a, _| {
+                let axis = ["x", "y", "z"][a];
+                cal.report
+                    .params
+                    .iter()
+                    .find(|r| r.name == format!("fixed_point.{name}.{axis}"))
+                    .unwrap()
+                    .value
+            })
+        };
+        (
+            (at("hole_0") - at("hole_1")).norm() * 1e3,
+            cal.report.identifiability.message.clone(),
+        )
+    };
+    // The nominal model seen through the truth's data puts the sockets 2 % too close.
+    let (without, message) = fit(&panda(""));
+    assert!(
+        message.contains("scale is not observable"),
+        "without a distance the report says the scale is not observable: {message}"
+    );
+    assert!((without - 50.0).abs() > 0.5, "without the distance: {without} mm");
+    let (with, message) = fit(&nominal);
+    assert!(!message.contains("scale"), "{message}");
+    assert!((with - 50.0).abs() < 0.05, "with the distance: {with} mm");
+}
+
+#[test]
+fn the_fixed_point_jacobian_matches_finite_differences() {
+    let robot = panda(KNOWN_50MM);
+    // Configurations of the truth put into the sockets: seen through the nominal model the
+    // points spread by a millimetre, so the residuals are not zero.
+    let truth = truth_of(&robot, &CHANGES);
+    let params = FixedPointParams {
+        per_point: 6,
+        joint_noise_std: 0.0,
+        seed: 5,
+    };
+    let samples = simulate_fixed_points(&truth, &sockets(), params).unwrap().samples;
+    let space = ParameterSpace::new(&robot).with_fixed_points(&samples);
+    // The fixed points where calibration starts them: the mean of the model's points.
+    let mut start = space.initial();
+    for (name, _) in sockets() {
+        let pts: Vec<Vector3<f64>> = samples
+            .iter()
+            .filter(|s| s.fixed_point.as_deref() == Some(name.as_str()))
+            .map(|s| model_point(&robot, &s.q))
+            .collect();
+        let mean = pts.iter().sum::<Vector3<f64>>() / pts.len() as f64;
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            start[space.index(&format!("fixed_point.{name}.{axis}")).unwrap()] = mean[a];
+        }
+    }
+    // Residuals as the problem states them: modelled point minus its fixed point, then the
+    // distance's error.
+    let residuals = |theta: &[f64]| -> Vec<f64> {
+        let model = space.apply(&robot, theta).unwrap();
+        let point = |name: &str| {
+            Vector3::from_fn(|a, _| {
+                theta[space
+                    .index(&format!("fixed_point.{name}.{}", ["x", "y", "z"][a]))
+                    .unwrap()]
+            })
+        };
+        let mut r: Vec<f64> = samples
+            .iter()
+            .flat_map(|s| {
+                (model_point(&model, &s.q) - point(s.fixed_point.as_deref().unwrap()))
+                    .data
+                    .0[0]
+            })
+            .collect();
+        r.push((point("hole_0") - point("hole_1")).norm() - 0.05);
+        r
+    };
+    for (name, h) in [
+        ("panda_joint2.offset", 1e-6),
+        ("panda_joint3.y", 1e-6),
+        ("panda_joint5.rot_u", 1e-6),
+        ("marker.ball.z", 1e-6),
+        ("fixed_point.hole_0.x", 1e-6),
+        ("fixed_point.hole_1.y", 1e-6),
+        ("fixed_point.far.z", 1e-6),
+    ] {
+        let (jac, names) = samples_jacobian(&robot, &samples, &[name.to_string()]).unwrap();
+        assert_eq!(
+            jac.nrows(),
+            3 * samples.len() + 1,
+            "three rows a sample and one for the distance"
+        );
+        let c = names
+            .iter()
+            .position(|n| n == name)
+            .unwrap_or_else(|| panic!("{name} in {names:?}"));
+        let k = space.index(name).unwrap();
+        let at = |d: f64| {
+            let mut theta = start.clone();
+            theta[k] += d;
+            residuals(&theta)
+        };
+        let (plus, minus) = (at(h), at(-h));
+        let scale = plus
+            .iter()
+            .zip(&minus)
+            .fold(0.0f64, |m, (a, b)| m.max(((a - b) / (2.0 * h)).abs()));
+        assert!(scale > 1e-3, "{name} moves the residuals");
+        for (i, (a, b)) in plus.iter().zip(&minus).enumerate() {
+            let fd = (a - b) / (2.0 * h);
+            assert!(
+                (jac[(i, c)] - fd).abs() <= 1e-5 * scale,
+                "{name}, row {i}: analytic {} vs finite differences {fd}",
+                jac[(i, c)]
+            );
+        }
+    }
+}
+
+#[test]
+fn a_fixed_point_calibration_says_it_cannot_see_the_base_frame() {
+    let robot = panda(KNOWN_50MM);
+    let params = FixedPointParams {
+        per_point: 8,
+        joint_noise_std: 0.0,
+        seed: 9,
+    };
+    let samples = simulate_fixed_points(&robot, &sockets(), params).unwrap().samples;
+    let asked = CalibrationParams {
+        identify: vec!["base".into(), "offsets".into()],
+        ..CalibrationParams::default()
+    };
+    let report = identifiability(&robot, &samples, &asked).unwrap();
+    assert!(
+        report
+            .message
+            .contains("a fixed-point-only calibration cannot see the base frame"),
+        "{}",
+        report.message
+    );
+    let cal = calibrate(&robot, &samples, &asked, &mut |_| {}).unwrap();
+    let names: Vec<&str> = cal.report.params.iter().map(|p| p.name.as_str()).collect();
+    assert!(!names.iter().any(|n| n.starts_with("base.")), "{names:?}");
+    assert!(
+        names.contains(&"panda_joint2.offset") && names.contains(&"fixed_point.far.x"),
+        "{names:?}"
+    );
+    // The robot file's base frame is kept.
+    assert_eq!(cal.robot.t_meas_base(), robot.t_meas_base());
+}
+
+#[test]
+fn fixed_point_files_are_read_and_checked() {
+    let robot = panda(KNOWN_50MM);
+    let head = "panda_joint1[deg],panda_joint2[deg],panda_joint3[deg],panda_joint4[deg],panda_joint5[deg],panda_joint6[deg],panda_joint7[deg]";
+    let ok = format!("{head},fixed_point\n0,10,0,-90,0,90,0,hole_0\n5,10,0,-90,0,90,0,hole_1\n");
+    let set = parse_csv(&ok, Path::new("f.csv"), &robot.csv_layout()).unwrap();
+    assert_eq!(set.samples.len(), 2);
+    assert_eq!(set.samples[1].fixed_point.as_deref(), Some("hole_1"));
+    assert!((set.samples[1].q[0] - 5f64.to_radians()).abs() < 1e-12);
+    let bad = [
+        (
+            format!("{head}\n0,10,0,-90,0,90,0\n"),
+            ":1",
+            "missing column `fixed_point`",
+        ),
+        (
+            format!("{head},fixed_point\n0,10,0,-90,0,90,0,\n"),
+            ":2",
+            "column `fixed_point` is empty",
+        ),
+        (
+            format!("{head},fixed_point,x,y,z\n0,10,0,-90,0,90,0,hole_0,1,2,3\n"),
+            ":1",
+            "gives no measured position",
+        ),
+    ];
+    for (text, line, message) in bad {
+        let e = parse_csv(&text, Path::new("f.csv"), &robot.csv_layout())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(&format!("f.csv{line}")) && e.contains(message), "{e}");
+    }
+    // A position robot refuses the column, and a distance needs fixed points.
+    let point_robot = crate::common::robot("industrial-6dof.toml");
+    let names = point_robot.tree().coordinate_names().join(",");
+    let text = format!("{names},x,y,z,fixed_point\n0,0,0,0,0,0,1,2,3,a\n");
+    let e = parse_csv(&text, Path::new("p.csv"), &point_robot.csv_layout())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("kind = \"fixed_point\""), "{e}");
+    // A distance naming a fixed point the data lack is refused with its place in the file.
+    let other = panda(r#"distances = [{ between = ["hole_0", "hole_9"], mm = 50.0 }]"#);
+    let e = calibrate(&other, &set.samples, &CalibrationParams::default(), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("measurement.distances[0]") && e.contains("hole_9"), "{e}");
+}
+
+/// The MUKCa data (platonics-delft/kinematics_calibration, MIT) beside the repository.
+fn panda_data() -> Option<std::path::PathBuf> {
+    let dir = root().join("../shared/data/panda-sockets");
+    if dir.join("data/panda_1/front/hole_0.csv").is_file() {
+        Some(dir)
+    } else {
+        eprintln!(
+            "skipped: {} not found (see docs/reproductions/panda-sockets.md)",
+            dir.display()
+        );
+        None
+    }
+}
+
+/// Samples of one table place: the headerless joint files (7 columns, rad) of both sockets
+/// with a header and a `fixed_point` column, read as armcomp reads any measurement file.
+fn place(robot: &Robot, dir: &Path, robot_name: &str, place: &str) -> Vec<Sample> {
+    let mut text = (1..=7)
+        .map(|j| format!("panda_joint{j}[rad]"))
+        .collect::<Vec<_>>()
+        .join(",");
+    text.push_str(",fixed_point\n");
+    for hole in ["hole_0", "hole_1"] {
+        let rows = std::fs::read_to_string(dir.join(format!("data/{robot_name}/{place}/{hole}.csv"))).unwrap();
+        for row in rows.lines().filter(|l| !l.trim().is_empty()) {
+            text.push_str(&format!("{},{hole}\n", row.trim()));
+        }
+    }
+    parse_csv(&text, Path::new(place), &robot.csv_layout()).unwrap().samples
+}
+
+#[test]
+#[ignore = "target not reached yet: panda_1 held out at 0.64 mm (back-high 0.88 mm, its sockets 1 mm off 50), \
+            published 0.347 mm; see docs/reproductions/panda-sockets.md"]
+fn panda_sockets_held_out_places_are_consistent_to_a_third_of_a_millimetre() {
+    let Some(dir) = panda_data() else { return };
+    let robot = crate::common::robot("panda-sockets.toml");
+    let train = place(&robot, &dir, "panda_1", "front");
+    let start = std::time::Instant::now();
+    let cal = calibrate(
+        &robot,
+        &train,
+        &CalibrationParams {
+            measurement_std: 1e-4,
+            ..CalibrationParams::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let mut spreads = Vec::new();
+    for test in ["right", "back-high"] {
+        let samples = place(&robot, &dir, "panda_1", test);
+        let before = armcomp::ops::evaluate::run(&robot, &samples).fixed_points.unwrap();
+        let after = armcomp::ops::evaluate::run(&cal.robot, &samples).fixed_points.unwrap();
+        let distance = &after.distances[0];
+        eprintln!(
+            "panda_1 {test}: spread {:.3} -> {:.3} mm, distance {:.3} mm",
+            before.spread_mm, after.spread_mm, distance.modelled_mm
+        );
+        assert!(
+            distance.error_mm < 0.5,
+            "{test}: sockets {} mm apart",
+            distance.modelled_mm
+        );
+        spreads.push(after.spread_mm);
+    }
+    let heldout = spreads.iter().sum::<f64>() / spreads.len() as f64;
+    eprintln!("panda_1 held out: {heldout:.3} mm, calibration {seconds:.2} s");
+    assert!(heldout <= 0.35, "held-out consistency {heldout} mm");
+}
+
+#[test]
+fn simulate_calibrate_and_evaluate_fixed_points_on_the_command_line() {
+    let s = crate::common::Scratch::new("fixed-points");
+    let write = |name: &str, robot: &Robot| {
+        let path = s.0.join(name);
+        std::fs::write(&path, robot.to_file().to_text_for(&path).unwrap()).unwrap();
+        path.display().to_string()
+    };
+    let nominal = panda(KNOWN_50MM);
+    let truth = write("truth.toml", &truth_of(&nominal, &CHANGES));
+    let nominal = write("nominal.toml", &nominal);
+    let data = s.0.join("data.csv").display().to_string();
+    let model = s.0.join("model.toml").display().to_string();
+    let run = |args: &[&str]| {
+        let (code, out, err) = crate::cli::armcomp(args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        out
+    };
+    run(&[
+        "simulate",
+        "--robot",
+        &truth,
+        "--fixed-point",
+        "hole_0=450,-25,120",
+        "--fixed-point",
+        "hole_1=450,25,120",
+        "--fixed-point",
+        "far=250,350,350",
+        "--n",
+        "25",
+        "--joint-noise-deg",
+        "0.0005",
+        "--seed",
+        "2",
+        "--out",
+        &data,
+    ]);
+    run(&[
+        "calibrate",
+        "--robot",
+        &nominal,
+        "--data",
+        &data,
+        "--noise-mm",
+        "0.02",
+        "--out",
+        &model,
+    ]);
+    let spread = |model: &str| {
+        let json: serde_json::Value =
+            serde_json::from_str(&run(&["evaluate", "--model", model, "--data", &data, "--json"])).unwrap();
+        let f = &json["fixed_points"];
+        (
+            f["spread_mm"].as_f64().unwrap(),
+            f["distances"][0]["error_mm"].as_f64().unwrap(),
+        )
+    };
+    let (before, _) = spread(&nominal);
+    let (after, distance) = spread(&model);
+    assert!(
+        before > 0.3,
+        "the truth's points seen through the nominal model spread by {before} mm"
+    );
+    assert!(after < 0.03, "calibrated spread {after} mm (nominal {before} mm)");
+    assert!(distance < 0.02, "distance error {distance} mm");
+}
