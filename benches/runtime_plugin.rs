@@ -84,6 +84,7 @@ fn bench(c: &mut Criterion) {
             payload: None,
             temperature: None,
             torque: None,
+            gravity: None,
         })
         .collect();
     let identify = vec!["all".to_string()];

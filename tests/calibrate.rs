@@ -902,6 +902,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                 let conditions = Conditions {
                     payload,
                     temperature: None,
+                    gravity: None,
                 };
                 let exact = truth.measured_position(&q, point, conditions, &mut ws);
                 Sample {
@@ -912,6 +913,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                     payload,
                     temperature: None,
                     torque: None,
+                    gravity: None,
                 }
             })
             .collect();

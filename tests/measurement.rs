@@ -39,6 +39,7 @@ fn write_then_read_gives_the_same_samples() {
             payload: Some(1.5),
             temperature: Some(21.0 + i as f64 * 0.1),
             torque: None,
+            gravity: None,
         })
         .collect();
     let set = MeasurementSet {
@@ -187,6 +188,7 @@ fn point_names_with_commas_and_quotes_round_trip() {
         payload: None,
         temperature: None,
         torque: None,
+        gravity: None,
     };
     let set = MeasurementSet {
         samples: vec![sample(r.tool(), 1.0), sample(nest, 0.25)],

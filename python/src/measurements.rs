@@ -269,6 +269,7 @@ impl PyMeasurements {
                 payload: None,
                 temperature: None,
                 torque: None,
+                gravity: None,
             })
             .collect::<Vec<_>>();
         let rows = (0..samples.len()).collect();

@@ -478,6 +478,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             payload: None,
             temperature: None,
             torque: None,
+            gravity: None,
         })
         .collect()
 }
