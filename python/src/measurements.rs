@@ -152,7 +152,8 @@ fn map_by_name(
         }
     };
     let width = joint_names.map_or(tree.nq(), <[String]>::len);
-    // Torques are per coordinate: kept only when the data's joints are the robot's, in order.
+    // Torques are per coordinate, sensor readings per body: kept only when the data's joints
+    // are the robot's, in order.
     let same_joints = width == tree.nq() && columns.iter().enumerate().all(|(i, c)| *c == Ok(i));
     let mut samples = Vec::with_capacity(set.samples.len());
     for (i, s) in set.samples.iter().enumerate() {
@@ -189,6 +190,8 @@ fn map_by_name(
             q,
             point,
             torque: if same_joints { s.torque.clone() } else { None },
+            // A sensor reading names a body of the tree it was read for.
+            gravity: if same_joints { s.gravity } else { None },
             ..s.clone()
         });
     }
