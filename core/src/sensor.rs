@@ -222,7 +222,7 @@ mod tests {
         let mut frames = TreeWorkspace::new(&tree);
         let q = 30f64.to_radians();
         tree.forward_into(&[q], &mut frames);
-        assert!((frames.body[link].rotation.angle_to(&rz(q).rotation)) < 1e-15);
+        assert!(frames.body[link].rotation.angle_to(&rz(q).rotation) < 1e-15);
 
         // The base stands tilted: gravity in the base frame leans 2 deg toward +x.
         let t = 2f64.to_radians();
