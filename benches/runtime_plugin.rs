@@ -85,6 +85,7 @@ fn bench(c: &mut Criterion) {
             temperature: None,
             torque: None,
             fixed_point: None,
+            gravity: None,
         })
         .collect();
     let identify = vec!["all".to_string()];

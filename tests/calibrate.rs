@@ -902,6 +902,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                 let conditions = Conditions {
                     payload,
                     temperature: None,
+                    gravity: None,
                 };
                 let exact = truth.measured_position(&q, point, conditions, &mut ws);
                 Sample {
@@ -913,6 +914,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                     temperature: None,
                     torque: None,
                     fixed_point: None,
+                    gravity: None,
                 }
             })
             .collect();

@@ -51,6 +51,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
             let conditions = Conditions {
                 temperature: campaign.drift.then(|| 15.0 + 20.0 * i as f64 / n as f64),
                 payload: (!campaign.payloads.is_empty()).then(|| campaign.payloads[i % campaign.payloads.len()]),
+                gravity: None,
             };
             let mut p = truth.measured_position(&q, point, conditions, &mut ws);
             for k in 0..3 {
@@ -65,6 +66,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
                 temperature: conditions.temperature,
                 torque: None,
                 fixed_point: None,
+                gravity: None,
             }
         })
         .collect()
@@ -664,6 +666,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             temperature: None,
             torque: None,
             fixed_point: None,
+            gravity: None,
         })
         .collect();
     let loads = armcomp_core::residuals::gravity_loads(&robot, &samples);

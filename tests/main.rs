@@ -27,6 +27,7 @@ mod plan;
 mod point_kinematics;
 mod robot_files;
 mod runtime_plugins;
+mod sensors;
 mod simulate;
 mod talos;
 mod urdf;

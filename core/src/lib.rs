@@ -39,6 +39,7 @@ pub mod robot;
 pub mod robot_file;
 pub mod role;
 pub mod sampling;
+pub mod sensor;
 pub mod shape;
 pub mod simulate;
 mod sincos;

@@ -11,16 +11,19 @@
 //! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
 //! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
 //! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
-//! `tau_<joint>[Nm]`. A robot file of `kind = "fixed_point"` reads rows without a position:
-//! a `fixed_point` column names the unknown fixed point the marker was put into (`socket_a`).
+//! `tau_<joint>[Nm]`; the columns of the robot file's sensor (`[[sensors]]`: an accelerometer's
+//! reading, an inclinometer's roll and pitch), which give the direction of gravity per row.
+//! A robot file of `kind = "fixed_point"` reads rows without a position: a `fixed_point`
+//! column names the unknown fixed point the marker was put into (`socket_a`).
 //! Other columns (timestamps, marker quality, joints of other limbs) are
 //! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
 use std::path::Path;
 
-use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3, Vector4};
 
 use crate::error::{Error, Location, Result};
+use crate::sensor::{GravityReading, GravitySensor, SensorKind};
 use crate::tree::KinematicTree;
 use crate::units::{AngleUnit, LengthUnit, Units};
 
@@ -44,6 +47,8 @@ pub struct Sample {
     /// The unknown fixed point the measured point was put into, by name, for fixed-point
     /// measurements (`position` is then unused).
     pub fixed_point: Option<String>,
+    /// The direction of gravity the robot's sensor measured, when its columns are given.
+    pub gravity: Option<GravityReading>,
 }
 
 /// Refuses fixed-point samples for `what`, which scores models on held-out measured
@@ -95,6 +100,8 @@ enum Column {
     Payload(f64),
     Temperature(f64),
     Torque(usize),
+    /// A cell of the gravity sensor's reading, and its unit's scale to SI.
+    Sensor(usize, f64),
     /// A column armcomp does not use (a timestamp, marker quality, another limb's joint).
     Ignored,
 }
@@ -111,6 +118,9 @@ impl Column {
             Column::Payload(scale) => Some((v * scale, 1e6, "1000 t")),
             Column::Temperature(offset) => Some((v + offset, 1e4, "10000 °C")),
             Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
+            // An accelerometer's scale is free (its direction is used); an inclinometer's
+            // angles are checked against their ranges.
+            Column::Sensor(_, scale) => Some((v * scale, 1e6, "1e6")),
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
@@ -199,6 +209,9 @@ pub struct CsvLayout<'a> {
     /// Whether the robot measures fixed points: rows then name their fixed point in a
     /// `fixed_point` column instead of giving a position.
     pub fixed_points: bool,
+    /// The robot's sensor giving the direction of gravity per row, whose columns are read
+    /// when the file has them.
+    pub gravity_sensor: Option<GravitySensor>,
 }
 
 impl<'a> CsvLayout<'a> {
@@ -211,6 +224,7 @@ impl<'a> CsvLayout<'a> {
             hold: vec![None; tree.nq()],
             orientation: false,
             fixed_points: false,
+            gravity_sensor: None,
         }
     }
 }
@@ -234,6 +248,12 @@ pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Ve
         .into_iter()
         .map(|s| s.q)
         .collect())
+}
+
+/// Whether `name` is a column measurement files give a meaning of their own (besides the
+/// fixed names the robot file checks): an orientation cell or a numbered position.
+pub fn is_measurement_column(name: &str) -> bool {
+    Spelling::of(name).is_some() || numbered_position(name).is_some()
 }
 
 /// The 1-based line of the record a csv reader read at `position` in `text` (0 when
@@ -442,6 +462,18 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         } else if !with_positions {
             ignored.push(h);
             Column::Ignored
+        } else if let Some((sensor, cell)) = layout
+            .gravity_sensor
+            .as_ref()
+            .and_then(|g| g.columns.iter().position(|c| c == name).map(|k| (g, k)))
+        {
+            let scale = sensor.kind.column_scale(unit, units.angle).map_err(|m| {
+                err(
+                    Some(header_line),
+                    format!("column `{h}` of sensor `{}`: {m}", sensor.name),
+                )
+            })?;
+            Column::Sensor(cell, scale)
         } else if let Some((axis, slot)) = numbered_position(name) {
             if slot >= layout.points.len() {
                 let measured: Vec<&str> = layout.points.iter().map(|&p| tree.points()[p].name.as_str()).collect();
@@ -646,6 +678,28 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         ));
     }
     let has_torque = has(&|k| matches!(k, Column::Torque(_)));
+    let sensor_cells = columns.iter().filter(|c| matches!(c, Column::Sensor(..))).count();
+    let sensor = layout.gravity_sensor.as_ref().filter(|_| sensor_cells > 0);
+    if let Some(g) = sensor
+        && sensor_cells < g.columns.len()
+    {
+        let missing: Vec<&str> = g
+            .columns
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| !has(&|c| matches!(c, Column::Sensor(cell, _) if *cell == k)))
+            .map(|(_, c)| c.as_str())
+            .collect();
+        return Err(err(
+            Some(header_line),
+            format!(
+                "sensor `{}` needs all its columns ({}); missing {}",
+                g.name,
+                g.columns.join(", "),
+                listed(&missing)
+            ),
+        ));
+    }
 
     let mut set = MeasurementSet::default();
     // A pose robot's file without orientation is a file of positions (another session's, a
@@ -655,6 +709,18 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             "{}: the robot file measures poses but this file gives no orientation (qw, qx, qy, qz; rx, ry, rz; or \
              roll, pitch, yaw): its rows are used as positions only",
             path.display()
+        ));
+    }
+    if let Some(g) = layout
+        .gravity_sensor
+        .as_ref()
+        .filter(|_| with_positions && sensor.is_none())
+    {
+        set.warnings.push(format!(
+            "{}: no columns of sensor `{}` ({}): its rows are evaluated with the robot file's gravity",
+            path.display(),
+            g.name,
+            g.columns.join(", ")
         ));
     }
     if !ignored.is_empty() {
@@ -690,8 +756,10 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             temperature: None,
             torque: has_torque.then(|| vec![0.0; names.len()]),
             fixed_point: None,
+            gravity: None,
         };
         let mut angles = [0.0; 4];
+        let mut sensor_reading = Vector4::zeros();
         // Per slot, the position and how many of its cells were empty.
         let mut positions = vec![(Vector3::zeros(), 0usize); slots.len()];
         for (field, (col, head)) in record.iter().zip(columns.iter().zip(headers.iter())) {
@@ -722,6 +790,12 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     let k = slots.iter().position(|s| s == slot).unwrap_or(0);
                     positions[k].1 += 1;
                     continue;
+                }
+                Column::Sensor(..) if field.trim().is_empty() => {
+                    return Err(err(
+                        Some(line),
+                        format!("column `{head}`: empty; the sensor's reading is needed on every row"),
+                    ));
                 }
                 _ => {}
             }
@@ -762,11 +836,24 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                         t[c] = v;
                     }
                 }
+                Column::Sensor(k, scale) => sensor_reading[k] = v * scale,
                 Column::Point | Column::FixedPoint | Column::Ignored => {}
             }
         }
         if let Some(spelling) = spelling {
             s.orientation = Some(spelling.rotation(angles).map_err(|m| err(Some(line), m))?);
+        }
+        if let Some(g) = sensor {
+            let direction = g.kind.gravity_direction(&sensor_reading).map_err(|m| {
+                err(
+                    Some(line),
+                    format!("sensor `{}` (columns {}): {m}", g.name, g.columns.join(", ")),
+                )
+            })?;
+            s.gravity = Some(GravityReading {
+                body: g.body,
+                direction,
+            });
         }
         for (c, lim) in tree.coordinate_limits().iter().enumerate() {
             if let Some(l) = lim
@@ -1019,6 +1106,17 @@ fn check_magnitudes(
 /// `x[unit]`, or the `fixed_point` column of fixed-point samples); deterministic text for equal
 /// inputs.
 pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> String {
+    write_csv_with_sensor(set, tree, units, None)
+}
+
+/// [`write_csv`] with the columns of `sensor` (an accelerometer's in g, an inclinometer's in
+/// the angle unit) for the samples' measured gravity, when every sample carries one.
+pub fn write_csv_with_sensor(
+    set: &MeasurementSet,
+    tree: &KinematicTree,
+    units: Units,
+    sensor: Option<&GravitySensor>,
+) -> String {
     let lu = units.length.symbol();
     let mut header = joint_header(tree, units);
     let several_points = set.samples.iter().any(|s| s.point != set.samples[0].point);
@@ -1044,6 +1142,14 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
     if with_temp {
         header.push("temperature[C]".into());
     }
+    let sensor = sensor.filter(|_| first.is_some() && set.samples.iter().all(|s| s.gravity.is_some()));
+    if let Some(g) = sensor {
+        let unit = match g.kind {
+            SensorKind::Accelerometer => "g",
+            SensorKind::Inclinometer => units.angle.symbol(),
+        };
+        header.extend(g.columns.iter().map(|c| format!("{c}[{unit}]")));
+    }
     let rows = set.samples.iter().map(|s| {
         let mut row = joint_row(&s.q, tree, units);
         if several_points {
@@ -1061,6 +1167,13 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
         }
         if with_temp {
             row.push(format!("{}", s.temperature.unwrap_or(20.0)));
+        }
+        if let (Some(g), Some(reading)) = (sensor, s.gravity) {
+            let cells = g.kind.cells_for(&reading.direction);
+            row.extend(cells.iter().take(g.columns.len()).map(|&v| match g.kind {
+                SensorKind::Accelerometer => format!("{v}"),
+                SensorKind::Inclinometer => format!("{}", units.ang_out(v)),
+            }));
         }
         row
     });

@@ -134,7 +134,7 @@ pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
                 frames: &ws.rigid,
                 mass,
                 loads: &ws.loads,
-                gravity: robot.gravity(),
+                gravity: robot.gravity_under(conditions, tree, &ws.rigid),
                 temperature: conditions.temperature,
             };
             (0..tree.joints().len())

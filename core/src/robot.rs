@@ -15,6 +15,7 @@ use crate::perturbation::Perturbation;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext, StaticState};
 use crate::point_kinematics::PointKinematics;
 use crate::robot_file::{BeamSpec, RobotFile, SourceFile};
+use crate::sensor::{GravityReading, GravitySensor};
 use crate::shape::{Geometry, Shape};
 use crate::subtree_loads::SubtreeLoads;
 use crate::tree::KinematicTree;
@@ -50,6 +51,8 @@ pub struct Robot {
     error_values: Vec<Vec<f64>>,
     t_meas_base: Isometry3<f64>,
     markers: Vec<usize>,
+    /// The sensor giving the direction of gravity per measurement row, if the file has one.
+    gravity_sensor: Option<GravitySensor>,
     /// Per coordinate, the value the robot file says it held while measuring (rad or m).
     hold: Vec<Option<f64>>,
     /// The point a payload hangs at (the file's payload point, else the tool); a payload given
@@ -68,6 +71,9 @@ pub struct Conditions {
     pub temperature: Option<f64>,
     /// Payload mass (kg) replacing the robot file's payload.
     pub payload: Option<f64>,
+    /// The measured direction of gravity (a sensor's reading), replacing the robot file's
+    /// direction; the file's magnitude is kept.
+    pub gravity: Option<GravityReading>,
 }
 
 impl Conditions {
@@ -76,6 +82,7 @@ impl Conditions {
         Conditions {
             temperature: sample.temperature,
             payload: sample.payload,
+            gravity: sample.gravity,
         }
     }
 }
@@ -180,6 +187,7 @@ impl Robot {
         let payload_point = resolve_payload(&file, &points, tool, &base_tree, &mut mass, &mut issues);
 
         let (t_meas_base, markers, hold) = measurement_setup(&file, &base_tree, &points, tool, &units, &mut issues);
+        let gravity_sensor = resolve_sensors(&file, &base_tree, &mut issues);
 
         // A predictor that names files (a run-time library) finds them beside this file, as
         // error models do, and not in the working folder it is later fitted from.
@@ -213,6 +221,7 @@ impl Robot {
             error_values: Vec::new(),
             t_meas_base,
             markers,
+            gravity_sensor,
             hold,
             payload_point,
             collision,
@@ -442,6 +451,7 @@ impl Robot {
             hold,
             orientation: self.measures_pose(),
             fixed_points: self.measures_fixed_points(),
+            gravity_sensor: self.gravity_sensor.clone(),
         }
     }
 
@@ -573,7 +583,7 @@ impl Robot {
     pub fn forward_into(&self, q: &[f64], temperature: Option<f64>, ws: &mut RobotWorkspace) {
         let conditions = Conditions {
             temperature,
-            payload: None,
+            ..Conditions::default()
         };
         self.forward_with_into(&self.tree, &self.error_values, q, conditions, ws);
     }
@@ -641,7 +651,7 @@ impl Robot {
         ws: &mut RobotWorkspace,
     ) {
         ws.perturbation.clear();
-        let (own_mass, gravity) = self.loads_into(conditions, tree, error_values, &mut ws.mass);
+        let (own_mass, gravity) = self.loads_into(conditions, tree, &ws.rigid, error_values, &mut ws.mass);
         ws.own_mass = own_mass;
         ws.gravity = gravity;
         let mass = if own_mass { &self.mass } else { &ws.mass };
@@ -674,21 +684,24 @@ impl Robot {
     /// The loads under `conditions` with the points of `tree` and error-model `values`:
     /// whether the mass model is the robot's own (otherwise the one written into `scratch`:
     /// a payload applied, or load-adjusting models' payload mass) and the gravity (base
-    /// frame), load-adjusting models applied in order.
+    /// frame; a measured direction carried there by the rigid frames `frames` of `tree`),
+    /// load-adjusting models applied in order.
     pub fn loads_into(
         &self,
         conditions: Conditions,
         tree: &KinematicTree,
+        frames: &TreeWorkspace,
         error_values: &[Vec<f64>],
         scratch: &mut MassModel,
     ) -> (bool, Vector3<f64>) {
         let adjusting = self.error_models.iter().any(|m| m.adjusts_loads());
         let own = self.mass_is_own(conditions, tree);
+        let gravity = self.gravity_under(conditions, tree, frames);
         if !adjusting {
             if !own {
                 self.mass_under(conditions, tree, scratch);
             }
-            return (own, self.gravity);
+            return (own, gravity);
         }
         if own {
             scratch.clone_from(&self.mass);
@@ -696,8 +709,10 @@ impl Robot {
             self.mass_under(conditions, tree, scratch);
         }
         let declared = scratch.payload.as_ref().map_or(0.0, |p| p.mass);
+        // A load-adjusting model starts from the measured gravity: `base_tilt` then turns it by
+        // a constant angle, the sensor's misalignment with the base (see its documentation).
         let mut loads = crate::plugin::Loads {
-            gravity: self.gravity,
+            gravity,
             payload_mass: declared,
         };
         for (m, v) in self.error_models.iter().zip(error_values) {
@@ -708,6 +723,21 @@ impl Robot {
             scratch.payload.get_or_insert(Payload { mass: 0.0, body, com }).mass = loads.payload_mass;
         }
         (false, loads.gravity)
+    }
+
+    /// Gravity in the base frame (m/s²) under `conditions`: the robot file's, or its magnitude
+    /// along a measured direction carried to the base frame by the rigid frames `frames` of
+    /// `tree` (the sensor's link where the row's joint values put it).
+    pub fn gravity_under(&self, conditions: Conditions, tree: &KinematicTree, frames: &TreeWorkspace) -> Vector3<f64> {
+        match conditions.gravity {
+            Some(reading) => self.gravity.norm() * reading.in_base(tree, frames),
+            None => self.gravity,
+        }
+    }
+
+    /// The sensor whose columns give the direction of gravity per measurement row, if any.
+    pub fn gravity_sensor(&self) -> Option<&GravitySensor> {
+        self.gravity_sensor.as_ref()
     }
 
     /// The mass model under `conditions` with the points of `tree`: the robot's own, or a copy
@@ -839,6 +869,7 @@ impl Robot {
             predictor: None,
             fitted_predictor: None,
             measurement: self.file.measurement.clone(),
+            sensors: self.file.sensors.clone(),
             fixtures: self.file.fixtures.clone(),
             collision: self.file.collision.clone(),
             fixed: self.file.fixed.clone(),
@@ -875,6 +906,82 @@ fn check_column_name(name: &str, header: bool) -> std::result::Result<(), String
         return Err("is the name of a measurement CSV column (point, x, y, z, qw, qx, qy, qz, payload, temperature, tau_<joint>)".into());
     }
     Ok(())
+}
+
+/// The file's sensor on a link of `tree`, with its columns checked. One sensor for now: the
+/// physics takes one direction of gravity per row, and two sensors on different links disagree
+/// by the bending between them, which no rule of averaging would make right.
+fn resolve_sensors(file: &RobotFile, base_tree: &KinematicTree, issues: &mut Issues) -> Option<GravitySensor> {
+    if file.sensors.len() > 1 {
+        issues.push(
+            "sensors[1]",
+            format!(
+                "{} sensors declared; the direction of gravity is read from one sensor per robot",
+                file.sensors.len()
+            ),
+        );
+    }
+    let spec = file.sensors.first()?;
+    let path = "sensors[0]";
+    let mut ok = true;
+    if let Err(m) = check_column_name(&spec.name, false) {
+        issues.push(
+            format!("{path}.name"),
+            format!("sensor name `{}` {m}", spec.name.escape_debug()),
+        );
+        ok = false;
+    }
+    let body = base_tree.body_index(&spec.link);
+    if body.is_none() {
+        issues.push(
+            format!("{path}.link"),
+            format!(
+                "sensor `{}` is on link `{}`, which does not exist; links are: {}",
+                spec.name,
+                spec.link,
+                body_names(base_tree)
+            ),
+        );
+    }
+    let n = spec.kind.n_columns();
+    if spec.columns.len() != n {
+        issues.push(
+            format!("{path}.columns"),
+            format!(
+                "an {} has {n} columns ({}), got {}",
+                spec.kind.name(),
+                spec.kind.cells(),
+                spec.columns.len()
+            ),
+        );
+        ok = false;
+    }
+    for (k, c) in spec.columns.iter().enumerate() {
+        let clash = if let Err(m) = check_column_name(c, true) {
+            Some(m)
+        } else if base_tree.coordinate_names().iter().any(|j| j == c) {
+            Some("is the name of a joint's column".to_string())
+        } else if crate::measurement::is_measurement_column(c) {
+            Some("is the name of a measurement CSV column (an orientation or a numbered position)".to_string())
+        } else if spec.columns[..k].contains(c) {
+            Some("appears twice".to_string())
+        } else {
+            None
+        };
+        if let Some(m) = clash {
+            issues.push(
+                format!("{path}.columns[{k}]"),
+                format!("column `{}` {m}", c.escape_debug()),
+            );
+            ok = false;
+        }
+    }
+    Some(GravitySensor {
+        name: spec.name.clone(),
+        kind: spec.kind,
+        body: body.filter(|_| ok)?,
+        columns: spec.columns.clone(),
+    })
 }
 
 /// The file's points on the links of `tree`, and the index of the tool among them.

@@ -70,6 +70,10 @@ pub struct RobotFile {
     /// The measurement setup: where the tracker is, which points it sees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measurement: Option<MeasurementSpec>,
+    /// Sensors read per measurement row (an accelerometer or inclinometer giving the direction
+    /// of gravity), with their columns in measurement files.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sensors: Vec<crate::sensor::SensorSpec>,
     /// Shapes fixed in the cell (floor, tables, walls), for collision checking.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub fixtures: Vec<FixtureSpec>,

@@ -5,8 +5,11 @@ use rand::rngs::StdRng;
 use rand_distr::{Distribution, Normal};
 
 use crate::error::{Error, Result};
+use nalgebra::{UnitQuaternion, Vector3};
+
 use crate::measurement::{MeasurementSet, Sample};
-use crate::robot::Robot;
+use crate::robot::{Conditions, Robot};
+use crate::sensor::GravityReading;
 
 /// Settings of a simulated measurement campaign.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,10 +28,46 @@ pub const ABSURD_NOISE: f64 = 1.0;
 /// millimetre, cameras by a millimetre): allowed, with a warning.
 pub const IMPLAUSIBLE_NOISE: f64 = 5e-3;
 
+/// Tilt (rad) beyond which a simulated base is not standing but falling over.
+pub const ABSURD_TILT: f64 = 0.5;
+
 /// Measures every marker of `truth` at each configuration: `T_meas_base · FK(q) · p_marker`
 /// through the full model (chain and error models; a rigid truth through the markers' batched
-/// point kinematics), plus Gaussian noise per axis.
+/// point kinematics), plus Gaussian noise per axis. A truth with a gravity sensor
+/// (`[[sensors]]`) reads the file's gravity; see [`simulate_tilted`].
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
+    simulate_tilted(truth, poses, params, 0.0)
+}
+
+/// [`simulate`] with the base standing tilted by a different angle at every pose: about the
+/// base x and y axes, each drawn from a normal distribution of standard deviation `tilt_std`
+/// (rad) with the noise's seed (a stream of its own, so the noise is that of [`simulate`]).
+/// Gravity in the base frame turns the other way (as `base_tilt` turns it) and the elastic
+/// models respond to it; the truth's sensor, which a tilt needs, reads it exactly. The tracker
+/// moves with the base (it is carried on the base, or the base frame is registered again at
+/// every station), so the tilt shows only through the loads.
+pub fn simulate_tilted(
+    truth: &Robot,
+    poses: &[Vec<f64>],
+    params: SimulateParams,
+    tilt_std: f64,
+) -> Result<MeasurementSet> {
+    if !(tilt_std.is_finite() && (0.0..=ABSURD_TILT).contains(&tilt_std)) {
+        return Err(Error::InvalidArgument {
+            what: "tilt".into(),
+            reason: format!(
+                "expected a standard deviation between 0 and {:.0} deg, got {} deg",
+                ABSURD_TILT.to_degrees(),
+                tilt_std.to_degrees()
+            ),
+        });
+    }
+    if tilt_std > 0.0 && truth.gravity_sensor().is_none() {
+        return Err(Error::InvalidArgument {
+            what: "tilt".into(),
+            reason: "a tilted base needs a sensor in the truth's robot file (`[[sensors]]`) to read it".into(),
+        });
+    }
     if !(params.noise_std.is_finite() && params.noise_std >= 0.0) {
         return Err(Error::InvalidArgument {
             what: "noise".into(),
@@ -51,7 +90,19 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
     })?;
     let mut rng = StdRng::seed_from_u64(params.seed);
     let t = truth.t_meas_base();
-    let positions = truth.point_positions_many(truth.markers(), poses)?;
+    let (positions, readings) = match truth.gravity_sensor() {
+        Some(sensor) => {
+            let tilt = Normal::new(0.0, tilt_std).map_err(|e| Error::InvalidArgument {
+                what: "tilt".into(),
+                reason: e.to_string(),
+            })?;
+            let mut tilt_rng = StdRng::seed_from_u64(params.seed ^ 0x7117_5eed_0000_0001);
+            tilted_positions(truth, poses, sensor.body, || {
+                Vector3::new(tilt.sample(&mut tilt_rng), tilt.sample(&mut tilt_rng), 0.0)
+            })?
+        }
+        None => (truth.point_positions_many(truth.markers(), poses)?, Vec::new()),
+    };
     let mut set = MeasurementSet::default();
     if params.noise_std > IMPLAUSIBLE_NOISE {
         set.warnings.push(format!(
@@ -61,7 +112,7 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
         ));
     }
     let per_pose = positions.chunks_exact(truth.markers().len().max(1));
-    for (q, at) in poses.iter().zip(per_pose) {
+    for (i, (q, at)) in poses.iter().zip(per_pose).enumerate() {
         for (&m, p) in truth.markers().iter().zip(at) {
             let mut p = t.transform_point(&(*p).into()).coords;
             for k in 0..3 {
@@ -76,6 +127,7 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
                 temperature: None,
                 torque: None,
                 fixed_point: None,
+                gravity: readings.get(i).copied(),
             });
         }
     }
@@ -165,6 +217,7 @@ pub fn simulate_fixed_points(
                 temperature: None,
                 torque: None,
                 fixed_point: Some(name.clone()),
+                gravity: None,
             });
             found += 1;
         }
@@ -179,4 +232,34 @@ pub fn simulate_fixed_points(
         }
     }
     Ok(set)
+}
+
+/// The markers' positions (m, base frame) at `poses` with the base tilted by `tilt()` (a
+/// rotation vector, rad) at each, and the readings of a sensor on `body`.
+fn tilted_positions(
+    truth: &Robot,
+    poses: &[Vec<f64>],
+    body: usize,
+    mut tilt: impl FnMut() -> Vector3<f64>,
+) -> Result<(Vec<Vector3<f64>>, Vec<GravityReading>)> {
+    let tree = truth.tree();
+    let mut ws = truth.workspace();
+    let down = truth.gravity().try_normalize(0.0).unwrap_or(-Vector3::z());
+    let mut positions = Vec::with_capacity(poses.len() * truth.markers().len());
+    let mut readings = Vec::with_capacity(poses.len());
+    for q in poses {
+        tree.check_q(q)?;
+        tree.forward_into(q, &mut ws.rigid);
+        // Gravity seen from a tilted base turns the other way (as `base_tilt` turns it).
+        let tilted = UnitQuaternion::from_scaled_axis(tilt()).inverse_transform_vector(&down);
+        let reading = GravityReading::of_base_direction(body, &tilted, tree, &ws.rigid);
+        let conditions = Conditions {
+            gravity: Some(reading),
+            ..Conditions::default()
+        };
+        truth.forward_with_into(tree, truth.error_values(), q, conditions, &mut ws);
+        positions.extend(truth.markers().iter().map(|&m| ws.frames.point[m].translation.vector));
+        readings.push(reading);
+    }
+    Ok((positions, readings))
 }

@@ -152,7 +152,8 @@ fn map_by_name(
         }
     };
     let width = joint_names.map_or(tree.nq(), <[String]>::len);
-    // Torques are per coordinate: kept only when the data's joints are the robot's, in order.
+    // Torques are per coordinate, sensor readings per body: kept only when the data's joints
+    // are the robot's, in order.
     let same_joints = width == tree.nq() && columns.iter().enumerate().all(|(i, c)| *c == Ok(i));
     let mut samples = Vec::with_capacity(set.samples.len());
     for (i, s) in set.samples.iter().enumerate() {
@@ -190,6 +191,8 @@ fn map_by_name(
             point,
             torque: if same_joints { s.torque.clone() } else { None },
             fixed_point: None,
+            // A sensor reading names a body of the tree it was read for.
+            gravity: if same_joints { s.gravity } else { None },
             ..s.clone()
         });
     }
@@ -271,6 +274,7 @@ impl PyMeasurements {
                 temperature: None,
                 torque: None,
                 fixed_point: None,
+                gravity: None,
             })
             .collect::<Vec<_>>();
         let rows = (0..samples.len()).collect();

@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp_core::io::write_atomic;
-use armcomp_core::measurement::{parse_poses, write_csv};
+use armcomp_core::measurement::{parse_poses, write_csv, write_csv_with_sensor};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -21,6 +21,10 @@ pub struct Args {
     /// Standard deviation of the measurement noise per axis, in mm.
     #[arg(long, default_value_t = 0.0)]
     noise_mm: f64,
+    /// Standard deviation (deg) of the base's tilt about its x and y axes, drawn anew at every
+    /// pose; the robot file's sensor (`[[sensors]]`) reads it and its columns are written.
+    #[arg(long, default_value_t = 0.0)]
+    tilt_deg: f64,
     /// Seed for pose sampling and noise; the same seed gives the same bytes.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -91,11 +95,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
-    let set = armcomp::ops::simulate::run(&truth, &poses, args.noise_mm, args.seed)?;
+    let set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, args.seed)?;
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }
-    write_atomic(&args.out, write_csv(&set, truth.tree(), truth.units()).as_bytes())?;
+    let text = write_csv_with_sensor(&set, truth.tree(), truth.units(), truth.gravity_sensor());
+    write_atomic(&args.out, text.as_bytes())?;
     eprintln!(
         "wrote {} measurements of {} poses to {} (noise {} mm per axis, seed {})",
         set.samples.len(),

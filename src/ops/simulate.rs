@@ -4,7 +4,7 @@ use armcomp_core::Robot;
 use armcomp_core::limits::{self, Cost};
 use armcomp_core::measurement::MeasurementSet;
 use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::simulate::{SimulateParams, simulate_tilted};
 
 /// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or
 /// grid); `n` is checked against [the limits](armcomp_core::limits) of simulating them first.
@@ -17,11 +17,23 @@ pub fn draw_poses(truth: &Robot, sampler: &str, n: usize, seed: u64) -> armcomp_
 
 /// Measures `truth` at `poses` with `noise_mm` of noise per axis, the noise drawn from `seed`.
 pub fn run(truth: &Robot, poses: &[Vec<f64>], noise_mm: f64, seed: u64) -> armcomp_core::Result<MeasurementSet> {
+    run_tilted(truth, poses, noise_mm, 0.0, seed)
+}
+
+/// [`run`] with the base tilted about its x and y axes by angles drawn per pose with a standard
+/// deviation of `tilt_deg` (see [`simulate_tilted`]).
+pub fn run_tilted(
+    truth: &Robot,
+    poses: &[Vec<f64>],
+    noise_mm: f64,
+    tilt_deg: f64,
+    seed: u64,
+) -> armcomp_core::Result<MeasurementSet> {
     // Noise draws use a stream of their own so that the same poses get the same noise
     // whether they were sampled or read from a file.
     let params = SimulateParams {
         noise_std: noise_mm * 1e-3,
         seed: seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
     };
-    simulate(truth, poses, params)
+    simulate_tilted(truth, poses, params, tilt_deg.to_radians())
 }

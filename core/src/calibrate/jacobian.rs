@@ -512,6 +512,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             temperature: None,
             torque: None,
             fixed_point: None,
+            gravity: None,
         })
         .collect()
 }

@@ -2,6 +2,11 @@
 //! The whole arm turns with its base (applied like a base frame error), and gravity seen in the
 //! base frame tilts the other way: every elastic model of the robot (joint and lateral
 //! compliance, link bending) sees the tilted gravity, with its own identified values.
+//!
+//! With a gravity sensor (`[[sensors]]`) the tilt turns the measured gravity, so it is the
+//! sensor's constant misalignment with the base, not the ground's slope: the sensor follows a
+//! tilt that changes from row to row, which one identified constant cannot, and the constant
+//! left between the sensor and the base frame is what the points can still tell.
 use armcomp_core::{
     ErrorModel, ErrorModelSpec, Issues, Loads, ModelContext, ParamInfo, Perturbation, Quantity, StaticState,
 };

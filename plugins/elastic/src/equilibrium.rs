@@ -95,10 +95,11 @@ pub fn solve_equilibrium(
         // gravity), with no per-measurement payload.
         let (own_mass, gravity) = robot.loads_into(
             armcomp_core::Conditions {
-                payload: None,
                 temperature,
+                ..Default::default()
             },
             tree,
+            &ws.rigid,
             robot.error_values(),
             &mut ws.mass,
         );

@@ -51,6 +51,7 @@ pub fn robot_file_for_urdf(path: &Path) -> armcomp_core::Result<RobotFile> {
         predictor: None,
         fitted_predictor: None,
         measurement: None,
+        sensors: Vec::new(),
         fixtures: Vec::new(),
         collision: None,
         fixed: Vec::new(),
