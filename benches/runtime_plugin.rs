@@ -84,6 +84,7 @@ fn bench(c: &mut Criterion) {
             payload: None,
             temperature: None,
             torque: None,
+            station: 0,
         })
         .collect();
     let identify = vec!["all".to_string()];

@@ -108,6 +108,7 @@ fn sample(q: &[f64], point: usize, k: usize) -> Sample {
         payload: None,
         temperature: None,
         torque: None,
+        station: 0,
     }
 }
 

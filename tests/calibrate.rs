@@ -912,6 +912,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                     payload,
                     temperature: None,
                     torque: None,
+                    station: 0,
                 }
             })
             .collect();

@@ -64,6 +64,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
                 payload: conditions.payload,
                 temperature: conditions.temperature,
                 torque: None,
+                station: 0,
             }
         })
         .collect()
@@ -662,6 +663,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             payload: Some(0.5),
             temperature: None,
             torque: None,
+            station: 0,
         })
         .collect();
     let loads = armcomp_core::residuals::gravity_loads(&robot, &samples);

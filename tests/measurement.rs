@@ -39,12 +39,14 @@ fn write_then_read_gives_the_same_samples() {
             payload: Some(1.5),
             temperature: Some(21.0 + i as f64 * 0.1),
             torque: None,
+            station: 0,
         })
         .collect();
     let set = MeasurementSet {
         rows: (0..samples.len()).collect(),
         samples,
         warnings: vec![],
+        stations: vec![],
     };
     for units in [
         Units {
@@ -187,11 +189,13 @@ fn point_names_with_commas_and_quotes_round_trip() {
         payload: None,
         temperature: None,
         torque: None,
+        station: 0,
     };
     let set = MeasurementSet {
         samples: vec![sample(r.tool(), 1.0), sample(nest, 0.25)],
         rows: vec![0, 1],
         warnings: vec![],
+        stations: vec![],
     };
     let units = Units {
         length: LengthUnit::M,

@@ -47,6 +47,7 @@ fn pose_samples(truth: &Robot, n: usize, sigma_p: f64, sigma_r: f64, seed: u64) 
                 payload: None,
                 temperature: None,
                 torque: None,
+                station: 0,
                 q,
             }
         })

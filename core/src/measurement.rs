@@ -11,7 +11,8 @@
 //! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
 //! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
 //! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
-//! `tau_<joint>[Nm]`. Other columns (timestamps, marker quality, joints of other limbs) are
+//! `tau_<joint>[Nm]`; optional `station` (a name: the instrument set-up that measured the row,
+//! each its own measurement frame). Other columns (timestamps, marker quality, joints of other limbs) are
 //! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
 use std::path::Path;
@@ -39,6 +40,11 @@ pub struct Sample {
     pub temperature: Option<f64>,
     /// Joint torques (N m), one per coordinate, when given.
     pub torque: Option<Vec<f64>>,
+    /// The station (instrument set-up) that measured it: an index into
+    /// [`MeasurementSet::stations`] and, once the robot is given the data's stations
+    /// ([`Robot::with_stations`](crate::Robot::with_stations)), into the robot's; 0 when the
+    /// data have one station.
+    pub station: usize,
 }
 
 /// A set of measured poses, with the warnings raised while reading it.
@@ -51,6 +57,9 @@ pub struct MeasurementSet {
     pub rows: Vec<usize>,
     /// Non-fatal findings (joint values outside limits, ...), each naming its line.
     pub warnings: Vec<String>,
+    /// The names of the stations the samples' [`Sample::station`] index, in order of first
+    /// appearance; empty when the data have no `station` column (one station).
+    pub stations: Vec<String>,
 }
 
 /// What a column holds.
@@ -73,6 +82,7 @@ enum Column {
     Payload(f64),
     Temperature(f64),
     Torque(usize),
+    Station,
     /// A column armcomp does not use (a timestamp, marker quality, another limb's joint).
     Ignored,
 }
@@ -92,7 +102,7 @@ impl Column {
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
-            Column::Point | Column::Ignored => None,
+            Column::Point | Column::Station | Column::Ignored => None,
         }
     }
 }
@@ -454,6 +464,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         } else {
             match name {
                 "point" => Column::Point,
+                "station" => Column::Station,
                 "x" | "y" | "z" => Column::Position {
                     slot: None,
                     axis: (name.as_bytes()[0] - b'x') as usize,
@@ -637,6 +648,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             payload: None,
             temperature: None,
             torque: has_torque.then(|| vec![0.0; names.len()]),
+            station: 0,
         };
         let mut angles = [0.0; 4];
         // Per slot, the position and how many of its cells were empty.
@@ -651,6 +663,22 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                             format!("column `point`: `{field}` is not a point of the robot"),
                         )
                     })?;
+                    continue;
+                }
+                Column::Station if field.is_empty() => {
+                    return Err(err(
+                        Some(line),
+                        "column `station` is empty in this row; every row needs its station's name".into(),
+                    ));
+                }
+                Column::Station => {
+                    s.station = match set.stations.iter().position(|n| n == field) {
+                        Some(k) => k,
+                        None => {
+                            set.stations.push(field.to_string());
+                            set.stations.len() - 1
+                        }
+                    };
                     continue;
                 }
                 Column::Position {
@@ -699,7 +727,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                         t[c] = v;
                     }
                 }
-                Column::Point | Column::Ignored => {}
+                Column::Point | Column::Station | Column::Ignored => {}
             }
         }
         if let Some(spelling) = spelling {
@@ -895,7 +923,44 @@ impl MeasurementSet {
             samples,
             rows,
             warnings: self.warnings.clone(),
+            stations: self.stations.clone(),
         }
+    }
+
+    /// Several measurement files read as one set, each file its own station named by
+    /// `names[i]` (its file name, say) unless it has a `station` column, whose names are
+    /// used: rows of different files with the same station name share a frame. Data rows are
+    /// numbered on across the files, in order. One set is returned as it is.
+    pub fn from_files(sets: Vec<MeasurementSet>, names: &[String]) -> MeasurementSet {
+        if sets.len() == 1 {
+            return sets.into_iter().next().unwrap_or_default();
+        }
+        let mut out = MeasurementSet::default();
+        for (set, name) in sets.into_iter().zip(names) {
+            let first_row = out.rows.last().map_or(0, |r| r + 1);
+            let own: Vec<&String> = if set.stations.is_empty() {
+                vec![name]
+            } else {
+                set.stations.iter().collect()
+            };
+            let index: Vec<usize> = own
+                .iter()
+                .map(|n| match out.stations.iter().position(|o| o == *n) {
+                    Some(k) => k,
+                    None => {
+                        out.stations.push((*n).clone());
+                        out.stations.len() - 1
+                    }
+                })
+                .collect();
+            out.samples.extend(set.samples.into_iter().map(|mut s| {
+                s.station = index[s.station];
+                s
+            }));
+            out.rows.extend(set.rows.iter().map(|r| first_row + r));
+            out.warnings.extend(set.warnings);
+        }
+        out
     }
 }
 
@@ -961,6 +1026,10 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
     if several_points {
         header.push("point".into());
     }
+    let with_station = !set.stations.is_empty();
+    if with_station {
+        header.push("station".into());
+    }
     header.extend(["x", "y", "z"].map(|a| format!("{a}[{lu}]")));
     let first = set.samples.first();
     let with_quat = first.is_some_and(|s| s.orientation.is_some());
@@ -979,6 +1048,9 @@ pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> St
         let mut row = joint_row(&s.q, tree, units);
         if several_points {
             row.push(tree.points()[s.point].name.clone());
+        }
+        if with_station {
+            row.push(set.stations[s.station].clone());
         }
         row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v))));
         if with_quat && let Some(q) = s.orientation {

@@ -227,6 +227,25 @@ pub struct MeasurementSpec {
     /// marker and is not named here holds 0, or the middle of its limits if 0 is outside them.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub hold: BTreeMap<String, f64>,
+    /// The measurement frames of several stations (instrument set-ups), when the data were
+    /// measured from more than one: a measurement file's `station` column names them. The
+    /// first is also `base_xyz`/`base_rpy`, which this list overrides.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stations: Vec<StationSpec>,
+}
+
+/// One station's measurement frame: the robot base pose seen from it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StationSpec {
+    /// The name a measurement file's `station` column gives it.
+    pub name: String,
+    /// The robot base position in the station's frame (length unit).
+    #[serde(default)]
+    pub base_xyz: [f64; 3],
+    /// The robot base orientation in the station's frame, roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub base_rpy: [f64; 3],
 }
 
 /// What the rows of a measurement file measure at the markers.

@@ -1,12 +1,13 @@
 //! Simulated measurements: a "truth" robot's full model, seen by a noisy tracker.
 
-use rand::SeedableRng;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
 use crate::error::{Error, Result};
 use crate::measurement::{MeasurementSet, Sample};
-use crate::robot::Robot;
+use crate::robot::{Robot, Station};
 
 /// Settings of a simulated measurement campaign.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,7 +28,9 @@ pub const IMPLAUSIBLE_NOISE: f64 = 5e-3;
 
 /// Measures every marker of `truth` at each configuration: `T_meas_base · FK(q) · p_marker`
 /// through the full model (chain and error models; a rigid truth through the markers' batched
-/// point kinematics), plus Gaussian noise per axis.
+/// point kinematics), plus Gaussian noise per axis. A truth with several stations measures the
+/// poses in as many consecutive blocks of (nearly) equal size, each from its station's frame,
+/// as a total station set up again for every data set does.
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
     if !(params.noise_std.is_finite() && params.noise_std >= 0.0) {
         return Err(Error::InvalidArgument {
@@ -50,7 +53,7 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
         reason: e.to_string(),
     })?;
     let mut rng = StdRng::seed_from_u64(params.seed);
-    let t = truth.t_meas_base();
+    let n_stations = truth.stations().len().max(1);
     let positions = truth.point_positions_many(truth.markers(), poses)?;
     let mut set = MeasurementSet::default();
     if params.noise_std > IMPLAUSIBLE_NOISE {
@@ -60,8 +63,11 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
             IMPLAUSIBLE_NOISE * 1e3
         ));
     }
+    set.stations = truth.stations().iter().map(|s| s.name.clone()).collect();
     let per_pose = positions.chunks_exact(truth.markers().len().max(1));
-    for (q, at) in poses.iter().zip(per_pose) {
+    for (i, (q, at)) in poses.iter().zip(per_pose).enumerate() {
+        let station = i * n_stations / poses.len();
+        let t = truth.station_frame(station);
         for (&m, p) in truth.markers().iter().zip(at) {
             let mut p = t.transform_point(&(*p).into()).coords;
             for k in 0..3 {
@@ -75,8 +81,46 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
                 payload: None,
                 temperature: None,
                 torque: None,
+                station,
             });
         }
     }
     Ok(set)
+}
+
+/// `k` stations `st1` … `stK` around `truth`'s measurement frame, drawn from `seed`: `st1` is
+/// the truth's own frame; every other is it moved as a total station set up again around the
+/// robot is: turned about the vertical by a yaw uniform in ±180°, tilted by a roll and a pitch
+/// uniform in ±2°, and shifted by a translation uniform in ±2 m horizontally and ±0.5 m
+/// vertically. None for `k` ≤ 1 (the truth's one frame).
+pub fn random_stations(truth: &Robot, k: usize, seed: u64) -> Vec<Station> {
+    if k <= 1 {
+        return Vec::new();
+    }
+    let mut rng = StdRng::seed_from_u64(seed);
+    let t = truth.t_meas_base();
+    (0..k)
+        .map(|i| {
+            let frame = if i == 0 {
+                t
+            } else {
+                let tilt = 2f64.to_radians();
+                let turn = UnitQuaternion::from_euler_angles(
+                    rng.random_range(-tilt..tilt),
+                    rng.random_range(-tilt..tilt),
+                    rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
+                );
+                let shift = Translation3::new(
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-0.5..0.5),
+                );
+                Isometry3::from_parts(shift, turn) * t
+            };
+            Station {
+                name: format!("st{}", i + 1),
+                frame,
+            }
+        })
+        .collect()
 }

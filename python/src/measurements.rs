@@ -196,6 +196,7 @@ fn map_by_name(
         samples,
         rows: set.rows.clone(),
         warnings: Vec::new(),
+        stations: set.stations.clone(),
     })
 }
 
@@ -269,6 +270,7 @@ impl PyMeasurements {
                 payload: None,
                 temperature: None,
                 torque: None,
+                station: 0,
             })
             .collect::<Vec<_>>();
         let rows = (0..samples.len()).collect();
@@ -278,6 +280,7 @@ impl PyMeasurements {
                     samples,
                     rows,
                     warnings: Vec::new(),
+                    stations: Vec::new(),
                 },
                 joint_names,
                 point_names,

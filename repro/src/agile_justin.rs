@@ -160,6 +160,7 @@ pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<
                 payload: None,
                 temperature: None,
                 torque: None,
+                station: 0,
             });
         }
     }

@@ -3,7 +3,7 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
-use armcomp_core::evaluate::{AngleStats, ErrorStats, orientation_errors, position_errors};
+use armcomp_core::evaluate::{AngleStats, ErrorStats, StationStats, orientation_errors, per_station, position_errors};
 use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
 
@@ -18,6 +18,10 @@ pub struct EvaluationReport {
     pub orientation: Option<AngleStats>,
     /// Measured minus modelled position of every sample, measurement frame (m).
     pub errors: Vec<Vector3<f64>>,
+    /// Per station, when the robot has several (see [`per_station`]).
+    pub per_station: Vec<StationStats>,
+    /// The stations whose frame was registered on these data (empty name: the one station).
+    pub registered: Vec<String>,
 }
 
 /// Evaluates `robot` (with its fitted predictor) on `samples`.
@@ -52,6 +56,8 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
         stats,
         per_point,
         orientation: (!angles.is_empty()).then(|| AngleStats::from_angles(&angles)),
+        per_station: per_station(robot, samples, &errors),
+        registered: Vec::new(),
         errors,
     }
 }
@@ -65,6 +71,12 @@ impl EvaluationReport {
         }
         if let Some(o) = &self.orientation {
             value["orientation"] = serde_json::to_value(o).expect("the statistics serialise");
+        }
+        if !self.per_station.is_empty() {
+            value["per_station"] = serde_json::to_value(&self.per_station).expect("the statistics serialise");
+        }
+        if !self.registered.is_empty() {
+            value["registered_stations"] = self.registered.clone().into();
         }
         value
     }
