@@ -27,6 +27,7 @@ mod point_kinematics;
 mod robot_files;
 mod runtime_plugins;
 mod simulate;
+mod stations;
 mod talos;
 mod urdf;
 mod urdf_corpus;

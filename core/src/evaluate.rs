@@ -177,17 +177,19 @@ fn subtract_predictions(
 }
 
 /// How well `spec`, fitted on what `robot`'s physical model leaves, predicts poses it was not
-/// fitted on: every pose held out once in `folds`-fold cross-validation (poses shuffled by
-/// `seed`), the errors after the held-out predictions pooled. A predictor whose training error
-/// is far below this has memorised its rows.
+/// fitted on: every sample held out once in `folds`-fold cross-validation, folded as `by`
+/// says (by pose, by station, by a column; shuffled by `seed`), the errors after the held-out
+/// predictions pooled. A predictor whose training error is far below this has memorised its
+/// rows. Returns the statistics and how the folds were drawn.
 pub fn cross_validated_predictor_errors(
     robot: &Robot,
     spec: &dyn PredictorSpec,
     samples: &[Sample],
     folds: usize,
     seed: u64,
-) -> Result<ErrorStats> {
-    let splits = crate::split::kfold(samples, folds, seed)?;
+    by: &crate::split::FoldBy,
+) -> Result<(ErrorStats, crate::split::Folding)> {
+    let (splits, folding) = crate::split::folds(samples, folds, seed, by)?;
     let parts: Vec<Vec<Vector3<f64>>> = splits
         .par_iter()
         .map(|split| {
@@ -199,7 +201,7 @@ pub fn cross_validated_predictor_errors(
             Ok(errors)
         })
         .collect::<Result<_>>()?;
-    Ok(ErrorStats::from_errors(&parts.concat()))
+    Ok((ErrorStats::from_errors(&parts.concat()), folding))
 }
 
 /// Writes into `input` what a residual predictor with `n_inputs` inputs takes at joint values

@@ -125,8 +125,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 .map(|s| format!("{} → {:.3}", scale_text(s.scale), s.held_out_rms_mm))
                 .collect();
             println!(
-                "prior scale chosen by {}-fold cross-validation on these data: {} (held-out RMS in mm: {})",
+                "prior scale chosen by {}-fold cross-validation on these data, grouped by {}: {} (held-out RMS in mm: {})",
                 c.folds,
+                c.grouped_by,
                 scale_text(c.scale),
                 scores.join(", ")
             );

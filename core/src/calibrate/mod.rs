@@ -48,8 +48,8 @@ pub use identifiability::identifiability;
 use identifiability::*;
 use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
-pub use registration::register_stations;
 use registration::*;
+pub use registration::{register_held_out_stations, register_stations};
 pub use score::{ScoreTest, score_test};
 use space::*;
 

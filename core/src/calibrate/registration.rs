@@ -189,3 +189,24 @@ pub fn register_stations(robot: &mut Robot, samples: &[Sample], stations: &[usiz
     robot.set_stations(frames);
     Ok(failed)
 }
+
+/// Registers in closed form the frames of the stations of held-out `test` that `train` has no
+/// sample of: a fit on `train` knows nothing of them, as a model knows nothing of a station
+/// set up after it was calibrated, and `armcomp evaluate` registers those too. Stations whose
+/// points do not span a plane keep their frame.
+pub fn register_held_out_stations(fitted: &mut Robot, train: &[Sample], test: &[Sample]) -> Result<()> {
+    let n = fitted.n_stations();
+    let (mut trained, mut tested) = (vec![false; n], vec![false; n]);
+    train
+        .iter()
+        .filter(|s| s.station < n)
+        .for_each(|s| trained[s.station] = true);
+    test.iter()
+        .filter(|s| s.station < n)
+        .for_each(|s| tested[s.station] = true);
+    let missing: Vec<usize> = (0..n).filter(|&k| tested[k] && !trained[k]).collect();
+    if !missing.is_empty() {
+        register_stations(fitted, test, &missing)?;
+    }
+    Ok(())
+}
