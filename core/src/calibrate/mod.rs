@@ -715,10 +715,12 @@ pub fn calibrate(
     let stations: Vec<usize> = (0..space.n_stations)
         .filter(|&k| space.station_params(k).all(|i| selected.contains(&i)))
         .collect();
-    let registered = !stations.is_empty()
-        && stations.iter().fold(true, |all, &k| {
-            register_base(&space, &mut theta0, k, samples, &pred) && all
-        });
+    // Every station is registered, whatever another's outcome.
+    let unregistered = stations
+        .iter()
+        .filter(|&&k| !register_base(&space, &mut theta0, k, samples, &pred))
+        .count();
+    let registered = !stations.is_empty() && unregistered == 0;
     let start = match &params.start {
         Some(start) if start.len() == theta0.len() => start.clone(),
         Some(start) => {

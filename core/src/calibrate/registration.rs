@@ -65,17 +65,31 @@ pub(super) fn rigid_fit(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Op
     Some((rotation, cs - rotation * cm))
 }
 
-/// RMS (m) of `measured` against `model` after the best rigid registration; infinite when
-/// none is determined.
-pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> f64 {
-    let Some((rotation, translation)) = rigid_fit(model, measured) else {
-        return f64::INFINITY;
-    };
-    let sum: f64 = model
-        .iter()
-        .zip(measured)
-        .map(|(m, s)| (rotation * m + translation - s).norm_squared())
-        .sum();
+/// RMS (m) of `measured` against `model` after the best rigid registration of each station's
+/// points (`stations[i]` is point `i`'s); infinite when one is not determined.
+pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>], stations: &[usize]) -> f64 {
+    let n_stations = stations.iter().max().map_or(1, |k| k + 1);
+    let mut sum = 0.0;
+    for k in 0..n_stations {
+        let (m, s): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = model
+            .iter()
+            .zip(measured)
+            .zip(stations)
+            .filter(|(_, st)| **st == k)
+            .map(|((m, s), _)| (*m, *s))
+            .unzip();
+        if m.is_empty() {
+            continue;
+        }
+        let Some((rotation, translation)) = rigid_fit(&m, &s) else {
+            return f64::INFINITY;
+        };
+        sum += m
+            .iter()
+            .zip(&s)
+            .map(|(m, s)| (rotation * m + translation - s).norm_squared())
+            .sum::<f64>();
+    }
     (sum / model.len() as f64).sqrt()
 }
 
@@ -88,8 +102,9 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
         Ok(p.predict(theta0)?.1.world)
     };
     let measured: Vec<Vector3<f64>> = problem.samples.iter().map(|s| s.position).collect();
+    let stations: Vec<usize> = problem.samples.iter().map(|s| s.station).collect();
     let model = model_points(problem.samples)?;
-    let as_declared = registered_rms(&model, &measured);
+    let as_declared = registered_rms(&model, &measured, &stations);
     let revolute: Vec<bool> = problem
         .robot
         .tree()
@@ -110,10 +125,10 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
                 s
             })
             .collect();
-        Ok(registered_rms(&model_points(&samples)?, &measured))
+        Ok(registered_rms(&model_points(&samples)?, &measured, &stations))
     };
     let deg = 180.0 / std::f64::consts::PI;
-    let scaled = |f: f64| registered_rms(&model, &measured.iter().map(|p| p * f).collect::<Vec<_>>());
+    let scaled = |f: f64| registered_rms(&model, &measured.iter().map(|p| p * f).collect::<Vec<_>>(), &stations);
     let hypotheses = [
         (
             scaled(1e3),
