@@ -86,6 +86,7 @@ fn bench(c: &mut Criterion) {
             torque: None,
             fixed_point: None,
             gravity: None,
+            station: 0,
         })
         .collect();
     let identify = vec!["all".to_string()];

@@ -120,8 +120,8 @@ fn html(r: &DiagnosisReport) -> String {
     let mut h = page_start("armcomp diagnosis", "Diagnosis");
     let _ = writeln!(
         h,
-        "<p>{} measured positions, {}-fold held-out scores in mm.</p>",
-        r.n_samples, r.folds
+        "<p>{} measured positions, held-out scores in mm (folds: {}, grouped by {}).</p>",
+        r.n_samples, r.folds, r.grouped_by
     );
     h.push_str("<table><tr><th>step</th><th>effect</th><th>mean</th><th>RMS</th><th>max</th><th>removed</th></tr>\n");
     let _ = writeln!(

@@ -110,6 +110,7 @@ fn sample(q: &[f64], point: usize, k: usize) -> Sample {
         torque: None,
         fixed_point: None,
         gravity: None,
+        station: 0,
     }
 }
 

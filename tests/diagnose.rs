@@ -67,6 +67,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
                 torque: None,
                 fixed_point: None,
                 gravity: None,
+                station: 0,
             }
         })
         .collect()
@@ -667,6 +668,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             torque: None,
             fixed_point: None,
             gravity: None,
+            station: 0,
         })
         .collect();
     let loads = armcomp_core::residuals::gravity_loads(&robot, &samples);

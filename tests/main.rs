@@ -29,6 +29,7 @@ mod robot_files;
 mod runtime_plugins;
 mod sensors;
 mod simulate;
+mod stations;
 mod talos;
 mod urdf;
 mod urdf_corpus;

@@ -41,12 +41,14 @@ fn write_then_read_gives_the_same_samples() {
             torque: None,
             fixed_point: None,
             gravity: None,
+            station: 0,
         })
         .collect();
     let set = MeasurementSet {
         rows: (0..samples.len()).collect(),
         samples,
         warnings: vec![],
+        stations: vec![],
     };
     for units in [
         Units {
@@ -191,11 +193,13 @@ fn point_names_with_commas_and_quotes_round_trip() {
         torque: None,
         fixed_point: None,
         gravity: None,
+        station: 0,
     };
     let set = MeasurementSet {
         samples: vec![sample(r.tool(), 1.0), sample(nest, 0.25)],
         rows: vec![0, 1],
         warnings: vec![],
+        stations: vec![],
     };
     let units = Units {
         length: LengthUnit::M,

@@ -1,6 +1,7 @@
 //! Diagnosis: which physical effect is the model missing?
 //!
-//! The current model is calibrated on the training folds of a k-fold split by pose and scored
+//! The current model is calibrated on the training folds of a k-fold split by pose (by station
+//! for data from several, each held-out station registered before it is scored) and scored
 //! on the poses each fold holds out. Every candidate effect the registry can instantiate on the
 //! robot (per joint, per link or once) is added in turn, calibrated together with everything
 //! the model already identifies, and scored the same way.
@@ -52,7 +53,9 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, ParamResult, calibrate, carried_start, score_test};
+use crate::calibrate::{
+    CalibrationParams, ParamResult, calibrate, carried_start, register_held_out_stations, score_test,
+};
 use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
@@ -63,7 +66,7 @@ use crate::registry::PluginInfo;
 use crate::residuals::{ResidualDescription, describe_residuals};
 use crate::robot::Robot;
 use crate::role::Role;
-use crate::split::{Split, kfold, subset};
+use crate::split::{FoldBy, Split, subset};
 
 /// Paired z-score of the held-out squared errors below which a candidate counts as explaining
 /// the data as well as the accepted one (about 95 % two-sided).
@@ -88,7 +91,8 @@ pub const MIN_REFITS: usize = 3;
 /// Settings of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnoseParams {
-    /// Number of folds of the held-out score (split by pose).
+    /// Number of folds of the held-out score (split by pose, or by station for data from
+    /// several: at most one fold per station).
     pub folds: usize,
     /// Seed of the split.
     pub seed: u64,
@@ -239,6 +243,8 @@ pub struct DiagnosisReport {
     pub n_samples: usize,
     /// Folds of the held-out score.
     pub folds: usize,
+    /// What each fold held out together: `pose`, or `station` for data from several.
+    pub grouped_by: String,
     /// Held-out errors of the model as given.
     pub initial: ErrorStats,
     /// Where its held-out residuals live.
@@ -315,7 +321,7 @@ pub fn diagnose(
             reason: format!("must be between 0 and 1, got {}", params.min_rms_reduction),
         });
     }
-    let splits = kfold(samples, params.folds, params.seed)?;
+    let (splits, folding) = crate::split::folds(samples, params.folds, params.seed, &FoldBy::choose(samples, None))?;
     let given = robot.error_models().len();
     // The robot as given plus the accepted effects at their neutral values.
     let mut model = robot.rebuild(robot.to_file())?;
@@ -504,7 +510,8 @@ pub fn diagnose(
     };
     let report = DiagnosisReport {
         n_samples: samples.len(),
-        folds: params.folds,
+        folds: folding.folds,
+        grouped_by: folding.grouped_by,
         initial,
         initial_residuals,
         final_model: FinalModel {
@@ -629,7 +636,10 @@ fn heldout(
         ..calibration.clone()
     };
     for split in splits {
-        let fit = calibrate(model, &subset(samples, &split.train), &calibration, &mut |_| {})?;
+        let train = subset(samples, &split.train);
+        let test = subset(samples, &split.test);
+        let mut fit = calibrate(model, &train, &calibration, &mut |_| {})?;
+        register_held_out_stations(&mut fit.robot, &train, &test)?;
         tick();
         fixed.push(
             fit.report
@@ -639,11 +649,7 @@ fn heldout(
                 .map(|p| p.name.clone())
                 .collect(),
         );
-        for (&i, e) in split
-            .test
-            .iter()
-            .zip(position_errors(&fit.robot, &subset(samples, &split.test)))
-        {
+        for (&i, e) in split.test.iter().zip(position_errors(&fit.robot, &test)) {
             errors[i] = e;
         }
         params.push(fit.report.params);

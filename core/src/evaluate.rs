@@ -27,6 +27,41 @@ pub struct ErrorStats {
     pub mean_abs_mm: AxisErrors,
 }
 
+/// The errors of one station's samples, when the data come from several.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StationStats {
+    /// The station's name.
+    pub station: String,
+    /// Its samples' errors.
+    #[serde(flatten)]
+    pub stats: ErrorStats,
+}
+
+/// [`ErrorStats`] of `errors` (one per sample of `samples`, m) per station of `robot`, in the
+/// robot's order; empty when it has one station.
+pub fn per_station(robot: &Robot, samples: &[Sample], errors: &[Vector3<f64>]) -> Vec<StationStats> {
+    if robot.stations().len() < 2 {
+        return Vec::new();
+    }
+    robot
+        .stations()
+        .iter()
+        .enumerate()
+        .map(|(k, station)| {
+            let e: Vec<Vector3<f64>> = samples
+                .iter()
+                .zip(errors)
+                .filter(|(s, _)| s.station == k)
+                .map(|(_, e)| *e)
+                .collect();
+            StationStats {
+                station: station.name.clone(),
+                stats: ErrorStats::from_errors(&e),
+            }
+        })
+        .collect()
+}
+
 /// One value per axis (mm).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AxisErrors {
@@ -104,12 +139,12 @@ impl AngleStats {
 /// for the others.
 pub fn orientation_errors(robot: &Robot, samples: &[Sample]) -> Vec<Option<f64>> {
     let mut ws = robot.workspace();
-    let t = robot.t_meas_base();
     samples
         .iter()
         .map(|s| {
             let measured = s.orientation?;
             robot.forward_with_into(robot.tree(), robot.error_values(), &s.q, Conditions::of(s), &mut ws);
+            let t = robot.station_frame(s.station);
             Some(measured.angle_to(&(t.rotation * ws.frames.point[s.point].rotation)))
         })
         .collect()
@@ -142,17 +177,19 @@ fn subtract_predictions(
 }
 
 /// How well `spec`, fitted on what `robot`'s physical model leaves, predicts poses it was not
-/// fitted on: every pose held out once in `folds`-fold cross-validation (poses shuffled by
-/// `seed`), the errors after the held-out predictions pooled. A predictor whose training error
-/// is far below this has memorised its rows.
+/// fitted on: every sample held out once in `folds`-fold cross-validation, folded as `by`
+/// says (by pose, by station, by a column; shuffled by `seed`), the errors after the held-out
+/// predictions pooled. A predictor whose training error is far below this has memorised its
+/// rows. Returns the statistics and how the folds were drawn.
 pub fn cross_validated_predictor_errors(
     robot: &Robot,
     spec: &dyn PredictorSpec,
     samples: &[Sample],
     folds: usize,
     seed: u64,
-) -> Result<ErrorStats> {
-    let splits = crate::split::kfold(samples, folds, seed)?;
+    by: &crate::split::FoldBy,
+) -> Result<(ErrorStats, crate::split::Folding)> {
+    let (splits, folding) = crate::split::folds(samples, folds, seed, by)?;
     let parts: Vec<Vec<Vector3<f64>>> = splits
         .par_iter()
         .map(|split| {
@@ -164,7 +201,7 @@ pub fn cross_validated_predictor_errors(
             Ok(errors)
         })
         .collect::<Result<_>>()?;
-    Ok(ErrorStats::from_errors(&parts.concat()))
+    Ok((ErrorStats::from_errors(&parts.concat()), folding))
 }
 
 /// Writes into `input` what a residual predictor with `n_inputs` inputs takes at joint values
@@ -188,7 +225,11 @@ pub fn model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut ws = robot.workspace();
     samples
         .iter()
-        .map(|s| s.position - robot.measured_position(&s.q, s.point, Conditions::of(s), &mut ws))
+        .map(|s| {
+            robot.forward_with_into(robot.tree(), robot.error_values(), &s.q, Conditions::of(s), &mut ws);
+            let p = ws.frames.point[s.point].translation.vector;
+            s.position - robot.station_frame(s.station).transform_point(&p.into()).coords
+        })
         .collect()
 }
 
@@ -217,14 +258,13 @@ fn rigid_model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut positions = vec![0.0; n * width];
     plan.point_positions_many_into(n, &qs, &mut positions, &mut plan.many_workspace())
         .expect("samples hold configurations of the robot's size");
-    let t = robot.t_meas_base();
     samples
         .iter()
         .zip(config)
         .map(|(s, c)| {
             let at = c * width + 3 * slot[s.point];
             let p = Vector3::from_column_slice(&positions[at..at + 3]);
-            s.position - t.transform_point(&p.into()).coords
+            s.position - robot.station_frame(s.station).transform_point(&p.into()).coords
         })
         .collect()
 }

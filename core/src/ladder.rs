@@ -16,13 +16,13 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
-use crate::calibrate::{Calibration, CalibrationParams};
+use crate::calibrate::{Calibration, CalibrationParams, register_held_out_stations};
 use crate::error::{Error, Result};
 use crate::evaluate::{fit_residual_predictor, position_errors};
 use crate::measurement::Sample;
 use crate::plugin::PredictorSpec;
 use crate::robot::Robot;
-use crate::split::{Split, grouped_kfold, kfold, subset};
+use crate::split::{FoldBy, Split, subset};
 
 /// A rung of the ladder.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -117,7 +117,8 @@ pub struct LadderReport {
     pub expected_rms_mm: f64,
     /// Outer folds.
     pub folds: usize,
-    /// How the folds were drawn: `poses`, or the groups the caller named.
+    /// What each fold held out together: `pose`, `station` (data from several), or `groups`
+    /// (the caller's).
     pub folds_by: String,
     /// The noise and priors the evidence chose for the chosen rung on all rows.
     pub evidence: EvidenceReport,
@@ -213,31 +214,24 @@ pub fn climb(
     progress: &(dyn Fn(LadderProgress) + Sync),
 ) -> Result<Ladder> {
     crate::measurement::require_positions(samples, "the model ladder")?;
-    let (splits, folds_by, groups) = match &params.fold_groups {
-        Some(g) => {
-            if g.len() != samples.len() {
-                return Err(Error::Dimension {
-                    what: "fold groups".into(),
-                    expected: samples.len(),
-                    got: g.len(),
-                });
-            }
-            (
-                grouped_kfold(g, params.folds, params.seed)?,
-                "groups".to_string(),
-                g.clone(),
-            )
-        }
-        None => {
+    // By the caller's groups, else by station for data from several, else by pose; `groups`
+    // is what the spread of the scores is judged over.
+    let by = FoldBy::choose(samples, params.fold_groups.clone().map(|g| ("groups".to_string(), g)));
+    let (splits, folding) = crate::split::folds(samples, params.folds, params.seed, &by)?;
+    let groups: Vec<usize> = match by {
+        FoldBy::Column { groups, .. } => groups,
+        FoldBy::Stations => samples.iter().map(|s| s.station).collect(),
+        FoldBy::Poses => {
             let mut g = vec![0; samples.len()];
             for (k, members) in crate::split::pose_groups(samples).iter().enumerate() {
                 for &i in members {
                     g[i] = k;
                 }
             }
-            (kfold(samples, params.folds, params.seed)?, "poses".to_string(), g)
+            g
         }
     };
+    let folds_by = folding.grouped_by;
     let rungs = physical_rungs(robot);
     let total = rungs.len() * (splits.len() + 1) + params.predictor.as_ref().map_or(0, |_| splits.len() + 1);
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -255,8 +249,10 @@ pub fn climb(
             let start = Instant::now();
             let train = subset(samples, &splits[f].train);
             let (cal, _) = fit_rung(robot, &train, params, rungs[r])?;
+            let mut model = cal.robot;
+            register_held_out_stations(&mut model, &train, &subset(samples, &splits[f].test))?;
             tick();
-            Ok((cal.robot, start.elapsed().as_secs_f64()))
+            Ok((model, start.elapsed().as_secs_f64()))
         })
         .collect::<Result<_>>()?;
     let mut fold_models: Vec<Vec<Robot>> = Vec::new();

@@ -65,7 +65,7 @@ pub use plugin::{
 pub use point_kinematics::{PointKinematics, PointKinematicsWorkspace};
 pub use point_kinematics_many::PointKinematicsManyWorkspace;
 pub use registry::PluginInfo;
-pub use robot::{Conditions, Robot, RobotWorkspace};
+pub use robot::{Conditions, Robot, RobotWorkspace, Station};
 pub use robot_file::{RobotFile, SourceFile};
 pub use role::Role;
 pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};

@@ -11,10 +11,11 @@
 //! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
 //! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
 //! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
-//! `tau_<joint>[Nm]`; the columns of the robot file's sensor (`[[sensors]]`: an accelerometer's
-//! reading, an inclinometer's roll and pitch), which give the direction of gravity per row.
-//! A robot file of `kind = "fixed_point"` reads rows without a position: a `fixed_point`
-//! column names the unknown fixed point the marker was put into (`socket_a`).
+//! `tau_<joint>[Nm]`; optional `station` (a name: the instrument set-up that measured the row,
+//! each its own measurement frame); the columns of the robot file's sensor (`[[sensors]]`: an
+//! accelerometer's reading, an inclinometer's roll and pitch), which give the direction of
+//! gravity per row. A robot file of `kind = "fixed_point"` reads rows without a position: a
+//! `fixed_point` column names the unknown fixed point the marker was put into (`socket_a`).
 //! Other columns (timestamps, marker quality, joints of other limbs) are
 //! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
@@ -49,6 +50,11 @@ pub struct Sample {
     pub fixed_point: Option<String>,
     /// The direction of gravity the robot's sensor measured, when its columns are given.
     pub gravity: Option<GravityReading>,
+    /// The station (instrument set-up) that measured it: an index into
+    /// [`MeasurementSet::stations`] and, once the robot is given the data's stations
+    /// ([`Robot::with_stations`](crate::Robot::with_stations)), into the robot's; 0 when the
+    /// data have one station.
+    pub station: usize,
 }
 
 /// Refuses fixed-point samples for `what`, which scores models on held-out measured
@@ -76,6 +82,9 @@ pub struct MeasurementSet {
     pub rows: Vec<usize>,
     /// Non-fatal findings (joint values outside limits, ...), each naming its line.
     pub warnings: Vec<String>,
+    /// The names of the stations the samples' [`Sample::station`] index, in order of first
+    /// appearance; empty when the data have no `station` column (one station).
+    pub stations: Vec<String>,
 }
 
 /// What a column holds.
@@ -102,6 +111,7 @@ enum Column {
     Torque(usize),
     /// A cell of the gravity sensor's reading, and its unit's scale to SI.
     Sensor(usize, f64),
+    Station,
     /// A column armcomp does not use (a timestamp, marker quality, another limb's joint).
     Ignored,
 }
@@ -124,7 +134,7 @@ impl Column {
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
-            Column::Point | Column::FixedPoint | Column::Ignored => None,
+            Column::Point | Column::FixedPoint | Column::Station | Column::Ignored => None,
         }
     }
 }
@@ -521,6 +531,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                             .into(),
                     ));
                 }
+                "station" => Column::Station,
                 "x" | "y" | "z" => Column::Position {
                     slot: None,
                     axis: (name.as_bytes()[0] - b'x') as usize,
@@ -757,6 +768,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             torque: has_torque.then(|| vec![0.0; names.len()]),
             fixed_point: None,
             gravity: None,
+            station: 0,
         };
         let mut angles = [0.0; 4];
         let mut sensor_reading = Vector4::zeros();
@@ -782,6 +794,22 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 }
                 Column::FixedPoint => {
                     s.fixed_point = Some(field.to_string());
+                    continue;
+                }
+                Column::Station if field.is_empty() => {
+                    return Err(err(
+                        Some(line),
+                        "column `station` is empty in this row; every row needs its station's name".into(),
+                    ));
+                }
+                Column::Station => {
+                    s.station = match set.stations.iter().position(|n| n == field) {
+                        Some(k) => k,
+                        None => {
+                            set.stations.push(field.to_string());
+                            set.stations.len() - 1
+                        }
+                    };
                     continue;
                 }
                 Column::Position {
@@ -837,7 +865,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     }
                 }
                 Column::Sensor(k, scale) => sensor_reading[k] = v * scale,
-                Column::Point | Column::FixedPoint | Column::Ignored => {}
+                Column::Point | Column::FixedPoint | Column::Station | Column::Ignored => {}
             }
         }
         if let Some(spelling) = spelling {
@@ -1045,7 +1073,44 @@ impl MeasurementSet {
             samples,
             rows,
             warnings: self.warnings.clone(),
+            stations: self.stations.clone(),
         }
+    }
+
+    /// Several measurement files read as one set, each file its own station named by
+    /// `names[i]` (its file name, say) unless it has a `station` column, whose names are
+    /// used: rows of different files with the same station name share a frame. Data rows are
+    /// numbered on across the files, in order. One set is returned as it is.
+    pub fn from_files(sets: Vec<MeasurementSet>, names: &[String]) -> MeasurementSet {
+        if sets.len() == 1 {
+            return sets.into_iter().next().unwrap_or_default();
+        }
+        let mut out = MeasurementSet::default();
+        for (set, name) in sets.into_iter().zip(names) {
+            let first_row = out.rows.last().map_or(0, |r| r + 1);
+            let own: Vec<&String> = if set.stations.is_empty() {
+                vec![name]
+            } else {
+                set.stations.iter().collect()
+            };
+            let index: Vec<usize> = own
+                .iter()
+                .map(|n| match out.stations.iter().position(|o| o == *n) {
+                    Some(k) => k,
+                    None => {
+                        out.stations.push((*n).clone());
+                        out.stations.len() - 1
+                    }
+                })
+                .collect();
+            out.samples.extend(set.samples.into_iter().map(|mut s| {
+                s.station = index[s.station];
+                s
+            }));
+            out.rows.extend(set.rows.iter().map(|r| first_row + r));
+            out.warnings.extend(set.warnings);
+        }
+        out
     }
 }
 
@@ -1123,6 +1188,10 @@ pub fn write_csv_with_sensor(
     if several_points {
         header.push("point".into());
     }
+    let with_station = !set.stations.is_empty();
+    if with_station {
+        header.push("station".into());
+    }
     let first = set.samples.first();
     let fixed_points = first.is_some_and(|s| s.fixed_point.is_some());
     if fixed_points {
@@ -1154,6 +1223,9 @@ pub fn write_csv_with_sensor(
         let mut row = joint_row(&s.q, tree, units);
         if several_points {
             row.push(tree.points()[s.point].name.clone());
+        }
+        if with_station {
+            row.push(set.stations[s.station].clone());
         }
         match &s.fixed_point {
             Some(name) if fixed_points => row.push(name.clone()),

@@ -1,5 +1,6 @@
 //! Choosing how strongly the priors hold a calibration, by cross-validation on the training
-//! data alone: each candidate prior scale calibrates on k − 1 folds of the poses and is scored
+//! data alone: each candidate prior scale calibrates on k − 1 folds of the poses (of the
+//! stations, for data from several: a held-out station is registered before it is scored) and is scored
 //! on the fold left out; the scale with the lowest pooled held-out RMS wins.
 //!
 //! A full-geometry calibration from a few dozen poses has nearly as many parameters as
@@ -10,12 +11,12 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, calibrate};
+use crate::calibrate::{CalibrationParams, calibrate, register_held_out_stations};
 use crate::error::{Error, Result};
 use crate::evaluate::model_errors;
 use crate::measurement::Sample;
 use crate::robot::Robot;
-use crate::split::{kfold, subset};
+use crate::split::{FoldBy, subset};
 
 /// The prior scales [`choose_prior_scale`] tries by default: factors on the robot file's prior
 /// standard deviations, from 100 times tighter to none at all (infinite).
@@ -37,6 +38,8 @@ pub struct PriorChoice {
     pub scale: f64,
     /// Number of folds.
     pub folds: usize,
+    /// What each fold held out together: `pose`, or `station` for data from several.
+    pub grouped_by: String,
     /// The seed that shuffled the poses into folds.
     pub seed: u64,
     /// Every candidate, in the order tried.
@@ -61,7 +64,7 @@ pub fn choose_prior_scale(
             reason: format!("expected positive numbers, got {grid:?}"),
         });
     }
-    let splits = kfold(samples, folds, seed)?;
+    let (splits, folding) = crate::split::folds(samples, folds, seed, &FoldBy::choose(samples, None))?;
     let jobs: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..splits.len()).map(move |f| (g, f)))
         .collect();
@@ -74,8 +77,9 @@ pub fn choose_prior_scale(
             };
             let train = subset(samples, &splits[f].train);
             let test = subset(samples, &splits[f].test);
-            let fitted = calibrate(robot, &train, &p, &mut |_| {})?;
-            let errors = model_errors(&fitted.robot, &test);
+            let mut fitted = calibrate(robot, &train, &p, &mut |_| {})?.robot;
+            register_held_out_stations(&mut fitted, &train, &test)?;
+            let errors = model_errors(&fitted, &test);
             Ok((errors.iter().map(|e| e.norm_squared()).sum(), errors.len()))
         })
         .collect::<Result<_>>()?;
@@ -98,6 +102,7 @@ pub fn choose_prior_scale(
     Ok(PriorChoice {
         scale: best,
         folds: splits.len(),
+        grouped_by: folding.grouped_by,
         seed,
         scores,
     })

@@ -30,6 +30,16 @@ struct ResolvedPoint {
     local: Isometry3<f64>,
 }
 
+/// One station (instrument set-up) and its measurement frame: the robot base pose seen from
+/// it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Station {
+    /// The name a measurement file's `station` column gives it.
+    pub name: String,
+    /// `T_meas_base` of this station.
+    pub frame: Isometry3<f64>,
+}
+
 /// A robot ready to evaluate: built once from a [`RobotFile`], then used read-only.
 #[derive(Debug)]
 pub struct Robot {
@@ -50,6 +60,8 @@ pub struct Robot {
     error_models: Vec<Box<dyn ErrorModel>>,
     error_values: Vec<Vec<f64>>,
     t_meas_base: Isometry3<f64>,
+    /// The measurement frames of several stations (the first is `t_meas_base`); empty for one.
+    stations: Vec<Station>,
     markers: Vec<usize>,
     /// The sensor giving the direction of gravity per measurement row, if the file has one.
     gravity_sensor: Option<GravitySensor>,
@@ -188,6 +200,8 @@ impl Robot {
 
         let (t_meas_base, markers, hold) = measurement_setup(&file, &base_tree, &points, tool, &units, &mut issues);
         let gravity_sensor = resolve_sensors(&file, &base_tree, &mut issues);
+        let stations = station_frames(&file, &units, &mut issues);
+        let t_meas_base = stations.first().map_or(t_meas_base, |s| s.frame);
 
         // A predictor that names files (a run-time library) finds them beside this file, as
         // error models do, and not in the working folder it is later fitted from.
@@ -220,6 +234,7 @@ impl Robot {
             error_models: Vec::new(),
             error_values: Vec::new(),
             t_meas_base,
+            stations,
             markers,
             gravity_sensor,
             hold,
@@ -505,6 +520,78 @@ impl Robot {
     /// Guess of the robot base pose in the measurement frame.
     pub fn t_meas_base(&self) -> Isometry3<f64> {
         self.t_meas_base
+    }
+    /// The stations of data measured from several (see [`Station`]); empty for one, whose
+    /// frame is [`t_meas_base`](Self::t_meas_base).
+    pub fn stations(&self) -> &[Station] {
+        &self.stations
+    }
+    /// The measurement frame of station `k` ([`Sample::station`]): `t_meas_base` for a robot
+    /// with one station.
+    pub fn station_frame(&self, k: usize) -> Isometry3<f64> {
+        self.stations.get(k).map_or(self.t_meas_base, |s| s.frame)
+    }
+    /// How many measurement frames calibration identifies: one per station, at least one.
+    pub fn n_stations(&self) -> usize {
+        self.stations.len().max(1)
+    }
+    /// Sets the stations (none or one: a single frame, `t_meas_base`), in the description too.
+    pub fn set_stations(&mut self, mut stations: Vec<Station>) {
+        if let Some(first) = stations.first() {
+            self.t_meas_base = first.frame;
+        }
+        if stations.len() == 1 {
+            stations.clear();
+        }
+        let units = self.units();
+        let spec = |frame: &Isometry3<f64>| {
+            let v = frame.translation.vector;
+            let (r, p, y) = frame.rotation.euler_angles();
+            (
+                [v.x, v.y, v.z].map(|v| units.len_out(v)),
+                [r, p, y].map(|v| units.ang_out(v)),
+            )
+        };
+        let m = self.file.measurement.get_or_insert_with(Default::default);
+        (m.base_xyz, m.base_rpy) = spec(&self.t_meas_base);
+        m.stations = stations
+            .iter()
+            .map(|s| {
+                let (base_xyz, base_rpy) = spec(&s.frame);
+                crate::robot_file::StationSpec {
+                    name: s.name.clone(),
+                    base_xyz,
+                    base_rpy,
+                }
+            })
+            .collect();
+        self.stations = stations;
+    }
+    /// Gives the robot the stations `names` of a measurement set, in that order, so that the
+    /// set's [`Sample::station`] indices are the robot's: a station it knows keeps its frame, a
+    /// new one starts at the first station's. Returns the indices of the new ones, which need
+    /// registering. Data of one station keep the robot's frame (as data without stations).
+    pub fn adopt_stations(&mut self, names: &[String]) -> Vec<usize> {
+        let known = |name: &String| self.stations.iter().find(|s| &s.name == name).map(|s| s.frame);
+        if names.len() == 1 && self.stations.is_empty() {
+            return Vec::new();
+        }
+        let mut new = Vec::new();
+        let stations = names
+            .iter()
+            .enumerate()
+            .map(|(k, name)| Station {
+                name: name.clone(),
+                frame: known(name).unwrap_or_else(|| {
+                    new.push(k);
+                    self.t_meas_base
+                }),
+            })
+            .collect();
+        if !names.is_empty() {
+            self.set_stations(stations);
+        }
+        new
     }
     /// The built error models.
     pub fn error_models(&self) -> &[Box<dyn ErrorModel>] {
@@ -1203,6 +1290,32 @@ fn resolve_payload(
         }
     }
     payload_point
+}
+
+/// The stations of the file's `[[measurement.stations]]`, checked.
+fn station_frames(file: &RobotFile, units: &Units, issues: &mut Issues) -> Vec<Station> {
+    let specs = file.measurement.iter().flat_map(|m| &m.stations);
+    let mut stations: Vec<Station> = Vec::new();
+    for (i, s) in specs.enumerate() {
+        let at = format!("measurement.stations[{i}]");
+        if s.name.trim().is_empty() {
+            issues.push(
+                format!("{at}.name"),
+                "is empty; name the station as the data's `station` column does",
+            );
+        } else if stations.iter().any(|o| o.name == s.name) {
+            issues.push(format!("{at}.name"), format!("station `{}` is listed twice", s.name));
+        }
+        if s.base_xyz.iter().chain(&s.base_rpy).any(|v| !v.is_finite()) {
+            issues.push(at, "base_xyz and base_rpy need three finite numbers each".to_string());
+            continue;
+        }
+        stations.push(Station {
+            name: s.name.clone(),
+            frame: xyz_rpy(units.len3(s.base_xyz), units.ang3(s.base_rpy)),
+        });
+    }
+    stations
 }
 
 /// The measurement frame's starting pose, the markers (the tool when none is named) and the

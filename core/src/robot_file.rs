@@ -236,6 +236,11 @@ pub struct MeasurementSpec {
     /// the robot is not observable from fixed points alone.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub distances: Vec<DistanceSpec>,
+    /// The measurement frames of several stations (instrument set-ups), when the data were
+    /// measured from more than one: a measurement file's `station` column names them. The
+    /// first is also `base_xyz`/`base_rpy`, which this list overrides.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub stations: Vec<StationSpec>,
 }
 
 /// A known distance between two fixed points, e.g. two sockets of a printed tool.
@@ -250,6 +255,20 @@ pub struct DistanceSpec {
     /// calibration weighs positions with.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_mm: Option<f64>,
+}
+
+/// One station's measurement frame: the robot base pose seen from it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StationSpec {
+    /// The name a measurement file's `station` column gives it.
+    pub name: String,
+    /// The robot base position in the station's frame (length unit).
+    #[serde(default)]
+    pub base_xyz: [f64; 3],
+    /// The robot base orientation in the station's frame, roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub base_rpy: [f64; 3],
 }
 
 /// What the rows of a measurement file measure at the markers.

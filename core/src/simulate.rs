@@ -1,14 +1,14 @@
 //! Simulated measurements: a "truth" robot's full model, seen by a noisy tracker.
 
-use rand::SeedableRng;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 use rand_distr::{Distribution, Normal};
 
 use crate::error::{Error, Result};
-use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::measurement::{MeasurementSet, Sample};
-use crate::robot::{Conditions, Robot};
+use crate::robot::{Conditions, Robot, Station};
 use crate::sensor::GravityReading;
 
 /// Settings of a simulated measurement campaign.
@@ -33,8 +33,10 @@ pub const ABSURD_TILT: f64 = 0.5;
 
 /// Measures every marker of `truth` at each configuration: `T_meas_base · FK(q) · p_marker`
 /// through the full model (chain and error models; a rigid truth through the markers' batched
-/// point kinematics), plus Gaussian noise per axis. A truth with a gravity sensor
-/// (`[[sensors]]`) reads the file's gravity; see [`simulate_tilted`].
+/// point kinematics), plus Gaussian noise per axis. A truth with several stations measures the
+/// poses in as many consecutive blocks of (nearly) equal size, each from its station's frame,
+/// as a total station set up again for every data set does; a truth with a gravity
+/// sensor (`[[sensors]]`) reads the file's gravity, see [`simulate_tilted`].
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
     simulate_tilted(truth, poses, params, 0.0)
 }
@@ -89,7 +91,7 @@ pub fn simulate_tilted(
         reason: e.to_string(),
     })?;
     let mut rng = StdRng::seed_from_u64(params.seed);
-    let t = truth.t_meas_base();
+    let n_stations = truth.stations().len().max(1);
     let (positions, readings) = match truth.gravity_sensor() {
         Some(sensor) => {
             let tilt = Normal::new(0.0, tilt_std).map_err(|e| Error::InvalidArgument {
@@ -111,8 +113,11 @@ pub fn simulate_tilted(
             IMPLAUSIBLE_NOISE * 1e3
         ));
     }
+    set.stations = truth.stations().iter().map(|s| s.name.clone()).collect();
     let per_pose = positions.chunks_exact(truth.markers().len().max(1));
     for (i, (q, at)) in poses.iter().zip(per_pose).enumerate() {
+        let station = i * n_stations / poses.len();
+        let t = truth.station_frame(station);
         for (&m, p) in truth.markers().iter().zip(at) {
             let mut p = t.transform_point(&(*p).into()).coords;
             for k in 0..3 {
@@ -128,6 +133,7 @@ pub fn simulate_tilted(
                 torque: None,
                 fixed_point: None,
                 gravity: readings.get(i).copied(),
+                station,
             });
         }
     }
@@ -218,6 +224,7 @@ pub fn simulate_fixed_points(
                 torque: None,
                 fixed_point: Some(name.clone()),
                 gravity: None,
+                station: 0,
             });
             found += 1;
         }
@@ -262,4 +269,41 @@ fn tilted_positions(
         readings.push(reading);
     }
     Ok((positions, readings))
+}
+
+/// `k` stations `st1` … `stK` around `truth`'s measurement frame, drawn from `seed`: `st1` is
+/// the truth's own frame; every other is it moved as a total station set up again around the
+/// robot is: turned about the vertical by a yaw uniform in ±180°, tilted by a roll and a pitch
+/// uniform in ±2°, and shifted by a translation uniform in ±2 m horizontally and ±0.5 m
+/// vertically. None for `k` ≤ 1 (the truth's one frame).
+pub fn random_stations(truth: &Robot, k: usize, seed: u64) -> Vec<Station> {
+    if k <= 1 {
+        return Vec::new();
+    }
+    let mut rng = StdRng::seed_from_u64(seed);
+    let t = truth.t_meas_base();
+    (0..k)
+        .map(|i| {
+            let frame = if i == 0 {
+                t
+            } else {
+                let tilt = 2f64.to_radians();
+                let turn = UnitQuaternion::from_euler_angles(
+                    rng.random_range(-tilt..tilt),
+                    rng.random_range(-tilt..tilt),
+                    rng.random_range(-std::f64::consts::PI..std::f64::consts::PI),
+                );
+                let shift = Translation3::new(
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-2.0..2.0),
+                    rng.random_range(-0.5..0.5),
+                );
+                Isometry3::from_parts(shift, turn) * t
+            };
+            Station {
+                name: format!("st{}", i + 1),
+                frame,
+            }
+        })
+        .collect()
 }

@@ -1,7 +1,10 @@
-//! Train/test splits and k-fold partitions of measurements, by pose.
+//! Train/test splits and k-fold partitions of measurements, by pose, by station or by a
+//! named group.
 //!
 //! Samples that share a configuration (several markers measured at one pose) always stay on
-//! the same side, so a held-out score never sees a pose that was trained on.
+//! the same side, so a held-out score never sees a pose that was trained on. Data from
+//! several stations are folded by station ([`folds`]): poses of one set-up share its frame's
+//! errors and whatever drifted during it, so random folds over them score optimistically.
 
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -124,4 +127,88 @@ pub fn grouped_kfold(groups: &[usize], k: usize, seed: u64) -> Result<Vec<Split>
 /// The samples at `indices`, cloned, in that order.
 pub fn subset(samples: &[Sample], indices: &[usize]) -> Vec<Sample> {
     indices.iter().map(|&i| samples[i].clone()).collect()
+}
+
+/// What the folds of a cross-validation hold out together.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FoldBy {
+    /// Whole poses (the markers measured at one configuration).
+    Poses,
+    /// Whole stations ([`Sample::station`]).
+    Stations,
+    /// Whole values of a named column: `groups[i]` is sample `i`'s.
+    Column {
+        /// The column's name, for reports.
+        name: String,
+        /// Sample `i`'s group.
+        groups: Vec<usize>,
+    },
+}
+
+impl FoldBy {
+    /// By `column` when one is given, else by station when `samples` come from several,
+    /// else by pose.
+    pub fn choose(samples: &[Sample], column: Option<(String, Vec<usize>)>) -> FoldBy {
+        match column {
+            Some((name, groups)) => FoldBy::Column { name, groups },
+            None if samples.iter().any(|s| s.station != samples[0].station) => FoldBy::Stations,
+            None => FoldBy::Poses,
+        }
+    }
+}
+
+/// How a cross-validation was folded, for reports: `folds: 5, grouped by station`.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct Folding {
+    /// Number of folds.
+    pub folds: usize,
+    /// `pose`, `station` or the column's name.
+    pub grouped_by: String,
+}
+
+impl std::fmt::Display for Folding {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "folds: {}, grouped by {}", self.folds, self.grouped_by)
+    }
+}
+
+/// `k` folds of `samples` holding out whole groups as `by` says, shuffled by `seed`. Grouped
+/// by station or column, there are at most as many folds as groups (three stations give
+/// three folds, each holding one out).
+pub fn folds(samples: &[Sample], k: usize, seed: u64, by: &FoldBy) -> Result<(Vec<Split>, Folding)> {
+    let grouped = |groups: &[usize], name: &str| -> Result<(Vec<Split>, Folding)> {
+        if groups.len() != samples.len() {
+            return Err(Error::Dimension {
+                what: "fold groups".into(),
+                expected: samples.len(),
+                got: groups.len(),
+            });
+        }
+        let mut ids = groups.to_vec();
+        ids.sort_unstable();
+        ids.dedup();
+        let k = if k >= 2 { k.min(ids.len()) } else { k };
+        let splits = grouped_kfold(groups, k, seed)?;
+        Ok((
+            splits,
+            Folding {
+                folds: k,
+                grouped_by: name.into(),
+            },
+        ))
+    };
+    match by {
+        FoldBy::Poses => Ok((
+            kfold(samples, k, seed)?,
+            Folding {
+                folds: k,
+                grouped_by: "pose".into(),
+            },
+        )),
+        FoldBy::Stations => {
+            let stations: Vec<usize> = samples.iter().map(|s| s.station).collect();
+            grouped(&stations, "station")
+        }
+        FoldBy::Column { name, groups } => grouped(groups, name),
+    }
 }

@@ -38,7 +38,8 @@ pub fn learn(
         "seconds": run.seconds,
         "before": run.before,
         "after": run.after,
-        "cross_validated": run.cross_validated,
+        "cross_validated": run.cross_validated.as_ref().map(|(stats, _)| stats),
+        "cross_validation": run.cross_validated.as_ref().map(|(_, folding)| folding),
         "warnings": run.warnings(),
     });
     Ok((PyRobot::wrap(run.robot), json.to_string()))

@@ -200,6 +200,7 @@ fn map_by_name(
         samples,
         rows: set.rows.clone(),
         warnings: Vec::new(),
+        stations: set.stations.clone(),
     })
 }
 
@@ -275,6 +276,7 @@ impl PyMeasurements {
                 torque: None,
                 fixed_point: None,
                 gravity: None,
+                station: 0,
             })
             .collect::<Vec<_>>();
         let rows = (0..samples.len()).collect();
@@ -284,6 +286,7 @@ impl PyMeasurements {
                     samples,
                     rows,
                     warnings: Vec::new(),
+                    stations: Vec::new(),
                 },
                 joint_names,
                 point_names,

@@ -162,6 +162,7 @@ pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<
                 torque: None,
                 fixed_point: None,
                 gravity: None,
+                station: 0,
             });
         }
     }

@@ -6,16 +6,18 @@ use armcomp_core::calibrate::{CalibrationParams, CalibrationReport};
 use armcomp_core::io::write_atomic;
 use armcomp_core::param::Quantity;
 
-use super::{check_output, read_measurements};
+use super::{check_output, read_stations};
 
 #[derive(clap::Args)]
 pub struct Args {
     /// The nominal robot file (its values are the starting point and the priors' centre).
     #[arg(long)]
     robot: PathBuf,
-    /// Measurement CSV to identify from.
-    #[arg(long)]
-    data: PathBuf,
+    /// Measurement CSV to identify from; several (`--data a.csv --data b.csv`) are one
+    /// station each, named by the file name, unless they have a `station` column. Every
+    /// station gets its own measurement frame (`base[<station>].x` …).
+    #[arg(long, required = true)]
+    data: Vec<PathBuf>,
     #[command(flatten)]
     rows: super::Rows,
     /// Where to write the identified model: the robot file with identified values (TOML, or
@@ -62,9 +64,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.robot)?;
-    check_output(&args.out, &robot, &[&args.data])?;
-    let mut data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
+    let mut robot = armcomp::load_robot(&args.robot)?;
+    let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
+    check_output(&args.out, &robot, &data_files)?;
+    let (mut data, _) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
@@ -122,8 +125,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 .map(|s| format!("{} → {:.3}", scale_text(s.scale), s.held_out_rms_mm))
                 .collect();
             println!(
-                "prior scale chosen by {}-fold cross-validation on these data: {} (held-out RMS in mm: {})",
+                "prior scale chosen by {}-fold cross-validation on these data, grouped by {}: {} (held-out RMS in mm: {})",
                 c.folds,
+                c.grouped_by,
                 scale_text(c.scale),
                 scores.join(", ")
             );
@@ -303,6 +307,12 @@ fn print_report(r: &CalibrationReport) {
         println!(
             "{label:>6}: mean {:.4} mm, std {:.4} mm, RMS {:.4} mm, max {:.4} mm{turn}",
             s.mean_mm, s.std_mm, s.rms_mm, s.max_mm
+        );
+    }
+    for st in &r.per_station {
+        println!(
+            "  station {}: n {}, RMS {:.4} mm, max {:.4} mm",
+            st.station, st.stats.n, st.stats.rms_mm, st.stats.max_mm
         );
     }
 }

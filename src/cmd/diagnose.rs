@@ -218,8 +218,8 @@ fn print_ranking(ranking: &[RankedCandidate]) {
 
 fn print_report(r: &DiagnosisReport) {
     println!(
-        "{} measured positions, {}-fold held-out scores (mean / RMS / max in mm)",
-        r.n_samples, r.folds
+        "{} measured positions, held-out scores (mean / RMS / max in mm; folds: {}, grouped by {})",
+        r.n_samples, r.folds, r.grouped_by
     );
     print_residuals("held-out residuals of the model as given:", &r.initial_residuals);
     println!(

@@ -4,23 +4,34 @@ use std::process::ExitCode;
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::io::write_atomic;
 
-use super::{check_output, read_measurements};
+use armcomp_core::calibrate::register_stations;
+
+use super::{check_output, read_stations};
 
 #[derive(clap::Args)]
 pub struct Args {
     /// The model (a robot file, e.g. written by `armcomp calibrate`).
     #[arg(long)]
     model: PathBuf,
-    /// Measurement CSV to compare the model with (held-out data).
+    /// Measurement CSV to compare the model with (held-out data); several are one station
+    /// each, named by the file name, unless they have a `station` column. A station the model
+    /// does not know (its `[[measurement.stations]]`) is registered in closed form first.
+    #[arg(long, required = true)]
+    data: Vec<PathBuf>,
+    /// Register every station's measurement frame in closed form on these data before
+    /// evaluating, known ones too (data from a new set-up of a station the model knows, or
+    /// without a `station` column). The geometry, error models and predictor stay the model's.
     #[arg(long)]
-    data: PathBuf,
+    register: bool,
     #[command(flatten)]
     rows: super::Rows,
     /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}},
     /// with pose measurements "orientation": {"n", "mean_deg", "rms_deg", "max_deg"}, and with
     /// fixed-point measurements "fixed_points": {"points": [{"name", "n", "mean_mm", "max_mm"}],
     /// "spread_mm", "distances": [{"between", "known_mm", "modelled_mm", "error_mm"}]} (a fixed
-    /// point's errors are from the mean of its modelled points).
+    /// point's errors are from the mean of its modelled points); with
+    /// several stations "per_station": [{"station", "n", "rms_mm", ...}] and
+    /// "registered_stations": [names registered on these data].
     #[arg(long)]
     json: bool,
     /// Also write every sample's residual to this CSV (atomically): its row among the data rows,
@@ -31,12 +42,30 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.model)?;
+    let mut robot = armcomp::load_robot(&args.model)?;
     if let Some(out) = &args.residuals {
-        check_output(out, &robot, &[&args.data])?;
+        let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
+        check_output(out, &robot, &data_files)?;
     }
-    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
-    let report = armcomp::ops::evaluate::run(&robot, &data.samples);
+    let (data, new) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
+    let register: Vec<usize> = if args.register {
+        (0..robot.n_stations()).collect()
+    } else {
+        new
+    };
+    let failed = register_stations(&mut robot, &data.samples, &register)?;
+    if let Some(&k) = failed.first() {
+        anyhow::bail!(
+            "station {} cannot be registered: its measured points do not span a plane (measure at least three poses \
+             that are not in line)",
+            robot.stations().get(k).map_or("of the data", |s| s.name.as_str())
+        );
+    }
+    let mut report = armcomp::ops::evaluate::run(&robot, &data.samples);
+    report.registered = register
+        .iter()
+        .map(|&k| robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()))
+        .collect();
     if let Some(out) = &args.residuals {
         write_atomic(out, report.residuals_csv(&robot, &data.samples).as_bytes())?;
     }
@@ -70,6 +99,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     d.between[0], d.between[1], d.known_mm, d.modelled_mm, d.error_mm
                 );
             }
+        }
+        for st in &report.per_station {
+            println!("  station {}: {}", st.station, stats_line(&st.stats));
+        }
+        if !report.registered.is_empty() {
+            let names: Vec<&str> = report
+                .registered
+                .iter()
+                .map(|n| if n.is_empty() { "(the one station)" } else { n })
+                .collect();
+            println!(
+                "measurement frame of station(s) {} registered in closed form on these data",
+                names.join(", ")
+            );
         }
     }
     Ok(ExitCode::SUCCESS)

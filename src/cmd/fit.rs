@@ -91,12 +91,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     } else {
         println!(
-            "{} rows, {}-fold nested cross-validation by {}; every choice made inside the training folds",
+            "{} rows, nested cross-validation (folds: {}, grouped by {}); every choice made inside the training folds",
             data.samples.len(),
             r.folds,
             args.group_by
                 .as_deref()
-                .map_or("pose".to_string(), |c| format!("`{c}`"))
+                .map_or(r.folds_by.clone(), |c| format!("`{c}`"))
         );
         println!(
             "{:<26} {:>14} {:>12} {:>9}  verdict",

@@ -53,14 +53,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         before.mean_mm,
         after.mean_mm
     );
-    if let Some(cv) = &run.cross_validated {
+    if let Some((cv, folding)) = &run.cross_validated {
         println!(
-            "on rows it was not fitted on ({}-fold cross-validation): RMS {:.4} mm with the predictor, {:.4} mm without \
-             (training RMS {:.4} mm)",
-            armcomp::ops::learn::CV_FOLDS,
-            cv.rms_mm,
-            before.rms_mm,
-            after.rms_mm
+            "on rows it was not fitted on (cross-validation, {folding}): RMS {:.4} mm with the predictor, {:.4} mm \
+             without (training RMS {:.4} mm)",
+            cv.rms_mm, before.rms_mm, after.rms_mm
         );
     }
     println!("wrote {}", args.out.display());

@@ -75,3 +75,35 @@ pub fn read_measurements(robot: &Robot, path: &Path, rows: Option<&RowSelection>
     }
     Ok(set)
 }
+
+/// Reads the measurement files `paths` for `robot`, each its own station named by its file
+/// name unless it has a `station` column (see [`MeasurementSet::from_files`]), keeps the
+/// selected rows of each, and gives `robot` the data's stations
+/// ([`Robot::adopt_stations`]). Returns the data and the stations `robot` did not know.
+pub fn read_stations(
+    robot: &mut Robot,
+    paths: &[PathBuf],
+    rows: Option<&RowSelection>,
+) -> anyhow::Result<(MeasurementSet, Vec<usize>)> {
+    let sets = paths
+        .iter()
+        .map(|p| read_measurements(robot, p, rows))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let names: Vec<String> = paths
+        .iter()
+        .map(|p| {
+            p.file_stem()
+                .map_or_else(|| p.display().to_string(), |s| s.to_string_lossy().into_owned())
+        })
+        .collect();
+    if let Some(twice) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)) {
+        anyhow::bail!(
+            "two --data files are named `{}`: each file is a station named by its file name, so rename one (or give \
+             the files a `station` column)",
+            twice.1
+        );
+    }
+    let set = MeasurementSet::from_files(sets, &names);
+    let new = robot.adopt_stations(&set.stations);
+    Ok((set, new))
+}

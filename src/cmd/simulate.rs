@@ -36,6 +36,12 @@ pub struct Args {
     /// Standard deviation of the joint encoders' noise, in degrees (fixed points).
     #[arg(long, default_value_t = 0.0)]
     joint_noise_deg: f64,
+    /// Measure from this many stations (total-station set-ups), each its own measurement
+    /// frame drawn from --seed around the truth's (see `armcomp_core::simulate::random_stations`):
+    /// the poses in as many consecutive blocks, and a `station` column (`st1`, `st2`, ...).
+    /// Default: the truth's stations, or one.
+    #[arg(long, value_parser = super::at_least_one)]
+    stations: Option<usize>,
     /// Output CSV (written atomically; in the robot file's units).
     #[arg(long)]
     out: PathBuf,
@@ -52,7 +58,7 @@ fn fixed_point(text: &str) -> anyhow::Result<(String, nalgebra::Vector3<f64>)> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let truth = armcomp::load_robot(&args.robot)?;
+    let mut truth = armcomp::load_robot(&args.robot)?;
     if truth.measures_fixed_points() {
         if args.fixed_points.is_empty() {
             anyhow::bail!(
@@ -85,6 +91,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if !args.fixed_points.is_empty() {
         anyhow::bail!("--fixed-point needs a truth robot file of `kind = \"fixed_point\"` in its [measurement]");
+    }
+    if let Some(k) = args.stations {
+        // A stream of its own: the same seed draws the same poses whatever the stations.
+        let stations =
+            armcomp_core::simulate::random_stations(&truth, k, args.seed.wrapping_add(0x5851_f42d_4c95_7f2d));
+        truth.set_stations(stations);
     }
     let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
     super::check_output(&args.out, &truth, &poses_file)?;

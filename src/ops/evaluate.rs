@@ -4,7 +4,8 @@ use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
 use armcomp_core::evaluate::{
-    AngleStats, ErrorStats, FixedPointEvaluation, evaluate_fixed_points, orientation_errors, position_errors,
+    AngleStats, ErrorStats, FixedPointEvaluation, StationStats, evaluate_fixed_points, orientation_errors, per_station,
+    position_errors,
 };
 use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
@@ -23,6 +24,10 @@ pub struct EvaluationReport {
     pub errors: Vec<Vector3<f64>>,
     /// The fixed points' spreads and the known distances, for fixed-point measurements.
     pub fixed_points: Option<FixedPointEvaluation>,
+    /// Per station, when the robot has several (see [`per_station`]).
+    pub per_station: Vec<StationStats>,
+    /// The stations whose frame was registered on these data (empty name: the one station).
+    pub registered: Vec<String>,
 }
 
 /// Evaluates `robot` (with its fitted predictor) on `samples`.
@@ -58,6 +63,8 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
         stats,
         per_point,
         orientation: (!angles.is_empty()).then(|| AngleStats::from_angles(&angles)),
+        per_station: per_station(robot, samples, &errors),
+        registered: Vec::new(),
         errors,
         fixed_points,
     }
@@ -75,6 +82,12 @@ impl EvaluationReport {
         }
         if let Some(f) = &self.fixed_points {
             value["fixed_points"] = serde_json::to_value(f).expect("the statistics serialise");
+        }
+        if !self.per_station.is_empty() {
+            value["per_station"] = serde_json::to_value(&self.per_station).expect("the statistics serialise");
+        }
+        if !self.registered.is_empty() {
+            value["registered_stations"] = self.registered.clone().into();
         }
         value
     }

@@ -18,8 +18,9 @@ pub struct LearnRun {
     /// Training errors with the predictor.
     pub after: ErrorStats,
     /// Errors with the predictor on poses it was not fitted on (every pose held out once in
-    /// [`CV_FOLDS`]-fold cross-validation); `None` with too few poses for that.
-    pub cross_validated: Option<ErrorStats>,
+    /// [`CV_FOLDS`]-fold cross-validation, whole stations for data from several), and how the
+    /// folds were drawn; `None` with too few poses for that.
+    pub cross_validated: Option<(ErrorStats, armcomp_core::split::Folding)>,
     /// Fitting time (s).
     pub seconds: f64,
 }
@@ -35,7 +36,7 @@ impl LearnRun {
     /// What the fit suggests is wrong: a predictor that memorised its rows, or one that
     /// predicts held-out poses no better than the model alone.
     pub fn warnings(&self) -> Vec<String> {
-        let Some(cv) = &self.cross_validated else {
+        let Some((cv, _)) = &self.cross_validated else {
             return vec![format!(
                 "too few poses for a cross-validated error ({CV_FOLDS} folds need {CV_FOLDS}); the training error says \
                  nothing of other poses"
@@ -105,7 +106,10 @@ pub fn run(
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let poses = armcomp_core::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {
-        Some(cross_validated_predictor_errors(robot, spec, samples, CV_FOLDS, 0)?)
+        let by = armcomp_core::split::FoldBy::choose(samples, None);
+        Some(cross_validated_predictor_errors(
+            robot, spec, samples, CV_FOLDS, 0, &by,
+        )?)
     } else {
         None
     };

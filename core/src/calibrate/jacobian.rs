@@ -47,18 +47,23 @@ pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample]) -> Evalua
 /// orientation to the modelled one.
 fn orientation_residual(d: &Decoded, e: &Evaluation, s: &Sample, i: usize) -> Vector3<f64> {
     let measured = s.orientation.unwrap_or_default();
-    (measured.inverse() * d.t_meas_base.rotation * e.rotation[i]).scaled_axis()
+    (measured.inverse() * d.frames[s.station].rotation * e.rotation[i]).scaled_axis()
 }
 
-pub(super) fn to_meas(t: &Isometry3<f64>, world: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
-    world.iter().map(|p| t.transform_point(&(*p).into()).coords).collect()
+/// The model's points `world` (robot base frame) seen from each sample's station.
+pub(super) fn to_meas(frames: &[Isometry3<f64>], samples: &[Sample], world: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+    world
+        .iter()
+        .zip(samples)
+        .map(|(p, s)| frames[s.station].transform_point(&(*p).into()).coords)
+        .collect()
 }
 
 impl Problem<'_> {
     pub(super) fn predict(&self, theta: &[f64]) -> Result<(Decoded, Evaluation, Vec<Vector3<f64>>)> {
         let d = self.space.decode(self.robot, theta)?;
         let e = evaluate(self.robot, &d, self.samples);
-        let meas = to_meas(&d.t_meas_base, &e.world);
+        let meas = to_meas(&d.frames, self.samples, &e.world);
         Ok((d, e, meas))
     }
 
@@ -88,7 +93,7 @@ impl Problem<'_> {
     /// its fixed point's position for fixed-point samples), then `log(R_measᵀ R̂) / σ_rot`,
     /// three per oriented sample, then `(‖p_a − p_b‖ − d) / σ_d` per known distance.
     pub(super) fn residuals(&self, d: &Decoded, e: &Evaluation) -> DVector<f64> {
-        let predicted = to_meas(&d.t_meas_base, &e.world);
+        let predicted = to_meas(&d.frames, self.samples, &e.world);
         let positions = predicted.iter().enumerate().flat_map(|(i, p)| {
             let r = (p - self.target(d, i)) / self.sigma;
             [r.x, r.y, r.z]
@@ -140,9 +145,11 @@ impl Problem<'_> {
                     ParamGroup::Base => {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
+                        let station = space.station_of(k);
                         ColumnPlan::Base {
-                            from: space.base_pose(theta),
-                            to: space.base_pose(&t),
+                            station,
+                            from: space.base_pose(theta, station),
+                            to: space.base_pose(&t, station),
                             h,
                         }
                     }
@@ -188,7 +195,6 @@ impl Problem<'_> {
     ) -> Result<DMatrix<f64>> {
         let plans = self.column_plans(theta, d, free, form)?;
         let ncols = plans.len();
-        let r_meas = d.t_meas_base.rotation.to_rotation_matrix().into_inner();
         let n_models = self.robot.error_models().len();
         let rows: Vec<Vec<f64>> = self
             .samples
@@ -209,6 +215,7 @@ impl Problem<'_> {
                 },
                 |(ws, ws_fd, base_perts, scratch, stepped, placed, sensitivity), (s_idx, s)| {
                     let cond = Conditions::of(s);
+                    let r_meas = d.frames[s.station].rotation.to_rotation_matrix().into_inner();
                     self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
                     for (i, bp) in base_perts.iter_mut().enumerate() {
                         bp.clear();
@@ -245,7 +252,7 @@ impl Problem<'_> {
                     // Rows of the orientation block: J_r⁻¹(r) R̂ᵀ per unit turn of the model
                     // (measurement frame), so a turn maps to the change of log(R_measᵀ R̂).
                     let turn_map = oriented.map(|_| {
-                        let model = d.t_meas_base.rotation * e.rotation[s_idx];
+                        let model = d.frames[s.station].rotation * e.rotation[s_idx];
                         let r = orientation_residual(d, e, s, s_idx);
                         so3_right_jacobian_inverse(&r) * model.inverse().to_rotation_matrix().into_inner()
                             / self.sigma_rot
@@ -280,7 +287,8 @@ impl Problem<'_> {
                                 }
                                 (-Vector3::ith(*axis, 1.0), Vector3::zeros())
                             }
-                            ColumnPlan::Base { from, to, h } => (
+                            ColumnPlan::Base { station, .. } if *station != s.station => continue,
+                            ColumnPlan::Base { from, to, h, .. } => (
                                 (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h,
                                 (to.rotation * from.rotation.inverse()).scaled_axis() / *h,
                             ),
@@ -513,6 +521,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             torque: None,
             fixed_point: None,
             gravity: None,
+            station: 0,
         })
         .collect()
 }

@@ -30,7 +30,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::evaluate::{AngleStats, ErrorStats};
+use crate::evaluate::{AngleStats, ErrorStats, StationStats, per_station};
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::robot::Robot;
@@ -49,6 +49,7 @@ use identifiability::*;
 use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
+pub use registration::{register_held_out_stations, register_stations};
 pub use score::{ScoreTest, score_test};
 pub use space::carried_start;
 use space::*;
@@ -124,8 +125,9 @@ pub struct SpaceParam {
 }
 
 /// Every parameter of a robot calibration can touch, in a fixed order: chain, error models,
-/// base frame (`base.x … base.yaw`), markers (`marker.<point>.x|y|z`), then the fixed points
-/// of fixed-point measurements (`fixed_point.<name>.x|y|z`, see
+/// base frame (`base.x … base.yaw`; with several stations one per station,
+/// `base[<station>].x …`), markers (`marker.<point>.x|y|z`), then the fixed points of
+/// fixed-point measurements (`fixed_point.<name>.x|y|z`, see
 /// [`with_fixed_points`](Self::with_fixed_points)).
 #[derive(Debug, Clone)]
 pub struct ParameterSpace {
@@ -137,6 +139,8 @@ pub struct ParameterSpace {
     n_chain: usize,
     error_offsets: Vec<usize>,
     base_offset: usize,
+    /// Measurement frames: one per station of the robot ([`Robot::n_stations`]).
+    n_stations: usize,
     marker_offset: usize,
     /// Parameters per marker: 3 (position), or 6 with its orientation.
     marker_dofs: usize,
@@ -147,7 +151,8 @@ pub struct ParameterSpace {
 struct Decoded {
     tree: KinematicTree,
     errors: Vec<Vec<f64>>,
-    t_meas_base: Isometry3<f64>,
+    /// `T_meas_base` per station.
+    frames: Vec<Isometry3<f64>>,
     /// The fixed points' positions, measurement frame (m).
     fixed_points: Vec<Vector3<f64>>,
 }
@@ -347,6 +352,9 @@ pub struct CalibrationReport {
     pub before: ErrorStats,
     /// Residuals on the calibration data after.
     pub after: ErrorStats,
+    /// Residuals after, per station, when the data come from several.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub per_station: Vec<StationStats>,
     /// Orientation residuals before, when the robot measures poses.
     pub before_orientation: Option<AngleStats>,
     /// Orientation residuals after, when the robot measures poses.
@@ -688,9 +696,11 @@ enum ColumnPlan {
     /// of the full model, since every elastic model responds to the load. `errors` are all the
     /// models' parameters with this one stepped by `h`.
     Loads { errors: Vec<Vec<f64>>, h: f64 },
-    /// A base-frame parameter: finite differences of `T_meas_base` (no kinematics) between
-    /// the current pose and the one with the parameter stepped by `h`.
+    /// A frame parameter of `station`: finite differences of its `T_meas_base` (no
+    /// kinematics) between the current pose and the one with the parameter stepped by `h`;
+    /// zero for the other stations' samples.
     Base {
+        station: usize,
         from: Isometry3<f64>,
         to: Isometry3<f64>,
         h: f64,
@@ -760,6 +770,17 @@ pub fn calibrate(
         });
     }
     for (i, s) in samples.iter().enumerate() {
+        if s.station >= robot.n_stations() {
+            return Err(Error::InvalidArgument {
+                what: format!("sample {}", i + 1),
+                reason: format!(
+                    "it belongs to station {} but the robot has {} measurement frame(s); give the robot the data's \
+                     stations first (Robot::adopt_stations)",
+                    s.station + 1,
+                    robot.n_stations()
+                ),
+            });
+        }
         robot.tree().check_q(&s.q).map_err(|e| Error::InvalidArgument {
             what: format!("sample {}", i + 1),
             reason: e.to_string(),
@@ -793,8 +814,16 @@ pub fn calibrate(
     let (d0, e0, _) = problem.predict(&theta0)?;
     let before = stats(&problem.targets(&d0), &pred);
     let before_orientation = problem.orientation_stats(&d0, &e0);
-    let base: Vec<usize> = (space.base_offset..space.base_offset + 6).collect();
-    let registered = base.iter().all(|k| selected.contains(k)) && register_base(&space, &mut theta0, samples, &pred);
+    // Each station whose whole frame is identified is registered on its own samples.
+    let stations: Vec<usize> = (0..space.n_stations)
+        .filter(|&k| space.station_params(k).all(|i| selected.contains(&i)))
+        .collect();
+    // Every station is registered, whatever another's outcome.
+    let unregistered = stations
+        .iter()
+        .filter(|&&k| !register_base(&space, &mut theta0, k, samples, &pred))
+        .count();
+    let registered = !stations.is_empty() && unregistered == 0;
     let start = match &params.start {
         Some(start) if start.len() == theta0.len() => start.clone(),
         Some(start) => {
@@ -904,7 +933,7 @@ pub fn calibrate(
     } = stage;
 
     // Linearised covariance at the solution, scaled by the fit's own residual variance.
-    let pred = to_meas(&d.t_meas_base, &e.world);
+    let pred = to_meas(&d.frames, samples, &e.world);
     let r = problem.residuals(&d, &e);
     // The fit's last iteration computed it when its convergence test needed it.
     let j = match exact_jacobian {
@@ -1013,6 +1042,7 @@ pub fn calibrate(
             converged: outcome.converged,
             stop_reason: outcome.stop_reason,
             before,
+            per_station: per_station(robot, samples, &residual_vectors),
             after,
             before_orientation,
             after_orientation: problem.orientation_stats(&d, &e),

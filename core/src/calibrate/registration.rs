@@ -7,30 +7,36 @@ use crate::measurement::Sample;
 
 use super::*;
 
-/// Registers the measurement frame in closed form: the rigid transform that best maps the
-/// model's points (robot base frame) onto the measured ones (see [`rigid_fit`]). Writes it
-/// into the base parameters of `theta` and returns true, or leaves `theta` alone and returns
-/// false when the points do not span a plane (a rotation is then not determined).
+/// Registers station `station`'s measurement frame in closed form: the rigid transform that
+/// best maps the model's points (robot base frame) onto that station's measured ones (see
+/// [`rigid_fit`]). Writes it into the station's frame parameters of `theta` and returns true,
+/// or leaves `theta` alone and returns false when the points do not span a plane (a rotation
+/// is then not determined).
 pub(super) fn register_base(
     space: &ParameterSpace,
     theta: &mut [f64],
+    station: usize,
     samples: &[Sample],
     measured_now: &[Vector3<f64>],
 ) -> bool {
-    // `measured_now` are the model's points seen through the current base frame; map them
-    // back into the base frame.
-    let t_now = space.base_pose(theta);
-    let model: Vec<Vector3<f64>> = measured_now
+    // `measured_now` are the model's points seen through the current frame; map them back
+    // into the base frame.
+    let t_now = space.base_pose(theta, station);
+    let (model, measured): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = samples
         .iter()
-        .map(|p| t_now.inverse_transform_point(&(*p).into()).coords)
-        .collect();
-    let measured: Vec<Vector3<f64>> = samples.iter().map(|s| s.position).collect();
+        .zip(measured_now)
+        .filter(|(s, _)| s.station == station)
+        .map(|(s, p)| (t_now.inverse_transform_point(&(*p).into()).coords, s.position))
+        .unzip();
+    if model.is_empty() {
+        return false;
+    }
     let Some((rotation, v)) = rigid_fit(&model, &measured) else {
         return false;
     };
     let (r, p, y) = rotation.euler_angles();
     let values = [v.x, v.y, v.z, r, p, y];
-    theta[space.base_offset..space.base_offset + 6].copy_from_slice(&values);
+    theta[space.station_params(station)].copy_from_slice(&values);
     true
 }
 
@@ -59,17 +65,31 @@ pub(super) fn rigid_fit(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Op
     Some((rotation, cs - rotation * cm))
 }
 
-/// RMS (m) of `measured` against `model` after the best rigid registration; infinite when
-/// none is determined.
-pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>]) -> f64 {
-    let Some((rotation, translation)) = rigid_fit(model, measured) else {
-        return f64::INFINITY;
-    };
-    let sum: f64 = model
-        .iter()
-        .zip(measured)
-        .map(|(m, s)| (rotation * m + translation - s).norm_squared())
-        .sum();
+/// RMS (m) of `measured` against `model` after the best rigid registration of each station's
+/// points (`stations[i]` is point `i`'s); infinite when one is not determined.
+pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>], stations: &[usize]) -> f64 {
+    let n_stations = stations.iter().max().map_or(1, |k| k + 1);
+    let mut sum = 0.0;
+    for k in 0..n_stations {
+        let (m, s): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = model
+            .iter()
+            .zip(measured)
+            .zip(stations)
+            .filter(|(_, st)| **st == k)
+            .map(|((m, s), _)| (*m, *s))
+            .unzip();
+        if m.is_empty() {
+            continue;
+        }
+        let Some((rotation, translation)) = rigid_fit(&m, &s) else {
+            return f64::INFINITY;
+        };
+        sum += m
+            .iter()
+            .zip(&s)
+            .map(|(m, s)| (rotation * m + translation - s).norm_squared())
+            .sum::<f64>();
+    }
     (sum / model.len() as f64).sqrt()
 }
 
@@ -86,8 +106,9 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
         Ok(p.predict(theta0)?.1.world)
     };
     let measured: Vec<Vector3<f64>> = problem.samples.iter().map(|s| s.position).collect();
+    let stations: Vec<usize> = problem.samples.iter().map(|s| s.station).collect();
     let model = model_points(problem.samples)?;
-    let as_declared = registered_rms(&model, &measured);
+    let as_declared = registered_rms(&model, &measured, &stations);
     let revolute: Vec<bool> = problem
         .robot
         .tree()
@@ -108,10 +129,10 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
                 s
             })
             .collect();
-        Ok(registered_rms(&model_points(&samples)?, &measured))
+        Ok(registered_rms(&model_points(&samples)?, &measured, &stations))
     };
     let deg = 180.0 / std::f64::consts::PI;
-    let scaled = |f: f64| registered_rms(&model, &measured.iter().map(|p| p * f).collect::<Vec<_>>());
+    let scaled = |f: f64| registered_rms(&model, &measured.iter().map(|p| p * f).collect::<Vec<_>>(), &stations);
     let hypotheses = [
         (
             scaled(1e3),
@@ -145,4 +166,66 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
             as_declared * 1e3
         )
     }))
+}
+
+/// Registers the measurement frames of `stations` (indices into the robot's stations, 0 for a
+/// robot with one) in closed form on `samples`, the rest of the model as it is (without its
+/// residual predictor), and writes them into `robot`: what `armcomp evaluate` does for data
+/// from a station the model does not know. Returns the stations whose points did not span a
+/// plane, which keep their frame.
+pub fn register_stations(robot: &mut Robot, samples: &[Sample], stations: &[usize]) -> Result<Vec<usize>> {
+    if let Some((i, s)) = samples
+        .iter()
+        .enumerate()
+        .find(|(_, s)| s.station >= robot.n_stations())
+    {
+        return Err(crate::error::Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: format!("station {} is not one of the robot's", s.station + 1),
+        });
+    }
+    let space = ParameterSpace::new(robot);
+    let mut theta = space.initial();
+    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
+    let (_, _, measured_now) = problem.predict(&theta)?;
+    let failed = stations
+        .iter()
+        .copied()
+        .filter(|&k| !register_base(&space, &mut theta, k, samples, &measured_now))
+        .collect();
+    let names: Vec<String> = match robot.stations() {
+        [] => vec![String::new()],
+        s => s.iter().map(|s| s.name.clone()).collect(),
+    };
+    let frames = names
+        .into_iter()
+        .enumerate()
+        .map(|(k, name)| crate::robot::Station {
+            name,
+            frame: space.base_pose(&theta, k),
+        })
+        .collect();
+    robot.set_stations(frames);
+    Ok(failed)
+}
+
+/// Registers in closed form the frames of the stations of held-out `test` that `train` has no
+/// sample of: a fit on `train` knows nothing of them, as a model knows nothing of a station
+/// set up after it was calibrated, and `armcomp evaluate` registers those too. Stations whose
+/// points do not span a plane keep their frame.
+pub fn register_held_out_stations(fitted: &mut Robot, train: &[Sample], test: &[Sample]) -> Result<()> {
+    let n = fitted.n_stations();
+    let (mut trained, mut tested) = (vec![false; n], vec![false; n]);
+    train
+        .iter()
+        .filter(|s| s.station < n)
+        .for_each(|s| trained[s.station] = true);
+    test.iter()
+        .filter(|s| s.station < n)
+        .for_each(|s| tested[s.station] = true);
+    let missing: Vec<usize> = (0..n).filter(|&k| tested[k] && !trained[k]).collect();
+    if !missing.is_empty() {
+        register_stations(fitted, test, &missing)?;
+    }
+    Ok(())
 }

@@ -46,24 +46,28 @@ impl ParameterSpace {
             }
         }
         let base_offset = params.len();
-        let (xyz, rpy) = base_xyz_rpy(&robot.t_meas_base());
         let mut setup = robot.setup_param_names().into_iter();
-        for k in 0..crate::robot::BASE_NAMES.len() {
-            let (quantity, value) = if k < 3 {
-                (Quantity::Length, xyz[k])
-            } else {
-                (Quantity::Angle, rpy[k - 3])
-            };
-            params.push(SpaceParam {
-                info: ParamInfo::new(
-                    setup.next().expect("one name per base parameter"),
-                    quantity,
-                    value,
-                    f64::INFINITY,
-                ),
-                group: ParamGroup::Base,
-                model_type: String::new(),
-            });
+        let base_names: Vec<String> = setup.by_ref().take(crate::robot::BASE_NAMES.len()).collect();
+        // One frame per station: `base.x` for one, `base[<station>].x` for several.
+        let n_stations = robot.n_stations();
+        for k in 0..n_stations {
+            let (xyz, rpy) = base_xyz_rpy(&robot.station_frame(k));
+            for (a, name) in crate::robot::BASE_NAMES.iter().enumerate() {
+                let (quantity, value) = if a < 3 {
+                    (Quantity::Length, xyz[a])
+                } else {
+                    (Quantity::Angle, rpy[a - 3])
+                };
+                let name = match robot.stations() {
+                    [_, _, ..] => format!("base[{}].{name}", robot.stations()[k].name),
+                    _ => base_names[a].clone(),
+                };
+                params.push(SpaceParam {
+                    info: ParamInfo::new(name, quantity, value, f64::INFINITY),
+                    group: ParamGroup::Base,
+                    model_type: String::new(),
+                });
+            }
         }
         let marker_offset = params.len();
         let marker_dofs = robot.marker_dofs();
@@ -88,6 +92,7 @@ impl ParameterSpace {
             n_chain,
             error_offsets,
             base_offset,
+            n_stations,
             marker_offset,
             marker_dofs,
         }
@@ -211,7 +216,7 @@ impl ParameterSpace {
         Ok(Decoded {
             tree: self.tree(robot, theta)?,
             errors,
-            t_meas_base: self.base_pose(theta),
+            frames: (0..self.n_stations).map(|k| self.base_pose(theta, k)).collect(),
             fixed_points: (0..self.fixed_points.len())
                 .map(|i| Vector3::from_column_slice(&theta[self.fixed_point_offset + 3 * i..][..3]))
                 .collect(),
@@ -250,9 +255,20 @@ impl ParameterSpace {
         Vector3::new(theta[o], theta[o + 1], theta[o + 2])
     }
 
-    pub(super) fn base_pose(&self, theta: &[f64]) -> Isometry3<f64> {
-        let b = &theta[self.base_offset..self.base_offset + 6];
+    /// Station `k`'s measurement frame in `theta`.
+    pub(super) fn base_pose(&self, theta: &[f64], k: usize) -> Isometry3<f64> {
+        let b = &theta[self.station_params(k)];
         xyz_rpy([b[0], b[1], b[2]], [b[3], b[4], b[5]])
+    }
+
+    /// The indices of station `k`'s six frame parameters.
+    pub(super) fn station_params(&self, k: usize) -> std::ops::Range<usize> {
+        self.base_offset + 6 * k..self.base_offset + 6 * (k + 1)
+    }
+
+    /// The station whose frame parameter `k` is.
+    pub(super) fn station_of(&self, k: usize) -> usize {
+        (k - self.base_offset) / 6
     }
 }
 
@@ -368,10 +384,15 @@ pub(super) fn apply(robot: &Robot, space: &ParameterSpace, theta: &[f64]) -> Res
         .collect();
     let mut file = robot.file_with(&theta[..space.n_chain], &errors);
     let units = file.units;
-    let b = &theta[space.base_offset..space.base_offset + 6];
+    let b = &theta[space.station_params(0)];
     let measurement = file.measurement.get_or_insert_with(Default::default);
     measurement.base_xyz = [b[0], b[1], b[2]].map(|v| units.len_out(v));
     measurement.base_rpy = [b[3], b[4], b[5]].map(|v| units.ang_out(v));
+    for (k, station) in measurement.stations.iter_mut().enumerate() {
+        let b = &theta[space.station_params(k)];
+        station.base_xyz = [b[0], b[1], b[2]].map(|v| units.len_out(v));
+        station.base_rpy = [b[3], b[4], b[5]].map(|v| units.ang_out(v));
+    }
     for (i, &m) in robot.markers().iter().enumerate() {
         let name = &robot.tree().points()[m].name;
         let o = space.marker_offset + space.marker_dofs * i;

@@ -1,0 +1,264 @@
+//! Several stations (instrument set-ups), each its own measurement frame, against a simulated
+//! truth whose geometry and station frames are known: joint calibration recovers both, a
+//! station column of one value changes nothing, a new station is registered for evaluation,
+//! and cross-validation holds out whole stations.
+
+use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, register_stations};
+use armcomp_core::evaluate::{ErrorStats, position_errors};
+use armcomp_core::measurement::{MeasurementSet, parse_csv, write_csv};
+use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::simulate::{SimulateParams, random_stations, simulate};
+use armcomp_core::{Robot, Station};
+
+use crate::common::robot;
+
+const NOISE: f64 = 0.05e-3; // m per axis
+
+/// The nominal industrial arm and a truth with its geometry moved (changes, SI) and `k`
+/// random stations drawn from `seed`.
+fn truth_with_stations(k: usize, seed: u64) -> (Robot, Robot, Vec<(&'static str, f64)>) {
+    let nominal = robot("industrial-6dof.toml");
+    let deg = 1f64.to_radians();
+    let changes = vec![
+        ("j2.alpha", 0.2 * deg),
+        ("j3.a", 1e-3),
+        ("j3.beta", 0.1 * deg),
+        ("j4.d", -1.5e-3),
+        ("j5.theta", 0.3 * deg),
+    ];
+    let space = ParameterSpace::new(&nominal);
+    let mut theta = space.initial();
+    for (name, delta) in &changes {
+        theta[space.index(name).unwrap()] += delta;
+    }
+    let mut truth = space.apply(&nominal, &theta).unwrap();
+    let stations = random_stations(&truth, k, seed);
+    truth.set_stations(stations);
+    (nominal, truth, changes)
+}
+
+fn measure(truth: &Robot, n: usize, seed: u64) -> MeasurementSet {
+    let poses = configurations(truth.tree(), Sampler::Sobol, n, seed).unwrap();
+    measure_at(truth, &poses, seed + 1000)
+}
+
+/// How far frame `a` is from `b`: translation (m) and rotation (rad).
+fn frame_gap(a: &nalgebra::Isometry3<f64>, b: &nalgebra::Isometry3<f64>) -> (f64, f64) {
+    let d = a.inverse() * b;
+    (d.translation.vector.norm(), d.rotation.angle())
+}
+
+#[test]
+fn three_stations_share_the_geometry_and_each_frame_is_recovered() {
+    let (mut nominal, truth, changes) = truth_with_stations(3, 21);
+    let data = measure(&truth, 180, 3);
+    assert_eq!(data.stations, ["st1", "st2", "st3"]);
+    // The stations really differ: metres and tens of degrees apart.
+    let (shift, turn) = frame_gap(&truth.station_frame(1), &truth.station_frame(2));
+    assert!(shift > 0.3 && turn > 0.2, "{shift} m, {turn} rad");
+    assert_eq!(nominal.adopt_stations(&data.stations), [0, 1, 2]);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let cal = calibrate(&nominal, &data.samples, &params, &mut |_| {}).unwrap();
+    let r = &cal.report;
+    assert!(r.converged, "{}", r.stop_reason);
+    assert!(r.registered);
+    // Geometry shared by the stations, recovered within its uncertainty.
+    let space = ParameterSpace::new(&nominal);
+    let truth_theta = ParameterSpace::new(&truth).initial();
+    for (name, _) in &changes {
+        let p = r.params.iter().find(|p| p.name == *name).unwrap();
+        let t = truth_theta[space.index(name).unwrap()];
+        assert!(
+            (p.value - t).abs() < 4.0 * p.std + 1e-9,
+            "{name}: identified {}, truth {t}, std {}",
+            p.value,
+            p.std
+        );
+    }
+    // Each station's frame within the noise: a tenth of a millimetre, a hundredth of a degree.
+    assert_eq!(cal.robot.stations().len(), 3);
+    for (k, station) in cal.robot.stations().iter().enumerate() {
+        assert_eq!(station.name, truth.stations()[k].name);
+        let (shift, turn) = frame_gap(&station.frame, &truth.station_frame(k));
+        assert!(
+            shift < 0.1e-3 && turn < 0.01f64.to_radians(),
+            "station {}: {shift} m, {turn} rad off",
+            station.name
+        );
+    }
+    for name in ["base[st2].x", "base[st3].yaw", "base[st1].roll"] {
+        assert!(r.params.iter().any(|p| p.name == name), "no {name}");
+    }
+    assert!(!r.params.iter().any(|p| p.name == "base.x"));
+    // Every station fits to the noise: √3·σ RMS in 3-D.
+    assert_eq!(r.per_station.len(), 3);
+    for st in &r.per_station {
+        assert_eq!(st.stats.n, 60);
+        assert!(
+            st.stats.rms_mm < 1.2 * 3f64.sqrt() * NOISE * 1e3,
+            "{}: {}",
+            st.station,
+            st.stats.rms_mm
+        );
+    }
+
+    // One frame for all the data cannot fit them: the stations are metres apart.
+    let one_frame = robot("industrial-6dof.toml");
+    let mut pooled = data.samples.clone();
+    pooled.iter_mut().for_each(|s| s.station = 0);
+    let single = calibrate(&one_frame, &pooled, &params, &mut |_| {}).unwrap().report;
+    assert!(single.after.rms_mm > 100.0 * r.after.rms_mm, "{}", single.after.rms_mm);
+}
+
+#[test]
+fn a_station_column_of_one_value_changes_nothing() {
+    let (nominal, truth, _) = truth_with_stations(1, 0);
+    let mut data = measure(&truth, 60, 5);
+    assert!(data.stations.is_empty());
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    // The same rows written without and with a `station` column naming one station, read back.
+    let layout = nominal.csv_layout();
+    let without = write_csv(&data, truth.tree(), truth.units());
+    let without = parse_csv(&without, std::path::Path::new("plain.csv"), &layout).unwrap();
+    let plain = calibrate(&nominal, &without.samples, &params, &mut |_| {}).unwrap();
+    data.stations = vec!["north".into()];
+    let text = write_csv(&data, truth.tree(), truth.units());
+    assert!(text.starts_with("j1") && text.contains(",station,") && text.contains(",north,"));
+    let read = parse_csv(&text, std::path::Path::new("one.csv"), &layout).unwrap();
+    assert_eq!(read.stations, ["north"]);
+    let mut named = robot("industrial-6dof.toml");
+    assert!(named.adopt_stations(&read.stations).is_empty());
+    assert!(named.stations().is_empty());
+    let with_column = calibrate(&named, &read.samples, &params, &mut |_| {}).unwrap();
+    let names = |c: &armcomp_core::calibrate::Calibration| -> Vec<String> {
+        c.report.params.iter().map(|p| p.name.clone()).collect()
+    };
+    assert_eq!(names(&plain), names(&with_column));
+    assert!(names(&plain).contains(&"base.x".to_string()));
+    for (a, b) in plain.report.params.iter().zip(&with_column.report.params) {
+        assert_eq!(a.value, b.value, "{}", a.name);
+    }
+    assert!(with_column.report.per_station.is_empty());
+    assert!(with_column.robot.to_file().measurement.unwrap().stations.is_empty());
+}
+
+#[test]
+fn a_new_station_is_registered_for_evaluation() {
+    let (mut nominal, truth, _) = truth_with_stations(2, 4);
+    let data = measure(&truth, 120, 7);
+    nominal.adopt_stations(&data.stations);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let mut model = calibrate(&nominal, &data.samples, &params, &mut |_| {}).unwrap().robot;
+    // The truth measured again from a station of its own, which the model has never seen.
+    let far = random_stations(&truth, 3, 99).pop().unwrap();
+    let space = ParameterSpace::new(&truth);
+    let mut truth_there = space.apply(&truth, &space.initial()).unwrap();
+    truth_there.set_stations(vec![Station {
+        name: "east".into(),
+        frame: far.frame,
+    }]);
+    let mut new_data = measure(&truth_there, 50, 8);
+    new_data.stations = vec!["east".into()];
+    let new = model.adopt_stations(&new_data.stations);
+    assert_eq!(new, [0]);
+    // Seen through the model's first frame, the new station's points are metres off.
+    let unregistered = ErrorStats::from_errors(&position_errors(&model, &new_data.samples));
+    assert!(unregistered.rms_mm > 100.0, "{}", unregistered.rms_mm);
+    assert!(
+        register_stations(&mut model, &new_data.samples, &new)
+            .unwrap()
+            .is_empty()
+    );
+    let (shift, turn) = frame_gap(&model.station_frame(0), &far.frame);
+    assert!(shift < 0.1e-3 && turn < 0.01f64.to_radians(), "{shift} m, {turn} rad");
+    let registered = ErrorStats::from_errors(&position_errors(&model, &new_data.samples));
+    assert!(
+        registered.rms_mm < 1.3 * 3f64.sqrt() * NOISE * 1e3,
+        "{}",
+        registered.rms_mm
+    );
+}
+
+#[test]
+fn an_empty_station_cell_names_its_line() {
+    let nominal = robot("industrial-6dof.toml");
+    let text = "j1[deg],j2[deg],j3[deg],j4[deg],j5[deg],j6[deg],station,x[mm],y[mm],z[mm]\n\
+                0,0,0,0,0,0,a,1000,0,500\n\
+                # a comment\n\
+                0,10,0,0,0,0,,1000,0,400\n";
+    let e = parse_csv(text, std::path::Path::new("s.csv"), &nominal.csv_layout()).unwrap_err();
+    let message = e.to_string();
+    assert!(
+        message.contains("s.csv") && message.contains(":4") && message.contains("station"),
+        "{message}"
+    );
+}
+
+/// A signal planted per group: each station's poses cluster in joint space and carry an offset
+/// of their own (a set-up error no model term has). A nearest-neighbour predictor scored on
+/// random folds finds each held-out pose's offset in its own station's other poses and looks
+/// far better than it is; folds that hold out whole stations see it predict a station it has
+/// never seen, as it would in use.
+#[test]
+fn grouped_folds_see_through_a_signal_planted_per_station() {
+    use armcomp_core::evaluate::cross_validated_predictor_errors;
+    use armcomp_core::split::FoldBy;
+    use rand::{Rng, SeedableRng};
+
+    let (groups, per_group) = (6, 25);
+    let mut truth = robot("industrial-6dof.toml");
+    let names: Vec<String> = (1..=groups).map(|g| format!("g{g}")).collect();
+    truth.adopt_stations(&names);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(5);
+    let centres = configurations(truth.tree(), Sampler::Random, groups, 9).unwrap();
+    let poses: Vec<Vec<f64>> = centres
+        .iter()
+        .flat_map(|c| {
+            let c = c.clone();
+            (0..per_group)
+                .map(|_| c.iter().map(|v| v + rng.random_range(-0.05..0.05)).collect())
+                .collect::<Vec<Vec<f64>>>()
+        })
+        .collect();
+    let mut data = measure_at(&truth, &poses, 1);
+    let offsets: Vec<nalgebra::Vector3<f64>> = (0..groups)
+        .map(|_| nalgebra::Vector3::from_fn(|_, _| rng.random_range(-2e-3..2e-3)))
+        .collect();
+    for s in &mut data.samples {
+        s.position += offsets[s.station];
+    }
+    let planted_rms = (offsets.iter().map(|o| o.norm_squared()).sum::<f64>() / groups as f64).sqrt() * 1e3;
+    let knn = armcomp_learn::KnnSpec::default();
+    let (random, random_folds) =
+        cross_validated_predictor_errors(&truth, &knn, &data.samples, 5, 0, &FoldBy::Poses).unwrap();
+    let by = FoldBy::choose(&data.samples, None);
+    assert_eq!(by, FoldBy::Stations);
+    let (grouped, grouped_folds) = cross_validated_predictor_errors(&truth, &knn, &data.samples, 5, 0, &by).unwrap();
+    assert_eq!(random_folds.to_string(), "folds: 5, grouped by pose");
+    assert_eq!(grouped_folds.to_string(), "folds: 5, grouped by station");
+    // Random folds: the station's own offset is learned from its neighbours.
+    assert!(
+        random.rms_mm < 0.3 * planted_rms,
+        "random folds {} mm of {planted_rms}",
+        random.rms_mm
+    );
+    // Grouped folds: a new station's offset cannot be predicted; the score says so.
+    assert!(
+        grouped.rms_mm > 0.7 * planted_rms,
+        "grouped folds {} mm of {planted_rms}",
+        grouped.rms_mm
+    );
+}
+
+fn measure_at(truth: &Robot, poses: &[Vec<f64>], seed: u64) -> MeasurementSet {
+    simulate(truth, poses, SimulateParams { noise_std: NOISE, seed }).unwrap()
+}
