@@ -184,6 +184,11 @@ pub fn register_stations(robot: &mut Robot, samples: &[Sample], stations: &[usiz
             reason: format!("station {} is not one of the robot's", s.station + 1),
         });
     }
+    // Nothing to register leaves the frames bit for bit (a round trip through the parameter
+    // vector's roll-pitch-yaw would move them by rounding).
+    if stations.is_empty() {
+        return Ok(Vec::new());
+    }
     let space = ParameterSpace::new(robot);
     let mut theta = space.initial();
     let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
