@@ -53,9 +53,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{
-    CalibrationParams, ParamResult, calibrate, carried_start, register_held_out_stations, score_test,
-};
+use crate::calibrate::{CalibrationParams, ParamResult, calibrate, register_held_out_stations, score_test};
 use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
@@ -334,22 +332,17 @@ pub fn diagnose(
             progress(DiagnoseProgress { stage, done, total });
         }
     };
-    // The fit on all the data, where every fold's calibration of this model (and of a
-    // candidate added to it) starts: the folds' optima are near it, and a start there saves
-    // the iterations from the robot file's values. Priors stay centred on `model`.
-    let full = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
-    let (mut fitted, mut full_theta) = (full.robot, full.linearisation.theta);
     let mut current = heldout(
         &model,
         samples,
         &splits,
         &params.calibration,
-        Some(&full_theta),
         &stage_counter(DiagnoseStage::Baseline, splits.len()),
     )?;
     let initial = ErrorStats::from_errors(&current.errors);
     let initial_residuals = describe_residuals(robot, samples, &current.errors);
     let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
+    let mut fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
     let mut steps: Vec<DiagnosisStep> = Vec::new();
     let mut last_ranking = Vec::new();
     let mut interrupted = false;
@@ -377,18 +370,7 @@ pub fn diagnose(
             .zip(&refit)
             .map(|((o, &p), &r)| {
                 if r {
-                    score(
-                        &model,
-                        &full_theta,
-                        given,
-                        o,
-                        p,
-                        samples,
-                        &splits,
-                        &current,
-                        params,
-                        &tick,
-                    )
+                    score(&model, given, o, p, samples, &splits, &current, params, &tick)
                 } else {
                     screened_out(o, p, params)
                 }
@@ -423,8 +405,7 @@ pub fn diagnose(
             .find(|o| o.effect == best.effect && o.candidate.location == best.location)
             .expect("the ranking is made of the offers");
         model = with_effect(&model, offer)?;
-        let full = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
-        (fitted, full_theta) = (full.robot, full.linearisation.theta);
+        fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
         let before = ErrorStats::from_errors(&current.errors);
         let after = best.heldout.expect("an accepted candidate was evaluated");
         let values = new_model_values(&fitted);
@@ -494,10 +475,7 @@ pub fn diagnose(
             &current,
             name,
             spec,
-            &CalibrationParams {
-                start: Some(full_theta.clone()),
-                ..selection(&model, given, params)
-            },
+            &selection(&model, given, params),
             &stage_counter(DiagnoseStage::Learnable, splits.len()),
         ) {
             Err(Error::Interrupted) => {
@@ -558,8 +536,7 @@ fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
 /// robot file (those are always identified; an empty selection already includes them).
 fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> CalibrationParams {
     let mut out = params.calibration.clone();
-    // Restarted even when converged: the fits on all the data are where every fold's fit
-    // starts (which restarts only where another minimum is likely, see `heldout`).
+    // A candidate with a multimodal parameter is restarted: so is every fit it is compared with.
     out.restart_converged = true;
     if !out.identify.is_empty() {
         let added = model.error_models().iter().skip(given);
@@ -614,31 +591,22 @@ struct Heldout {
     params: Vec<Vec<ParamResult>>,
 }
 
-/// Calibrates `model` on each fold's training poses, from `start` when given (a parameter
-/// vector of `model`), and scores it on the poses held out. `tick` hears of each fold's
-/// calibration.
+/// Calibrates `model` on each fold's training poses and scores it on the poses held out.
+/// `tick` hears of each fold's calibration.
 fn heldout(
     model: &Robot,
     samples: &[Sample],
     splits: &[Split],
     calibration: &CalibrationParams,
-    start: Option<&[f64]>,
     tick: &(dyn Fn() + Sync),
 ) -> Result<Heldout> {
     let mut errors = vec![Vector3::zeros(); samples.len()];
     let mut fixed = Vec::with_capacity(splits.len());
     let mut params = Vec::with_capacity(splits.len());
-    // From a fit on all the data that had its restarts, a fold's fit is restarted only where
-    // another minimum is likely (a multimodal parameter free, or no convergence).
-    let calibration = CalibrationParams {
-        start: start.map(<[f64]>::to_vec),
-        restart_converged: calibration.restart_converged && start.is_none(),
-        ..calibration.clone()
-    };
     for split in splits {
         let train = subset(samples, &split.train);
         let test = subset(samples, &split.test);
-        let mut fit = calibrate(model, &train, &calibration, &mut |_| {})?;
+        let mut fit = calibrate(model, &train, calibration, &mut |_| {})?;
         register_held_out_stations(&mut fit.robot, &train, &test)?;
         tick();
         fixed.push(
@@ -749,13 +717,11 @@ fn screened_out(offer: &Offer, predicted_share: Option<f64>, params: &DiagnosePa
     out
 }
 
-/// Adds the offered effect to `model`, scores it by k-fold (each fold's fit starting from
-/// `full_theta`, `model`'s fit on all the data, with the effect at its neutral value) and
-/// applies the acceptance rule against the held-out evaluation `current` of the model without it.
+/// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
+/// against the held-out evaluation `current` of the model without it.
 #[allow(clippy::too_many_arguments)]
 fn score(
     model: &Robot,
-    full_theta: &[f64],
     given: usize,
     offer: &Offer,
     predicted_share: Option<f64>,
@@ -773,17 +739,9 @@ fn score(
             .error_models()
             .last()
             .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
-        let start = carried_start(&candidate, model, full_theta);
         Ok::<_, Error>((
             names,
-            heldout(
-                &candidate,
-                samples,
-                splits,
-                &selection(&candidate, given, params),
-                start.as_deref(),
-                tick,
-            )?,
+            heldout(&candidate, samples, splits, &selection(&candidate, given, params), tick)?,
         ))
     })();
     match evaluated {

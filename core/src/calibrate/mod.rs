@@ -51,7 +51,6 @@ pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
 pub use registration::{register_held_out_stations, register_stations};
 pub use score::{ScoreTest, score_test};
-pub use space::carried_start;
 use space::*;
 
 /// Which part of the model a parameter belongs to.

@@ -273,33 +273,6 @@ impl ParameterSpace {
 }
 
 /// Whether chain parameter `name` (`<joint>.<suffix>`) adds to its joint's value.
-/// A start for a fit of `robot`: `theta`, an earlier fit's [`Linearisation::theta`] of `from`
-/// (the same robot with fewer error models, say), carried over by parameter name; parameters
-/// `from` lacks start at `robot`'s values. `None` when `theta` is not a vector of `from`'s
-/// space or a name repeats (the match would be ambiguous).
-pub fn carried_start(robot: &Robot, from: &Robot, theta: &[f64]) -> Option<Vec<f64>> {
-    let (to, from) = (ParameterSpace::new(robot), ParameterSpace::new(from));
-    if from.params.len() != theta.len() {
-        return None;
-    }
-    let by_name: std::collections::HashMap<&str, f64> = from
-        .params
-        .iter()
-        .zip(theta)
-        .map(|(p, &v)| (p.info.name.as_str(), v))
-        .collect();
-    let names: std::collections::HashSet<&str> = to.params.iter().map(|p| p.info.name.as_str()).collect();
-    if by_name.len() != from.params.len() || names.len() != to.params.len() {
-        return None;
-    }
-    Some(
-        to.params
-            .iter()
-            .map(|p| by_name.get(p.info.name.as_str()).copied().unwrap_or(p.info.nominal))
-            .collect(),
-    )
-}
-
 pub(super) fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
     let Some((joint, suffix)) = name.rsplit_once('.') else {
         return false;
