@@ -594,6 +594,7 @@ fn the_written_model_file_is_the_fit_for_every_robot_kind() {
             armcomp_core::evaluate::fit_residual_predictor(&r, &armcomp_learn::RidgeSpec::default(), &samples).unwrap();
         let mut file = r.to_file();
         file.fitted_predictor = Some(fitted);
+        file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
         r.rebuild(file).unwrap()
     };
     type Case<'a> = (&'a str, Robot, Vec<(&'a str, f64)>);

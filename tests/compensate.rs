@@ -398,6 +398,7 @@ fn a_residual_predictor_learns_several_points_and_compensates_the_tool() {
     assert_eq!(predictor.n_inputs(), model.tree().nq() + 3);
     let mut file = model.to_file();
     file.fitted_predictor = Some(predictor);
+    file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
     let learned = model.rebuild(file).unwrap();
     for &point in model.markers() {
         let of_point: Vec<_> = test.iter().filter(|s| s.point == point).cloned().collect();

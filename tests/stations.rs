@@ -262,3 +262,184 @@ fn grouped_folds_see_through_a_signal_planted_per_station() {
 fn measure_at(truth: &Robot, poses: &[Vec<f64>], seed: u64) -> MeasurementSet {
     simulate(truth, poses, SimulateParams { noise_std: NOISE, seed }).unwrap()
 }
+
+/// A residual predictor learned at one station lowers the error at another: it predicts in the
+/// robot's base frame, so re-registering the model at the new station (`--identify base`)
+/// keeps it, and it follows the robot. The truth is the boom's hidden one (bending and effects
+/// the rigid model lacks); held-out rows of the second station, on three seeds.
+#[test]
+fn a_predictor_learned_at_one_station_lowers_the_error_at_another() {
+    let gp = armcomp_learn::GpSpec {
+        max_optimization_samples: 60,
+        max_iterations: 15,
+        ..Default::default()
+    };
+    let with_identify = |identify: &[&str]| CalibrationParams {
+        identify: identify.iter().map(|s| s.to_string()).collect(),
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    for seed in [1, 2, 3] {
+        let mut truth = robot("rock-drill-truth.toml");
+        truth.set_stations(random_stations(&truth, 2, seed));
+        let data = measure(&truth, 400, seed);
+        // Each station as a user has it: a data set in its own instrument frame.
+        let at = |k: usize| -> Vec<_> {
+            let rows = data.samples.iter().filter(|s| s.station == k);
+            rows.map(|s| armcomp_core::measurement::Sample {
+                station: 0,
+                ..s.clone()
+            })
+            .collect()
+        };
+        let (a, b) = (at(0), at(1));
+        let (register, held_out) = b.split_at(40);
+        // Station A: the geometry, then the predictor of what it leaves.
+        let nominal = robot("rock-drill.toml");
+        let model = calibrate(&nominal, &a, &with_identify(&["base", "geometry"]), &mut |_| {})
+            .unwrap()
+            .robot;
+        let mut file = model.to_file();
+        file.fitted_predictor = Some(armcomp_core::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
+        file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
+        let learned = model.rebuild(file).unwrap();
+        // Station B: only the frame registered, with and without the predictor.
+        let moved = calibrate(&learned, register, &with_identify(&["base"]), &mut |_| {}).unwrap();
+        let carried = moved
+            .report
+            .fitted_predictor
+            .as_ref()
+            .expect("the report says what became of it");
+        assert!(carried.kept, "{}", carried.reason);
+        assert!(moved.robot.predictor().is_some());
+        let bare = calibrate(&model, register, &with_identify(&["base"]), &mut |_| {}).unwrap();
+        let with = ErrorStats::from_errors(&position_errors(&moved.robot, held_out)).rms_mm;
+        let without = ErrorStats::from_errors(&position_errors(&bare.robot, held_out)).rms_mm;
+        // The same predictor read in the measurement frame it was learned in: what a predictor
+        // that does not follow the robot gives at the new station.
+        let mut file = moved.robot.to_file();
+        file.fitted_predictor = Some(armcomp_core::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
+        file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Measurement);
+        let stuck = moved.robot.rebuild(file).unwrap();
+        let in_old_frame = ErrorStats::from_errors(&position_errors(&stuck, held_out)).rms_mm;
+        println!(
+            "seed {seed}: held-out RMS at station B {without:.4} mm without the predictor, {with:.4} mm with it \
+             (in the base frame), {in_old_frame:.4} mm read in station A's frame"
+        );
+        assert!(
+            with < 0.7 * without,
+            "seed {seed}: {with} mm with, {without} mm without"
+        );
+        // Learning the geometry again would drop it, and say so.
+        let refit = calibrate(&learned, register, &with_identify(&["base", "offsets"]), &mut |_| {}).unwrap();
+        assert!(!refit.report.fitted_predictor.unwrap().kept);
+        assert!(refit.robot.predictor().is_none());
+    }
+}
+
+/// The same from the command line: `learn` writes the predictor in the base frame, and
+/// `calibrate --identify base` at another station keeps it, says so, and the model it writes
+/// predicts that station's other rows better than the re-registered model without it.
+#[test]
+fn the_command_line_carries_a_learned_predictor_to_another_station() {
+    use crate::cli::armcomp;
+    let dir = crate::common::Scratch::new("predictor-station");
+    let path = |name: &str| dir.file(name, "").display().to_string();
+    let all = path("all.csv");
+    let (code, _, err) = armcomp(&[
+        "simulate",
+        "--robot",
+        "robots/rock-drill-truth.toml",
+        "--stations",
+        "2",
+        "--n",
+        "240",
+        "--noise-mm",
+        "0.05",
+        "--seed",
+        "4",
+        "--out",
+        &all,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // One file per station, as two set-ups give them.
+    let text = std::fs::read_to_string(&all).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let column = header
+        .split(',')
+        .position(|c| c == "station")
+        .expect("a station column");
+    let (a, b) = (path("a.csv"), path("b.csv"));
+    for (file, name) in [(&a, "st1"), (&b, "st2")] {
+        let rows: Vec<&str> = text
+            .lines()
+            .skip(1)
+            .filter(|l| l.split(',').nth(column) == Some(name))
+            .collect();
+        assert!(rows.len() > 80, "{name}: {} rows", rows.len());
+        std::fs::write(file, format!("{header}\n{}\n", rows.join("\n"))).unwrap();
+    }
+    let (model, learned, moved, bare) = (path("m.toml"), path("ml.toml"), path("mb.toml"), path("b0.toml"));
+    // Exit 3: the rigid model ends far above the noise, as it should on the boom.
+    let run = |args: &[&str]| {
+        let (code, out, err) = armcomp(args);
+        assert!(code == 0 || code == 3, "{args:?}: {err}");
+        out
+    };
+    run(&[
+        "calibrate",
+        "--robot",
+        "robots/rock-drill.toml",
+        "--data",
+        &a,
+        "--identify",
+        "base,geometry",
+        "--out",
+        &model,
+    ]);
+    run(&[
+        "learn",
+        "--model",
+        &model,
+        "--data",
+        &a,
+        "--predictor",
+        "gp",
+        "--out",
+        &learned,
+    ]);
+    assert!(
+        std::fs::read_to_string(&learned)
+            .unwrap()
+            .contains("predictor_frame = \"base\"")
+    );
+    let register = |from: &str, to: &str| {
+        run(&[
+            "calibrate",
+            "--robot",
+            from,
+            "--data",
+            &b,
+            "--rows",
+            "0..40",
+            "--identify",
+            "base",
+            "--out",
+            to,
+        ])
+    };
+    let out = register(&learned, &moved);
+    assert!(out.contains("fitted predictor kept"), "{out}");
+    register(&model, &bare);
+    let rms = |m: &str| {
+        let out = run(&["evaluate", "--model", m, "--data", &b, "--rows", "40..", "--json"]);
+        let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+        v["rms_mm"].as_f64().unwrap_or_else(|| panic!("no rms_mm in {v}"))
+    };
+    let (with, without) = (rms(&moved), rms(&bare));
+    assert!(
+        with < 0.7 * without,
+        "{with} mm with the predictor, {without} mm without"
+    );
+}

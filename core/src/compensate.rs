@@ -27,6 +27,7 @@ use crate::evaluate::predictor_input_into;
 use crate::ik::{IkError, IkParams, IkReport, IkTarget, IkWorkspace, LinearOffset, Start, solve_from};
 use crate::plugin::FittedPredictor;
 use crate::robot::Robot;
+use crate::robot_file::PredictorFrame;
 
 /// Position tolerance (m) of the first solve when a predictor follows. It only sets where the
 /// residual is first linearised, and the solves after it work on the full model, so coming
@@ -98,8 +99,8 @@ pub struct Compensation {
 pub struct Compensator<'a> {
     robot: &'a Robot,
     predictor: Option<&'a dyn FittedPredictor>,
-    /// Rotation from the measurement frame to the base frame (residuals are measured).
-    base_from_meas: UnitQuaternion<f64>,
+    /// Rotation from the predictor's frame to the base frame.
+    base_from_predictor: UnitQuaternion<f64>,
     params: CompensationParams,
     ik: IkWorkspace,
     /// The residual linearised at the current command (base frame).
@@ -108,17 +109,28 @@ pub struct Compensator<'a> {
     /// What the predictor takes: the command, then the tool's position for a predictor
     /// fitted on several points ([`predictor_input_into`]).
     input: Vec<f64>,
-    /// Row-major `3 × inputs` derivative of the residual (measurement frame).
+    /// Row-major `3 × inputs` derivative of the residual (predictor's frame).
     derivative: Vec<f64>,
     scratch: Vec<f64>,
 }
 
 impl<'a> Compensator<'a> {
     /// A compensator for `robot` and, optionally, a residual predictor fitted on it (joint
-    /// values in, three residual components out).
+    /// values in, three residual components out, in the base frame as
+    /// [`fit_residual_predictor`](crate::evaluate::fit_residual_predictor) fits them).
     pub fn new(
         robot: &'a Robot,
         predictor: Option<&'a dyn FittedPredictor>,
+        params: CompensationParams,
+    ) -> Result<Self> {
+        Self::with_frame(robot, predictor, PredictorFrame::Base, params)
+    }
+
+    /// [`new`](Self::new) for a predictor whose outputs are in `frame`.
+    fn with_frame(
+        robot: &'a Robot,
+        predictor: Option<&'a dyn FittedPredictor>,
+        frame: PredictorFrame,
         params: CompensationParams,
     ) -> Result<Self> {
         let nq = robot.tree().nq();
@@ -139,7 +151,10 @@ impl<'a> Compensator<'a> {
         Ok(Compensator {
             robot,
             predictor,
-            base_from_meas: robot.t_meas_base().rotation.inverse(),
+            base_from_predictor: match frame {
+                PredictorFrame::Base => UnitQuaternion::identity(),
+                PredictorFrame::Measurement => robot.t_meas_base().rotation.inverse(),
+            },
             params,
             ik,
             offset: LinearOffset::zeros(robot.tree().nq()),
@@ -156,7 +171,7 @@ impl<'a> Compensator<'a> {
 
     /// The robot's own fitted predictor, if its file carries one.
     pub fn for_model(robot: &'a Robot, params: CompensationParams) -> Result<Self> {
-        Self::new(robot, robot.predictor(), params)
+        Self::with_frame(robot, robot.predictor(), robot.predictor_frame(), params)
     }
 
     /// The joint command of the last [`compensate`](Compensator::compensate).
@@ -276,8 +291,8 @@ impl<'a> Compensator<'a> {
         }
     }
 
-    /// Predictive standard deviation of the residual at the last command (m, measurement
-    /// frame), for predictors that have one.
+    /// Predictive standard deviation of the residual at the last command (m, per axis of the
+    /// predictor's frame), for predictors that have one.
     pub fn residual_std(&mut self) -> Option<Vector3<f64>> {
         let p = self.predictor?;
         let nq = self.ik.q().len();
@@ -295,7 +310,7 @@ impl<'a> Compensator<'a> {
         let q = self.ik.q();
         let nq = q.len();
         self.input[..nq].copy_from_slice(q);
-        let rotation: Matrix3<f64> = self.base_from_meas.to_rotation_matrix().into_inner();
+        let rotation: Matrix3<f64> = self.base_from_predictor.to_rotation_matrix().into_inner();
         if first {
             let derivative = mode == CompensationMode::Exact
                 && predictor.predict_jacobian_into(&self.input, &mut self.out, &mut self.derivative, &mut self.scratch);

@@ -9,6 +9,7 @@ use crate::measurement::Sample;
 use crate::plugin::{FittedPredictor, PredictorSpec, TrainingSet};
 use crate::point_kinematics::PointKinematics;
 use crate::robot::{Conditions, Robot};
+use crate::robot_file::PredictorFrame;
 
 /// Statistics of 3-D position errors, in millimetres (the unit people compare arms in).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -156,15 +157,17 @@ pub fn orientation_errors(robot: &Robot, samples: &[Sample]) -> Vec<Option<f64>>
 pub fn position_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
     let mut errors = model_errors(robot, samples);
     if let Some(p) = robot.predictor() {
-        subtract_predictions(robot, p, samples, &mut errors);
+        subtract_predictions(robot, p, robot.predictor_frame(), samples, &mut errors);
     }
     errors
 }
 
-/// Subtracts `predictor`'s prediction at each sample from its error in `errors`.
+/// Subtracts `predictor`'s prediction at each sample, its outputs in `frame`, from the
+/// sample's error (measurement frame of its station) in `errors`.
 fn subtract_predictions(
     robot: &Robot,
     predictor: &dyn FittedPredictor,
+    frame: PredictorFrame,
     samples: &[Sample],
     errors: &mut [Vector3<f64>],
 ) {
@@ -172,7 +175,11 @@ fn subtract_predictions(
     for (e, s) in errors.iter_mut().zip(samples) {
         predictor_input_into(robot, predictor.n_inputs(), &s.q, s.point, &mut input);
         predictor.predict_into(&input, &mut out, &mut scratch);
-        *e -= Vector3::from(out);
+        let predicted = Vector3::from(out);
+        *e -= match frame {
+            PredictorFrame::Base => robot.station_frame(s.station).rotation * predicted,
+            PredictorFrame::Measurement => predicted,
+        };
     }
 }
 
@@ -197,7 +204,7 @@ pub fn cross_validated_predictor_errors(
             let test = crate::split::subset(samples, &split.test);
             let fitted = fit_residual_predictor(robot, spec, &train)?;
             let mut errors = model_errors(robot, &test);
-            subtract_predictions(robot, fitted.as_ref(), &test, &mut errors);
+            subtract_predictions(robot, fitted.as_ref(), PredictorFrame::Base, &test, &mut errors);
             Ok(errors)
         })
         .collect::<Result<_>>()?;
@@ -270,7 +277,8 @@ fn rigid_model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
 }
 
 /// Fits `spec` on what the physical model of `robot` leaves on `samples`: joint values in,
-/// the position residual (m, measurement frame) out. When the samples measure several points,
+/// the position residual (m, rotated from the measurement frame of its station into the base
+/// frame: [`PredictorFrame::Base`]) out. When the samples measure several points,
 /// each point's position in its body's frame (m) is three more inputs, so one predictor
 /// learns how the residual varies across the points (see [`predictor_input_into`]).
 pub fn fit_residual_predictor(
@@ -298,9 +306,11 @@ pub fn fit_residual_predictor(
     }
     let mut ranges = robot.tree().coordinate_limits().to_vec();
     ranges.resize(n_inputs, None);
+    // In the base frame, so that the predictor follows the robot to another station.
     let targets: Vec<f64> = model_errors(robot, samples)
         .iter()
-        .flat_map(|e| e.iter().copied())
+        .zip(samples)
+        .flat_map(|(e, s)| (robot.station_frame(s.station).rotation.inverse() * e).data.0[0])
         .collect();
     spec.fit(&TrainingSet {
         inputs: &inputs,

@@ -630,6 +630,11 @@ impl Robot {
     pub fn predictor(&self) -> Option<&dyn crate::plugin::FittedPredictor> {
         self.file.fitted_predictor.as_deref()
     }
+    /// The frame the fitted predictor's outputs are in (`measurement` for a file that does not
+    /// say: files written before the predictor followed the robot).
+    pub fn predictor_frame(&self) -> crate::robot_file::PredictorFrame {
+        self.file.predictor_frame.unwrap_or_default()
+    }
 
     /// Sets the chain parameters and rebuilds the tree.
     pub fn set_chain_values(&mut self, values: &[f64]) -> Result<()> {
@@ -955,6 +960,7 @@ impl Robot {
                 .collect(),
             predictor: None,
             fitted_predictor: None,
+            predictor_frame: None,
             measurement: self.file.measurement.clone(),
             sensors: self.file.sensors.clone(),
             fixtures: self.file.fixtures.clone(),

@@ -67,6 +67,12 @@ pub struct RobotFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(with = "Option<serde_json::Map<String, serde_json::Value>>")]
     pub fitted_predictor: Option<Box<dyn FittedPredictor>>,
+    /// The frame the fitted predictor's residuals are in: `base` (the robot's own, as `learn`
+    /// writes them: the predictor follows the robot to another measurement frame or station)
+    /// or `measurement` (the frame of the data it was fitted on; files written before this key
+    /// existed). Absent: `measurement`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub predictor_frame: Option<PredictorFrame>,
     /// The measurement setup: where the tracker is, which points it sees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measurement: Option<MeasurementSpec>,
@@ -283,6 +289,19 @@ pub enum MeasurementKind {
     /// No position: the marker put into an unknown fixed point (a ball in a socket, a tip on
     /// a divot) named by the row's `fixed_point` column.
     FixedPoint,
+}
+
+/// The frame a fitted residual predictor's outputs are in (see [`RobotFile::predictor_frame`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PredictorFrame {
+    /// The robot's base frame: measured minus modelled position rotated out of the measurement
+    /// frame of its row, so that re-registering the robot (another station, `calibrate
+    /// --identify base`) keeps the predictor valid.
+    Base,
+    /// The measurement frame of the data the predictor was fitted on.
+    #[default]
+    Measurement,
 }
 
 impl MeasurementKind {

@@ -112,7 +112,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     bar.finish_and_clear();
     let (calibration, choice) = (&run.calibration, &run.prior_choice);
-    let text = calibration.robot.to_file().to_text_for(&args.out)?;
+    let text = calibration.robot.to_text_for(&args.out)?;
     write_atomic(&args.out, text.as_bytes())?;
     let report = &calibration.report;
     if args.json {
@@ -137,6 +137,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         print_report(report);
         print_gross_errors(&outlier_rows, report, args.exclude_outliers);
+        if let Some(p) = &report.fitted_predictor {
+            let verb = if p.kept { "kept" } else { "dropped" };
+            println!("fitted predictor {verb}: {}", p.reason);
+        }
         println!("wrote {}", args.out.display());
     }
     for w in &report.warnings {

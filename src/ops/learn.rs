@@ -117,6 +117,7 @@ pub fn run(
         file.predictor = Some(spec);
     }
     file.fitted_predictor = Some(fitted);
+    file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
     let written = Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)?;
     let after = ErrorStats::from_errors(&position_errors(&written, samples));
     Ok(LearnRun {

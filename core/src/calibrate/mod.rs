@@ -34,6 +34,7 @@ use crate::evaluate::{AngleStats, ErrorStats, StationStats, per_station};
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
 use crate::robot::Robot;
+use crate::robot_file::PredictorFrame;
 use crate::tree::KinematicTree;
 
 pub mod evidence;
@@ -373,6 +374,18 @@ pub struct CalibrationReport {
     /// A residual that changes steadily with the sample order (a tracker drifting), when
     /// there is one (see [`drift`]).
     pub drift: Option<Drift>,
+    /// What became of the fitted predictor the robot carried, when it carried one.
+    pub fitted_predictor: Option<PredictorCarried>,
+}
+
+/// Whether a calibration kept the fitted residual predictor of the robot it started from, and
+/// why: a predictor in the base frame stays valid when only the measurement frames moved.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PredictorCarried {
+    /// Whether the calibrated model carries it.
+    pub kept: bool,
+    /// Why, in words.
+    pub reason: String,
 }
 
 /// A sample whose residual is far beyond the noise: a marker seen through a broken line of
@@ -1011,7 +1024,7 @@ pub fn calibrate(
             .filter(|&&k| free.contains(&k))
             .filter_map(|&k| held_space.params[k].info.implausibility(theta[k])),
     );
-    let calibrated = apply(robot, &space, &theta)?;
+    let (calibrated, fitted_predictor) = carry_predictor(robot, apply(robot, &space, &theta)?, &space, &selected)?;
     let linearisation = Linearisation {
         prior_sigma: free.iter().map(|&k| space.params[k].info.sigma).collect(),
         groups: free.iter().map(|&k| space.prior_group(robot, k)).collect(),
@@ -1050,8 +1063,67 @@ pub fn calibrate(
             warnings,
             outliers,
             drift: trend,
+            fitted_predictor,
         },
     })
+}
+
+/// `calibrated` with the fitted predictor of `robot`, the model it was calibrated from, when
+/// the fit moved only what a predictor in the base frame does not depend on (the measurement
+/// frames, fixed points); else without it. Says which and why.
+fn carry_predictor(
+    robot: &Robot,
+    calibrated: Robot,
+    space: &ParameterSpace,
+    selected: &[usize],
+) -> Result<(Robot, Option<PredictorCarried>)> {
+    let Some(fitted) = robot.predictor() else {
+        return Ok((calibrated, None));
+    };
+    let dropped = |reason: &str| {
+        Some(PredictorCarried {
+            kept: false,
+            reason: reason.into(),
+        })
+    };
+    let frames_only = selected
+        .iter()
+        .all(|&k| matches!(space.params[k].group, ParamGroup::Base | ParamGroup::FixedPoint(_)));
+    if !frames_only {
+        return Ok((
+            calibrated,
+            dropped("the fit changed the model whose residuals it predicts; fit the predictor again on the new model"),
+        ));
+    }
+    if robot.predictor_frame() == PredictorFrame::Measurement {
+        return Ok((
+            calibrated,
+            dropped(
+                "it predicts residuals in the old measurement frame (a model file from before predictors were \
+                 fitted in the base frame); fit the predictor again",
+            ),
+        ));
+    }
+    // Fitted predictors are not clonable trait objects; the JSON they are stored as copies them.
+    let copy = serde_json::to_value(fitted).and_then(serde_json::from_value);
+    let Ok(copy) = copy else {
+        return Ok((
+            calibrated,
+            dropped("it could not be copied into the new model; fit it again"),
+        ));
+    };
+    let mut file = calibrated.to_file();
+    file.fitted_predictor = Some(copy);
+    file.predictor_frame = Some(PredictorFrame::Base);
+    let kept = calibrated.rebuild(file)?;
+    Ok((
+        kept,
+        Some(PredictorCarried {
+            kept: true,
+            reason: "only the measurement frame moved, and the predictor's residuals are in the robot's base frame"
+                .into(),
+        }),
+    ))
 }
 
 /// Where a fit stands: parameters, what they decode to, and the iterations so far.

@@ -50,6 +50,7 @@ pub fn robot_file_for_urdf(path: &Path) -> armcomp_core::Result<RobotFile> {
         error_models: Vec::new(),
         predictor: None,
         fitted_predictor: None,
+        predictor_frame: None,
         measurement: None,
         sensors: Vec::new(),
         fixtures: Vec::new(),
