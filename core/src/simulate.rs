@@ -38,12 +38,24 @@ pub const ABSURD_TILT: f64 = 0.5;
 /// as a total station set up again for every data set does; a truth with a gravity
 /// sensor (`[[sensors]]`) reads the file's gravity, see [`simulate_tilted`].
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
-    simulate_tilted(truth, poses, params, 0.0)
+    simulate_tilted(truth, poses, params, 0.0, TiltDraw::PerRow)
 }
 
-/// [`simulate`] with the base standing tilted by a different angle at every pose: about the
-/// base x and y axes, each drawn from a normal distribution of standard deviation `tilt_std`
-/// (rad) with the noise's seed (a stream of its own, so the noise is that of [`simulate`]).
+/// How often a simulated base tilt is drawn anew.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TiltDraw {
+    /// At every pose: a carrier that moves between measurements.
+    #[default]
+    PerRow,
+    /// Once per station: a carrier parked on different ground for each set-up, standing still
+    /// while that station measures.
+    PerStation,
+}
+
+/// [`simulate`] with the base standing tilted by a different angle at every pose (or station,
+/// as `draw` says): about the base x and y axes, each drawn from a normal distribution of
+/// standard deviation `tilt_std` (rad) with the noise's seed (a stream of its own, so the noise
+/// is that of [`simulate`]).
 /// Gravity in the base frame turns the other way (as `base_tilt` turns it) and the elastic
 /// models respond to it; the truth's sensor, which a tilt needs, reads it exactly. The tracker
 /// moves with the base (it is carried on the base, or the base frame is registered again at
@@ -53,6 +65,7 @@ pub fn simulate_tilted(
     poses: &[Vec<f64>],
     params: SimulateParams,
     tilt_std: f64,
+    draw: TiltDraw,
 ) -> Result<MeasurementSet> {
     if !(tilt_std.is_finite() && (0.0..=ABSURD_TILT).contains(&tilt_std)) {
         return Err(Error::InvalidArgument {
@@ -99,9 +112,16 @@ pub fn simulate_tilted(
                 reason: e.to_string(),
             })?;
             let mut tilt_rng = StdRng::seed_from_u64(params.seed ^ 0x7117_5eed_0000_0001);
-            tilted_positions(truth, poses, sensor.body, || {
-                Vector3::new(tilt.sample(&mut tilt_rng), tilt.sample(&mut tilt_rng), 0.0)
-            })?
+            let mut next = || Vector3::new(tilt.sample(&mut tilt_rng), tilt.sample(&mut tilt_rng), 0.0);
+            match draw {
+                TiltDraw::PerRow => tilted_positions(truth, poses, sensor.body, |_| next())?,
+                TiltDraw::PerStation => {
+                    let tilts: Vec<Vector3<f64>> = (0..n_stations).map(|_| next()).collect();
+                    tilted_positions(truth, poses, sensor.body, |i| {
+                        tilts[station_of(i, n_stations, poses.len())]
+                    })?
+                }
+            }
         }
         None => (truth.point_positions_many(truth.markers(), poses)?, Vec::new()),
     };
@@ -116,7 +136,7 @@ pub fn simulate_tilted(
     set.stations = truth.stations().iter().map(|s| s.name.clone()).collect();
     let per_pose = positions.chunks_exact(truth.markers().len().max(1));
     for (i, (q, at)) in poses.iter().zip(per_pose).enumerate() {
-        let station = i * n_stations / poses.len();
+        let station = station_of(i, n_stations, poses.len());
         let t = truth.station_frame(station);
         for (&m, p) in truth.markers().iter().zip(at) {
             let mut p = t.transform_point(&(*p).into()).coords;
@@ -241,24 +261,29 @@ pub fn simulate_fixed_points(
     Ok(set)
 }
 
-/// The markers' positions (m, base frame) at `poses` with the base tilted by `tilt()` (a
-/// rotation vector, rad) at each, and the readings of a sensor on `body`.
+/// The station that measures pose `i` of `n_poses`: consecutive blocks of (nearly) equal size.
+fn station_of(i: usize, n_stations: usize, n_poses: usize) -> usize {
+    i * n_stations / n_poses
+}
+
+/// The markers' positions (m, base frame) at `poses` with the base tilted by `tilt(i)` (a
+/// rotation vector, rad) at pose `i`, and the readings of a sensor on `body`.
 fn tilted_positions(
     truth: &Robot,
     poses: &[Vec<f64>],
     body: usize,
-    mut tilt: impl FnMut() -> Vector3<f64>,
+    mut tilt: impl FnMut(usize) -> Vector3<f64>,
 ) -> Result<(Vec<Vector3<f64>>, Vec<GravityReading>)> {
     let tree = truth.tree();
     let mut ws = truth.workspace();
     let down = truth.gravity().try_normalize(0.0).unwrap_or(-Vector3::z());
     let mut positions = Vec::with_capacity(poses.len() * truth.markers().len());
     let mut readings = Vec::with_capacity(poses.len());
-    for q in poses {
+    for (i, q) in poses.iter().enumerate() {
         tree.check_q(q)?;
         tree.forward_into(q, &mut ws.rigid);
         // Gravity seen from a tilted base turns the other way (as `base_tilt` turns it).
-        let tilted = UnitQuaternion::from_scaled_axis(tilt()).inverse_transform_vector(&down);
+        let tilted = UnitQuaternion::from_scaled_axis(tilt(i)).inverse_transform_vector(&down);
         let reading = GravityReading::of_base_direction(body, &tilted, tree, &ws.rigid);
         let conditions = Conditions {
             gravity: Some(reading),

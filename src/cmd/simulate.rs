@@ -22,9 +22,14 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0)]
     noise_mm: f64,
     /// Standard deviation (deg) of the base's tilt about its x and y axes, drawn anew at every
-    /// pose; the robot file's sensor (`[[sensors]]`) reads it and its columns are written.
+    /// pose (or station, `--tilt-per station`); the robot file's sensor (`[[sensors]]`) reads it
+    /// and its columns are written.
     #[arg(long, default_value_t = 0.0)]
     tilt_deg: f64,
+    /// Draw the tilt anew at every `row` (a carrier moving between measurements) or once per
+    /// `station` (a carrier parked on other ground for each set-up).
+    #[arg(long, default_value = "row", value_parser = ["row", "station"])]
+    tilt_per: String,
     /// Seed for pose sampling and noise; the same seed gives the same bytes.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -107,7 +112,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
-    let set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, args.seed)?;
+    let draw = match args.tilt_per.as_str() {
+        "station" => armcomp_core::simulate::TiltDraw::PerStation,
+        _ => armcomp_core::simulate::TiltDraw::PerRow,
+    };
+    let set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }

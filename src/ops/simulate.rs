@@ -4,7 +4,7 @@ use armcomp_core::Robot;
 use armcomp_core::limits::{self, Cost};
 use armcomp_core::measurement::MeasurementSet;
 use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate_tilted};
+use armcomp_core::simulate::{SimulateParams, TiltDraw, simulate_tilted};
 
 /// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or
 /// grid); `n` is checked against [the limits](armcomp_core::limits) of simulating them first.
@@ -17,16 +17,17 @@ pub fn draw_poses(truth: &Robot, sampler: &str, n: usize, seed: u64) -> armcomp_
 
 /// Measures `truth` at `poses` with `noise_mm` of noise per axis, the noise drawn from `seed`.
 pub fn run(truth: &Robot, poses: &[Vec<f64>], noise_mm: f64, seed: u64) -> armcomp_core::Result<MeasurementSet> {
-    run_tilted(truth, poses, noise_mm, 0.0, seed)
+    run_tilted(truth, poses, noise_mm, 0.0, TiltDraw::PerRow, seed)
 }
 
-/// [`run`] with the base tilted about its x and y axes by angles drawn per pose with a standard
-/// deviation of `tilt_deg` (see [`simulate_tilted`]).
+/// [`run`] with the base tilted about its x and y axes by angles drawn per pose (or per station)
+/// with a standard deviation of `tilt_deg` (see [`simulate_tilted`]).
 pub fn run_tilted(
     truth: &Robot,
     poses: &[Vec<f64>],
     noise_mm: f64,
     tilt_deg: f64,
+    draw: TiltDraw,
     seed: u64,
 ) -> armcomp_core::Result<MeasurementSet> {
     // Noise draws use a stream of their own so that the same poses get the same noise
@@ -35,5 +36,5 @@ pub fn run_tilted(
         noise_std: noise_mm * 1e-3,
         seed: seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
     };
-    simulate_tilted(truth, poses, params, tilt_deg.to_radians())
+    simulate_tilted(truth, poses, params, tilt_deg.to_radians(), draw)
 }
