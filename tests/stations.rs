@@ -443,3 +443,96 @@ fn the_command_line_carries_a_learned_predictor_to_another_station() {
         "{with} mm with the predictor, {without} mm without"
     );
 }
+
+/// `--group-by COLUMN` folds the cross-validation of `learn`, `calibrate --prior auto` and
+/// `diagnose` by a column's values, as `fit` does, and the reports say so.
+#[test]
+fn group_by_a_column_folds_every_cross_validation_and_says_so() {
+    use crate::cli::armcomp;
+    let dir = crate::common::Scratch::new("group-by");
+    let plain = dir.file("plain.csv", "").display().to_string();
+    let (code, _, err) = armcomp(&[
+        "simulate",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--n",
+        "40",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        &plain,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // Four sessions of ten rows.
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let with: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match i {
+            0 => format!("{l},session"),
+            _ => format!("{l},s{}", (i - 1) / 10),
+        })
+        .collect();
+    let data = dir
+        .file("sessions.csv", &(with.join("\n") + "\n"))
+        .display()
+        .to_string();
+    let out = |name: &str| dir.file(name, "").display().to_string();
+    let (m1, m2) = (out("m1.toml"), out("m2.toml"));
+    let (code, stdout, err) = armcomp(&[
+        "calibrate",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--data",
+        &data,
+        "--prior",
+        "auto",
+        "--group-by",
+        "session",
+        "--out",
+        &m1,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("grouped by session"), "{stdout}");
+    let (code, stdout, err) = armcomp(&[
+        "learn",
+        "--model",
+        &m1,
+        "--data",
+        &data,
+        "--predictor",
+        "ridge",
+        "--group-by",
+        "session",
+        "--out",
+        &m2,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("folds: 4, grouped by session"), "{stdout}");
+    // Without --prior auto nothing is cross-validated: the flag would be silently ignored.
+    let (code, _, err) = armcomp(&[
+        "calibrate",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--data",
+        &data,
+        "--group-by",
+        "session",
+        "--out",
+        &m1,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("--group-by") && err.contains("--prior auto"), "{err}");
+    // A column the file does not have is named with the header.
+    let (code, _, err) = armcomp(&[
+        "diagnose",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--data",
+        &data,
+        "--group-by",
+        "day",
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("no column `day`") && err.contains("session"), "{err}");
+}

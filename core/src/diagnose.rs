@@ -103,6 +103,9 @@ pub struct DiagnoseParams {
     /// Refit every candidate, not only those the score test says can win (see
     /// [`SCREEN_SHARE`]): for checking the screening, at many times the cost.
     pub exhaustive: bool,
+    /// Hold out whole groups in each fold: a name (a CSV column) and each sample's group;
+    /// `None` folds by station for data from several, else by pose.
+    pub fold_groups: Option<(String, Vec<usize>)>,
 }
 
 impl Default for DiagnoseParams {
@@ -114,6 +117,7 @@ impl Default for DiagnoseParams {
             min_rms_reduction: 0.05,
             max_steps: 5,
             exhaustive: false,
+            fold_groups: None,
         }
     }
 }
@@ -319,7 +323,12 @@ pub fn diagnose(
             reason: format!("must be between 0 and 1, got {}", params.min_rms_reduction),
         });
     }
-    let (splits, folding) = crate::split::folds(samples, params.folds, params.seed, &FoldBy::choose(samples, None))?;
+    let (splits, folding) = crate::split::folds(
+        samples,
+        params.folds,
+        params.seed,
+        &FoldBy::choose(samples, params.fold_groups.clone()),
+    )?;
     let given = robot.error_models().len();
     // The robot as given plus the accepted effects at their neutral values.
     let mut model = robot.rebuild(robot.to_file())?;

@@ -47,8 +47,8 @@ pub struct PriorChoice {
 }
 
 /// Picks the factor on the prior standard deviations from `grid` that predicts held-out poses
-/// of `samples` best in `folds`-fold cross-validation (poses shuffled by `seed`), calibrating
-/// as `params` says. Deterministic for a seed; the folds and candidates run in parallel.
+/// of `samples` best in `folds`-fold cross-validation (folded as `by` says, shuffled by
+/// `seed`), calibrating as `params` says. Deterministic for a seed; the folds and candidates run in parallel.
 pub fn choose_prior_scale(
     robot: &Robot,
     samples: &[Sample],
@@ -56,6 +56,7 @@ pub fn choose_prior_scale(
     grid: &[f64],
     folds: usize,
     seed: u64,
+    by: &FoldBy,
 ) -> Result<PriorChoice> {
     crate::measurement::require_positions(samples, "the prior's cross-validation")?;
     if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
@@ -64,7 +65,7 @@ pub fn choose_prior_scale(
             reason: format!("expected positive numbers, got {grid:?}"),
         });
     }
-    let (splits, folding) = crate::split::folds(samples, folds, seed, &FoldBy::choose(samples, None))?;
+    let (splits, folding) = crate::split::folds(samples, folds, seed, by)?;
     let jobs: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..splits.len()).map(move |f| (g, f)))
         .collect();

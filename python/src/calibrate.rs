@@ -50,7 +50,15 @@ pub fn calibrate(
         ..CalibrationParams::default()
     };
     let run = crate::interrupt::run(py, || {
-        armcomp::ops::calibrate::run(&robot, &set.samples, params, prior, noise_mm.is_some(), &mut |_| {})
+        armcomp::ops::calibrate::run(
+            &robot,
+            &set.samples,
+            params,
+            prior,
+            noise_mm.is_some(),
+            None,
+            &mut |_| {},
+        )
     })?
     .py()?;
     let json = serde_json::to_string(&run.to_json(&set.rows)).expect("JSON values print");

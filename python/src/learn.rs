@@ -33,7 +33,10 @@ pub fn learn(
             reason: format!("its description does not read back: {e}"),
         })
         .py()?;
-    let run = crate::interrupt::run(py, || armcomp::ops::learn::run(&robot, file, &set.samples, predictor))?.py()?;
+    let run = crate::interrupt::run(py, || {
+        armcomp::ops::learn::run(&robot, file, &set.samples, predictor, None)
+    })?
+    .py()?;
     let json = serde_json::json!({
         "seconds": run.seconds,
         "before": run.before,

@@ -61,6 +61,8 @@ pub struct Args {
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    group: super::GroupBy,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -87,12 +89,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         bar.set_message(format!("RMS {:.4} mm", it.rms * 1e3));
     };
     let declared = args.noise_mm.is_some() && (args.noise_deg.is_some() || !robot.measures_pose());
+    if args.group.group_by.is_some() && args.prior != Prior::Auto {
+        anyhow::bail!("--group-by folds the cross-validation of --prior auto; without it nothing is cross-validated");
+    }
+    let groups = |rows: &[usize]| args.group.groups(&data_files, rows);
     let mut run = armcomp::ops::calibrate::run(
         &robot,
         &data.samples,
         params.clone(),
         args.prior,
         declared,
+        groups(&data.rows)?,
         &mut observer,
     )?;
     let outlier_rows: Vec<usize> = run
@@ -108,7 +115,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .collect();
         data.samples = keep.iter().map(|&i| data.samples[i].clone()).collect();
         data.rows = keep.iter().map(|&i| data.rows[i]).collect();
-        run = armcomp::ops::calibrate::run(&robot, &data.samples, params, args.prior, declared, &mut observer)?;
+        run = armcomp::ops::calibrate::run(
+            &robot,
+            &data.samples,
+            params,
+            args.prior,
+            declared,
+            groups(&data.rows)?,
+            &mut observer,
+        )?;
     }
     bar.finish_and_clear();
     let (calibration, choice) = (&run.calibration, &run.prior_choice);

@@ -72,6 +72,8 @@ pub struct Args {
     /// an extension the platform's naming applies (`libNAME.so`, ...).
     #[arg(long = "library", value_name = "LIB")]
     libraries: Vec<PathBuf>,
+    #[command(flatten)]
+    group: super::GroupBy,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -95,6 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let params = DiagnoseParams {
+        fold_groups: args.group.groups(&[&args.data], &data.rows)?,
         folds: args.folds,
         seed: args.seed,
         calibration: CalibrationParams {

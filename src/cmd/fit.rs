@@ -3,7 +3,6 @@ use std::process::ExitCode;
 use std::sync::Mutex;
 
 use armcomp_core::io::write_atomic;
-use armcomp_core::measurement::column_values;
 
 use super::{check_output, read_measurements};
 
@@ -27,10 +26,8 @@ pub struct Args {
     /// Outer cross-validation folds that score the rungs.
     #[arg(long, default_value_t = 5)]
     folds: usize,
-    /// Hold out whole groups of this CSV column (a session, a station, a day) in each fold
-    /// rather than single poses: folds over clustered poses are optimistic.
-    #[arg(long)]
-    group_by: Option<String>,
+    #[command(flatten)]
+    group: super::GroupBy,
     /// The residual predictor tried on top of the best physical model (gp, mlp, ssa_bp,
     /// ridge, knn), or `none`.
     #[arg(long, default_value = "gp")]
@@ -47,14 +44,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = armcomp::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
-    let fold_groups = match &args.group_by {
-        Some(column) => {
-            let text = armcomp_core::io::read_text(&args.data)?;
-            let values = column_values(&text, &args.data, column)?;
-            Some(armcomp::ops::fit::groups_of(&values, &data.rows))
-        }
-        None => None,
-    };
+    let fold_groups = args.group.groups(&[&args.data], &data.rows)?.map(|(_, g)| g);
     let params = armcomp::ops::fit::FitParams {
         noise_mm: args.noise_mm,
         folds: args.folds,
@@ -94,7 +84,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             "{} rows, nested cross-validation (folds: {}, grouped by {}); every choice made inside the training folds",
             data.samples.len(),
             r.folds,
-            args.group_by
+            args.group
+                .group_by
                 .as_deref()
                 .map_or(r.folds_by.clone(), |c| format!("`{c}`"))
         );

@@ -25,6 +25,8 @@ pub struct Args {
     /// Where to write the model with the fitted predictor (written atomically).
     #[arg(long)]
     out: PathBuf,
+    #[command(flatten)]
+    group: super::GroupBy,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -44,7 +46,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     // The written file is the model's own text re-read, so everything in it is kept.
     let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
-    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor)?;
+    let groups = args.group.groups(&[&args.data], &data.rows)?;
+    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor, groups)?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);
     write_atomic(&args.out, run.robot.to_text_for(&args.out)?.as_bytes())?;
     println!(

@@ -47,6 +47,32 @@ pub struct Rows {
     pub rows: Option<RowSelection>,
 }
 
+/// `--group-by`, for every command that cross-validates.
+#[derive(clap::Args)]
+pub struct GroupBy {
+    /// Hold out whole groups of this CSV column (a session, a day, a station) in each fold of
+    /// the cross-validation rather than single poses: folds over clustered poses are
+    /// optimistic. Default: by station for data from several, else by pose.
+    #[arg(long, value_name = "COLUMN")]
+    pub group_by: Option<String>,
+}
+
+impl GroupBy {
+    /// The column's name and each selected row's group (`rows`: the data rows, numbered on
+    /// across `files`), or `None` without `--group-by`.
+    pub fn groups(&self, files: &[&Path], rows: &[usize]) -> anyhow::Result<Option<(String, Vec<usize>)>> {
+        let Some(column) = &self.group_by else {
+            return Ok(None);
+        };
+        let mut values = Vec::new();
+        for file in files {
+            let text = armcomp_core::io::read_text(file)?;
+            values.extend(armcomp_core::measurement::column_values(&text, file, column)?);
+        }
+        Ok(Some((column.clone(), armcomp::ops::fit::groups_of(&values, rows))))
+    }
+}
+
 /// A count of at least one (`--n`): an empty output is never what was asked for.
 pub fn at_least_one(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {

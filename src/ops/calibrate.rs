@@ -5,6 +5,7 @@ use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping
 use armcomp_core::calibrate::{Calibration, CalibrationParams, IterationInfo, calibrate};
 use armcomp_core::measurement::Sample;
 use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
+use armcomp_core::split::FoldBy;
 
 /// How strongly the robot file's priors hold the parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,6 +86,7 @@ pub fn run(
     mut params: CalibrationParams,
     prior: Prior,
     noise_declared: bool,
+    fold_groups: Option<(String, Vec<usize>)>,
     observer: &mut dyn FnMut(&IterationInfo),
 ) -> armcomp_core::Result<CalibrationRun> {
     let prior_choice = match prior {
@@ -94,7 +96,8 @@ pub fn run(
         }
         Prior::Evidence(_) => None,
         Prior::Auto => {
-            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0)?;
+            let by = FoldBy::choose(samples, fold_groups);
+            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0, &by)?;
             params.prior_scale = choice.scale;
             Some(choice)
         }

@@ -91,6 +91,7 @@ pub fn run(
     mut file: RobotFile,
     samples: &[Sample],
     predictor: Option<Box<dyn PredictorSpec>>,
+    fold_groups: Option<(String, Vec<usize>)>,
 ) -> armcomp_core::Result<LearnRun> {
     // The model's own spec as built: a run-time library found beside the model file.
     let Some(spec) = predictor.as_deref().or(robot.predictor_spec()) else {
@@ -106,7 +107,7 @@ pub fn run(
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let poses = armcomp_core::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {
-        let by = armcomp_core::split::FoldBy::choose(samples, None);
+        let by = armcomp_core::split::FoldBy::choose(samples, fold_groups);
         Some(cross_validated_predictor_errors(
             robot, spec, samples, CV_FOLDS, 0, &by,
         )?)
