@@ -139,8 +139,8 @@ fn the_prior_scale_is_chosen_on_training_folds_deterministically() {
         ..Default::default()
     };
     let grid = [0.1, 1.0, 10.0];
-    let a = choose_prior_scale(&r, &train, &params, &grid, 4, 3, &FoldBy::Poses).unwrap();
-    let b = choose_prior_scale(&r, &train, &params, &grid, 4, 3, &FoldBy::Poses).unwrap();
+    let a = choose_prior_scale(&r, &train, &params, &grid, 4, 3, &FoldBy::Poses, &|_| {}).unwrap();
+    let b = choose_prior_scale(&r, &train, &params, &grid, 4, 3, &FoldBy::Poses, &|_| {}).unwrap();
     assert_eq!(a, b);
     assert!(grid.contains(&a.scale));
     let best = a.scores.iter().map(|s| s.held_out_rms_mm).fold(f64::INFINITY, f64::min);

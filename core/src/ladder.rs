@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
-use crate::calibrate::{Calibration, CalibrationParams, register_held_out_stations};
+use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, register_held_out_stations};
 use crate::error::{Error, Result};
 use crate::evaluate::{fit_residual_predictor, position_errors};
 use crate::measurement::Sample;
@@ -135,15 +135,6 @@ pub struct Ladder {
     pub report: LadderReport,
 }
 
-/// Progress of [`climb`]: fits done of the total.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LadderProgress {
-    /// Fits done.
-    pub done: usize,
-    /// Fits in all.
-    pub total: usize,
-}
-
 /// The rungs [`climb`] fits for `robot`: registration, joint offsets, geometry, and the error
 /// models when the robot has any.
 fn physical_rungs(robot: &Robot) -> Vec<Rung> {
@@ -212,7 +203,7 @@ pub fn climb(
     robot: &Robot,
     samples: &[Sample],
     params: &LadderParams,
-    progress: &(dyn Fn(LadderProgress) + Sync),
+    progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<Ladder> {
     crate::measurement::require_positions(samples, "the model ladder")?;
     // By the caller's groups, else by station for data from several, else by pose; `groups`
@@ -238,7 +229,7 @@ pub fn climb(
     let done = std::sync::atomic::AtomicUsize::new(0);
     let tick = || {
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        progress(LadderProgress { done: d, total });
+        progress(FitsProgress { done: d, total });
     };
     // Every rung on every fold, in parallel.
     let jobs: Vec<(usize, usize)> = (0..rungs.len())

@@ -11,7 +11,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, calibrate, register_held_out_stations};
+use crate::calibrate::{CalibrationParams, FitsProgress, calibrate, register_held_out_stations};
 use crate::error::{Error, Result};
 use crate::evaluate::model_errors;
 use crate::measurement::Sample;
@@ -48,7 +48,7 @@ pub struct PriorChoice {
 
 /// Picks the factor on the prior standard deviations from `grid` that predicts held-out poses
 /// of `samples` best in `folds`-fold cross-validation (folded as `by` says, shuffled by
-/// `seed`), calibrating as `params` says. Deterministic for a seed; the folds and candidates run in parallel.
+/// `seed`), calibrating as `params` says; `progress` sees every fit done. Deterministic for a seed; the folds and candidates run in parallel.
 pub fn choose_prior_scale(
     robot: &Robot,
     samples: &[Sample],
@@ -57,6 +57,7 @@ pub fn choose_prior_scale(
     folds: usize,
     seed: u64,
     by: &FoldBy,
+    progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<PriorChoice> {
     crate::measurement::require_positions(samples, "the prior's cross-validation")?;
     if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
@@ -69,6 +70,7 @@ pub fn choose_prior_scale(
     let jobs: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..splits.len()).map(move |f| (g, f)))
         .collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
     let sums: Vec<(f64, usize)> = jobs
         .par_iter()
         .map(|&(g, f)| {
@@ -81,6 +83,10 @@ pub fn choose_prior_scale(
             let mut fitted = calibrate(robot, &train, &p, &mut |_| {})?.robot;
             register_held_out_stations(&mut fitted, &train, &test)?;
             let errors = model_errors(&fitted, &test);
+            progress(FitsProgress {
+                done: done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
+                total: jobs.len(),
+            });
             Ok((errors.iter().map(|e| e.norm_squared()).sum(), errors.len()))
         })
         .collect::<Result<_>>()?;

@@ -57,6 +57,7 @@ pub fn calibrate(
             prior,
             noise_mm.is_some(),
             None,
+            &|_| {},
             &mut |_| {},
         )
     })?

@@ -269,7 +269,7 @@ pub fn talos_curves(
                 let mut p = calibration.clone();
                 if cv {
                     p.prior_scale =
-                        choose_prior_scale(robot, s, &p, &DEFAULT_GRID, 5, 0, &FoldBy::choose(s, None))?.scale;
+                        choose_prior_scale(robot, s, &p, &DEFAULT_GRID, 5, 0, &FoldBy::choose(s, None), &|_| {})?.scale;
                 }
                 Ok(calibrate(robot, s, &p, &mut |_| {})?.robot)
             };

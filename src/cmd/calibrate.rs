@@ -93,6 +93,26 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("--group-by folds the cross-validation of --prior auto; without it nothing is cross-validated");
     }
     let groups = |rows: &[usize]| args.group.groups(&data_files, rows);
+    // The prior's cross-validation: a bar of its own, then the final fit's.
+    let fits_bar = std::sync::Mutex::new(None::<indicatif::ProgressBar>);
+    let fits = |p: armcomp_core::calibrate::FitsProgress| {
+        let Ok(mut slot) = fits_bar.lock() else { return };
+        let b = slot.get_or_insert_with(|| {
+            let b = indicatif::ProgressBar::new(p.total as u64);
+            b.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "choosing the prior scale {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
+                )
+                .expect("the template is valid"),
+            );
+            b
+        });
+        b.set_position(p.done as u64);
+        if p.done == p.total {
+            b.finish_and_clear();
+            *slot = None;
+        }
+    };
     let mut run = armcomp::ops::calibrate::run(
         &robot,
         &data.samples,
@@ -100,6 +120,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         args.prior,
         declared,
         groups(&data.rows)?,
+        &fits,
         &mut observer,
     )?;
     let outlier_rows: Vec<usize> = run
@@ -122,6 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             args.prior,
             declared,
             groups(&data.rows)?,
+            &fits,
             &mut observer,
         )?;
     }

@@ -2,7 +2,7 @@
 
 use armcomp_core::Robot;
 use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
-use armcomp_core::calibrate::{Calibration, CalibrationParams, IterationInfo, calibrate};
+use armcomp_core::calibrate::{Calibration, CalibrationParams, FitsProgress, IterationInfo, calibrate};
 use armcomp_core::measurement::Sample;
 use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
 use armcomp_core::split::FoldBy;
@@ -87,6 +87,7 @@ pub fn run(
     prior: Prior,
     noise_declared: bool,
     fold_groups: Option<(String, Vec<usize>)>,
+    fits: &(dyn Fn(FitsProgress) + Sync),
     observer: &mut dyn FnMut(&IterationInfo),
 ) -> armcomp_core::Result<CalibrationRun> {
     let prior_choice = match prior {
@@ -97,7 +98,7 @@ pub fn run(
         Prior::Evidence(_) => None,
         Prior::Auto => {
             let by = FoldBy::choose(samples, fold_groups);
-            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0, &by)?;
+            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0, &by, fits)?;
             params.prior_scale = choice.scale;
             Some(choice)
         }

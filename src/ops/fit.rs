@@ -3,7 +3,8 @@
 
 use armcomp_core::Robot;
 use armcomp_core::calibrate::CalibrationParams;
-use armcomp_core::ladder::{Ladder, LadderParams, LadderProgress, climb};
+use armcomp_core::calibrate::FitsProgress;
+use armcomp_core::ladder::{Ladder, LadderParams, climb};
 use armcomp_core::measurement::Sample;
 
 /// How `fit` is asked to choose.
@@ -26,7 +27,7 @@ pub fn run(
     robot: &Robot,
     samples: &[Sample],
     params: FitParams,
-    progress: &(dyn Fn(LadderProgress) + Sync),
+    progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> armcomp_core::Result<Ladder> {
     let predictor = params
         .predictor

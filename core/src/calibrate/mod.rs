@@ -244,6 +244,16 @@ impl Default for CalibrationParams {
     }
 }
 
+/// Progress of a search made of many calibrations (cross-validation folds, rungs, prior
+/// scales): fits done of the total.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FitsProgress {
+    /// Fits done.
+    pub done: usize,
+    /// Fits in all.
+    pub total: usize,
+}
+
 /// One Levenberg–Marquardt iteration, for progress display.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct IterationInfo {
