@@ -8,7 +8,7 @@ use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::evaluate::{ErrorStats, model_errors};
 use armcomp_core::measurement::{MeasurementSet, RowSelection, parse_csv, read_csv};
 use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
-use armcomp_core::split::FoldBy;
+use armcomp_core::split::{FoldBy, FoldPlan};
 
 use crate::common::{Scratch, random_configurations, robot, root};
 
@@ -139,8 +139,13 @@ fn the_prior_scale_is_chosen_on_training_folds_deterministically() {
         ..Default::default()
     };
     let grid = [0.1, 1.0, 10.0];
-    let a = choose_prior_scale(&r, &train, &params, &grid, 4, 3, &FoldBy::Poses, &|_| {}).unwrap();
-    let b = choose_prior_scale(&r, &train, &params, &grid, 4, 3, &FoldBy::Poses, &|_| {}).unwrap();
+    let plan = FoldPlan {
+        k: 4,
+        seed: 3,
+        by: FoldBy::Poses,
+    };
+    let a = choose_prior_scale(&r, &train, &params, &grid, &plan, &|_| {}).unwrap();
+    let b = choose_prior_scale(&r, &train, &params, &grid, &plan, &|_| {}).unwrap();
     assert_eq!(a, b);
     assert!(grid.contains(&a.scale));
     let best = a.scores.iter().map(|s| s.held_out_rms_mm).fold(f64::INFINITY, f64::min);

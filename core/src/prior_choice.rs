@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::model_errors;
 use crate::measurement::Sample;
 use crate::robot::Robot;
-use crate::split::{FoldBy, subset};
+use crate::split::{FoldPlan, subset};
 
 /// The prior scales [`choose_prior_scale`] tries by default: factors on the robot file's prior
 /// standard deviations, from 100 times tighter to none at all (infinite).
@@ -47,16 +47,14 @@ pub struct PriorChoice {
 }
 
 /// Picks the factor on the prior standard deviations from `grid` that predicts held-out poses
-/// of `samples` best in `folds`-fold cross-validation (folded as `by` says, shuffled by
-/// `seed`), calibrating as `params` says; `progress` sees every fit done. Deterministic for a seed; the folds and candidates run in parallel.
+/// of `samples` best in the cross-validation `plan` says, calibrating as `params` says;
+/// `progress` sees every fit done. Deterministic for a seed; the folds and candidates run in parallel.
 pub fn choose_prior_scale(
     robot: &Robot,
     samples: &[Sample],
     params: &CalibrationParams,
     grid: &[f64],
-    folds: usize,
-    seed: u64,
-    by: &FoldBy,
+    plan: &FoldPlan,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<PriorChoice> {
     crate::measurement::require_positions(samples, "the prior's cross-validation")?;
@@ -66,7 +64,7 @@ pub fn choose_prior_scale(
             reason: format!("expected positive numbers, got {grid:?}"),
         });
     }
-    let (splits, folding) = crate::split::folds(samples, folds, seed, by)?;
+    let (splits, folding) = crate::split::folds(samples, plan.k, plan.seed, &plan.by)?;
     let jobs: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..splits.len()).map(move |f| (g, f)))
         .collect();
@@ -110,7 +108,7 @@ pub fn choose_prior_scale(
         scale: best,
         folds: splits.len(),
         grouped_by: folding.grouped_by,
-        seed,
+        seed: plan.seed,
         scores,
     })
 }

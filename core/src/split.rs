@@ -157,6 +157,17 @@ impl FoldBy {
     }
 }
 
+/// How to fold a cross-validation: `k` folds holding out what `by` says, shuffled by `seed`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoldPlan {
+    /// Number of folds.
+    pub k: usize,
+    /// Seed of the shuffle.
+    pub seed: u64,
+    /// What each fold holds out together.
+    pub by: FoldBy,
+}
+
 /// How a cross-validation was folded, for reports: `folds: 5, grouped by station`.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct Folding {

@@ -54,9 +54,11 @@ pub fn calibrate(
             &robot,
             &set.samples,
             params,
-            prior,
-            noise_mm.is_some(),
-            None,
+            armcomp::ops::calibrate::Choices {
+                prior,
+                noise_declared: noise_mm.is_some(),
+                fold_groups: None,
+            },
             &|_| {},
             &mut |_| {},
         )

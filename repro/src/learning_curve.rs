@@ -13,7 +13,7 @@ use armcomp_core::design::{Criterion, SelectionParams, select_poses};
 use armcomp_core::evaluate::{ErrorStats, position_errors};
 use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample};
 use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
-use armcomp_core::split::{FoldBy, pose_groups, subset};
+use armcomp_core::split::{FoldBy, FoldPlan, pose_groups, subset};
 use armcomp_core::{Result, Robot};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -268,8 +268,19 @@ pub fn talos_curves(
             let fit = |s: &[Sample]| -> Result<Robot> {
                 let mut p = calibration.clone();
                 if cv {
-                    p.prior_scale =
-                        choose_prior_scale(robot, s, &p, &DEFAULT_GRID, 5, 0, &FoldBy::choose(s, None), &|_| {})?.scale;
+                    p.prior_scale = choose_prior_scale(
+                        robot,
+                        s,
+                        &p,
+                        &DEFAULT_GRID,
+                        &FoldPlan {
+                            k: 5,
+                            seed: 0,
+                            by: FoldBy::choose(s, None),
+                        },
+                        &|_| {},
+                    )?
+                    .scale;
                 }
                 Ok(calibrate(robot, s, &p, &mut |_| {})?.robot)
             };

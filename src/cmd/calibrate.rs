@@ -117,9 +117,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         &robot,
         &data.samples,
         params.clone(),
-        args.prior,
-        declared,
-        groups(&data.rows)?,
+        armcomp::ops::calibrate::Choices {
+            prior: args.prior,
+            noise_declared: declared,
+            fold_groups: groups(&data.rows)?,
+        },
         &fits,
         &mut observer,
     )?;
@@ -140,9 +142,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             &robot,
             &data.samples,
             params,
-            args.prior,
-            declared,
-            groups(&data.rows)?,
+            armcomp::ops::calibrate::Choices {
+                prior: args.prior,
+                noise_declared: declared,
+                fold_groups: groups(&data.rows)?,
+            },
             &fits,
             &mut observer,
         )?;

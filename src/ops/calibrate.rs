@@ -5,7 +5,7 @@ use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping
 use armcomp_core::calibrate::{Calibration, CalibrationParams, FitsProgress, IterationInfo, calibrate};
 use armcomp_core::measurement::Sample;
 use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
-use armcomp_core::split::FoldBy;
+use armcomp_core::split::{FoldBy, FoldPlan};
 
 /// How strongly the robot file's priors hold the parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,19 +77,33 @@ impl CalibrationRun {
     }
 }
 
-/// Calibrates `robot` on `samples` with `params`, its prior scale set by `prior`; the noise
-/// is `params.measurement_std` when `noise_declared`, otherwise estimated with the fit.
-/// `observer` sees every iteration of the fits.
+/// What `calibrate` chooses besides the parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Choices {
+    /// How the prior scale is set.
+    pub prior: Prior,
+    /// Whether the noise is the declared `params.measurement_std` (else estimated with the fit).
+    pub noise_declared: bool,
+    /// Whole groups held out by [`Prior::Auto`]'s cross-validation (a column's name and each
+    /// sample's group); `None`: by station for data from several, else by pose.
+    pub fold_groups: Option<(String, Vec<usize>)>,
+}
+
+/// Calibrates `robot` on `samples` with `params` and the `choices`. `fits` sees every fit of
+/// the prior's cross-validation, `observer` every iteration of the final fit.
 pub fn run(
     robot: &Robot,
     samples: &[Sample],
     mut params: CalibrationParams,
-    prior: Prior,
-    noise_declared: bool,
-    fold_groups: Option<(String, Vec<usize>)>,
+    choices: Choices,
     fits: &(dyn Fn(FitsProgress) + Sync),
     observer: &mut dyn FnMut(&IterationInfo),
 ) -> armcomp_core::Result<CalibrationRun> {
+    let Choices {
+        prior,
+        noise_declared,
+        fold_groups,
+    } = choices;
     let prior_choice = match prior {
         Prior::Scale(s) => {
             params.prior_scale = s;
@@ -97,8 +111,12 @@ pub fn run(
         }
         Prior::Evidence(_) => None,
         Prior::Auto => {
-            let by = FoldBy::choose(samples, fold_groups);
-            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, 5, 0, &by, fits)?;
+            let plan = FoldPlan {
+                k: 5,
+                seed: 0,
+                by: FoldBy::choose(samples, fold_groups),
+            };
+            let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, &plan, fits)?;
             params.prior_scale = choice.scale;
             Some(choice)
         }
