@@ -225,7 +225,8 @@ pub fn climb(
     };
     let folds_by = folding.grouped_by;
     let rungs = physical_rungs(robot);
-    let total = rungs.len() * (splits.len() + 1) + params.predictor.as_ref().map_or(0, |_| splits.len() + 1);
+    // Every rung on every fold, the choice on all rows, the predictor on every fold and on all rows.
+    let total = rungs.len() * splits.len() + 1 + params.predictor.as_ref().map_or(0, |_| splits.len() + 1);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let tick = || {
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -305,7 +306,13 @@ pub fn climb(
             tick();
             m
         }
-        _ => calibration.robot.rebuild(calibration.robot.to_file())?,
+        _ => {
+            if params.predictor.is_some() {
+                // Not kept: its fit on all rows is not needed, and the count is complete.
+                tick();
+            }
+            calibration.robot.rebuild(calibration.robot.to_file())?
+        }
     };
     Ok(Ladder {
         robot: model,

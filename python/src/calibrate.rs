@@ -20,9 +20,11 @@ fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
 
 /// Identifies a model of `robot` from `data`; returns the model, the report as JSON text (what
 /// `armcomp calibrate --json` prints) and whether the fit ended far above the declared noise.
-/// Without `noise_mm` the noise is estimated from the data with the fit.
+/// Without `noise_mm` the noise is estimated from the data with the fit. `progress`, when
+/// given, is called as `progress("prior scale", done, total)` after every fit of the prior's
+/// cross-validation (`prior = "auto"`).
 #[pyfunction]
-#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0))]
+#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0, progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -34,6 +36,7 @@ pub fn calibrate(
     max_iterations: usize,
     restarts: usize,
     seed: u64,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<(PyRobot, String, bool)> {
     let prior = match prior {
         Some(p) => self::prior(p)?,
@@ -59,7 +62,7 @@ pub fn calibrate(
                 noise_declared: noise_mm.is_some(),
                 fold_groups: None,
             },
-            &|_| {},
+            &|p| crate::progress::report(progress.as_ref(), "prior scale", p.done, p.total),
             &mut |_| {},
         )
     })?

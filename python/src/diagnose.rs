@@ -58,19 +58,12 @@ pub fn diagnose(
     };
     let diagnosis = crate::interrupt::run(py, || {
         armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
-            if let Some(callback) = &progress {
-                let stage = match p.stage {
-                    DiagnoseStage::Baseline => "model as given".to_string(),
-                    DiagnoseStage::Round(n) => format!("effect {n}"),
-                    DiagnoseStage::Learnable => "learnable residual".to_string(),
-                };
-                Python::attach(|py| {
-                    // A callback that raises is reported, not allowed to end the diagnosis.
-                    if let Err(e) = callback.call1(py, (stage, p.done, p.total)) {
-                        e.write_unraisable(py, None);
-                    }
-                });
-            }
+            let stage = match p.stage {
+                DiagnoseStage::Baseline => "model as given".to_string(),
+                DiagnoseStage::Round(n) => format!("effect {n}"),
+                DiagnoseStage::Learnable => "learnable residual".to_string(),
+            };
+            crate::progress::report(progress.as_ref(), &stage, p.done, p.total);
         })
     })?
     .py()?;

@@ -8,9 +8,10 @@ use crate::robot::PyRobot;
 
 /// Chooses the model of `robot` from `data` by nested cross-validation and fits it on all of
 /// `data`; returns the model and the report as JSON text (what `armcomp fit --json` prints).
-/// `groups`: one label per data row; folds then hold out whole groups.
+/// `groups`: one label per data row; folds then hold out whole groups. `progress`, when given,
+/// is called as `progress("model choice", done, total)` after every fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp")))]
+#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
@@ -21,6 +22,7 @@ pub fn fit(
     seed: u64,
     groups: Option<Vec<String>>,
     predictor: Option<&str>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<(PyRobot, String)> {
     let robot = robot.robot.clone();
     let set = data.resolve(&robot)?;
@@ -46,7 +48,12 @@ pub fn fit(
         fold_groups,
         predictor: predictor.filter(|p| *p != "none").map(str::to_string),
     };
-    let ladder = crate::interrupt::run(py, || armcomp::ops::fit::run(&robot, &set.samples, params, &|_| {}))?.py()?;
+    let ladder = crate::interrupt::run(py, || {
+        armcomp::ops::fit::run(&robot, &set.samples, params, &|p| {
+            crate::progress::report(progress.as_ref(), "model choice", p.done, p.total)
+        })
+    })?
+    .py()?;
     let json = serde_json::to_string(&armcomp::ops::fit::to_json(&ladder)).expect("JSON values print");
     Ok((PyRobot::wrap(ladder.robot), json))
 }

@@ -14,6 +14,7 @@ mod interrupt;
 mod learn;
 mod measurements;
 mod plan;
+mod progress;
 mod robot;
 mod simulate;
 

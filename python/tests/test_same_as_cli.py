@@ -230,7 +230,16 @@ def test_fit_chooses_and_writes_what_the_command_line_does(simulated):
         "fit", "--robot", NOMINAL, "--data", tmp / "cli.csv", "--predictor", "none", "--folds", 3,
         "--out", tmp / "fit_cli.toml",
     )
-    model, report = armcomp.fit(armcomp.Robot.load(NOMINAL), data, folds=3, predictor=None)
+    calls = []
+    model, report = armcomp.fit(
+        armcomp.Robot.load(NOMINAL), data, folds=3, predictor=None,
+        progress=lambda stage, done, total: calls.append((stage, done, total)),
+    )
+    # Every fit reported once (in parallel, so in any order), up to the total.
+    assert {stage for stage, _, _ in calls} == {"model choice"}
+    total = calls[0][2]
+    assert sorted(done for _, done, _ in calls) == list(range(1, total + 1))
+    assert {t for _, _, t in calls} == {total} and total >= 3 * 3
     model.save(tmp / "fit_py.toml")
     assert (tmp / "fit_py.toml").read_bytes() == (tmp / "fit_cli.toml").read_bytes()
     # Everything but the run times.

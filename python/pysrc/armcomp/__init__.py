@@ -106,6 +106,7 @@ def calibrate(
     max_iterations: int = 100,
     restarts: int = 2,
     seed: int = 0,
+    progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[Robot, CalibrationReport]:
     """Identifies a model of ``robot`` from ``data`` (Levenberg–Marquardt with priors), as
     ``armcomp calibrate`` does.
@@ -116,7 +117,8 @@ def calibrate(
     data with the fit (``report.evidence``). ``prior``: a factor on the robot file's prior
     standard deviations, ``"evidence"`` (one factor per group of parameters, chosen by the
     evidence of the data), ``"auto"`` (5-fold cross-validation) or None (no priors). ``restarts``: fits from perturbed starts (seeded by ``seed``) when the fit ends
-    more than 1.5 times above the noise; the lowest cost is kept.
+    more than 1.5 times above the noise; the lowest cost is kept. ``progress("prior scale",
+    done, total)`` is called after every fit of ``prior="auto"``'s cross-validation.
 
     Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's
     warnings, and a fit far above the declared noise, are issued as ``CalibrationWarning``.
@@ -131,6 +133,7 @@ def calibrate(
         max_iterations=max_iterations,
         restarts=restarts,
         seed=seed,
+        progress=progress,
     )
     report = from_json(CalibrationReport, text)
     object.__setattr__(report, "far_above_noise", far)
@@ -215,12 +218,14 @@ def fit(
     seed: int = 0,
     groups: Optional[Sequence[str]] = None,
     predictor: Optional[str] = "gp",
+    progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[Robot, FitReport]:
     """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
     offsets, geometry, the robot file's error models and ``predictor`` (None for none), each
     with the noise and prior scales the evidence chooses, scored by nested cross-validation
     over ``folds`` folds (whole groups held out when ``groups`` gives a label per data row);
-    returns the chosen model fitted on all of ``data`` and the ladder."""
+    returns the chosen model fitted on all of ``data`` and the ladder.
+    ``progress("model choice", done, total)`` is called after every fit."""
     model, text = _native.fit(
         robot,
         data,
@@ -229,6 +234,7 @@ def fit(
         seed=seed,
         groups=None if groups is None else [str(g) for g in groups],
         predictor=predictor,
+        progress=progress,
     )
     return model, from_json(FitReport, text)
 

@@ -89,6 +89,7 @@ def calibrate(
     max_iterations: int = 100,
     restarts: int = 2,
     seed: int = 0,
+    progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[Robot, str, bool]: ...
 def evaluate(model: Robot, data: Measurements) -> Tuple[str, np.ndarray]: ...
 def fit(
@@ -99,6 +100,7 @@ def fit(
     seed: int = 0,
     groups: Optional[List[str]] = None,
     predictor: Optional[str] = "gp",
+    progress: Optional[Callable[[str, int, int], None]] = None,
 ) -> Tuple[Robot, str]: ...
 def simulate(
     truth: Robot,
