@@ -729,6 +729,52 @@ impl<'a> Problem<'a> {
     }
 }
 
+/// How far a plane contact is from its plane as a model puts it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactGap {
+    /// The plane's index in order of first appearance in the samples.
+    pub plane: usize,
+    /// Height of the contact above the plane (m).
+    pub height: f64,
+    /// Roll of the contact frame from the plane's (rad).
+    pub roll: f64,
+    /// Pitch of the contact frame from the plane's (rad).
+    pub pitch: f64,
+    /// The plane's normal (measurement frame).
+    pub normal: Vector3<f64>,
+}
+
+/// Each plane sample's gap from its plane as the rigid model of `robot` puts it, its planes the
+/// robot file's (a model file's: the identified ones) or, for a plane it does not name, the
+/// plane fitted to the samples' contacts; `None` for other samples. Also the planes' names and
+/// whether each was fitted.
+pub fn contact_gaps(robot: &Robot, samples: &[Sample]) -> Result<(Vec<Option<ContactGap>>, Vec<(String, bool)>)> {
+    let space = ParameterSpace::for_samples(robot, samples);
+    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
+    let (d, e, _) = problem.predict(&space.initial())?;
+    let gaps = (0..samples.len())
+        .map(|i| {
+            problem.plane[i].map(|g| {
+                let gap = problem.plane_gap(&d, &e, i, g);
+                ContactGap {
+                    plane: g,
+                    height: gap.height,
+                    roll: gap.roll,
+                    pitch: gap.pitch,
+                    normal: gap.normal,
+                }
+            })
+        })
+        .collect();
+    let nominal = robot.nominal_planes();
+    let names = space
+        .planes
+        .iter()
+        .map(|n| (n.clone(), !nominal.iter().any(|(m, _)| m == n)))
+        .collect();
+    Ok((gaps, names))
+}
+
 /// A plane contact's residuals and what their derivatives need.
 struct PlaneGap {
     /// Height above the plane (m).
