@@ -3,7 +3,7 @@
 //! the command line round trip.
 
 use armcomp_core::Robot;
-use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, identifiability, samples_jacobian};
+use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, identifiability};
 use armcomp_core::geom::xyz_rpy;
 use armcomp_core::measurement::{CsvLayout, Sample, parse_csv};
 use armcomp_core::robot::Conditions;
@@ -329,10 +329,10 @@ fn robot_error(text: &str) -> String {
     };
     match src.parse::<RobotFile>() {
         Err(e) => e.to_string(),
-        Ok(file) => Robot::from_source(file, &src)
-            .err()
-            .expect("the file is refused")
-            .to_string(),
+        Ok(file) => match Robot::from_source(file, &src) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("the file is refused"),
+        },
     }
 }
 

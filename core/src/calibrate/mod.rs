@@ -744,11 +744,15 @@ pub struct ContactGap {
     pub normal: Vector3<f64>,
 }
 
+/// Per sample, its gap from its plane (`None` for other samples); per plane, its name and
+/// whether it was fitted to the samples.
+pub type ContactGaps = (Vec<Option<ContactGap>>, Vec<(String, bool)>);
+
 /// Each plane sample's gap from its plane as the rigid model of `robot` puts it, its planes the
 /// robot file's (a model file's: the identified ones) or, for a plane it does not name, the
 /// plane fitted to the samples' contacts; `None` for other samples. Also the planes' names and
 /// whether each was fitted.
-pub fn contact_gaps(robot: &Robot, samples: &[Sample]) -> Result<(Vec<Option<ContactGap>>, Vec<(String, bool)>)> {
+pub fn contact_gaps(robot: &Robot, samples: &[Sample]) -> Result<ContactGaps> {
     let space = ParameterSpace::for_samples(robot, samples);
     let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
     let (d, e, _) = problem.predict(&space.initial())?;
