@@ -392,19 +392,24 @@ impl Robot {
         &self.markers
     }
 
-    /// Per tree joint, whether it is on the path from the base to a marker.
+    /// Per tree joint, whether it is on the path from the base to a marker or to the frame link.
     pub fn measured_joints(&self) -> Vec<bool> {
         let mut on = vec![false; self.tree.joints().len()];
-        for &m in &self.markers {
-            self.tree
-                .support(self.tree.points()[m].body)
-                .iter()
-                .for_each(|&j| on[j] = true);
+        for b in self.measured_bodies() {
+            self.tree.support(b).iter().for_each(|&j| on[j] = true);
         }
         on
     }
 
-    /// Names of the moving joints on the path from the base to a marker, in tree order.
+    /// The bodies whose paths from the root move what is measured: the markers' and the frame
+    /// link's (whose joints move the measurement frame).
+    fn measured_bodies(&self) -> Vec<usize> {
+        let markers = self.markers.iter().map(|&m| self.tree.points()[m].body);
+        markers.chain(self.frame_link()).collect()
+    }
+
+    /// Names of the moving joints on the path from the base to a marker or to the frame link, in tree
+    /// order.
     pub fn measured_joint_names(&self) -> Vec<String> {
         let on = self.measured_joints();
         self.tree
@@ -432,8 +437,7 @@ impl Robot {
     /// Per independent coordinate, whether it moves a marker: the measured chain, whose
     /// joints a measurement file must give.
     pub fn measured_coordinates(&self) -> Vec<bool> {
-        let bodies: Vec<usize> = self.markers.iter().map(|&m| self.tree.points()[m].body).collect();
-        self.tree.coordinates_moving(&bodies)
+        self.tree.coordinates_moving(&self.measured_bodies())
     }
 
     /// How measurement files of this robot are read: numbered position columns are its
