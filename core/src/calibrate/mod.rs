@@ -1188,8 +1188,13 @@ pub fn calibrate(
     // Measured minus modelled, once for the statistics, the gross errors and the trend.
     let residual_vectors = measured_minus_modelled(&problem.targets(&d, &pred), &pred);
     let after = ErrorStats::from_errors(&residual_vectors);
-    let outliers = gross_errors(&residual_vectors);
-    let trend = drift(&residual_vectors);
+    // A plane contact's residual has one component: the robust noise per axis of the 3-D
+    // checks would be that of the two zero ones, calling every row a gross error.
+    let (outliers, trend) = if problem.constraints.is_some() {
+        (Vec::new(), None)
+    } else {
+        (gross_errors(&residual_vectors), drift(&residual_vectors))
+    };
     // The RMS the noise gives: √3 σ in 3-D, σ for a plane's height.
     let dims = (problem.position_width.max(1)) as f64;
     let rms_over_noise = after.rms_mm * 1e-3 / (dims.sqrt() * params.measurement_std);
