@@ -464,3 +464,36 @@ fn simulate_calibrate_and_evaluate_planes_on_the_command_line() {
     let tilt = after["planes"][0]["roll_rms_deg"].as_f64().unwrap();
     assert!(tilt < 0.01, "calibrated roll {tilt} deg");
 }
+
+#[test]
+fn the_diagnosis_the_ladder_and_the_prior_choice_refuse_plane_rows() {
+    let robot = panda("");
+    let samples = simulated(&truth_of(&robot, &CHANGES), 4, 0.0, 8);
+    let prior = armcomp_core::prior_choice::choose_prior_scale(
+        &robot,
+        &samples,
+        &CalibrationParams::default(),
+        &[0.5, 1.0],
+        2,
+        0,
+    )
+    .unwrap_err()
+    .to_string();
+    let ladder_params = armcomp_core::ladder::LadderParams {
+        calibration: CalibrationParams::default(),
+        noise_declared: false,
+        folds: 2,
+        seed: 0,
+        fold_groups: None,
+        predictor: None,
+    };
+    let ladder = armcomp_core::ladder::climb(&robot, &samples, &ladder_params, &|_| {})
+        .unwrap_err()
+        .to_string();
+    let diagnosis = armcomp_core::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
+        .unwrap_err()
+        .to_string();
+    for e in [prior, ladder, diagnosis] {
+        assert!(e.contains("sample 1") && e.contains("plane-contact measurement"), "{e}");
+    }
+}
