@@ -3,9 +3,10 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
+use armcomp_core::calibrate::{PlaneEvaluation, evaluate_planes};
 use armcomp_core::evaluate::{
-    AngleStats, ErrorStats, FixedPointEvaluation, PlaneEvaluation, StationStats, evaluate_fixed_points,
-    evaluate_planes, orientation_errors, per_station, position_errors,
+    AngleStats, ErrorStats, FixedPointEvaluation, StationStats, evaluate_fixed_points, orientation_errors, per_station,
+    position_errors,
 };
 use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;

@@ -779,6 +779,78 @@ pub fn contact_gaps(robot: &Robot, samples: &[Sample]) -> Result<ContactGaps> {
     Ok((gaps, names))
 }
 
+/// How far a model puts the contacts of one plane from it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneFit {
+    /// The plane's name.
+    pub name: String,
+    /// Its samples.
+    pub n: usize,
+    /// Whether the plane was fitted to these samples (the model names no such plane), rather
+    /// than the model's own.
+    pub fitted: bool,
+    /// RMS of the contacts' out-of-plane distance (mm).
+    pub rms_mm: f64,
+    /// Largest out-of-plane distance (mm).
+    pub max_mm: f64,
+    /// RMS of the contact frames' roll from the plane's (deg).
+    pub roll_rms_deg: f64,
+    /// RMS of their pitch from the plane's (deg).
+    pub pitch_rms_deg: f64,
+}
+
+/// What a model makes of plane contacts, per plane.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneEvaluation {
+    /// Per plane, in order of first appearance.
+    pub planes: Vec<PlaneFit>,
+    /// RMS of the out-of-plane distance over every contact (mm).
+    pub rms_mm: f64,
+}
+
+/// Evaluates `robot` on plane-contact samples whose position errors (the measured position
+/// unused and zero) are `errors`: each contact against its plane as the model file gives it
+/// (identified by `calibrate`), or fitted to the contacts when it names no such plane. Rewrites
+/// each plane sample's error as its point moved onto the plane minus the point; `None` when no
+/// sample names a plane.
+pub fn evaluate_planes(
+    robot: &Robot,
+    samples: &[Sample],
+    errors: &mut [Vector3<f64>],
+) -> Result<Option<PlaneEvaluation>> {
+    if samples.iter().all(|s| s.plane.is_none()) {
+        return Ok(None);
+    }
+    let (gaps, names) = contact_gaps(robot, samples)?;
+    let rms = |v: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+        (sum / n.max(1) as f64).sqrt()
+    };
+    let planes = names
+        .iter()
+        .enumerate()
+        .map(|(g, (name, fitted))| {
+            let mine: Vec<_> = gaps.iter().flatten().filter(|c| c.plane == g).collect();
+            PlaneFit {
+                name: name.clone(),
+                n: mine.len(),
+                fitted: *fitted,
+                rms_mm: rms(&mut mine.iter().map(|c| c.height)) * 1e3,
+                max_mm: mine.iter().fold(0.0f64, |m, c| m.max(c.height.abs())) * 1e3,
+                roll_rms_deg: rms(&mut mine.iter().map(|c| c.roll)).to_degrees(),
+                pitch_rms_deg: rms(&mut mine.iter().map(|c| c.pitch)).to_degrees(),
+            }
+        })
+        .collect();
+    for (e, c) in errors.iter_mut().zip(&gaps) {
+        if let Some(c) = c {
+            *e = -c.normal * c.height;
+        }
+    }
+    let rms_mm = rms(&mut gaps.iter().flatten().map(|c| c.height)) * 1e3;
+    Ok(Some(PlaneEvaluation { planes, rms_mm }))
+}
+
 /// A plane contact's residuals and what their derivatives need.
 struct PlaneGap {
     /// Height above the plane (m).
