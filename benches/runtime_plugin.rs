@@ -85,6 +85,7 @@ fn bench(c: &mut Criterion) {
             temperature: None,
             torque: None,
             fixed_point: None,
+            plane: None,
             gravity: None,
             station: 0,
         })

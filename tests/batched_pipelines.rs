@@ -109,6 +109,7 @@ fn sample(q: &[f64], point: usize, k: usize) -> Sample {
         temperature: None,
         torque: None,
         fixed_point: None,
+        plane: None,
         gravity: None,
         station: 0,
     }

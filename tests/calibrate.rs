@@ -915,6 +915,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                     temperature: None,
                     torque: None,
                     fixed_point: None,
+                    plane: None,
                     gravity: None,
                     station: 0,
                 }

@@ -66,6 +66,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
                 temperature: conditions.temperature,
                 torque: None,
                 fixed_point: None,
+                plane: None,
                 gravity: None,
                 station: 0,
             }
@@ -667,6 +668,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             temperature: None,
             torque: None,
             fixed_point: None,
+            plane: None,
             gravity: None,
             station: 0,
         })

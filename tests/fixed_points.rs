@@ -441,8 +441,14 @@ fn panda_sockets_held_out_places_are_consistent_to_a_third_of_a_millimetre() {
     let mut spreads = Vec::new();
     for test in ["right", "back-high"] {
         let samples = place(&robot, &dir, "panda_1", test);
-        let before = armcomp::ops::evaluate::run(&robot, &samples).fixed_points.unwrap();
-        let after = armcomp::ops::evaluate::run(&cal.robot, &samples).fixed_points.unwrap();
+        let before = armcomp::ops::evaluate::run(&robot, &samples)
+            .unwrap()
+            .fixed_points
+            .unwrap();
+        let after = armcomp::ops::evaluate::run(&cal.robot, &samples)
+            .unwrap()
+            .fixed_points
+            .unwrap();
         let distance = &after.distances[0];
         eprintln!(
             "panda_1 {test}: spread {:.3} -> {:.3} mm, distance {:.3} mm",

@@ -24,6 +24,7 @@ mod measurement;
 mod measurement_kinds;
 mod mutated_inputs;
 mod plan;
+mod planes;
 mod point_kinematics;
 mod robot_files;
 mod runtime_plugins;

@@ -40,6 +40,7 @@ fn write_then_read_gives_the_same_samples() {
             temperature: Some(21.0 + i as f64 * 0.1),
             torque: None,
             fixed_point: None,
+            plane: None,
             gravity: None,
             station: 0,
         })
@@ -192,6 +193,7 @@ fn point_names_with_commas_and_quotes_round_trip() {
         temperature: None,
         torque: None,
         fixed_point: None,
+        plane: None,
         gravity: None,
         station: 0,
     };

@@ -48,6 +48,7 @@ fn pose_samples(truth: &Robot, n: usize, sigma_p: f64, sigma_r: f64, seed: u64) 
                 temperature: None,
                 torque: None,
                 fixed_point: None,
+                plane: None,
                 gravity: None,
                 station: 0,
                 q,

@@ -15,7 +15,8 @@
 //! each its own measurement frame); the columns of the robot file's sensor (`[[sensors]]`: an
 //! accelerometer's reading, an inclinometer's roll and pitch), which give the direction of
 //! gravity per row. A robot file of `kind = "fixed_point"` reads rows without a position: a
-//! `fixed_point` column names the unknown fixed point the marker was put into (`socket_a`).
+//! `fixed_point` column names the unknown fixed point the marker was put into (`socket_a`); one of
+//! `kind = "plane"`, a `plane` column names the unknown plane it was pressed on (`table`).
 //! Other columns (timestamps, marker quality, joints of other limbs) are
 //! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
 
@@ -48,6 +49,9 @@ pub struct Sample {
     /// The unknown fixed point the measured point was put into, by name, for fixed-point
     /// measurements (`position` is then unused).
     pub fixed_point: Option<String>,
+    /// The unknown plane the measured point (a contact frame) was pressed on, by name, for
+    /// plane contacts (`position` is then unused).
+    pub plane: Option<String>,
     /// The direction of gravity the robot's sensor measured, when its columns are given.
     pub gravity: Option<GravityReading>,
     /// The station (instrument set-up) that measured it: an index into
@@ -57,15 +61,28 @@ pub struct Sample {
     pub station: usize,
 }
 
-/// Refuses fixed-point samples for `what`, which scores models on held-out measured
-/// positions: a fixed-point row measures none.
+/// Refuses fixed-point and plane samples for `what`, which scores models on held-out measured
+/// positions: such a row measures none.
 pub fn require_positions(samples: &[Sample], what: &str) -> Result<()> {
-    match samples.iter().position(|s| s.fixed_point.is_some()) {
+    match samples
+        .iter()
+        .position(|s| s.fixed_point.is_some() || s.plane.is_some())
+    {
         Some(i) => Err(Error::InvalidArgument {
             what: format!("sample {}", i + 1),
             reason: format!(
-                "is a fixed-point measurement, which gives no position for {what} to score models on; calibrate it \
-                 (`armcomp calibrate`) and compare fixed points with `armcomp evaluate`"
+                "is a {} measurement, which gives no position for {what} to score models on; calibrate it \
+                 (`armcomp calibrate`) and compare {} with `armcomp evaluate`",
+                if samples[i].plane.is_some() {
+                    "plane-contact"
+                } else {
+                    "fixed-point"
+                },
+                if samples[i].plane.is_some() {
+                    "planes"
+                } else {
+                    "fixed points"
+                },
             ),
         }),
         None => Ok(()),
@@ -95,8 +112,9 @@ enum Column {
         scale: f64,
     },
     Point,
-    /// The name of the unknown fixed point the marker was put into.
-    FixedPoint,
+    /// The name of the unknown fixed point the marker was put into, or of the unknown plane
+    /// it was pressed on: the layout's [group column](CsvLayout::group_column).
+    Group,
     /// `slot`: which measured point a numbered column (`x2` → 1) is; `None` for plain `x`.
     Position {
         slot: Option<usize>,
@@ -134,7 +152,7 @@ impl Column {
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
-            Column::Point | Column::FixedPoint | Column::Station | Column::Ignored => None,
+            Column::Point | Column::Group | Column::Station | Column::Ignored => None,
         }
     }
 }
@@ -219,6 +237,9 @@ pub struct CsvLayout<'a> {
     /// Whether the robot measures fixed points: rows then name their fixed point in a
     /// `fixed_point` column instead of giving a position.
     pub fixed_points: bool,
+    /// Whether the robot measures plane contacts: rows then name their plane in a `plane`
+    /// column instead of giving a position.
+    pub planes: bool,
     /// The robot's sensor giving the direction of gravity per row, whose columns are read
     /// when the file has them.
     pub gravity_sensor: Option<GravitySensor>,
@@ -234,7 +255,20 @@ impl<'a> CsvLayout<'a> {
             hold: vec![None; tree.nq()],
             orientation: false,
             fixed_points: false,
+            planes: false,
             gravity_sensor: None,
+        }
+    }
+
+    /// The column rows without a measured position name their group in (`fixed_point` or
+    /// `plane`), with what it names, when the robot measures such rows.
+    pub fn group_column(&self) -> Option<(&'static str, &'static str)> {
+        if self.fixed_points {
+            Some(("fixed_point", "fixed point"))
+        } else if self.planes {
+            Some(("plane", "plane"))
+        } else {
+            None
         }
     }
 }
@@ -522,13 +556,15 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         } else {
             match name {
                 "point" => Column::Point,
-                "fixed_point" if layout.fixed_points => Column::FixedPoint,
-                "fixed_point" => {
+                g if layout.group_column().is_some_and(|(c, _)| c == g) => Column::Group,
+                g @ ("fixed_point" | "plane") => {
+                    let what = if g == "plane" { "plane contacts" } else { "fixed points" };
                     return Err(err(
                         Some(header_line),
-                        "column `fixed_point`: the robot file measures positions; a file of fixed points needs \
-                         `kind = \"fixed_point\"` in the robot file's [measurement]"
-                            .into(),
+                        format!(
+                            "column `{g}`: the robot file does not measure {what}; a file of {what} needs `kind = \
+                             \"{g}\"` in the robot file's [measurement]"
+                        ),
                     ));
                 }
                 "station" => Column::Station,
@@ -607,21 +643,23 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         s.dedup();
         s
     };
-    if with_positions && layout.fixed_points {
-        if !has(&|k| matches!(k, Column::FixedPoint)) {
+    if with_positions && let Some((column, what)) = layout.group_column() {
+        if !has(&|k| matches!(k, Column::Group)) {
             return Err(err(
                 Some(header_line),
-                "missing column `fixed_point` (the name of the fixed point each row's marker was put into); the \
-                 robot file measures fixed points"
-                    .into(),
+                format!(
+                    "missing column `{column}` (the name of the {what} each row's marker was measured at); the robot \
+                     file measures {what}s"
+                ),
             ));
         }
         if !slots.is_empty() || has(&|k| matches!(k, Column::Orientation(..))) {
             return Err(err(
                 Some(header_line),
-                "a fixed-point file gives no measured position or orientation (its fixed points are identified); \
-                 remove the x, y, z or orientation columns, or set the robot file's [measurement] kind to `point`"
-                    .into(),
+                format!(
+                    "a {what} file gives no measured position or orientation (its {what}s are identified); remove \
+                     the x, y, z or orientation columns, or set the robot file's [measurement] kind to `point`"
+                ),
             ));
         }
     } else if with_positions {
@@ -767,6 +805,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             temperature: None,
             torque: has_torque.then(|| vec![0.0; names.len()]),
             fixed_point: None,
+            plane: None,
             gravity: None,
             station: 0,
         };
@@ -786,14 +825,21 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     })?;
                     continue;
                 }
-                Column::FixedPoint if field.is_empty() => {
-                    return Err(err(
-                        Some(line),
-                        "column `fixed_point` is empty; every row names the fixed point it was measured in".into(),
-                    ));
-                }
-                Column::FixedPoint => {
-                    s.fixed_point = Some(field.to_string());
+                Column::Group => {
+                    let (column, what) = layout
+                        .group_column()
+                        .expect("a group column has a layout that reads it");
+                    if field.is_empty() {
+                        return Err(err(
+                            Some(line),
+                            format!("column `{column}` is empty; every row names the {what} it was measured at"),
+                        ));
+                    }
+                    if layout.planes {
+                        s.plane = Some(field.to_string());
+                    } else {
+                        s.fixed_point = Some(field.to_string());
+                    }
                     continue;
                 }
                 Column::Station if field.is_empty() => {
@@ -865,7 +911,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     }
                 }
                 Column::Sensor(k, scale) => sensor_reading[k] = v * scale,
-                Column::Point | Column::FixedPoint | Column::Station | Column::Ignored => {}
+                Column::Point | Column::Group | Column::Station | Column::Ignored => {}
             }
         }
         if let Some(spelling) = spelling {
@@ -896,7 +942,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                 o.2 = o.2.max(beyond);
             }
         }
-        if !with_positions || s.fixed_point.is_some() {
+        if !with_positions || s.fixed_point.is_some() || s.plane.is_some() {
             set.samples.push(s);
             set.rows.push(row);
             continue;
@@ -950,7 +996,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     if set.samples.is_empty() {
         return Err(err(None, "no measurements (only a header)".into()));
     }
-    if with_positions && !layout.fixed_points {
+    if with_positions && layout.group_column().is_none() {
         check_magnitudes(&set, &columns, &headers, tree, path)?;
     }
     Ok(set)
@@ -1168,7 +1214,7 @@ fn check_magnitudes(
 }
 
 /// Writes measurements as CSV in the given units (joint columns as `name[unit]`, positions as
-/// `x[unit]`, or the `fixed_point` column of fixed-point samples); deterministic text for equal
+/// `x[unit]`, or the `fixed_point` or `plane` column of samples without a position); deterministic text for equal
 /// inputs.
 pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> String {
     write_csv_with_sensor(set, tree, units, None)
@@ -1194,8 +1240,11 @@ pub fn write_csv_with_sensor(
     }
     let first = set.samples.first();
     let fixed_points = first.is_some_and(|s| s.fixed_point.is_some());
+    let planes = first.is_some_and(|s| s.plane.is_some());
     if fixed_points {
         header.push("fixed_point".into());
+    } else if planes {
+        header.push("plane".into());
     } else {
         header.extend(["x", "y", "z"].map(|a| format!("{a}[{lu}]")));
     }
@@ -1227,8 +1276,9 @@ pub fn write_csv_with_sensor(
         if with_station {
             row.push(set.stations[s.station].clone());
         }
-        match &s.fixed_point {
-            Some(name) if fixed_points => row.push(name.clone()),
+        match (&s.fixed_point, &s.plane) {
+            (Some(name), _) if fixed_points => row.push(name.clone()),
+            (_, Some(name)) if planes => row.push(name.clone()),
             _ => row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v)))),
         }
         if with_quat && let Some(q) = s.orientation {

@@ -392,19 +392,24 @@ impl Robot {
         &self.markers
     }
 
-    /// Per tree joint, whether it is on the path from the base to a marker.
+    /// Per tree joint, whether it is on the path from the base to a marker or to the frame link.
     pub fn measured_joints(&self) -> Vec<bool> {
         let mut on = vec![false; self.tree.joints().len()];
-        for &m in &self.markers {
-            self.tree
-                .support(self.tree.points()[m].body)
-                .iter()
-                .for_each(|&j| on[j] = true);
+        for b in self.measured_bodies() {
+            self.tree.support(b).iter().for_each(|&j| on[j] = true);
         }
         on
     }
 
-    /// Names of the moving joints on the path from the base to a marker, in tree order.
+    /// The bodies whose paths from the root move what is measured: the markers' and the frame
+    /// link's (whose joints move the measurement frame).
+    fn measured_bodies(&self) -> Vec<usize> {
+        let markers = self.markers.iter().map(|&m| self.tree.points()[m].body);
+        markers.chain(self.frame_link()).collect()
+    }
+
+    /// Names of the moving joints on the path from the base to a marker or to the frame link, in tree
+    /// order.
     pub fn measured_joint_names(&self) -> Vec<String> {
         let on = self.measured_joints();
         self.tree
@@ -432,8 +437,7 @@ impl Robot {
     /// Per independent coordinate, whether it moves a marker: the measured chain, whose
     /// joints a measurement file must give.
     pub fn measured_coordinates(&self) -> Vec<bool> {
-        let bodies: Vec<usize> = self.markers.iter().map(|&m| self.tree.points()[m].body).collect();
-        self.tree.coordinates_moving(&bodies)
+        self.tree.coordinates_moving(&self.measured_bodies())
     }
 
     /// How measurement files of this robot are read: numbered position columns are its
@@ -466,6 +470,7 @@ impl Robot {
             hold,
             orientation: self.measures_pose(),
             fixed_points: self.measures_fixed_points(),
+            planes: self.measures_planes(),
             gravity_sensor: self.gravity_sensor.clone(),
         }
     }
@@ -477,6 +482,51 @@ impl Robot {
             .measurement
             .as_ref()
             .is_some_and(|m| m.kind == crate::robot_file::MeasurementKind::FixedPoint)
+    }
+
+    /// Whether the robot file declares plane contacts (`[measurement] kind = "plane"`).
+    pub fn measures_planes(&self) -> bool {
+        self.file
+            .measurement
+            .as_ref()
+            .is_some_and(|m| m.kind == crate::robot_file::MeasurementKind::Plane)
+    }
+
+    /// Whether the measurements need no instrument (fixed points, plane contacts): the robot's
+    /// base frame is then invisible, moving with the unknown points or planes.
+    pub fn measures_without_instrument(&self) -> bool {
+        self.measures_fixed_points() || self.measures_planes()
+    }
+
+    /// The nominal planes the robot file declares (measurement frame, SI), by name.
+    pub fn nominal_planes(&self) -> Vec<(String, Isometry3<f64>)> {
+        let units = self.file.units;
+        self.file
+            .measurement
+            .iter()
+            .flat_map(|m| &m.planes)
+            .map(|p| (p.name.clone(), xyz_rpy(units.len3(p.xyz), units.ang3(p.rpy))))
+            .collect()
+    }
+
+    /// What a plane contact constrains, in the order height, roll, pitch (all three unless
+    /// the robot file's `constrain` says otherwise).
+    pub fn plane_constraints(&self) -> PlaneConstraints {
+        use crate::robot_file::PlaneComponent;
+        let listed = self.file.measurement.as_ref().map_or(&[][..], |m| &m.constrain);
+        let has = |c| listed.is_empty() || listed.contains(&c);
+        PlaneConstraints {
+            height: has(PlaneComponent::Height),
+            roll: has(PlaneComponent::Roll),
+            pitch: has(PlaneComponent::Pitch),
+        }
+    }
+
+    /// The link the measurements are expressed in (`[measurement] frame_link`), when it is
+    /// not the root.
+    pub fn frame_link(&self) -> Option<usize> {
+        let name = self.file.measurement.as_ref()?.frame_link.as_ref()?;
+        self.tree.body_index(name)
     }
 
     /// The known distances between fixed points the robot file declares.
@@ -495,7 +545,8 @@ impl Robot {
     /// Calibration parameters per marker: its position, and with pose measurements its
     /// orientation too (`rx, ry, rz`, a rotation vector about the point's own axes).
     pub fn marker_dofs(&self) -> usize {
-        if self.measures_pose() { 6 } else { 3 }
+        let tilts = self.measures_planes() && self.plane_constraints().tilts() > 0;
+        if self.measures_pose() || tilts { 6 } else { 3 }
     }
     /// Floating-point operations of one forward kinematics: about a hundred and fifty a body
     /// for the rigid chain (a transform product and the points on it), and as much again a body
@@ -1324,6 +1375,78 @@ fn station_frames(file: &RobotFile, units: &Units, issues: &mut Issues) -> Vec<S
     stations
 }
 
+/// Checks what `kind = "plane"` adds to [measurement]: nominal planes with finite poses and
+/// distinct names, a non-empty list of constrained components without repeats, and a frame
+/// link that is a link of the robot other than its root.
+fn check_planes(m: &crate::robot_file::MeasurementSpec, tree: &KinematicTree, issues: &mut Issues) {
+    use crate::robot_file::MeasurementKind;
+    let planar = m.kind == MeasurementKind::Plane;
+    for (i, p) in m.planes.iter().enumerate() {
+        let field = format!("measurement.planes[{i}]");
+        if !planar {
+            issues.push(
+                field.clone(),
+                "a plane is what plane contacts touch; expected `kind = \"plane\"` in [measurement]",
+            );
+        }
+        if p.name.trim().is_empty() {
+            issues.push(
+                format!("{field}.name"),
+                "is empty; name the plane as the data's `plane` column does",
+            );
+        } else if m.planes[..i].iter().any(|o| o.name == p.name) {
+            issues.push(format!("{field}.name"), format!("plane `{}` is listed twice", p.name));
+        }
+        if p.xyz.iter().chain(&p.rpy).any(|v| !v.is_finite()) {
+            issues.push(field, "xyz and rpy need three finite numbers each");
+        }
+    }
+    if !m.constrain.is_empty() && !planar {
+        issues.push(
+            "measurement.constrain",
+            "constrains plane contacts; expected `kind = \"plane\"` in [measurement]",
+        );
+    }
+    for (i, c) in m.constrain.iter().enumerate() {
+        if m.constrain[..i].contains(c) {
+            issues.push(
+                format!("measurement.constrain[{i}]"),
+                format!("`{}` is listed twice", format!("{c:?}").to_lowercase()),
+            );
+        }
+    }
+    if let Some(link) = &m.frame_link {
+        match tree.body_index(link) {
+            None => issues.push("measurement.frame_link", format!("`{link}` is not a link of the robot")),
+            Some(b) if tree.support(b).is_empty() => issues.push(
+                "measurement.frame_link",
+                format!(
+                    "`{link}` is the robot's root, whose frame the measurements are in already; leave frame_link out"
+                ),
+            ),
+            Some(_) => {}
+        }
+    }
+}
+
+/// What a plane contact constrains (see [`Robot::plane_constraints`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlaneConstraints {
+    /// The marker's distance from the plane.
+    pub height: bool,
+    /// The marker frame's roll from the plane's.
+    pub roll: bool,
+    /// The marker frame's pitch from the plane's.
+    pub pitch: bool,
+}
+
+impl PlaneConstraints {
+    /// How many tilts are constrained (0, 1 or 2).
+    pub fn tilts(&self) -> usize {
+        usize::from(self.roll) + usize::from(self.pitch)
+    }
+}
+
 /// The measurement frame's starting pose, the markers (the tool when none is named) and the
 /// values joints outside the measured chain hold (SI).
 fn measurement_setup(
@@ -1383,6 +1506,9 @@ fn measurement_setup(
                 );
             }
         }
+    }
+    if let Some(m) = &file.measurement {
+        check_planes(m, base_tree, issues);
     }
     let names = base_tree.coordinate_names();
     let mut hold = vec![None; names.len()];

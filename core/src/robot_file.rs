@@ -219,10 +219,17 @@ pub struct PayloadSpec {
 pub struct MeasurementSpec {
     /// What each row of a measurement file measures at the markers: `point` (a position),
     /// `pose` (a position and an orientation; the markers' orientations on their links are
-    /// identified with their positions) or `fixed_point` (no position: the marker was put into
-    /// the unknown fixed point its `fixed_point` column names, whose position is identified).
+    /// identified with their positions), `fixed_point` (no position: the marker was put into
+    /// the unknown fixed point its `fixed_point` column names, whose position is identified) or
+    /// `plane` (no position: the marker, a contact frame, pressed on the unknown plane its
+    /// `plane` column names, whose height and tilts are identified).
     #[serde(default, skip_serializing_if = "MeasurementKind::is_point")]
     pub kind: MeasurementKind,
+    /// The link whose frame the measurements are expressed in, when it is not the robot's
+    /// root (a foot standing on the floor, a camera on a head): the measured pose is then
+    /// `T_root_link⁻¹ · T_root_marker`, and `base_xyz`/`base_rpy` place that link's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_link: Option<String>,
     /// Guess of the robot base position in the tracker frame (length unit).
     #[serde(default)]
     pub base_xyz: [f64; 3],
@@ -242,6 +249,15 @@ pub struct MeasurementSpec {
     /// the robot is not observable from fixed points alone.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub distances: Vec<DistanceSpec>,
+    /// Nominal poses of the planes of `kind = "plane"` measurements, by the name their
+    /// `plane` column gives; a plane not listed starts from a fit to its rows.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub planes: Vec<PlaneSpec>,
+    /// What a plane contact constrains (`kind = "plane"`): `height` (the marker's distance
+    /// from the plane) and the tilts `roll` and `pitch` of the marker's frame from the
+    /// plane's. Default: all three (flush contact); `["height"]` for a point touching.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub constrain: Vec<PlaneComponent>,
     /// The measurement frames of several stations (instrument set-ups), when the data were
     /// measured from more than one: a measurement file's `station` column names them. The
     /// first is also `base_xyz`/`base_rpy`, which this list overrides.
@@ -261,6 +277,32 @@ pub struct DistanceSpec {
     /// calibration weighs positions with.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise_mm: Option<f64>,
+}
+
+/// A plane's nominal pose in the measurement frame: its normal is the frame's `z` axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneSpec {
+    /// The name a measurement file's `plane` column gives it.
+    pub name: String,
+    /// A point of the plane (length unit).
+    #[serde(default)]
+    pub xyz: [f64; 3],
+    /// Its orientation, roll-pitch-yaw (angle unit).
+    #[serde(default)]
+    pub rpy: [f64; 3],
+}
+
+/// A component of a plane contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum PlaneComponent {
+    /// The marker's distance from the plane along its normal.
+    Height,
+    /// The marker frame's turn from the plane's about the plane's `x` axis.
+    Roll,
+    /// The marker frame's turn from the plane's about the plane's `y` axis.
+    Pitch,
 }
 
 /// One station's measurement frame: the robot base pose seen from it.
@@ -289,6 +331,9 @@ pub enum MeasurementKind {
     /// No position: the marker put into an unknown fixed point (a ball in a socket, a tip on
     /// a divot) named by the row's `fixed_point` column.
     FixedPoint,
+    /// No position: the marker (a contact frame) pressed on an unknown plane (a table) named
+    /// by the row's `plane` column.
+    Plane,
 }
 
 /// The frame a fitted residual predictor's outputs are in (see [`RobotFile::predictor_frame`]).

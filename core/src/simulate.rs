@@ -152,6 +152,7 @@ pub fn simulate_tilted(
                 temperature: None,
                 torque: None,
                 fixed_point: None,
+                plane: None,
                 gravity: readings.get(i).copied(),
                 station,
             });
@@ -172,16 +173,54 @@ pub struct FixedPointParams {
     pub seed: u64,
 }
 
+/// Where a simulated campaign without an instrument puts the tool (measurement frame, m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Contact {
+    /// Into a fixed point.
+    FixedPoint(nalgebra::Vector3<f64>),
+    /// On a plane (its normal the pose's `z` axis), at places drawn uniformly within `spread`
+    /// of its origin along its `x` and `y` axes, turned about the normal at random; flush
+    /// (the tool's `z` axis along the normal) when the truth constrains tilts.
+    Plane {
+        /// The plane's pose.
+        pose: Isometry3<f64>,
+        /// Half the side of the square the contacts are drawn in (m).
+        spread: f64,
+    },
+}
+
 /// Puts the tool of `truth` (its first marker) into each named fixed point (measurement frame,
-/// m) from `per_point` configurations, found by inverse kinematics of the full model from
-/// seeded starts spread over the joint ranges: the rows a fixed-point campaign records (a
-/// ball put into a socket again and again). Fails when a point is reached from too few starts.
+/// m) from `per_point` configurations: [`simulate_contacts`] with fixed points.
 pub fn simulate_fixed_points(
     truth: &Robot,
     points: &[(String, nalgebra::Vector3<f64>)],
     params: FixedPointParams,
 ) -> Result<MeasurementSet> {
+    let contacts: Vec<(String, Contact)> = points
+        .iter()
+        .map(|(name, p)| (name.clone(), Contact::FixedPoint(*p)))
+        .collect();
+    simulate_contacts(truth, &contacts, params)
+}
+
+/// Puts the tool of `truth` (its first marker) at each named contact from `per_point`
+/// configurations, found by inverse kinematics of the full model from seeded starts spread
+/// over the joint ranges: the rows a campaign without an instrument records (a ball put into a
+/// socket again and again, a tool pressed on a table). Fails when a contact is reached from
+/// too few starts.
+pub fn simulate_contacts(
+    truth: &Robot,
+    contacts: &[(String, Contact)],
+    params: FixedPointParams,
+) -> Result<MeasurementSet> {
     use crate::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
+    if truth.frame_link().is_some() {
+        return Err(Error::InvalidArgument {
+            what: "robot".into(),
+            reason: "measures in a frame link's frame; contacts are simulated in the root's frame only".into(),
+        });
+    }
+    let flush = truth.plane_constraints().tilts() > 0;
     if !(params.joint_noise_std.is_finite() && params.joint_noise_std >= 0.0) {
         return Err(Error::InvalidArgument {
             what: "joint noise".into(),
@@ -195,14 +234,14 @@ pub fn simulate_fixed_points(
     let mut rng = StdRng::seed_from_u64(params.seed);
     let marker = truth.markers().first().copied().ok_or_else(|| Error::InvalidArgument {
         what: "robot".into(),
-        reason: "has no marker to put into the fixed points".into(),
+        reason: "has no marker to put at the contacts".into(),
     })?;
     // Many more starts than rows: some do not reach a point within the joint limits.
     let tries = 20 * params.per_point.max(1);
     let starts = crate::sampling::configurations(
         truth.tree(),
         crate::sampling::Sampler::Sobol,
-        tries * points.len(),
+        tries * contacts.len(),
         params.seed,
     )?;
     let opts = IkParams {
@@ -212,13 +251,27 @@ pub fn simulate_fixed_points(
     let mut ws = IkWorkspace::new(truth);
     let t_base_meas = truth.t_meas_base().inverse();
     let mut set = MeasurementSet::default();
-    for (k, (name, p)) in points.iter().enumerate() {
-        let target = IkTarget::Position(t_base_meas.transform_point(&(*p).into()).coords);
+    let spot = rand_distr::Uniform::new_inclusive(-1.0, 1.0).expect("a finite range");
+    for (k, (name, contact)) in contacts.iter().enumerate() {
         let mut found = 0;
         for q0 in &starts[k * tries..(k + 1) * tries] {
             if found == params.per_point {
                 break;
             }
+            let target = match contact {
+                Contact::FixedPoint(p) => IkTarget::Position(t_base_meas.transform_point(&(*p).into()).coords),
+                Contact::Plane { pose, spread } => {
+                    let (u, v, turn) = (spot.sample(&mut rng), spot.sample(&mut rng), spot.sample(&mut rng));
+                    let at = t_base_meas
+                        * pose
+                        * crate::geom::xyz_rpy([u * spread, v * spread, 0.0], [0.0, 0.0, turn * std::f64::consts::PI]);
+                    if flush {
+                        IkTarget::Pose(at)
+                    } else {
+                        IkTarget::Position(at.translation.vector)
+                    }
+                }
+            };
             if solve_ik(truth, marker, &target, q0, &opts, &mut ws).is_err() {
                 continue;
             }
@@ -242,7 +295,8 @@ pub fn simulate_fixed_points(
                 payload: None,
                 temperature: None,
                 torque: None,
-                fixed_point: Some(name.clone()),
+                fixed_point: matches!(contact, Contact::FixedPoint(_)).then(|| name.clone()),
+                plane: matches!(contact, Contact::Plane { .. }).then(|| name.clone()),
                 gravity: None,
                 station: 0,
             });
@@ -250,7 +304,10 @@ pub fn simulate_fixed_points(
         }
         if found < params.per_point {
             return Err(Error::InvalidArgument {
-                what: format!("fixed point `{name}`"),
+                what: match contact {
+                    Contact::FixedPoint(_) => format!("fixed point `{name}`"),
+                    Contact::Plane { .. } => format!("plane `{name}`"),
+                },
                 reason: format!(
                     "reached from {found} of {tries} starts, fewer than the {} asked for; is it within the arm's reach?",
                     params.per_point

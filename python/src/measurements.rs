@@ -191,6 +191,7 @@ fn map_by_name(
             point,
             torque: if same_joints { s.torque.clone() } else { None },
             fixed_point: None,
+            plane: None,
             // A sensor reading names a body of the tree it was read for.
             gravity: if same_joints { s.gravity } else { None },
             ..s.clone()
@@ -275,6 +276,7 @@ impl PyMeasurements {
                 temperature: None,
                 torque: None,
                 fixed_point: None,
+                plane: None,
                 gravity: None,
                 station: 0,
             })

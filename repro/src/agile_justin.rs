@@ -161,6 +161,7 @@ pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<
                 temperature: None,
                 torque: None,
                 fixed_point: None,
+                plane: None,
                 gravity: None,
                 station: 0,
             });

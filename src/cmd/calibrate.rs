@@ -113,18 +113,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             *slot = None;
         }
     };
-    let mut run = armcomp::ops::calibrate::run(
-        &robot,
-        &data.samples,
-        params.clone(),
-        armcomp::ops::calibrate::Choices {
+    let mut calibrate_on = |samples: &[armcomp_core::measurement::Sample], rows: &[usize]| -> anyhow::Result<_> {
+        let choices = armcomp::ops::calibrate::Choices {
             prior: args.prior,
             noise_declared: declared,
-            fold_groups: groups(&data.rows)?,
-        },
-        &fits,
-        &mut observer,
-    )?;
+            fold_groups: groups(rows)?,
+        };
+        Ok(armcomp::ops::calibrate::run(
+            &robot,
+            samples,
+            params.clone(),
+            choices,
+            &fits,
+            &mut observer,
+        )?)
+    };
+    let mut run = calibrate_on(&data.samples, &data.rows)?;
     let outlier_rows: Vec<usize> = run
         .calibration
         .report
@@ -138,18 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .collect();
         data.samples = keep.iter().map(|&i| data.samples[i].clone()).collect();
         data.rows = keep.iter().map(|&i| data.rows[i]).collect();
-        run = armcomp::ops::calibrate::run(
-            &robot,
-            &data.samples,
-            params,
-            armcomp::ops::calibrate::Choices {
-                prior: args.prior,
-                noise_declared: declared,
-                fold_groups: groups(&data.rows)?,
-            },
-            &fits,
-            &mut observer,
-        )?;
+        run = calibrate_on(&data.samples, &data.rows)?;
     }
     bar.finish_and_clear();
     let (calibration, choice) = (&run.calibration, &run.prior_choice);

@@ -29,7 +29,9 @@ pub struct Args {
     /// with pose measurements "orientation": {"n", "mean_deg", "rms_deg", "max_deg"}, and with
     /// fixed-point measurements "fixed_points": {"points": [{"name", "n", "mean_mm", "max_mm"}],
     /// "spread_mm", "distances": [{"between", "known_mm", "modelled_mm", "error_mm"}]} (a fixed
-    /// point's errors are from the mean of its modelled points); with
+    /// point's errors are from the mean of its modelled points), with plane contacts "planes":
+    /// {"planes": [{"name", "n", "fitted", "rms_mm", "max_mm", "roll_rms_deg", "pitch_rms_deg"}],
+    /// "rms_mm"} (against the model's planes, or fitted to the rows for a plane it lacks); with
     /// several stations "per_station": [{"station", "n", "rms_mm", ...}] and
     /// "registered_stations": [names registered on these data].
     #[arg(long)]
@@ -61,7 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             robot.stations().get(k).map_or("of the data", |s| s.name.as_str())
         );
     }
-    let mut report = armcomp::ops::evaluate::run(&robot, &data.samples);
+    let mut report = armcomp::ops::evaluate::run(&robot, &data.samples)?;
     report.registered = register
         .iter()
         .map(|&k| robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()))
@@ -97,6 +99,21 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 println!(
                     "  distance {}–{}: known {:.4} mm  modelled {:.4} mm  error {:.4} mm",
                     d.between[0], d.between[1], d.known_mm, d.modelled_mm, d.error_mm
+                );
+            }
+        }
+        if let Some(p) = &report.planes {
+            println!("  planes: out-of-plane RMS {:.4} mm", p.rms_mm);
+            for f in &p.planes {
+                println!(
+                    "    {}{}: n {}  out-of-plane RMS {:.4} mm  max {:.4} mm  roll RMS {:.4} deg  pitch RMS {:.4} deg",
+                    f.name,
+                    if f.fitted { " (fitted to these rows)" } else { "" },
+                    f.n,
+                    f.rms_mm,
+                    f.max_mm,
+                    f.roll_rms_deg,
+                    f.pitch_rms_deg
                 );
             }
         }

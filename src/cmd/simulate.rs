@@ -3,6 +3,7 @@ use std::process::ExitCode;
 
 use armcomp_core::io::write_atomic;
 use armcomp_core::measurement::{parse_poses, write_csv, write_csv_with_sensor};
+use armcomp_core::simulate::Contact;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -38,7 +39,16 @@ pub struct Args {
     /// measurement frame; repeat for several.
     #[arg(long = "fixed-point", value_name = "NAME=X,Y,Z")]
     fixed_points: Vec<String>,
-    /// Standard deviation of the joint encoders' noise, in degrees (fixed points).
+    /// For a truth of `kind = "plane"`: a plane the tool is pressed on from --n configurations
+    /// each (found by inverse kinematics; flush when the truth constrains tilts), as
+    /// `name=x,y,z,roll,pitch,yaw` (mm and deg, measurement frame; its normal the frame's z
+    /// axis); repeat for several.
+    #[arg(long = "plane", value_name = "NAME=X,Y,Z,ROLL,PITCH,YAW")]
+    planes: Vec<String>,
+    /// Half the side of the square on each plane the contacts are drawn in, in mm.
+    #[arg(long, default_value_t = 80.0)]
+    spread_mm: f64,
+    /// Standard deviation of the joint encoders' noise, in degrees (fixed points, planes).
     #[arg(long, default_value_t = 0.0)]
     joint_noise_deg: f64,
     /// Measure from this many stations (total-station set-ups), each its own measurement
@@ -62,32 +72,70 @@ fn fixed_point(text: &str) -> anyhow::Result<(String, nalgebra::Vector3<f64>)> {
     parsed.ok_or_else(|| anyhow::anyhow!("--fixed-point `{text}`: expected name=x,y,z in mm, e.g. hole_0=450,-25,120"))
 }
 
+/// `name=x,y,z,roll,pitch,yaw` (mm, deg) → the name and the plane's pose (m, rad).
+fn plane(text: &str, spread_mm: f64) -> anyhow::Result<(String, Contact)> {
+    let parsed = text.split_once('=').and_then(|(name, v)| {
+        let v: Vec<f64> = v.split(',').map(|c| c.trim().parse().ok()).collect::<Option<_>>()?;
+        (v.len() == 6 && v.iter().all(|x| x.is_finite()) && !name.trim().is_empty()).then(|| {
+            let pose = armcomp_core::geom::xyz_rpy(
+                [v[0] * 1e-3, v[1] * 1e-3, v[2] * 1e-3],
+                [v[3].to_radians(), v[4].to_radians(), v[5].to_radians()],
+            );
+            (
+                name.trim().to_string(),
+                Contact::Plane {
+                    pose,
+                    spread: spread_mm * 1e-3,
+                },
+            )
+        })
+    });
+    parsed.ok_or_else(|| {
+        anyhow::anyhow!(
+            "--plane `{text}`: expected name=x,y,z,roll,pitch,yaw in mm and deg, e.g. table=500,0,150,180,0,0"
+        )
+    })
+}
+
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut truth = armcomp::load_robot(&args.robot)?;
-    if truth.measures_fixed_points() {
-        if args.fixed_points.is_empty() {
+    let planar = truth.measures_planes();
+    if truth.measures_fixed_points() || planar {
+        let (flag, given) = if planar {
+            ("--plane name=x,y,z,roll,pitch,yaw (mm, deg", &args.planes)
+        } else {
+            ("--fixed-point name=x,y,z (mm", &args.fixed_points)
+        };
+        if given.is_empty() {
             anyhow::bail!(
-                "{} measures fixed points: name them with --fixed-point name=x,y,z (mm, measurement frame)",
+                "{} measures without an instrument: name where with {flag}, measurement frame)",
                 args.robot.display()
             );
         }
         super::check_output(&args.out, &truth, &[])?;
-        let points = args
-            .fixed_points
-            .iter()
-            .map(|t| fixed_point(t))
-            .collect::<anyhow::Result<Vec<_>>>()?;
+        let contacts = if planar {
+            args.planes
+                .iter()
+                .map(|t| plane(t, args.spread_mm))
+                .collect::<anyhow::Result<Vec<_>>>()?
+        } else {
+            args.fixed_points
+                .iter()
+                .map(|t| fixed_point(t).map(|(name, p)| (name, Contact::FixedPoint(p))))
+                .collect::<anyhow::Result<Vec<_>>>()?
+        };
         let params = armcomp_core::simulate::FixedPointParams {
             per_point: args.n,
             joint_noise_std: args.joint_noise_deg.to_radians(),
             seed: args.seed,
         };
-        let set = armcomp_core::simulate::simulate_fixed_points(&truth, &points, params)?;
+        let set = armcomp_core::simulate::simulate_contacts(&truth, &contacts, params)?;
         write_atomic(&args.out, write_csv(&set, truth.tree(), truth.units()).as_bytes())?;
         eprintln!(
-            "wrote {} configurations in {} fixed points to {} (joint noise {} deg, seed {})",
+            "wrote {} configurations at {} {} to {} (joint noise {} deg, seed {})",
             set.samples.len(),
-            points.len(),
+            contacts.len(),
+            if planar { "planes" } else { "fixed points" },
             args.out.display(),
             args.joint_noise_deg,
             args.seed
@@ -96,6 +144,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if !args.fixed_points.is_empty() {
         anyhow::bail!("--fixed-point needs a truth robot file of `kind = \"fixed_point\"` in its [measurement]");
+    }
+    if !args.planes.is_empty() {
+        anyhow::bail!("--plane needs a truth robot file of `kind = \"plane\"` in its [measurement]");
     }
     if let Some(k) = args.stations {
         // A stream of its own: the same seed draws the same poses whatever the stations.

@@ -3,6 +3,7 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
+use armcomp_core::calibrate::{PlaneEvaluation, evaluate_planes};
 use armcomp_core::evaluate::{
     AngleStats, ErrorStats, FixedPointEvaluation, StationStats, evaluate_fixed_points, orientation_errors, per_station,
     position_errors,
@@ -24,6 +25,8 @@ pub struct EvaluationReport {
     pub errors: Vec<Vector3<f64>>,
     /// The fixed points' spreads and the known distances, for fixed-point measurements.
     pub fixed_points: Option<FixedPointEvaluation>,
+    /// The out-of-plane distances and tilts per plane, for plane contacts.
+    pub planes: Option<PlaneEvaluation>,
     /// Per station, when the robot has several (see [`per_station`]).
     pub per_station: Vec<StationStats>,
     /// The stations whose frame was registered on these data (empty name: the one station).
@@ -31,9 +34,10 @@ pub struct EvaluationReport {
 }
 
 /// Evaluates `robot` (with its fitted predictor) on `samples`.
-pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
+pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<EvaluationReport> {
     let mut errors = position_errors(robot, samples);
     let fixed_points = evaluate_fixed_points(robot, samples, &mut errors);
+    let planes = evaluate_planes(robot, samples, &mut errors)?;
     let stats = ErrorStats::from_errors(&errors);
     let mut points: Vec<usize> = samples.iter().map(|s| s.point).collect();
     points.sort_unstable();
@@ -59,7 +63,7 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
     } else {
         Vec::new()
     };
-    EvaluationReport {
+    Ok(EvaluationReport {
         stats,
         per_point,
         orientation: (!angles.is_empty()).then(|| AngleStats::from_angles(&angles)),
@@ -67,7 +71,8 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> EvaluationReport {
         registered: Vec::new(),
         errors,
         fixed_points,
-    }
+        planes,
+    })
 }
 
 impl EvaluationReport {
@@ -82,6 +87,9 @@ impl EvaluationReport {
         }
         if let Some(f) = &self.fixed_points {
             value["fixed_points"] = serde_json::to_value(f).expect("the statistics serialise");
+        }
+        if let Some(p) = &self.planes {
+            value["planes"] = serde_json::to_value(p).expect("the statistics serialise");
         }
         if !self.per_station.is_empty() {
             value["per_station"] = serde_json::to_value(&self.per_station).expect("the statistics serialise");

@@ -296,7 +296,7 @@ fn report(
 ) -> EvidenceReport {
     let u = update(lin);
     let dof = (u.kinds[0].n - u.kinds[0].gamma).max(1.0);
-    let space = ParameterSpace::new(robot).with_fixed_points(samples);
+    let space = ParameterSpace::for_samples(robot, samples);
     // Per group: parameters, determined, and the sum of log scales (for the geometric mean).
     let mut groups: Vec<(GroupScale, f64)> = Vec::new();
     let mut parameters = Vec::new();

@@ -15,6 +15,19 @@ use crate::workspace::PointSensitivity;
 
 use super::*;
 
+/// The pose of the robot's frame link (`[measurement] frame_link`) in the root frame of
+/// the kinematics last evaluated into `ws`; the identity without one.
+pub(super) fn frame_link_pose(
+    robot: &Robot,
+    tree: &KinematicTree,
+    ws: &crate::robot::RobotWorkspace,
+) -> Isometry3<f64> {
+    match robot.frame_link() {
+        Some(b) => ws.frames.body[b] * tree.bodies()[b].convention_frame,
+        None => Isometry3::identity(),
+    }
+}
+
 /// The model's point and marker rotation at every sample, evaluated in parallel (each sample
 /// on its own, so the result does not depend on the thread count).
 pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample]) -> Evaluation {
@@ -31,7 +44,7 @@ pub(super) fn evaluate(robot: &Robot, d: &Decoded, samples: &[Sample]) -> Evalua
                         .rotation
                         .to_rotation_matrix()
                         .into_inner();
-                let frame = &ws.frames.point[s.point];
+                let frame = frame_link_pose(robot, &d.tree, ws).inverse() * ws.frames.point[s.point];
                 (frame.translation.vector, (rot, frame.rotation))
             },
         )
@@ -82,25 +95,45 @@ impl Problem<'_> {
         0.5 * (r.norm_squared() + prior)
     }
 
-    /// The RMS of `stage`'s 3-D position residuals over what the noise alone gives (√3 σ).
+    /// The RMS of `stage`'s position residuals (3-D, or a plane's height) over what the noise
+    /// alone gives (√3 σ, or σ).
     pub(super) fn rms_over_noise(&self, stage: &Stage) -> f64 {
         let r = self.residuals(&stage.d, &stage.e);
-        let n = 3 * self.samples.len();
-        (r.rows(0, n).norm_squared() / n as f64).sqrt()
+        let n = self.position_rows();
+        (r.rows(0, n).norm_squared() / n.max(1) as f64).sqrt()
     }
 
     /// Measurement residuals, whitened by their noise: `(p̂ − p) / σ`, three per sample (`p`
     /// its fixed point's position for fixed-point samples), then `log(R_measᵀ R̂) / σ_rot`,
     /// three per oriented sample, then `(‖p_a − p_b‖ − d) / σ_d` per known distance.
+    ///
+    /// Plane contacts give their height above the plane `/ σ` (when constrained) as the
+    /// position block and their constrained tilts `/ σ_rot` as the orientation block.
     pub(super) fn residuals(&self, d: &Decoded, e: &Evaluation) -> DVector<f64> {
         let predicted = to_meas(&d.frames, self.samples, &e.world);
+        let gaps: Vec<Option<PlaneGap>> = match self.constraints {
+            Some(_) => (0..self.samples.len())
+                .map(|i| self.plane[i].map(|g| self.plane_gap(d, e, i, g)))
+                .collect(),
+            None => Vec::new(),
+        };
+        let width = self.position_width;
         let positions = predicted.iter().enumerate().flat_map(|(i, p)| {
-            let r = (p - self.target(d, i)) / self.sigma;
-            [r.x, r.y, r.z]
+            let r = match gaps.get(i) {
+                Some(Some(gap)) => Vector3::new(gap.height, 0.0, 0.0) / self.sigma,
+                _ => (p - self.target(d, i, p)) / self.sigma,
+            };
+            [r.x, r.y, r.z].into_iter().take(width)
         });
         let orientations = self.oriented.iter().flat_map(|&i| {
-            let r = orientation_residual(d, e, &self.samples[i], i) / self.sigma_rot;
-            [r.x, r.y, r.z]
+            let r = match (gaps.get(i), &self.constraints) {
+                (Some(Some(gap)), Some(c)) => {
+                    let t = gap.tilts(c, self.sigma_rot);
+                    Vector3::new(t[0], t[1], 0.0)
+                }
+                _ => orientation_residual(d, e, &self.samples[i], i) / self.sigma_rot,
+            };
+            [r.x, r.y, r.z].into_iter().take(self.turn_width)
         });
         let distances = (0..self.distances.len()).map(|k| {
             let known = &self.distances[k];
@@ -111,7 +144,7 @@ impl Problem<'_> {
 
     /// Statistics of the orientation residuals (`None` without pose samples).
     pub(super) fn orientation_stats(&self, d: &Decoded, e: &Evaluation) -> Option<AngleStats> {
-        (!self.oriented.is_empty()).then(|| {
+        (!self.oriented.is_empty() && self.constraints.is_none()).then(|| {
             let angles: Vec<f64> = self
                 .oriented
                 .iter()
@@ -142,6 +175,23 @@ impl Problem<'_> {
                         index,
                         axis: (k - space.fixed_point_offset) % 3,
                     },
+                    ParamGroup::Plane(index) => {
+                        // ∂(origin, normal)/∂parameter of T_nom · Tz(h) · Ry(pitch) Rx(roll).
+                        let o = space.plane_offset + 3 * index;
+                        let (roll, pitch) = (theta[o + 1], theta[o + 2]);
+                        let nominal = space.plane_nominal[index];
+                        let (sr, cr, sp, cp) = (roll.sin(), roll.cos(), pitch.sin(), pitch.cos());
+                        let (origin, normal) = match k - o {
+                            0 => (nominal.rotation * Vector3::z(), Vector3::zeros()),
+                            1 => (Vector3::zeros(), Vector3::new(-sr * sp, -cr, -sr * cp)),
+                            _ => (Vector3::zeros(), Vector3::new(cr * cp, 0.0, -cr * sp)),
+                        };
+                        ColumnPlan::Plane {
+                            index,
+                            origin,
+                            normal: nominal.rotation * normal,
+                        }
+                    }
                     ParamGroup::Base => {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
@@ -215,8 +265,13 @@ impl Problem<'_> {
                 },
                 |(ws, ws_fd, base_perts, scratch, stepped, placed, sensitivity), (s_idx, s)| {
                     let cond = Conditions::of(s);
-                    let r_meas = d.frames[s.station].rotation.to_rotation_matrix().into_inner();
                     self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
+                    // Root-frame changes seen from the measurement frame (through the frame
+                    // link's, when the measurements are expressed in one).
+                    let link = frame_link_pose(self.robot, &d.tree, ws);
+                    let r_meas = (d.frames[s.station].rotation * link.rotation.inverse())
+                        .to_rotation_matrix()
+                        .into_inner();
                     for (i, bp) in base_perts.iter_mut().enumerate() {
                         bp.clear();
                         self.robot.model_perturbation_into(i, &d.tree, &d.errors[i], s, ws, bp);
@@ -226,13 +281,15 @@ impl Problem<'_> {
                     }
                     let body = d.tree.points()[s.point].body;
                     let support = d.tree.support(body);
-                    let p = e.world[s_idx];
+                    // The joints that move the frame link move the measured point the other way.
+                    let link_support = self.robot.frame_link().map_or(&[][..], |b| d.tree.support(b));
+                    let p = ws.frames.point[s.point].translation.vector;
                     // Geometry moves a joint's placement, which the deformation's twist
                     // follows: its twist acts at the placed frame before that twist (and a
                     // point's before its own), not at the deformed one.
                     let frames = &ws.frames;
                     let deformation = &ws.perturbation;
-                    for &j in support {
+                    for &j in support.iter().chain(link_support) {
                         placed[j] = frames.joint_frame[j];
                         if n_models > 0 {
                             placed[j] *= exp_twist(&deformation.joint_twist[j]).inverse();
@@ -251,19 +308,32 @@ impl Problem<'_> {
                     let oriented = self.oriented.binary_search(&s_idx).ok();
                     // Rows of the orientation block: J_r⁻¹(r) R̂ᵀ per unit turn of the model
                     // (measurement frame), so a turn maps to the change of log(R_measᵀ R̂).
-                    let turn_map = oriented.map(|_| {
+                    let turn_map = oriented.filter(|_| self.constraints.is_none()).map(|_| {
                         let model = d.frames[s.station].rotation * e.rotation[s_idx];
                         let r = orientation_residual(d, e, s, s_idx);
                         so3_right_jacobian_inverse(&r) * model.inverse().to_rotation_matrix().into_inner()
                             / self.sigma_rot
                     });
-                    // A turn of the point (world) from the full model re-evaluated into `ws_fd`.
-                    let turn_of = |ws_fd: &crate::robot::RobotWorkspace, h: f64| -> Vector3<f64> {
-                        (ws_fd.frames.point[s.point].rotation * ws.frames.point[s.point].rotation.inverse())
-                            .scaled_axis()
-                            / h
+                    // The change of the point's pose relative to the frame link (root-aligned, as
+                    // `r_meas` expects) from the full model re-evaluated into `ws_fd`.
+                    let moved = |ws_fd: &crate::robot::RobotWorkspace, tree: &KinematicTree, h: f64| {
+                        let before = link.inverse() * ws.frames.point[s.point];
+                        let stepped = frame_link_pose(self.robot, tree, ws_fd);
+                        let after = stepped.inverse() * ws_fd.frames.point[s.point];
+                        let dp = link.rotation * (after.translation.vector - before.translation.vector) / h;
+                        let dw = link.rotation * (after.rotation * before.rotation.inverse()).scaled_axis() / h;
+                        (dp, dw)
                     };
-                    let width = if oriented.is_some() { 6 } else { 3 };
+                    let turn_of =
+                        |ws_fd: &crate::robot::RobotWorkspace, tree: &KinematicTree, h: f64| moved(ws_fd, tree, h).1;
+                    // A plane contact's residuals and the maps from the point's change to theirs.
+                    let gap = match (self.plane[s_idx], &self.constraints) {
+                        (Some(g), Some(_)) => Some(self.plane_gap(d, e, s_idx, g)),
+                        _ => None,
+                    };
+                    let pw = self.position_width;
+                    let tw = if oriented.is_some() { self.turn_width } else { 0 };
+                    let width = pw + tw;
                     let mut row = vec![0.0; width * ncols];
                     for (c, plan) in plans.iter().enumerate() {
                         // The change of the point's position and orientation, measurement frame.
@@ -287,9 +357,26 @@ impl Problem<'_> {
                                 }
                                 (-Vector3::ith(*axis, 1.0), Vector3::zeros())
                             }
+                            // The plane moves: its rows directly, the model unchanged.
+                            ColumnPlan::Plane { index, origin, normal } => {
+                                let (Some(gap), Some(cons)) = (&gap, &self.constraints) else {
+                                    continue;
+                                };
+                                if self.plane[s_idx] != Some(*index) {
+                                    continue;
+                                }
+                                if pw == 1 {
+                                    row[width * c] = (normal.dot(&gap.offset) - gap.normal.dot(origin)) / self.sigma;
+                                }
+                                let t = gap.tilt_rows(cons, &(gap.contact.inverse() * normal), self.sigma_rot);
+                                row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
+                                continue;
+                            }
                             ColumnPlan::Base { station, .. } if *station != s.station => continue,
                             ColumnPlan::Base { from, to, h, .. } => (
-                                (to.transform_point(&p.into()) - from.transform_point(&p.into())) / *h,
+                                (to.transform_point(&e.world[s_idx].into())
+                                    - from.transform_point(&e.world[s_idx].into()))
+                                    / *h,
                                 (to.rotation * from.rotation.inverse()).scaled_axis() / *h,
                             ),
                             ColumnPlan::Twists {
@@ -310,15 +397,18 @@ impl Problem<'_> {
                                         // The deformation's turn has no cheap map: the full
                                         // model differenced, on pose samples only.
                                         self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
-                                        dw = turn_of(ws_fd, *h);
+                                        dw = turn_of(ws_fd, tree, *h);
                                         turn_known = true;
                                     }
                                 }
                                 for (j, xi) in joints {
-                                    if support.contains(j) {
-                                        dp += effect_at(&placed[*j], xi);
+                                    // +1 on the point's path, −1 on the frame link's, 0 on both.
+                                    let sign = f64::from(u8::from(support.contains(j)))
+                                        - f64::from(u8::from(link_support.contains(j)));
+                                    if sign != 0.0 {
+                                        dp += sign * effect_at(&placed[*j], xi);
                                         if !turn_known {
-                                            dw += placed[*j].rotation * xi.fixed_rows::<3>(3);
+                                            dw += sign * (placed[*j].rotation * xi.fixed_rows::<3>(3));
                                         }
                                     }
                                 }
@@ -335,17 +425,13 @@ impl Problem<'_> {
                             ColumnPlan::Loads { errors, h } => {
                                 // A changed load changes what every elastic model does.
                                 self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
-                                let dp = (ws_fd.frames.point[s.point].translation.vector
-                                    - ws.frames.point[s.point].translation.vector)
-                                    / *h;
-                                (r_meas * dp, r_meas * turn_of(ws_fd, *h))
+                                let (dp, dw) = moved(ws_fd, &d.tree, *h);
+                                (r_meas * dp, r_meas * dw)
                             }
                             ColumnPlan::Finite { tree, h } => {
                                 self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
-                                let dp = (ws_fd.frames.point[s.point].translation.vector
-                                    - ws.frames.point[s.point].translation.vector)
-                                    / *h;
-                                (r_meas * dp, r_meas * turn_of(ws_fd, *h))
+                                let (dp, dw) = moved(ws_fd, tree, *h);
+                                (r_meas * dp, r_meas * dw)
                             }
                             ColumnPlan::Model { model, errors, h } => {
                                 stepped.clear();
@@ -354,13 +440,23 @@ impl Problem<'_> {
                                 scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
                                 let dw = if oriented.is_some() {
                                     self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
-                                    turn_of(ws_fd, *h)
+                                    turn_of(ws_fd, &d.tree, *h)
                                 } else {
                                     Vector3::zeros()
                                 };
                                 (r_meas * sensitivity.effect(scratch), r_meas * dw)
                             }
                         };
+                        if let (Some(gap), Some(cons)) = (&gap, &self.constraints) {
+                            if pw == 1 {
+                                row[width * c] = gap.normal.dot(&dp_meas) / self.sigma;
+                            }
+                            // A turn of the contact turns the normal seen from it the other way.
+                            let dm = gap.contact.inverse() * gap.normal.cross(&dw_meas);
+                            let t = gap.tilt_rows(cons, &dm, self.sigma_rot);
+                            row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
+                            continue;
+                        }
                         for a in 0..3 {
                             row[width * c + a] = dp_meas[a] / self.sigma;
                         }
@@ -376,22 +472,28 @@ impl Problem<'_> {
             )
             .collect();
         // Position rows in sample order, then the orientation rows of the oriented samples.
-        let n = self.samples.len();
+        let (pw, tw) = (self.position_width, self.turn_width);
         let mut jac = DMatrix::zeros(self.n_residuals(), ncols);
         for (s_idx, row) in rows.iter().enumerate() {
-            let width = row.len() / ncols.max(1);
-            let turn_row = self.oriented.binary_search(&s_idx).ok().map(|k| 3 * (n + k));
+            let turn_row = self
+                .oriented
+                .binary_search(&s_idx)
+                .ok()
+                .map(|k| self.position_rows() + tw * k);
+            let width = pw + if turn_row.is_some() { tw } else { 0 };
             for c in 0..ncols {
-                for a in 0..3 {
-                    jac[(3 * s_idx + a, c)] = row[width * c + a];
-                    if let Some(r0) = turn_row {
-                        jac[(r0 + a, c)] = row[width * c + 3 + a];
+                for a in 0..pw {
+                    jac[(pw * s_idx + a, c)] = row[width * c + a];
+                }
+                if let Some(r0) = turn_row {
+                    for a in 0..tw {
+                        jac[(r0 + a, c)] = row[width * c + pw + a];
                     }
                 }
             }
         }
         // Known distances: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to a.
-        let r0 = 3 * (n + self.oriented.len());
+        let r0 = self.position_rows() + tw * self.oriented.len();
         for (k, known) in self.distances.iter().enumerate() {
             let (_, u) = self.distance(d, k);
             for (c, plan) in plans.iter().enumerate() {
@@ -520,6 +622,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             temperature: None,
             torque: None,
             fixed_point: None,
+            plane: None,
             gravity: None,
             station: 0,
         })
@@ -533,7 +636,7 @@ pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) 
     for s in samples {
         robot.tree().check_q(&s.q)?;
     }
-    let space = ParameterSpace::new(robot).with_fixed_points(samples);
+    let space = ParameterSpace::for_samples(robot, samples);
     let selected = space.select(robot, identify)?;
     let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
     let theta = problem.start()?;

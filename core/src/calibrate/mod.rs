@@ -33,7 +33,7 @@ use crate::error::{Error, Result};
 use crate::evaluate::{AngleStats, ErrorStats, StationStats, per_station};
 use crate::measurement::Sample;
 use crate::param::{ParamInfo, Quantity};
-use crate::robot::Robot;
+use crate::robot::{PlaneConstraints, Robot};
 use crate::robot_file::PredictorFrame;
 use crate::tree::KinematicTree;
 
@@ -70,6 +70,9 @@ pub enum ParamGroup {
     /// [`ParameterSpace::fixed_points`]): its position in the measurement frame, a nuisance
     /// parameter identified with the robot.
     FixedPoint(usize),
+    /// Plane `i` of plane contacts (index into [`ParameterSpace::planes`]): its height and
+    /// tilts in the measurement frame, a nuisance parameter identified with the robot.
+    Plane(usize),
 }
 
 /// Parameters whose prior standard deviations share one scale when the scales are chosen from
@@ -91,6 +94,8 @@ pub enum PriorGroup {
     ErrorModel(usize),
     /// The positions of the fixed points of fixed-point measurements.
     FixedPoints,
+    /// The planes of plane contacts.
+    Planes,
     /// Parameter `k` of the [`ParameterSpace`] alone (a scale of its own: automatic relevance
     /// determination).
     Parameter(usize),
@@ -104,6 +109,7 @@ impl PriorGroup {
             PriorGroup::Frame => "frame".into(),
             PriorGroup::Markers => "markers".into(),
             PriorGroup::FixedPoints => "fixed_points".into(),
+            PriorGroup::Planes => "planes".into(),
             PriorGroup::JointOffsets => "joint_offsets".into(),
             PriorGroup::Lengths => "lengths".into(),
             PriorGroup::Angles => "angles".into(),
@@ -128,7 +134,8 @@ pub struct SpaceParam {
 /// base frame (`base.x … base.yaw`; with several stations one per station,
 /// `base[<station>].x …`), markers (`marker.<point>.x|y|z`), then the fixed points of
 /// fixed-point measurements (`fixed_point.<name>.x|y|z`, see
-/// [`with_fixed_points`](Self::with_fixed_points)).
+/// [`with_fixed_points`](Self::with_fixed_points)), then the planes of plane contacts
+/// (`plane.<name>.height|roll|pitch`, see [`with_planes`](Self::with_planes)).
 #[derive(Debug, Clone)]
 pub struct ParameterSpace {
     /// The parameters.
@@ -136,6 +143,11 @@ pub struct ParameterSpace {
     /// The fixed points' names, in the order of their parameters.
     pub fixed_points: Vec<String>,
     fixed_point_offset: usize,
+    /// The planes' names, in the order of their parameters.
+    pub planes: Vec<String>,
+    plane_offset: usize,
+    /// Each plane's nominal pose (measurement frame): the robot file's, or fitted to its rows.
+    plane_nominal: Vec<Isometry3<f64>>,
     n_chain: usize,
     error_offsets: Vec<usize>,
     base_offset: usize,
@@ -155,6 +167,8 @@ struct Decoded {
     frames: Vec<Isometry3<f64>>,
     /// The fixed points' positions, measurement frame (m).
     fixed_points: Vec<Vector3<f64>>,
+    /// The planes' poses, measurement frame (their normal is the `z` axis).
+    planes: Vec<Isometry3<f64>>,
 }
 
 /// Per-sample intermediate results: the point in the robot base frame, the rotation that
@@ -569,10 +583,19 @@ struct Problem<'a> {
     sigma: f64,
     /// The orientation noise per axis (rad).
     sigma_rot: f64,
-    /// The samples whose orientation is a residual block (the robot measures poses), in order.
+    /// The samples whose orientation is a residual block (the robot measures poses, or plane
+    /// contacts with constrained tilts), in order.
     oriented: Vec<usize>,
     /// Per sample, the fixed point it was measured in (index into the space's fixed points).
     fixed: Vec<Option<usize>>,
+    /// Per sample, the plane it was pressed on (index into the space's planes).
+    plane: Vec<Option<usize>>,
+    /// What plane contacts constrain, when the robot measures them.
+    constraints: Option<PlaneConstraints>,
+    /// Position rows per sample: 3, or for plane contacts 1 (the height) or 0.
+    position_width: usize,
+    /// Orientation rows per oriented sample: 3, or for plane contacts the constrained tilts.
+    turn_width: usize,
     /// The known distances between fixed points: a residual row each, after the orientations.
     distances: Vec<KnownDistance>,
 }
@@ -589,13 +612,25 @@ struct KnownDistance {
 
 impl<'a> Problem<'a> {
     fn new(robot: &'a Robot, space: &'a ParameterSpace, samples: &'a [Sample], sigma: f64, sigma_rot: f64) -> Self {
+        let constraints = robot.measures_planes().then(|| robot.plane_constraints());
+        let (position_width, turn_width) = match constraints {
+            Some(c) => (usize::from(c.height), c.tilts()),
+            None => (3, 3),
+        };
         let oriented = if robot.measures_pose() {
             (0..samples.len())
                 .filter(|&i| samples[i].orientation.is_some())
                 .collect()
+        } else if turn_width > 0 && constraints.is_some() {
+            (0..samples.len()).collect()
         } else {
             Vec::new()
         };
+        let plane_index = |name: &str| space.planes.iter().position(|f| f == name);
+        let plane = samples
+            .iter()
+            .map(|s| s.plane.as_deref().and_then(plane_index))
+            .collect();
         let index = |name: &str| space.fixed_points.iter().position(|f| f == name);
         let fixed = samples
             .iter()
@@ -622,27 +657,44 @@ impl<'a> Problem<'a> {
             sigma_rot,
             oriented,
             fixed,
+            plane,
+            constraints,
+            position_width,
+            turn_width,
             distances,
         }
     }
 
-    /// Number of residuals: three per position, three per orientation, one per known distance.
+    /// Number of residuals: the position rows, the orientation rows, one per known distance.
     fn n_residuals(&self) -> usize {
-        3 * (self.samples.len() + self.oriented.len()) + self.distances.len()
+        self.position_rows() + self.turn_width * self.oriented.len() + self.distances.len()
     }
 
-    /// What sample `i`'s modelled point is compared with: its measured position, or the
-    /// position of the fixed point it was put into (measurement frame, m).
-    fn target(&self, d: &Decoded, i: usize) -> Vector3<f64> {
-        match self.fixed[i] {
-            Some(g) => d.fixed_points[g],
-            None => self.samples[i].position,
+    /// Number of leading residuals that are positions (or plane contacts' heights).
+    fn position_rows(&self) -> usize {
+        self.position_width * self.samples.len()
+    }
+
+    /// What sample `i`'s modelled point `p` is compared with: its measured position, the
+    /// position of the fixed point it was put into, or `p` moved onto the plane it was pressed
+    /// on along the plane's normal (measurement frame, m).
+    fn target(&self, d: &Decoded, i: usize, p: &Vector3<f64>) -> Vector3<f64> {
+        match (self.fixed[i], self.plane[i]) {
+            (Some(g), _) => d.fixed_points[g],
+            (_, Some(g)) => {
+                let plane = &d.planes[g];
+                let normal = plane.rotation * Vector3::z();
+                p - normal * normal.dot(&(p - plane.translation.vector))
+            }
+            _ => self.samples[i].position,
         }
     }
 
-    /// The targets of every sample (see [`target`](Self::target)).
-    fn targets(&self, d: &Decoded) -> Vec<Vector3<f64>> {
-        (0..self.samples.len()).map(|i| self.target(d, i)).collect()
+    /// The targets of every sample at its modelled point (see [`target`](Self::target)).
+    fn targets(&self, d: &Decoded, predicted: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
+        (0..self.samples.len())
+            .map(|i| self.target(d, i, &predicted[i]))
+            .collect()
     }
 
     /// The space's starting values with each fixed point started in closed form: the mean of
@@ -669,6 +721,28 @@ impl<'a> Problem<'a> {
         Ok(theta)
     }
 
+    /// Sample `i`'s plane-contact residuals, unwhitened: its height above its plane (m) and
+    /// its frame's roll and pitch from the plane's (rad), FIGAROH's `rpy(T_planeᵀ T_contact)`.
+    fn plane_gap(&self, d: &Decoded, e: &Evaluation, i: usize, g: usize) -> PlaneGap {
+        let plane = &d.planes[g];
+        let normal = plane.rotation * Vector3::z();
+        let view = &d.frames[self.samples[i].station];
+        let p = view.transform_point(&e.world[i].into()).coords;
+        let contact = view.rotation * e.rotation[i];
+        // The plane's normal seen from the contact frame: the last row of the relative
+        // rotation, which its roll and pitch depend on alone.
+        let m = contact.inverse() * normal;
+        PlaneGap {
+            height: normal.dot(&(p - plane.translation.vector)),
+            roll: m.y.atan2(m.z),
+            pitch: (-m.x).atan2(m.y.hypot(m.z)),
+            normal,
+            offset: p - plane.translation.vector,
+            m,
+            contact,
+        }
+    }
+
     /// ‖p_a − p_b‖ of known distance `k` at `d` and the unit vector from b to a.
     fn distance(&self, d: &Decoded, k: usize) -> (f64, Vector3<f64>) {
         let KnownDistance { a, b, .. } = self.distances[k];
@@ -676,6 +750,207 @@ impl<'a> Problem<'a> {
         let n = v.norm();
         (n, if n > 0.0 { v / n } else { Vector3::zeros() })
     }
+}
+
+/// How far a plane contact is from its plane as a model puts it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactGap {
+    /// The plane's index in order of first appearance in the samples.
+    pub plane: usize,
+    /// Height of the contact above the plane (m).
+    pub height: f64,
+    /// Roll of the contact frame from the plane's (rad).
+    pub roll: f64,
+    /// Pitch of the contact frame from the plane's (rad).
+    pub pitch: f64,
+    /// The plane's normal (measurement frame).
+    pub normal: Vector3<f64>,
+}
+
+/// Per sample, its gap from its plane (`None` for other samples); per plane, its name and
+/// whether it was fitted to the samples.
+pub type ContactGaps = (Vec<Option<ContactGap>>, Vec<(String, bool)>);
+
+/// Each plane sample's gap from its plane as the rigid model of `robot` puts it, its planes the
+/// robot file's (a model file's: the identified ones) or, for a plane it does not name, the
+/// plane fitted to the samples' contacts; `None` for other samples. Also the planes' names and
+/// whether each was fitted.
+pub fn contact_gaps(robot: &Robot, samples: &[Sample]) -> Result<ContactGaps> {
+    let space = ParameterSpace::for_samples(robot, samples);
+    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
+    let (d, e, _) = problem.predict(&space.initial())?;
+    let gaps = (0..samples.len())
+        .map(|i| {
+            problem.plane[i].map(|g| {
+                let gap = problem.plane_gap(&d, &e, i, g);
+                ContactGap {
+                    plane: g,
+                    height: gap.height,
+                    roll: gap.roll,
+                    pitch: gap.pitch,
+                    normal: gap.normal,
+                }
+            })
+        })
+        .collect();
+    let nominal = robot.nominal_planes();
+    let names = space
+        .planes
+        .iter()
+        .map(|n| (n.clone(), !nominal.iter().any(|(m, _)| m == n)))
+        .collect();
+    Ok((gaps, names))
+}
+
+/// How far a model puts the contacts of one plane from it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneFit {
+    /// The plane's name.
+    pub name: String,
+    /// Its samples.
+    pub n: usize,
+    /// Whether the plane was fitted to these samples (the model names no such plane), rather
+    /// than the model's own.
+    pub fitted: bool,
+    /// RMS of the contacts' out-of-plane distance (mm).
+    pub rms_mm: f64,
+    /// Largest out-of-plane distance (mm).
+    pub max_mm: f64,
+    /// RMS of the contact frames' roll from the plane's (deg).
+    pub roll_rms_deg: f64,
+    /// RMS of their pitch from the plane's (deg).
+    pub pitch_rms_deg: f64,
+}
+
+/// What a model makes of plane contacts, per plane.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlaneEvaluation {
+    /// Per plane, in order of first appearance.
+    pub planes: Vec<PlaneFit>,
+    /// RMS of the out-of-plane distance over every contact (mm).
+    pub rms_mm: f64,
+}
+
+/// Evaluates `robot` on plane-contact samples whose position errors (the measured position
+/// unused and zero) are `errors`: each contact against its plane as the model file gives it
+/// (identified by `calibrate`), or fitted to the contacts when it names no such plane. Rewrites
+/// each plane sample's error as its point moved onto the plane minus the point; `None` when no
+/// sample names a plane.
+pub fn evaluate_planes(
+    robot: &Robot,
+    samples: &[Sample],
+    errors: &mut [Vector3<f64>],
+) -> Result<Option<PlaneEvaluation>> {
+    if samples.iter().all(|s| s.plane.is_none()) {
+        return Ok(None);
+    }
+    let (gaps, names) = contact_gaps(robot, samples)?;
+    let rms = |v: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+        (sum / n.max(1) as f64).sqrt()
+    };
+    let planes = names
+        .iter()
+        .enumerate()
+        .map(|(g, (name, fitted))| {
+            let mine: Vec<_> = gaps.iter().flatten().filter(|c| c.plane == g).collect();
+            PlaneFit {
+                name: name.clone(),
+                n: mine.len(),
+                fitted: *fitted,
+                rms_mm: rms(&mut mine.iter().map(|c| c.height)) * 1e3,
+                max_mm: mine.iter().fold(0.0f64, |m, c| m.max(c.height.abs())) * 1e3,
+                roll_rms_deg: rms(&mut mine.iter().map(|c| c.roll)).to_degrees(),
+                pitch_rms_deg: rms(&mut mine.iter().map(|c| c.pitch)).to_degrees(),
+            }
+        })
+        .collect();
+    for (e, c) in errors.iter_mut().zip(&gaps) {
+        if let Some(c) = c {
+            *e = -c.normal * c.height;
+        }
+    }
+    let rms_mm = rms(&mut gaps.iter().flatten().map(|c| c.height)) * 1e3;
+    Ok(Some(PlaneEvaluation { planes, rms_mm }))
+}
+
+/// A plane contact's residuals and what their derivatives need.
+struct PlaneGap {
+    /// Height above the plane (m).
+    height: f64,
+    /// Roll of the contact frame from the plane's (rad).
+    roll: f64,
+    /// Pitch of the contact frame from the plane's (rad).
+    pitch: f64,
+    /// The plane's normal (measurement frame).
+    normal: Vector3<f64>,
+    /// The contact point minus the plane's origin (measurement frame).
+    offset: Vector3<f64>,
+    /// The normal seen from the contact frame.
+    m: Vector3<f64>,
+    /// The contact frame's orientation (measurement frame).
+    contact: UnitQuaternion<f64>,
+}
+
+impl PlaneGap {
+    /// The constrained tilts' change per change `dm` of the normal seen from the contact frame,
+    /// whitened by `sigma_rot`, in the order roll, pitch; unused entries zero.
+    fn tilt_rows(&self, c: &PlaneConstraints, dm: &Vector3<f64>, sigma_rot: f64) -> [f64; 2] {
+        let m = &self.m;
+        let yz = m.y * m.y + m.z * m.z;
+        let d_roll = (m.z * dm.y - m.y * dm.z) / yz;
+        let d_pitch = -dm.x / yz.sqrt();
+        let mut out = [0.0; 2];
+        let mut k = 0;
+        for (on, v) in [(c.roll, d_roll), (c.pitch, d_pitch)] {
+            if on {
+                out[k] = v / sigma_rot;
+                k += 1;
+            }
+        }
+        out
+    }
+
+    /// The constrained tilts, whitened, in the order roll, pitch; unused entries zero.
+    fn tilts(&self, c: &PlaneConstraints, sigma_rot: f64) -> [f64; 2] {
+        let mut out = [0.0; 2];
+        let mut k = 0;
+        for (on, v) in [(c.roll, self.roll), (c.pitch, self.pitch)] {
+            if on {
+                out[k] = v / sigma_rot;
+                k += 1;
+            }
+        }
+        out
+    }
+}
+
+/// The plane through `points` (measurement frame, m) in closed form, its normal its `z` axis:
+/// the least-squares plane (through the centroid, normal to the direction of least spread),
+/// its normal on the side of `axis` (the contact frames' mean `z` axis); with points that do
+/// not spread in two directions (one spot touched again and again), the plane through their
+/// centroid normal to `axis`.
+pub(super) fn fit_plane(points: &[Vector3<f64>], axis: &Vector3<f64>) -> Isometry3<f64> {
+    let n = points.len().max(1) as f64;
+    let centroid: Vector3<f64> = points.iter().sum::<Vector3<f64>>() / n;
+    let scatter: Matrix3<f64> = points.iter().map(|p| (p - centroid) * (p - centroid).transpose()).sum();
+    let eig = scatter.symmetric_eigen();
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    // Spread of at least a millimetre RMS in two directions, well above the third.
+    let middle = eig.eigenvalues[order[1]];
+    let spread = middle > 1e-6 * n && middle > 1e2 * eig.eigenvalues[order[0]].max(0.0);
+    let mut normal = if spread || axis.norm() == 0.0 {
+        eig.eigenvectors.column(order[0]).into_owned()
+    } else {
+        axis.normalize()
+    };
+    if normal.dot(axis) < 0.0 {
+        normal = -normal;
+    }
+    let rotation = UnitQuaternion::rotation_between(&Vector3::z(), &normal)
+        .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+    Isometry3::from_parts(centroid.into(), rotation)
 }
 
 /// How the Jacobian treats the deformation of a robot with error models.
@@ -732,6 +1007,13 @@ enum ColumnPlan {
     Marker { point: usize, axis: usize },
     /// Fixed point `index`'s coordinate `axis` (measurement frame): exact.
     FixedPoint { index: usize, axis: usize },
+    /// A parameter of plane `index`: the change of the plane's origin and normal per unit of
+    /// it (measurement frame): exact.
+    Plane {
+        index: usize,
+        origin: Vector3<f64>,
+        normal: Vector3<f64>,
+    },
 }
 
 /// How many prior standard deviations a parameter the data barely determine may move.
@@ -834,7 +1116,7 @@ pub fn calibrate(
         });
     }
     let (d0, e0, _) = problem.predict(&theta0)?;
-    let before = stats(&problem.targets(&d0), &pred);
+    let before = stats(&problem.targets(&d0, &pred), &pred);
     let before_orientation = problem.orientation_stats(&d0, &e0);
     // Each station whose whole frame is identified is registered on its own samples.
     let stations: Vec<usize> = (0..space.n_stations)
@@ -999,11 +1281,18 @@ pub fn calibrate(
         .collect();
 
     // Measured minus modelled, once for the statistics, the gross errors and the trend.
-    let residual_vectors = measured_minus_modelled(&problem.targets(&d), &pred);
+    let residual_vectors = measured_minus_modelled(&problem.targets(&d, &pred), &pred);
     let after = ErrorStats::from_errors(&residual_vectors);
-    let outliers = gross_errors(&residual_vectors);
-    let trend = drift(&residual_vectors);
-    let rms_over_noise = after.rms_mm * 1e-3 / (3f64.sqrt() * params.measurement_std);
+    // A plane contact's residual has one component: the robust noise per axis of the 3-D
+    // checks would be that of the two zero ones, calling every row a gross error.
+    let (outliers, trend) = if problem.constraints.is_some() {
+        (Vec::new(), None)
+    } else {
+        (gross_errors(&residual_vectors), drift(&residual_vectors))
+    };
+    // The RMS the noise gives: √3 σ in 3-D, σ for a plane's height.
+    let dims = (problem.position_width.max(1)) as f64;
+    let rms_over_noise = after.rms_mm * 1e-3 / (dims.sqrt() * params.measurement_std);
     // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
     // can shrink the arm onto positions read a thousand times too small.
     let unit_mistake = unit_mistake(&problem, &theta0)?;
@@ -1043,7 +1332,7 @@ pub fn calibrate(
         centre: theta0,
         noise: params.measurement_std,
         orientation_noise: params.orientation_std,
-        position_rows: 3 * samples.len(),
+        position_rows: problem.position_rows(),
         distance_rows: problem.distances.len(),
         residuals: r,
         jacobian: j,
@@ -1080,7 +1369,7 @@ pub fn calibrate(
 
 /// `calibrated` with the fitted predictor of `robot`, the model it was calibrated from, when
 /// the fit moved only what a predictor in the base frame does not depend on (the measurement
-/// frames, fixed points); else without it. Says which and why.
+/// frames, fixed points, planes); else without it. Says which and why.
 fn carry_predictor(
     robot: &Robot,
     calibrated: Robot,
@@ -1096,9 +1385,12 @@ fn carry_predictor(
             reason: reason.into(),
         })
     };
-    let frames_only = selected
-        .iter()
-        .all(|&k| matches!(space.params[k].group, ParamGroup::Base | ParamGroup::FixedPoint(_)));
+    let frames_only = selected.iter().all(|&k| {
+        matches!(
+            space.params[k].group,
+            ParamGroup::Base | ParamGroup::FixedPoint(_) | ParamGroup::Plane(_)
+        )
+    });
     if !frames_only {
         return Ok((
             calibrated,
@@ -1161,9 +1453,31 @@ fn stats(targets: &[Vector3<f64>], predicted: &[Vector3<f64>]) -> ErrorStats {
     ErrorStats::from_errors(&measured_minus_modelled(targets, predicted))
 }
 
-/// Refuses fixed-point samples on a robot that measures positions and the reverse, and known
-/// distances naming a fixed point the samples lack.
+/// Refuses fixed-point or plane samples on a robot that measures something else and the
+/// reverse, known distances naming a fixed point the samples lack, and a frame link on a robot
+/// with error models (whose deformation of the frame link's path the Jacobian leaves out).
 fn check_fixed_points(robot: &Robot, samples: &[Sample]) -> Result<()> {
+    let planes = robot.measures_planes();
+    if let Some(i) = samples.iter().position(|s| s.plane.is_some() != planes) {
+        return Err(Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: if planes {
+                "names no plane, but the robot file measures plane contacts (`kind = \"plane\"`)".into()
+            } else {
+                "names a plane, but the robot file does not measure plane contacts; set `kind = \"plane\"` in its \
+                 [measurement]"
+                    .into()
+            },
+        });
+    }
+    if robot.frame_link().is_some() && !robot.error_models().is_empty() {
+        return Err(Error::InvalidArgument {
+            what: "measurement.frame_link".into(),
+            reason: "calibrating in a frame link's frame supports rigid models only; remove the error models or the \
+                     frame link"
+                .into(),
+        });
+    }
     let expected = robot.measures_fixed_points();
     if let Some(i) = samples.iter().position(|s| s.fixed_point.is_some() != expected) {
         return Err(Error::InvalidArgument {
@@ -1200,19 +1514,46 @@ fn check_fixed_points(robot: &Robot, samples: &[Sample]) -> Result<()> {
 /// (a robot moved with every fixed point leaves every residual as it was) and, without a known
 /// distance, the robot's scale (lengths and fixed points scaled together scale the residuals,
 /// which a fit then shrinks).
+///
+/// For plane contacts: a plane cannot see in-plane translation nor rotation about its normal
+/// (the robot shifted along it or turned about its normal touches it the same way), and plane
+/// contacts alone cannot see the scale (every length and the planes' heights scaled together
+/// leave every contact on its plane).
 fn note_fixed_points(robot: &Robot, space: &ParameterSpace, selected: &[usize], report: &mut IdentifiabilityReport) {
-    if !robot.measures_fixed_points() {
-        return;
-    }
-    let mut notes = vec![
-        "a fixed-point-only calibration cannot see the base frame: moving the robot together with every fixed point \
-         changes no residual, so base.x … base.yaw keep the robot file's values"
-            .to_string(),
-    ];
     let lengths = selected
         .iter()
         .any(|&k| space.params[k].group == ParamGroup::Geometry && space.params[k].info.quantity == Quantity::Length);
-    if robot.known_distances().is_empty() && lengths {
+    let mut notes = Vec::new();
+    if robot.measures_planes() {
+        notes.push(
+            "a plane cannot see in-plane translation nor rotation about its normal: the robot shifted along a plane or \
+             turned about its normal touches it the same way, so base.x … base.yaw keep the robot file's values and \
+             each plane is identified by its height and two tilts only"
+                .to_string(),
+        );
+        if robot.plane_constraints().tilts() == 2 {
+            notes.push(
+                "with flush contact the contact point's offset within its own x-y plane and its turn about its own z \
+                 axis move it within the plane, which no contact sees"
+                    .into(),
+            );
+        }
+        if lengths {
+            notes.push(
+                "plane contacts alone cannot see the robot's scale: every length and each plane's height scaled \
+                 together leave every contact on its plane, so only the priors hold the lengths' common scale"
+                    .into(),
+            );
+        }
+    }
+    if robot.measures_fixed_points() {
+        notes.push(
+            "a fixed-point-only calibration cannot see the base frame: moving the robot together with every fixed \
+             point changes no residual, so base.x … base.yaw keep the robot file's values"
+                .to_string(),
+        );
+    }
+    if robot.measures_fixed_points() && robot.known_distances().is_empty() && lengths {
         notes.push(
             "without a known distance between two fixed points ([[measurement.distances]]) the robot's scale is not \
              observable: only the priors hold its lengths"

@@ -88,6 +88,9 @@ impl ParameterSpace {
         ParameterSpace {
             fixed_point_offset: params.len(),
             fixed_points: Vec::new(),
+            plane_offset: params.len(),
+            planes: Vec::new(),
+            plane_nominal: Vec::new(),
             params,
             n_chain,
             error_offsets,
@@ -120,7 +123,72 @@ impl ParameterSpace {
             }
             self.fixed_points.push(name.clone());
         }
+        self.plane_offset = self.params.len();
         self
+    }
+
+    /// The space of `robot` with the nuisance parameters of `samples`: their fixed points
+    /// ([`with_fixed_points`](Self::with_fixed_points)) and planes
+    /// ([`with_planes`](Self::with_planes)).
+    pub fn for_samples(robot: &Robot, samples: &[Sample]) -> Self {
+        ParameterSpace::new(robot)
+            .with_fixed_points(samples)
+            .with_planes(robot, samples)
+    }
+
+    /// The space with three parameters (`plane.<name>.height`, `.roll`, `.pitch`: a shift
+    /// along the normal, then turns about the plane's `x` and `y` axes; no prior) for every
+    /// plane `samples` name, in order of first appearance, as offsets from the robot file's
+    /// nominal pose of that plane or, when it has none, from the plane fitted in closed form to
+    /// where the robot file's model puts the plane's contacts ([`fit_plane`]).
+    pub fn with_planes(mut self, robot: &Robot, samples: &[Sample]) -> Self {
+        let nominal = robot.nominal_planes();
+        let contacts = (samples
+            .iter()
+            .any(|s| s.plane.as_ref().is_some_and(|p| !nominal.iter().any(|(n, _)| n == p))))
+        .then(|| contact_poses(robot, samples));
+        for name in samples.iter().filter_map(|s| s.plane.as_ref()) {
+            if self.planes.contains(name) {
+                continue;
+            }
+            let i = self.planes.len();
+            for (c, quantity) in [
+                ("height", Quantity::Length),
+                ("roll", Quantity::Angle),
+                ("pitch", Quantity::Angle),
+            ] {
+                self.params.push(SpaceParam {
+                    info: ParamInfo::new(format!("plane.{name}.{c}"), quantity, 0.0, f64::INFINITY),
+                    group: ParamGroup::Plane(i),
+                    model_type: String::new(),
+                });
+            }
+            self.planes.push(name.clone());
+            let pose = match (nominal.iter().find(|(n, _)| n == name), &contacts) {
+                (Some((_, t)), _) => *t,
+                (None, Some(contacts)) => {
+                    let rows = samples
+                        .iter()
+                        .zip(contacts)
+                        .filter(|(s, _)| s.plane.as_ref() == Some(name));
+                    let (points, axis) = rows.fold((Vec::new(), Vector3::zeros()), |(mut points, axis), (_, c)| {
+                        points.push(c.translation.vector);
+                        (points, axis + c.rotation * Vector3::z())
+                    });
+                    fit_plane(&points, &axis)
+                }
+                (None, None) => unreachable!("contacts are evaluated when a plane has no nominal"),
+            };
+            self.plane_nominal.push(pose);
+        }
+        self
+    }
+
+    /// Plane `i`'s pose (measurement frame) at `theta`: its nominal, shifted by `height` along
+    /// its normal, then turned by `roll` and `pitch`.
+    pub(super) fn plane_pose(&self, theta: &[f64], i: usize) -> Isometry3<f64> {
+        let v = &theta[self.plane_offset + 3 * i..][..3];
+        self.plane_nominal[i] * xyz_rpy([0.0, 0.0, v[0]], [v[1], v[2], 0.0])
     }
 
     /// Starting values of every parameter (SI; marker entries are offsets from the file's).
@@ -134,8 +202,8 @@ impl ParameterSpace {
     /// joints), `errors` (every error model), `all`, an error model's type name
     /// (e.g. `joint_compliance`), or a parameter name pattern with `*` wildcards (`j2.*`).
     /// Empty means `base, markers, geometry, errors`. What the robot file's `fixed` names is
-    /// left out. The fixed points of fixed-point measurements are always selected, and the base
-    /// frame never is then (fixed points cannot see it).
+    /// left out. The fixed points of fixed-point measurements and the planes of plane contacts
+    /// are always selected, and the base frame never is then (they cannot see it).
     pub fn select(&self, robot: &Robot, identify: &[String]) -> Result<Vec<usize>> {
         let default = ["base", "markers", "geometry", "errors"].map(String::from);
         let words: &[String] = if identify.is_empty() { &default } else { identify };
@@ -159,6 +227,7 @@ impl ParameterSpace {
                     "geometry" => p.group == ParamGroup::Geometry && on_measured_chain(&p.info.name),
                     "errors" => matches!(p.group, ParamGroup::ErrorModel(_)),
                     "fixed_points" => matches!(p.group, ParamGroup::FixedPoint(_)),
+                    "planes" => matches!(p.group, ParamGroup::Plane(_)),
                     "offsets" => {
                         p.group == ParamGroup::Geometry
                             && on_measured_chain(&p.info.name)
@@ -183,18 +252,18 @@ impl ParameterSpace {
                     what: "--identify".into(),
                     reason: format!(
                         "`{word}` matches no parameter; use base, markers, geometry, offsets, errors, fixed_points, \
-                         all, an error model of this robot ({types}), or a name pattern such as `j2.*`"
+                         planes, all, an error model of this robot ({types}), or a name pattern such as `j2.*`"
                     ),
                 });
             }
         }
         // What the robot file fixes is known: never refitted, whatever the words select.
         let fixed = robot.fixed();
-        let fixed_points = robot.measures_fixed_points();
+        let no_instrument = robot.measures_without_instrument();
         Ok((0..self.params.len())
             .filter(|&k| match self.params[k].group {
-                ParamGroup::FixedPoint(_) => true,
-                ParamGroup::Base if fixed_points => false,
+                ParamGroup::FixedPoint(_) | ParamGroup::Plane(_) => true,
+                ParamGroup::Base if no_instrument => false,
                 _ => chosen[k],
             })
             .filter(|&k| {
@@ -220,6 +289,7 @@ impl ParameterSpace {
             fixed_points: (0..self.fixed_points.len())
                 .map(|i| Vector3::from_column_slice(&theta[self.fixed_point_offset + 3 * i..][..3]))
                 .collect(),
+            planes: (0..self.planes.len()).map(|i| self.plane_pose(theta, i)).collect(),
         })
     }
 
@@ -272,6 +342,26 @@ impl ParameterSpace {
     }
 }
 
+/// The pose of every sample's measured point in its measurement frame as the robot file's
+/// model puts it.
+fn contact_poses(robot: &Robot, samples: &[Sample]) -> Vec<Isometry3<f64>> {
+    let mut ws = robot.workspace();
+    samples
+        .iter()
+        .map(|s| {
+            robot.forward_with_into(
+                robot.tree(),
+                robot.error_values(),
+                &s.q,
+                crate::robot::Conditions::of(s),
+                &mut ws,
+            );
+            let link = frame_link_pose(robot, robot.tree(), &ws);
+            robot.station_frame(s.station) * link.inverse() * ws.frames.point[s.point]
+        })
+        .collect()
+}
+
 /// Whether chain parameter `name` (`<joint>.<suffix>`) adds to its joint's value.
 pub(super) fn is_joint_offset(tree: &KinematicTree, name: &str) -> bool {
     let Some((joint, suffix)) = name.rsplit_once('.') else {
@@ -293,7 +383,7 @@ pub(super) fn base_xyz_rpy(t: &Isometry3<f64>) -> ([f64; 3], [f64; 3]) {
 /// The robot's parameter space with the fixed points of `samples` and the priors `params`
 /// asks for (scaled by its `prior_scale`, or none).
 pub(super) fn prior_space(robot: &Robot, params: &CalibrationParams, samples: &[Sample]) -> ParameterSpace {
-    let mut space = ParameterSpace::new(robot).with_fixed_points(samples);
+    let mut space = ParameterSpace::for_samples(robot, samples);
     for k in 0..space.params.len() {
         let group = space.prior_group(robot, k);
         let group_scale: f64 = params
@@ -320,6 +410,7 @@ impl ParameterSpace {
             ParamGroup::Base => PriorGroup::Frame,
             ParamGroup::Marker(_) => PriorGroup::Markers,
             ParamGroup::FixedPoint(_) => PriorGroup::FixedPoints,
+            ParamGroup::Plane(_) => PriorGroup::Planes,
             ParamGroup::ErrorModel(i) => PriorGroup::ErrorModel(i),
             ParamGroup::Geometry if is_joint_offset(robot.tree(), &p.info.name) => PriorGroup::JointOffsets,
             ParamGroup::Geometry if p.info.quantity == Quantity::Angle => PriorGroup::Angles,
@@ -380,6 +471,20 @@ pub(super) fn apply(robot: &Robot, space: &ParameterSpace, theta: &[f64]) -> Res
                 let (roll, pitch, yaw) = r.euler_angles();
                 p.rpy = [roll, pitch, yaw].map(|v| units.ang_out(v));
             }
+        }
+    }
+    // The identified planes become the model's nominal ones, so that `evaluate` scores rows
+    // of the same planes against them.
+    for i in 0..space.planes.len() {
+        let (xyz, rpy) = base_xyz_rpy(&space.plane_pose(theta, i));
+        let spec = crate::robot_file::PlaneSpec {
+            name: space.planes[i].clone(),
+            xyz: xyz.map(|v| units.len_out(v)),
+            rpy: rpy.map(|v| units.ang_out(v)),
+        };
+        match measurement.planes.iter_mut().find(|p| p.name == spec.name) {
+            Some(p) => *p = spec,
+            None => measurement.planes.push(spec),
         }
     }
     robot.rebuild(file)

@@ -1,0 +1,502 @@
+//! Plane contacts: a simulated truth recovered with its unknown planes, the residuals' Jacobian
+//! (and the frame link's) against finite differences, what a plane cannot see, bad files, and
+//! the command line round trip.
+
+use armcomp_core::Robot;
+use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, identifiability};
+use armcomp_core::geom::xyz_rpy;
+use armcomp_core::measurement::{CsvLayout, Sample, parse_csv};
+use armcomp_core::robot::Conditions;
+use armcomp_core::robot_file::{Format, RobotFile, SourceFile};
+use armcomp_core::simulate::{Contact, FixedPointParams, simulate_contacts};
+use nalgebra::{Isometry3, Vector3};
+
+use crate::common::{robot_from_toml, root};
+
+/// The Panda of the sockets' URDF pressing its ball frame on planes, with `measurement` lines
+/// added to its [measurement] table.
+fn panda_text(measurement: &str) -> String {
+    let urdf = root().join("tests/data/urdf/panda_sockets.urdf");
+    format!(
+        "name = \"panda-plane\"\nkinematics = {{ type = \"urdf\", path = \"{}\" }}\n\
+         points = [{{ name = \"ball\", link = \"ball_link\", xyz = [0.0, 0.0, 0.0] }}]\ntool = \"ball\"\n\
+         [measurement]\nkind = \"plane\"\nmarkers = [\"ball\"]\n{measurement}\n",
+        urdf.display()
+    )
+}
+
+fn panda(measurement: &str) -> Robot {
+    robot_from_toml(&panda_text(measurement))
+}
+
+/// The truth's planes (measurement frame): a table facing down onto the tool and a tilted one.
+fn planes() -> Vec<(String, Isometry3<f64>)> {
+    vec![
+        (
+            "table".into(),
+            xyz_rpy([0.5, 0.0, 0.15], [std::f64::consts::PI, 0.0, 0.0]),
+        ),
+        (
+            "ramp".into(),
+            xyz_rpy([0.35, 0.3, 0.25], [std::f64::consts::PI + 0.2, 0.15, 0.0]),
+        ),
+    ]
+}
+
+/// The robot file's nominal planes: the truth's, off by a few millimetres and tenths of a degree.
+const NOMINAL_PLANES: &str = "planes = [{ name = \"table\", xyz = [500.0, 0.0, 147.0], rpy = [180.3, 0.2, 0.0] }, \
+                              { name = \"ramp\", xyz = [350.0, 300.0, 253.0], rpy = [191.2, 8.3, 0.0] }]";
+
+fn truth_of(nominal: &Robot, changes: &[(&str, f64)]) -> Robot {
+    let space = ParameterSpace::new(nominal);
+    let mut theta = space.initial();
+    for (name, delta) in changes {
+        theta[space.index(name).unwrap_or_else(|| panic!("no parameter {name}"))] += delta;
+    }
+    space.apply(nominal, &theta).unwrap()
+}
+
+const CHANGES: [(&str, f64); 5] = [
+    ("panda_joint2.offset", 1.5e-3),
+    ("panda_joint4.offset", -1.0e-3),
+    ("panda_joint6.offset", 2.0e-3),
+    ("panda_joint3.y", 0.8e-3),
+    ("panda_joint5.y", -0.6e-3),
+];
+
+fn simulated(truth: &Robot, per_plane: usize, noise: f64, seed: u64) -> Vec<Sample> {
+    let contacts: Vec<(String, Contact)> = planes()
+        .into_iter()
+        .map(|(name, pose)| (name, Contact::Plane { pose, spread: 0.08 }))
+        .collect();
+    let params = FixedPointParams {
+        per_point: per_plane,
+        joint_noise_std: noise,
+        seed,
+    };
+    simulate_contacts(truth, &contacts, params).unwrap().samples
+}
+
+/// The tool's pose through `robot`'s rigid model, in the frame of `link` (the root's when
+/// `None`) seen through its measurement frame.
+fn contact(robot: &Robot, q: &[f64], link: Option<&str>) -> Isometry3<f64> {
+    let mut ws = robot.workspace();
+    let m = robot.markers()[0];
+    robot.forward_with_into(robot.tree(), robot.error_values(), q, Conditions::default(), &mut ws);
+    let frame = link.map_or(Isometry3::identity(), |l| {
+        let b = robot.tree().body_index(l).unwrap();
+        ws.frames.body[b] * robot.tree().bodies()[b].convention_frame
+    });
+    robot.t_meas_base() * frame.inverse() * ws.frames.point[m]
+}
+
+/// FIGAROH's gap: the height of `c` above `plane` and the roll and pitch of `plane⁻¹ · c`.
+fn gap(plane: &Isometry3<f64>, c: &Isometry3<f64>) -> [f64; 3] {
+    let rel = plane.inverse() * c;
+    let (roll, pitch, _) = rel.rotation.euler_angles();
+    [rel.translation.vector.z, roll, pitch]
+}
+
+#[test]
+fn a_plane_truth_is_recovered_with_its_planes() {
+    // No nominal planes: each starts from the plane fitted to its rows.
+    let nominal = panda("");
+    let truth = truth_of(&nominal, &CHANGES);
+    let noise = 2e-5; // rad per encoder: some 20 µm and 40 µrad at the contact
+    let samples = simulated(&truth, 40, noise, 3);
+    assert!(samples.iter().all(|s| s.plane.is_some()));
+    // The truth's contacts lie on their planes, flush.
+    let exact = simulated(&truth, 3, 0.0, 4);
+    for s in &exact {
+        let plane = planes()
+            .into_iter()
+            .find(|(n, _)| Some(n) == s.plane.as_ref())
+            .unwrap()
+            .1;
+        let [h, r, p] = gap(&plane, &contact(&truth, &s.q, None));
+        assert!(h.abs() < 1e-8 && r.abs() < 1e-8 && p.abs() < 1e-8, "{h} {r} {p}");
+    }
+    let cal = calibrate(
+        &nominal,
+        &samples,
+        &CalibrationParams {
+            identify: CHANGES.iter().map(|(n, _)| n.to_string()).collect(),
+            measurement_std: 3e-5,
+            orientation_std: 6e-5,
+            ..CalibrationParams::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let report = &cal.report;
+    for (name, delta) in CHANGES {
+        let r = report.params.iter().find(|r| r.name == name).unwrap();
+        let err = (r.value - r.initial - delta).abs();
+        assert!(
+            err < 4.0 * r.std && r.std < 0.25 * delta.abs(),
+            "{name}: moved by {}, truth {delta} (std {})",
+            r.value - r.initial,
+            r.std
+        );
+    }
+    assert!(report.params.iter().all(|p| !p.name.starts_with("base.")));
+    assert!(report.params.iter().any(|p| p.name == "plane.ramp.pitch"));
+    // The identified planes (the model file's) against the truth's: normals within 0.1 mrad,
+    // the truth's origin within 0.05 mm of the identified plane.
+    let identified = cal.robot.nominal_planes();
+    for (name, pose) in planes() {
+        let found = identified.iter().find(|(n, _)| *n == name).unwrap().1;
+        let (n_true, n_found) = (pose.rotation * Vector3::z(), found.rotation * Vector3::z());
+        let angle = n_true.angle(&n_found);
+        let offset = n_found.dot(&(pose.translation.vector - found.translation.vector));
+        assert!(
+            angle < 1e-4 && offset.abs() < 5e-5,
+            "{name}: normal off by {angle} rad, origin {offset} m"
+        );
+    }
+    // The height residual ends at the noise: the RMS over σ near one.
+    assert!(report.rms_over_noise < 1.5, "{}", report.rms_over_noise);
+}
+
+/// Residuals as the problem states them (σ = 1): heights, then roll and pitch per sample.
+fn residuals(robot: &Robot, space: &ParameterSpace, theta: &[f64], samples: &[Sample], link: Option<&str>) -> Vec<f64> {
+    let model = space.apply(robot, theta).unwrap();
+    let planes = model.nominal_planes();
+    let gaps: Vec<[f64; 3]> = samples
+        .iter()
+        .map(|s| {
+            let plane = planes.iter().find(|(n, _)| Some(n) == s.plane.as_ref()).unwrap().1;
+            gap(&plane, &contact(&model, &s.q, link))
+        })
+        .collect();
+    gaps.iter()
+        .map(|g| g[0])
+        .chain(gaps.iter().flat_map(|g| [g[1], g[2]]))
+        .collect()
+}
+
+/// The Jacobian calibration linearised at its (unconverged) end, against central differences of
+/// the residuals `residuals` computes, whitened as calibration whitens them.
+fn check_jacobian(robot: &Robot, samples: &[Sample], link: Option<&str>, names: &[&str]) {
+    let (sigma, sigma_rot) = (1e-3, 1e-2);
+    let cal = calibrate(
+        robot,
+        samples,
+        &CalibrationParams {
+            identify: names.iter().map(|n| n.to_string()).collect(),
+            measurement_std: sigma,
+            orientation_std: sigma_rot,
+            max_iterations: 2,
+            restarts: 0,
+            ..CalibrationParams::default()
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    let lin = &cal.linearisation;
+    let space = ParameterSpace::for_samples(robot, samples);
+    let n = samples.len();
+    assert_eq!(lin.jacobian.nrows(), 3 * n, "a height and two tilts a sample");
+    let whiten = |r: Vec<f64>| -> Vec<f64> {
+        r.iter()
+            .enumerate()
+            .map(|(i, v)| v / if i < n { sigma } else { sigma_rot })
+            .collect()
+    };
+    for name in names {
+        let k = space.index(name).unwrap_or_else(|| panic!("no parameter {name}"));
+        let c = lin
+            .free
+            .iter()
+            .position(|&f| f == k)
+            .unwrap_or_else(|| panic!("{name} is fitted"));
+        let h = 1e-6;
+        let at = |d: f64| {
+            let mut theta = lin.theta.clone();
+            theta[k] += d;
+            whiten(residuals(robot, &space, &theta, samples, link))
+        };
+        let (plus, minus) = (at(h), at(-h));
+        let scale = plus
+            .iter()
+            .zip(&minus)
+            .fold(0.0f64, |m, (a, b)| m.max(((a - b) / (2.0 * h)).abs()));
+        assert!(scale > 1e-3, "{name} moves the residuals");
+        for (i, (a, b)) in plus.iter().zip(&minus).enumerate() {
+            let fd = (a - b) / (2.0 * h);
+            assert!(
+                (lin.jacobian[(i, c)] - fd).abs() < 1e-5 * scale,
+                "{name}, row {i}: analytic {} vs finite differences {fd}",
+                lin.jacobian[(i, c)]
+            );
+        }
+    }
+}
+
+#[test]
+fn the_plane_jacobian_matches_finite_differences() {
+    // The fit stopped after two steps: the planes' tilts and the marker's turn away from zero.
+    let robot = panda(NOMINAL_PLANES);
+    let samples = simulated(&truth_of(&robot, &CHANGES), 6, 0.0, 5);
+    check_jacobian(
+        &robot,
+        &samples,
+        None,
+        &[
+            "panda_joint2.offset",
+            "panda_joint3.y",
+            "panda_joint5.rot_u",
+            "marker.ball.z",
+            "marker.ball.rx",
+            "plane.table.height",
+            "plane.table.roll",
+            "plane.table.pitch",
+            "plane.ramp.pitch",
+        ],
+    );
+}
+
+#[test]
+fn the_frame_link_jacobian_covers_both_paths() {
+    // TALOS measured from its left sole, FIGAROH's table chain: the leg's joints move the frame,
+    // the torso's and the arm's the gripper (random postures: the residuals are general).
+    let urdf = root().join("tests/data/urdf/talos_full_v2.urdf");
+    let robot = robot_from_toml(&format!(
+        "name = \"talos-table\"\nkinematics = {{ type = \"urdf\", path = \"{}\" }}\n\
+         points = [{{ name = \"contact\", link = \"gripper_left_base_link\", xyz = [0.0, 0.0, -0.12] }}]\n\
+         tool = \"contact\"\n[measurement]\nkind = \"plane\"\nmarkers = [\"contact\"]\n\
+         frame_link = \"left_sole_link\"\nplanes = [{{ name = \"table\", xyz = [0.3, 0.28, 1.0] }}]\n",
+        urdf.display()
+    ));
+    let samples: Vec<Sample> = crate::common::random_configurations(&robot, 8, 9)
+        .into_iter()
+        .map(|q| Sample {
+            q,
+            point: robot.markers()[0],
+            position: Vector3::zeros(),
+            orientation: None,
+            payload: None,
+            temperature: None,
+            torque: None,
+            fixed_point: None,
+            plane: Some("table".into()),
+            gravity: None,
+            station: 0,
+        })
+        .collect();
+    check_jacobian(
+        &robot,
+        &samples,
+        Some("left_sole_link"),
+        &[
+            "leg_left_2_joint.offset",
+            "leg_left_4_joint.x",
+            "torso_2_joint.offset",
+            "arm_left_3_joint.offset",
+            "arm_left_5_joint.y",
+            "plane.table.roll",
+        ],
+    );
+}
+
+#[test]
+fn identifiability_says_what_a_plane_cannot_see() {
+    let robot = panda("");
+    let samples = simulated(&truth_of(&robot, &CHANGES), 10, 0.0, 6);
+    let report = identifiability(&robot, &samples, &CalibrationParams::default()).unwrap();
+    let m = &report.message;
+    assert!(
+        m.contains("cannot see in-plane translation nor rotation about its normal"),
+        "{m}"
+    );
+    assert!(m.contains("scale"), "{m}");
+    // Flush contact hides the contact point's in-plane offset: the rank analysis finds it.
+    assert!(
+        report
+            .deficiencies
+            .iter()
+            .any(|d| d.combination.iter().any(|(n, _)| n == "marker.ball.rz")),
+        "{:?}",
+        report.deficiencies
+    );
+}
+
+fn robot_error(text: &str) -> String {
+    let src = SourceFile {
+        path: "bad.toml".into(),
+        text: text.into(),
+        format: Format::Toml,
+    };
+    match src.parse::<RobotFile>() {
+        Err(e) => e.to_string(),
+        Ok(file) => match Robot::from_source(file, &src) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("the file is refused"),
+        },
+    }
+}
+
+#[test]
+fn bad_plane_files_are_refused_with_their_place() {
+    let twice = robot_error(&panda_text("planes = [{ name = \"t\" }, { name = \"t\" }]"));
+    assert!(
+        twice.contains("bad.toml") && twice.contains("measurement.planes[1].name") && twice.contains("twice"),
+        "{twice}"
+    );
+    let constrain = robot_error(&panda_text("constrain = [\"height\", \"height\"]"));
+    assert!(constrain.contains("measurement.constrain[1]"), "{constrain}");
+    let unknown = robot_error(&panda_text("constrain = [\"yaw\"]"));
+    assert!(unknown.contains("bad.toml") && unknown.contains("yaw"), "{unknown}");
+    let root_link = robot_error(&panda_text("frame_link = \"panda_link0\""));
+    assert!(
+        root_link.contains("measurement.frame_link") && root_link.contains("root"),
+        "{root_link}"
+    );
+    let missing = robot_error(&panda_text("frame_link = \"nowhere\""));
+    assert!(missing.contains("`nowhere` is not a link"), "{missing}");
+    let point =
+        robot_error(&panda_text("").replace("kind = \"plane\"", "kind = \"point\"\nplanes = [{ name = \"t\" }]"));
+    assert!(
+        point.contains("measurement.planes[0]") && point.contains("plane contacts touch"),
+        "{point}"
+    );
+
+    // Measurement files: the plane column missing, or empty on a row.
+    let robot = panda("");
+    let layout: CsvLayout<'_> = robot.csv_layout();
+    let joints: Vec<String> = robot.csv_joint_names();
+    let header = joints.iter().map(|j| format!("{j}[rad]")).collect::<Vec<_>>().join(",");
+    let zeros = vec!["0.1"; joints.len()].join(",");
+    let path = std::path::Path::new("contacts.csv");
+    let missing = parse_csv(&format!("{header}\n{zeros}\n"), path, &layout)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        missing.contains("contacts.csv") && missing.contains("missing column `plane`"),
+        "{missing}"
+    );
+    let empty = parse_csv(&format!("{header},plane\n{zeros},table\n{zeros},\n"), path, &layout)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        empty.contains("contacts.csv") && empty.contains("contacts.csv:3") && empty.contains("column `plane` is empty"),
+        "{empty}"
+    );
+    let positions = parse_csv(&format!("{header},plane,x,y,z\n{zeros},table,1,2,3\n"), path, &layout)
+        .unwrap_err()
+        .to_string();
+    assert!(positions.contains("gives no measured position"), "{positions}");
+}
+
+#[test]
+fn simulate_calibrate_and_evaluate_planes_on_the_command_line() {
+    let s = crate::common::Scratch::new("planes");
+    let write = |name: &str, robot: &Robot| {
+        let path = s.0.join(name);
+        std::fs::write(&path, robot.to_file().to_text_for(&path).unwrap()).unwrap();
+        path.display().to_string()
+    };
+    let nominal = panda("");
+    let truth = write("truth.toml", &truth_of(&nominal, &CHANGES));
+    let nominal = write("nominal.toml", &nominal);
+    let data = s.0.join("data.csv").display().to_string();
+    let model = s.0.join("model.toml").display().to_string();
+    let run = |args: &[&str]| {
+        let (code, out, err) = crate::cli::armcomp(args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        out
+    };
+    run(&[
+        "simulate",
+        "--robot",
+        &truth,
+        "--plane",
+        "table=500,0,150,180,0,0",
+        "--plane",
+        "ramp=350,300,250,191.46,8.59,0",
+        "--n",
+        "30",
+        "--joint-noise-deg",
+        "0.001",
+        "--seed",
+        "2",
+        "--out",
+        &data,
+    ]);
+    assert!(
+        std::fs::read_to_string(&data)
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",plane")
+    );
+    run(&[
+        "calibrate",
+        "--robot",
+        &nominal,
+        "--data",
+        &data,
+        "--identify",
+        &CHANGES.map(|(n, _)| n).join(","),
+        "--noise-mm",
+        "0.02",
+        "--out",
+        &model,
+    ]);
+    let planes = |model: &str| -> serde_json::Value {
+        let json: serde_json::Value =
+            serde_json::from_str(&run(&["evaluate", "--model", model, "--data", &data, "--json"])).unwrap();
+        json["planes"].clone()
+    };
+    let (before, after) = (planes(&nominal), planes(&model));
+    // The nominal model names no plane: each is fitted to the rows; the model's are identified.
+    assert_eq!(before["planes"][0]["fitted"], true);
+    assert_eq!(after["planes"][1]["fitted"], false);
+    assert_eq!(after["planes"][1]["name"], "ramp");
+    let (b, a) = (before["rms_mm"].as_f64().unwrap(), after["rms_mm"].as_f64().unwrap());
+    assert!(
+        b > 0.2,
+        "the truth's contacts seen through the nominal model: {b} mm off their planes"
+    );
+    assert!(a < 0.05, "calibrated: {a} mm (nominal {b} mm)");
+    let tilt = after["planes"][0]["roll_rms_deg"].as_f64().unwrap();
+    assert!(tilt < 0.01, "calibrated roll {tilt} deg");
+}
+
+#[test]
+fn the_diagnosis_the_ladder_and_the_prior_choice_refuse_plane_rows() {
+    let robot = panda("");
+    let samples = simulated(&truth_of(&robot, &CHANGES), 4, 0.0, 8);
+    let prior = armcomp_core::prior_choice::choose_prior_scale(
+        &robot,
+        &samples,
+        &CalibrationParams::default(),
+        &[0.5, 1.0],
+        &armcomp_core::split::FoldPlan {
+            k: 2,
+            seed: 0,
+            by: armcomp_core::split::FoldBy::Poses,
+        },
+        &|_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    let ladder_params = armcomp_core::ladder::LadderParams {
+        calibration: CalibrationParams::default(),
+        noise_declared: false,
+        folds: 2,
+        seed: 0,
+        fold_groups: None,
+        predictor: None,
+    };
+    let ladder = armcomp_core::ladder::climb(&robot, &samples, &ladder_params, &|_| {})
+        .unwrap_err()
+        .to_string();
+    let diagnosis = armcomp_core::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
+        .unwrap_err()
+        .to_string();
+    for e in [prior, ladder, diagnosis] {
+        assert!(e.contains("sample 1") && e.contains("plane-contact measurement"), "{e}");
+    }
+}
