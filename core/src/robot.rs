@@ -62,6 +62,8 @@ pub struct Robot {
     t_meas_base: Isometry3<f64>,
     /// The measurement frames of several stations (the first is `t_meas_base`); empty for one.
     stations: Vec<Station>,
+    /// The body of `[measurement] frame_link`, resolved once: the calibration asks per sample.
+    frame_link: Option<usize>,
     markers: Vec<usize>,
     /// The sensor giving the direction of gravity per measurement row, if the file has one.
     gravity_sensor: Option<GravitySensor>,
@@ -202,6 +204,9 @@ impl Robot {
         let gravity_sensor = resolve_sensors(&file, &base_tree, &mut issues);
         let stations = station_frames(&file, &units, &mut issues);
         let t_meas_base = stations.first().map_or(t_meas_base, |s| s.frame);
+        let frame_link = (file.measurement.as_ref())
+            .and_then(|m| m.frame_link.as_ref())
+            .and_then(|name| base_tree.body_index(name));
 
         // A predictor that names files (a run-time library) finds them beside this file, as
         // error models do, and not in the working folder it is later fitted from.
@@ -235,6 +240,7 @@ impl Robot {
             error_values: Vec::new(),
             t_meas_base,
             stations,
+            frame_link,
             markers,
             gravity_sensor,
             hold,
@@ -525,8 +531,7 @@ impl Robot {
     /// The link the measurements are expressed in (`[measurement] frame_link`), when it is
     /// not the root.
     pub fn frame_link(&self) -> Option<usize> {
-        let name = self.file.measurement.as_ref()?.frame_link.as_ref()?;
-        self.tree.body_index(name)
+        self.frame_link
     }
 
     /// The known distances between fixed points the robot file declares.

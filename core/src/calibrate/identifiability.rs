@@ -315,7 +315,7 @@ pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationPa
     let (d, e, _) = problem.predict(&theta)?;
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
-    note_fixed_points(robot, &space, &selected, &mut report);
+    note_measurement_kinds(robot, &space, &selected, &mut report);
     let cols: Vec<usize> = free
         .iter()
         .map(|k| {

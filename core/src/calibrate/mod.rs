@@ -900,29 +900,26 @@ impl PlaneGap {
         let yz = m.y * m.y + m.z * m.z;
         let d_roll = (m.z * dm.y - m.y * dm.z) / yz;
         let d_pitch = -dm.x / yz.sqrt();
-        let mut out = [0.0; 2];
-        let mut k = 0;
-        for (on, v) in [(c.roll, d_roll), (c.pitch, d_pitch)] {
-            if on {
-                out[k] = v / sigma_rot;
-                k += 1;
-            }
-        }
-        out
+        constrained(c, [d_roll / sigma_rot, d_pitch / sigma_rot])
     }
 
     /// The constrained tilts, whitened, in the order roll, pitch; unused entries zero.
     fn tilts(&self, c: &PlaneConstraints, sigma_rot: f64) -> [f64; 2] {
-        let mut out = [0.0; 2];
-        let mut k = 0;
-        for (on, v) in [(c.roll, self.roll), (c.pitch, self.pitch)] {
-            if on {
-                out[k] = v / sigma_rot;
-                k += 1;
-            }
-        }
-        out
+        constrained(c, [self.roll / sigma_rot, self.pitch / sigma_rot])
     }
+}
+
+/// The entries of `[roll, pitch]` that `c` constrains, packed to the front; the rest zero.
+fn constrained(c: &PlaneConstraints, [roll, pitch]: [f64; 2]) -> [f64; 2] {
+    let mut out = [0.0; 2];
+    let mut k = 0;
+    for (on, v) in [(c.roll, roll), (c.pitch, pitch)] {
+        if on {
+            out[k] = v;
+            k += 1;
+        }
+    }
+    out
 }
 
 /// The plane through `points` (measurement frame, m) in closed form, its normal its `z` axis:
@@ -1096,7 +1093,7 @@ pub fn calibrate(
             });
         }
     }
-    check_fixed_points(robot, samples)?;
+    check_measurement_kinds(robot, samples)?;
     let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
     let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
@@ -1148,7 +1145,7 @@ pub fn calibrate(
         free,
         held,
     } = assess(&space, &jac0, &selected, params.rank_tolerance);
-    note_fixed_points(robot, &space, &selected, &mut identifiability);
+    note_measurement_kinds(robot, &space, &selected, &mut identifiability);
     let mut held_space = space.clone();
     for &k in &held {
         let info = &mut held_space.params[k].info;
@@ -1456,7 +1453,7 @@ fn stats(targets: &[Vector3<f64>], predicted: &[Vector3<f64>]) -> ErrorStats {
 /// Refuses fixed-point or plane samples on a robot that measures something else and the
 /// reverse, known distances naming a fixed point the samples lack, and a frame link on a robot
 /// with error models (whose deformation of the frame link's path the Jacobian leaves out).
-fn check_fixed_points(robot: &Robot, samples: &[Sample]) -> Result<()> {
+fn check_measurement_kinds(robot: &Robot, samples: &[Sample]) -> Result<()> {
     let planes = robot.measures_planes();
     if let Some(i) = samples.iter().position(|s| s.plane.is_some() != planes) {
         return Err(Error::InvalidArgument {
@@ -1519,7 +1516,12 @@ fn check_fixed_points(robot: &Robot, samples: &[Sample]) -> Result<()> {
 /// (the robot shifted along it or turned about its normal touches it the same way), and plane
 /// contacts alone cannot see the scale (every length and the planes' heights scaled together
 /// leave every contact on its plane).
-fn note_fixed_points(robot: &Robot, space: &ParameterSpace, selected: &[usize], report: &mut IdentifiabilityReport) {
+fn note_measurement_kinds(
+    robot: &Robot,
+    space: &ParameterSpace,
+    selected: &[usize],
+    report: &mut IdentifiabilityReport,
+) {
     let lengths = selected
         .iter()
         .any(|&k| space.params[k].group == ParamGroup::Geometry && space.params[k].info.quantity == Quantity::Length);
