@@ -45,6 +45,13 @@
 //!
 //! Every fold calibration starts from the robot file as given plus the accepted effects at
 //! their neutral values, so no held-out pose ever influences a fold's start.
+//!
+//! Gross errors (a marker seen through a broken line of sight) would pull every fit and
+//! dominate every held-out score, hiding the effect the other samples show: the samples the
+//! model as given, fitted to all of them, leaves beyond [`crate::calibrate::GROSS_ERROR`]
+//! robust noises are left out of the search and listed
+//! ([`DiagnoseParams::exclude_gross_errors`]); a residual that drifts with the sample order is
+//! reported as a drift of the instrument, not searched for among the robot's effects.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -53,7 +60,9 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, ParamResult, calibrate, register_held_out_stations, score_test};
+use crate::calibrate::{
+    CalibrationParams, Drift, Outlier, ParamResult, calibrate, register_held_out_stations, score_test,
+};
 use crate::candidate::Candidate;
 use crate::error::{Error, Result};
 use crate::evaluate::{ErrorStats, position_errors};
@@ -106,6 +115,10 @@ pub struct DiagnoseParams {
     /// Hold out whole groups in each fold: a name (a CSV column) and each sample's group;
     /// `None` folds by station for data from several, else by pose.
     pub fold_groups: Option<(String, Vec<usize>)>,
+    /// Leave out the samples that the model as given, fitted to all of them, leaves far
+    /// beyond the noise (see [`crate::calibrate::gross_errors`]); they are listed in
+    /// [`DiagnosisReport::gross_errors`] either way.
+    pub exclude_gross_errors: bool,
 }
 
 impl Default for DiagnoseParams {
@@ -118,6 +131,7 @@ impl Default for DiagnoseParams {
             max_steps: 5,
             exhaustive: false,
             fold_groups: None,
+            exclude_gross_errors: true,
         }
     }
 }
@@ -241,8 +255,18 @@ pub struct LearnableResidual {
 /// What the diagnosis found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DiagnosisReport {
-    /// Measured positions used.
+    /// Measured positions used (those given, less the gross errors left out).
     pub n_samples: usize,
+    /// The samples (indices into those given) that the model as given, fitted to all of them,
+    /// leaves far beyond the noise, largest first; left out of the search when
+    /// [`DiagnoseParams::exclude_gross_errors`].
+    pub gross_errors: Vec<Outlier>,
+    /// Whether the gross errors were left out.
+    pub gross_errors_excluded: bool,
+    /// A residual of the model as given that changes steadily with the sample order: an
+    /// instrument drifting over the session (or poses measured in workspace order), which no
+    /// effect of the robot explains.
+    pub drift: Option<Drift>,
     /// Folds of the held-out score.
     pub folds: usize,
     /// What each fold held out together: `pose`, or `station` for data from several.
@@ -258,7 +282,7 @@ pub struct DiagnosisReport {
     pub final_model: FinalModel,
     /// What a residual predictor learns of the rest, when one was given.
     pub learnable_residual: Option<LearnableResidual>,
-    /// Held-out error norms (mm) per sample of the initial model and after each step.
+    /// Held-out error norms (mm) per sample used of the initial model and after each step.
     #[serde(skip)]
     pub heldout_norms_mm: Vec<Vec<f64>>,
     /// Whether a stop request ([`crate::interrupt`]) ended the search early: the steps are
@@ -323,15 +347,32 @@ pub fn diagnose(
             reason: format!("must be between 0 and 1, got {}", params.min_rms_reduction),
         });
     }
+    let given = robot.error_models().len();
+    // The robot as given plus the accepted effects at their neutral values.
+    let mut model = robot.rebuild(robot.to_file())?;
+    let first = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
+    let gross_errors = first.report.outliers;
+    let drift = first.report.drift;
+    let exclude = params.exclude_gross_errors && !gross_errors.is_empty();
+    let (kept, fold_groups) = if exclude {
+        let keep: Vec<usize> = (0..samples.len())
+            .filter(|i| !gross_errors.iter().any(|o| o.sample == *i))
+            .collect();
+        let groups = params
+            .fold_groups
+            .clone()
+            .map(|(name, g)| (name, keep.iter().map(|&i| g[i]).collect()));
+        (subset(samples, &keep), groups)
+    } else {
+        (samples.to_vec(), params.fold_groups.clone())
+    };
+    let samples = &kept[..];
     let (splits, folding) = crate::split::folds(
         samples,
         params.folds,
         params.seed,
-        &FoldBy::choose(samples, params.fold_groups.clone()),
+        &FoldBy::choose(samples, fold_groups),
     )?;
-    let given = robot.error_models().len();
-    // The robot as given plus the accepted effects at their neutral values.
-    let mut model = robot.rebuild(robot.to_file())?;
     // A counter of the stage's fold calibrations that reports each.
     let stage_counter = |stage: DiagnoseStage, total: usize| {
         progress(DiagnoseProgress { stage, done: 0, total });
@@ -351,7 +392,11 @@ pub fn diagnose(
     let initial = ErrorStats::from_errors(&current.errors);
     let initial_residuals = describe_residuals(robot, samples, &current.errors);
     let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
-    let mut fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
+    let mut fitted = if exclude {
+        calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot
+    } else {
+        first.robot
+    };
     let mut steps: Vec<DiagnosisStep> = Vec::new();
     let mut last_ranking = Vec::new();
     let mut interrupted = false;
@@ -497,6 +542,9 @@ pub fn diagnose(
     };
     let report = DiagnosisReport {
         n_samples: samples.len(),
+        gross_errors,
+        gross_errors_excluded: exclude,
+        drift,
         folds: folding.folds,
         grouped_by: folding.grouped_by,
         initial,

@@ -1,7 +1,7 @@
 //! `calibrate`: identification from measurements, as `armcomp calibrate` does it.
 
 use armcomp::ops::calibrate::Prior;
-use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::calibrate::{CalibrationParams, Loss};
 use pyo3::prelude::*;
 
 use crate::errors::{IntoPy, input_error};
@@ -22,9 +22,10 @@ fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
 /// `armcomp calibrate --json` prints) and whether the fit ended far above the declared noise.
 /// Without `noise_mm` the noise is estimated from the data with the fit. `progress`, when
 /// given, is called as `progress("prior scale", done, total)` after every fit of the prior's
-/// cross-validation (`prior = "auto"`).
+/// cross-validation (`prior = "auto"`). `loss`: `"squared"` (least squares) or `"huber"`
+/// (squared up to 3 robust noises, linear beyond: gross errors pull the fit little).
 #[pyfunction]
-#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0, progress = None))]
+#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0, progress = None, loss = "squared"))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -37,7 +38,20 @@ pub fn calibrate(
     restarts: usize,
     seed: u64,
     progress: Option<Py<PyAny>>,
+    loss: &str,
 ) -> PyResult<(PyRobot, String, bool)> {
+    let loss = match loss {
+        "squared" => Loss::Squared,
+        "huber" => Loss::Huber,
+        other => {
+            return Err(input_error(
+                &format!("unknown loss `{other}`; expected \"squared\" or \"huber\""),
+                None,
+                None,
+                Some("loss"),
+            ));
+        }
+    };
     let prior = match prior {
         Some(p) => self::prior(p)?,
         None => Prior::Scale(1.0),
@@ -50,6 +64,7 @@ pub fn calibrate(
         max_iterations,
         restarts,
         seed,
+        loss,
         ..CalibrationParams::default()
     };
     let run = crate::interrupt::run(py, || {

@@ -12,9 +12,11 @@ use crate::robot::PyRobot;
 /// Diagnoses `robot` on `data`; returns the improved model (found effects added, calibrated
 /// on all the data) and the report as JSON text (what `armcomp diagnose --json` prints).
 /// `progress`, when given, is called as `progress(stage, done, total)` after every fold
-/// calibration (`stage`: "model as given", "effect N", "learnable residual").
+/// calibration (`stage`: "model as given", "effect N", "learnable residual"). Rows the model
+/// as given leaves far beyond the noise are left out of the search (`keep_outliers=True`
+/// keeps them); the report lists them (`gross_errors`, by sample) either way.
 #[pyfunction]
-#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp", progress = None))]
+#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp", progress = None, keep_outliers = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
@@ -28,6 +30,7 @@ pub fn diagnose(
     identify: Option<Vec<String>>,
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
+    keep_outliers: bool,
 ) -> PyResult<(PyRobot, String)> {
     let learnable_by = match predictor {
         Some("gp") => LearnableBy::Gp,
@@ -54,6 +57,7 @@ pub fn diagnose(
         },
         min_rms_reduction: min_reduction_percent / 100.0,
         max_steps,
+        exclude_gross_errors: !keep_outliers,
         ..DiagnoseParams::default()
     };
     let diagnosis = crate::interrupt::run(py, || {
@@ -67,6 +71,6 @@ pub fn diagnose(
         })
     })?
     .py()?;
-    let json = serde_json::to_string(&diagnosis.report).expect("the report serialises");
+    let json = armcomp::ops::diagnose::to_json(&diagnosis.report, &set.rows).to_string();
     Ok((PyRobot::wrap(diagnosis.robot), json))
 }

@@ -2,11 +2,20 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp::ops::calibrate::Prior;
-use armcomp_core::calibrate::{CalibrationParams, CalibrationReport};
+use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, Loss};
 use armcomp_core::io::write_atomic;
 use armcomp_core::param::Quantity;
 
 use super::{check_output, read_stations};
+
+/// `--loss`: the cost each row's residual adds.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum LossArg {
+    /// Least squares.
+    Squared,
+    /// Huber's loss: squared near the fit, linear far from it.
+    Huber,
+}
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -58,6 +67,11 @@ pub struct Args {
     /// axis), and write that model; the rows are listed either way.
     #[arg(long)]
     exclude_outliers: bool,
+    /// How each row's residual enters the fit: `squared` (least squares) or `huber` (squared
+    /// up to 3 times the robust noise per axis, linear beyond, so that a few gross errors pull
+    /// the fit no harder than a row at that threshold).
+    #[arg(long, value_enum, default_value_t = LossArg::Squared)]
+    loss: LossArg,
     /// Print the report as JSON on stdout.
     #[arg(long)]
     json: bool,
@@ -77,6 +91,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         max_iterations: args.max_iterations,
         restarts: args.restarts,
         seed: args.seed,
+        loss: match args.loss {
+            LossArg::Squared => Loss::Squared,
+            LossArg::Huber => Loss::Huber,
+        },
         ..CalibrationParams::default()
     };
     let bar = indicatif::ProgressBar::new(params.max_iterations as u64);
@@ -171,6 +189,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         print_report(report);
         print_gross_errors(&outlier_rows, report, args.exclude_outliers);
+        if report.loss == Loss::Huber {
+            println!(
+                "Huber loss: {} of {} rows weighed less (residual over {} times the robust noise per axis)",
+                report.downweighted,
+                report.n_samples,
+                armcomp_core::calibrate::HUBER_K
+            );
+        }
         if let Some(p) = &report.fitted_predictor {
             let verb = if p.kept { "kept" } else { "dropped" };
             println!("fitted predictor {verb}: {}", p.reason);

@@ -72,6 +72,11 @@ pub struct Args {
     /// an extension the platform's naming applies (`libNAME.so`, ...).
     #[arg(long = "library", value_name = "LIB")]
     libraries: Vec<PathBuf>,
+    /// Search with the rows the model as given leaves far beyond the noise (over 5 times the
+    /// robust noise per axis: a broken line of sight, a typo) instead of leaving them out;
+    /// they are listed either way.
+    #[arg(long)]
+    keep_outliers: bool,
     #[command(flatten)]
     group: super::GroupBy,
 }
@@ -108,6 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         min_rms_reduction: args.min_reduction_percent / 100.0,
         max_steps: args.max_steps,
         exhaustive: args.exhaustive,
+        exclude_gross_errors: !args.keep_outliers,
     };
     let learnable_by = match args.predictor {
         Predictor::Gp => LearnableBy::Gp,
@@ -146,10 +152,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(dir) = &args.report {
         armcomp::diagnosis_report::write(dir, report)?;
     }
+    // The gross errors as data rows (0-based, as --rows counts them).
+    let gross_rows = armcomp::ops::diagnose::gross_error_rows(report, &data.rows);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(report)?);
+        let value = armcomp::ops::diagnose::to_json(report, &data.rows);
+        println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
-        print_report(report);
+        print_report(report, &gross_rows);
         if let Some(out) = &args.out {
             println!("wrote {}", out.display());
         }
@@ -219,7 +228,28 @@ fn print_ranking(ranking: &[RankedCandidate]) {
     }
 }
 
-fn print_report(r: &DiagnosisReport) {
+fn print_report(r: &DiagnosisReport, gross_rows: &[usize]) {
+    if !gross_rows.is_empty() {
+        let listed: Vec<String> = gross_rows.iter().map(|r| r.to_string()).collect();
+        println!(
+            "gross errors (residual of the model as given over {} times the robust noise) in data row(s) {}{}",
+            armcomp_core::calibrate::GROSS_ERROR,
+            listed.join(", "),
+            if r.gross_errors_excluded {
+                " (0-based as --rows counts): left out of the search (--keep-outliers keeps them)"
+            } else {
+                " (0-based as --rows counts): kept"
+            }
+        );
+    }
+    if let Some(d) = &r.drift {
+        println!(
+            "the residual drifts with the row order: {:+.3}, {:+.3}, {:+.3} mm (x, y, z) from the first row to the last \
+             (t = {:.1}): an instrument or frame drifting over the session, or poses measured in workspace order, not an \
+             effect of the robot",
+            d.change_mm[0], d.change_mm[1], d.change_mm[2], d.t
+        );
+    }
     println!(
         "{} measured positions, held-out scores (mean / RMS / max in mm; folds: {}, grouped by {})",
         r.n_samples, r.folds, r.grouped_by

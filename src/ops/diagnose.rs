@@ -1,7 +1,7 @@
 //! `diagnose`: the residual predictor that scores what remains learnable, around
 //! [`armcomp_core::diagnose::diagnose`].
 
-use armcomp_core::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, diagnose};
+use armcomp_core::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, DiagnosisReport, diagnose};
 use armcomp_core::measurement::Sample;
 use armcomp_core::{PredictorSpec, Robot};
 
@@ -36,4 +36,18 @@ pub fn run(
         LearnableBy::None => None,
     };
     diagnose(robot, samples, &crate::plugins(), predictor, params, progress)
+}
+
+/// The data rows (as `--rows` counts them) of the diagnosis' gross errors, largest first;
+/// `rows` gives each sample's row.
+pub fn gross_error_rows(report: &DiagnosisReport, rows: &[usize]) -> Vec<usize> {
+    report.gross_errors.iter().map(|o| rows[o.sample]).collect()
+}
+
+/// The report as `armcomp diagnose --json` prints it: with `gross_error_rows`.
+pub fn to_json(report: &DiagnosisReport, rows: &[usize]) -> serde_json::Value {
+    // Plain numbers, strings and lists: it cannot fail.
+    let mut value = serde_json::to_value(report).expect("the report serialises");
+    value["gross_error_rows"] = gross_error_rows(report, rows).into();
+    value
 }

@@ -139,7 +139,9 @@ impl Problem<'_> {
             let known = &self.distances[k];
             (self.distance(d, k).0 - known.metres) / known.sigma
         });
-        DVector::from_iterator(self.n_residuals(), positions.chain(orientations).chain(distances))
+        let mut r = DVector::from_iterator(self.n_residuals(), positions.chain(orientations).chain(distances));
+        self.weigh_rows(|row, w| r[row] *= w);
+        r
     }
 
     /// Statistics of the orientation residuals (`None` without pose samples).
@@ -509,6 +511,7 @@ impl Problem<'_> {
                 }
             }
         }
+        self.weigh_rows(|row, w| jac.row_mut(row).iter_mut().for_each(|v| *v *= w));
         Ok(jac)
     }
 }

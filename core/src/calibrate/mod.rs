@@ -41,6 +41,7 @@ pub mod evidence;
 mod identifiability;
 mod jacobian;
 mod registration;
+mod robust;
 mod score;
 mod solver;
 mod space;
@@ -51,6 +52,7 @@ use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
 pub use registration::{register_held_out_stations, register_stations};
+pub use robust::{Drift, GROSS_ERROR, HUBER_K, Loss, Outlier, drift, gross_errors, robust_noise};
 pub use score::{ScoreTest, score_test};
 use space::*;
 
@@ -230,6 +232,9 @@ pub struct CalibrationParams {
     /// fit of the same robot and selection), instead of the robot's values registered in
     /// closed form. The priors stay centred on the robot's values.
     pub start: Option<Vec<f64>>,
+    /// How each sample's residual enters the cost: least squares, or Huber's loss, which
+    /// gross errors cannot pull far (plane contacts are always fitted by least squares).
+    pub loss: Loss,
 }
 
 /// A fit whose RMS is this many times what the declared noise gives is restarted (see
@@ -254,6 +259,7 @@ impl Default for CalibrationParams {
             seed: 0,
             group_prior_scales: Vec::new(),
             start: None,
+            loss: Loss::Squared,
         }
     }
 }
@@ -398,6 +404,11 @@ pub struct CalibrationReport {
     /// A residual that changes steadily with the sample order (a tracker drifting), when
     /// there is one (see [`drift`]).
     pub drift: Option<Drift>,
+    /// The loss the fit minimised.
+    pub loss: Loss,
+    /// Samples Huber's loss weighed less than the others (residual beyond [`HUBER_K`] robust
+    /// noises at the end); 0 for least squares.
+    pub downweighted: usize,
     /// What became of the fitted predictor the robot carried, when it carried one.
     pub fitted_predictor: Option<PredictorCarried>,
 }
@@ -410,106 +421,6 @@ pub struct PredictorCarried {
     pub kept: bool,
     /// Why, in words.
     pub reason: String,
-}
-
-/// A sample whose residual is far beyond the noise: a marker seen through a broken line of
-/// sight, a row from another session, a typo.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Outlier {
-    /// Its index among the calibration's samples.
-    pub sample: usize,
-    /// Its 3-D residual (mm).
-    pub residual_mm: f64,
-    /// That residual over the robust noise per axis.
-    pub over_noise: f64,
-}
-
-/// A residual that changes steadily with the sample order.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Drift {
-    /// The change of the residual from the first sample to the last, per axis (mm).
-    pub change_mm: [f64; 3],
-    /// Its largest t statistic over the axes.
-    pub t: f64,
-}
-
-/// A 3-D residual this many times the robust noise per axis is a gross error: Gaussian noise
-/// gives one that large once in 80 000 samples.
-pub const GROSS_ERROR: f64 = 5.0;
-
-/// The robust noise per axis of residuals `errors` (m): 1.4826 times the median absolute
-/// residual component, which a few gross errors do not inflate.
-pub fn robust_noise(errors: &[Vector3<f64>]) -> f64 {
-    let mut abs: Vec<f64> = errors.iter().flat_map(|e| e.iter().map(|v| v.abs())).collect();
-    if abs.is_empty() {
-        return 0.0;
-    }
-    let mid = abs.len() / 2;
-    let (_, median, _) = abs.select_nth_unstable_by(mid, f64::total_cmp);
-    1.4826 * *median
-}
-
-/// The samples of `errors` (measured minus modelled, m) whose 3-D residual exceeds
-/// [`GROSS_ERROR`] times the robust noise, largest first.
-pub fn gross_errors(errors: &[Vector3<f64>]) -> Vec<Outlier> {
-    let noise = robust_noise(errors);
-    if noise <= 0.0 {
-        return Vec::new();
-    }
-    let mut out: Vec<Outlier> = errors
-        .iter()
-        .enumerate()
-        .filter(|(_, e)| e.norm() > GROSS_ERROR * noise)
-        .map(|(i, e)| Outlier {
-            sample: i,
-            residual_mm: e.norm() * 1e3,
-            over_noise: e.norm() / noise,
-        })
-        .collect();
-    out.sort_by(|a, b| b.residual_mm.total_cmp(&a.residual_mm));
-    out
-}
-
-/// A linear trend of the residuals `errors` (m) over the sample order, when one axis' slope
-/// is more than 5 standard errors from zero and moves the residual by more than twice the
-/// robust noise over the data: what a tracker drifting over a session leaves. (Poses measured
-/// in workspace order leave the same trend; the report says so.)
-pub fn drift(errors: &[Vector3<f64>]) -> Option<Drift> {
-    let n = errors.len();
-    if n < 10 {
-        return None;
-    }
-    let noise = robust_noise(errors);
-    let t_mean = (n as f64 - 1.0) / 2.0;
-    let stt: f64 = (0..n).map(|i| (i as f64 - t_mean).powi(2)).sum();
-    let mut change_mm = [0.0; 3];
-    let mut t_max: f64 = 0.0;
-    let mut big = false;
-    for a in 0..3 {
-        let mean = errors.iter().map(|e| e[a]).sum::<f64>() / n as f64;
-        let slope = errors
-            .iter()
-            .enumerate()
-            .map(|(i, e)| (i as f64 - t_mean) * (e[a] - mean))
-            .sum::<f64>()
-            / stt;
-        let sse: f64 = errors
-            .iter()
-            .enumerate()
-            .map(|(i, e)| (e[a] - mean - slope * (i as f64 - t_mean)).powi(2))
-            .sum();
-        let se = (sse / (n as f64 - 2.0) / stt).sqrt();
-        let change = slope * (n as f64 - 1.0);
-        change_mm[a] = change * 1e3;
-        if se > 0.0 {
-            let t = (slope / se).abs();
-            if t > 5.0 && change.abs() > 2.0 * noise {
-                big = true;
-            }
-            t_max = t_max.max(t);
-        }
-    }
-    big.then_some(Drift { change_mm, t: t_max })
 }
 
 /// How many times the RMS its declared noise gives (`√3 σ` in 3-D) a fit's residual may reach
@@ -598,6 +509,8 @@ struct Problem<'a> {
     turn_width: usize,
     /// The known distances between fixed points: a residual row each, after the orientations.
     distances: Vec<KnownDistance>,
+    /// Per sample, the square root of its robust weight ([`Loss::Huber`]); empty: all 1.
+    weights: Vec<f64>,
 }
 
 /// A known distance between fixed points `a` and `b` (indices into the space's fixed points),
@@ -662,6 +575,7 @@ impl<'a> Problem<'a> {
             position_width,
             turn_width,
             distances,
+            weights: Vec::new(),
         }
     }
 
@@ -1152,7 +1066,7 @@ pub fn calibrate(
         info.lower = info.lower.max(theta0[k] - PRIOR_BOX * info.sigma);
         info.upper = info.upper.min(theta0[k] + PRIOR_BOX * info.sigma);
     }
-    let problem = Problem {
+    let mut problem = Problem {
         space: &held_space,
         ..problem
     };
@@ -1225,6 +1139,25 @@ pub fn calibrate(
             }
         }
     }
+    // Huber's loss by reweighting: each round fits least squares with the weights of where
+    // the last ended, until no weight changes.
+    if params.loss == Loss::Huber && problem.constraints.is_none() && !free.is_empty() {
+        for _ in 0..robust::MAX_REWEIGHTS {
+            let weights = problem.huber_weights(&stage);
+            let change = weights
+                .iter()
+                .enumerate()
+                .map(|(i, w)| (w - problem.weights.get(i).unwrap_or(&1.0)).abs())
+                .fold(0.0, f64::max);
+            problem.weights = weights;
+            stage.exact_jacobian = None;
+            if change < robust::WEIGHT_TOLERANCE {
+                break;
+            }
+            outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
+        }
+    }
+    let downweighted = problem.weights.iter().filter(|&&w| w < 1.0).count();
     let Stage {
         theta,
         d,
@@ -1359,6 +1292,8 @@ pub fn calibrate(
             warnings,
             outliers,
             drift: trend,
+            loss: params.loss,
+            downweighted,
             fitted_predictor,
         },
     })

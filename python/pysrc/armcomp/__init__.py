@@ -107,6 +107,7 @@ def calibrate(
     restarts: int = 2,
     seed: int = 0,
     progress: Optional[Callable[[str, int, int], None]] = None,
+    loss: str = "squared",
 ) -> Tuple[Robot, CalibrationReport]:
     """Identifies a model of ``robot`` from ``data`` (Levenberg–Marquardt with priors), as
     ``armcomp calibrate`` does.
@@ -119,6 +120,9 @@ def calibrate(
     evidence of the data), ``"auto"`` (5-fold cross-validation) or None (no priors). ``restarts``: fits from perturbed starts (seeded by ``seed``) when the fit ends
     more than 1.5 times above the noise; the lowest cost is kept. ``progress("prior scale",
     done, total)`` is called after every fit of ``prior="auto"``'s cross-validation.
+    ``loss``: ``"squared"`` (least squares) or ``"huber"`` (squared up to 3 robust noises per
+    axis, linear beyond, so that a few gross errors pull the fit little; ``report.downweighted``
+    counts the rows weighed less).
 
     Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's
     warnings, and a fit far above the declared noise, are issued as ``CalibrationWarning``.
@@ -134,6 +138,7 @@ def calibrate(
         restarts=restarts,
         seed=seed,
         progress=progress,
+        loss=loss,
     )
     report = from_json(CalibrationReport, text)
     object.__setattr__(report, "far_above_noise", far)
@@ -189,12 +194,16 @@ def diagnose(
     identify: Union[None, str, Sequence[str]] = None,
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
+    keep_outliers: bool = False,
 ) -> Tuple[Robot, DiagnosisReport]:
     """Finds the effects ``robot`` misses, one by one, scored on held-out poses, as
     ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
     are the accepted effects. ``predictor`` (gp, ridge or None) scores what remains
     learnable. ``progress(stage, done, total)`` is called after every fold calibration
-    (stage: "model as given", "effect N", "learnable residual")."""
+    (stage: "model as given", "effect N", "learnable residual"). Samples the model as given
+    leaves far beyond the noise (a broken line of sight) are left out of the search unless
+    ``keep_outliers``; ``report.gross_errors`` lists them either way, ``report.drift`` a
+    residual drifting with the row order."""
     model, text = _native.diagnose(
         robot,
         data,
@@ -206,6 +215,7 @@ def diagnose(
         identify=_names(identify),
         predictor=predictor,
         progress=progress,
+        keep_outliers=keep_outliers,
     )
     return model, from_json(DiagnosisReport, text)
 

@@ -90,6 +90,7 @@ def calibrate(
     restarts: int = 2,
     seed: int = 0,
     progress: Optional[Callable[[str, int, int], None]] = None,
+    loss: str = "squared",
 ) -> Tuple[Robot, str, bool]: ...
 def evaluate(model: Robot, data: Measurements) -> Tuple[str, np.ndarray]: ...
 def fit(
@@ -121,6 +122,7 @@ def diagnose(
     identify: Optional[List[str]] = None,
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
+    keep_outliers: bool = False,
 ) -> Tuple[Robot, str]: ...
 def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, str]: ...
 def compensate(

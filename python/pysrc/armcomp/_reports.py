@@ -143,6 +143,8 @@ class CalibrationReport(Report):
     outliers: List[Dict[str, Any]] = field(default_factory=list)
     drift: Optional[Dict[str, Any]] = None
     outlier_rows: List[int] = field(default_factory=list)
+    loss: str = "squared"
+    downweighted: int = 0
     far_above_noise: bool = False
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -278,6 +280,10 @@ class DiagnosisReport(Report):
     final_: FinalModel
     learnable_residual: Optional[LearnableResidual] = None
     interrupted: bool = False
+    gross_errors: List[Dict[str, Any]] = field(default_factory=list)
+    gross_errors_excluded: bool = False
+    gross_error_rows: List[int] = field(default_factory=list)
+    drift: Optional[Dict[str, Any]] = None
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
