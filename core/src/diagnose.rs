@@ -47,11 +47,12 @@
 //! their neutral values, so no held-out pose ever influences a fold's start.
 //!
 //! Gross errors (a marker seen through a broken line of sight) would pull every fit and
-//! dominate every held-out score, hiding the effect the other samples show: the samples the
-//! model as given, fitted to all of them, leaves beyond [`crate::calibrate::GROSS_ERROR`]
-//! robust noises are left out of the search and listed
-//! ([`DiagnoseParams::exclude_gross_errors`]); a residual that drifts with the sample order is
-//! reported as a drift of the instrument, not searched for among the robot's effects.
+//! dominate every held-out score, hiding the effect the other samples show: when the final
+//! model, fitted to all the samples, leaves some beyond [`crate::calibrate::GROSS_ERROR`]
+//! robust noises, they are listed and the search is made again without them
+//! ([`DiagnoseParams::exclude_gross_errors`]). (The model as given cannot tell them: a missing
+//! effect's largest residuals lie that far above its median one.) A residual of the model as
+//! given that drifts with the sample order is reported as a drift of the instrument.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -115,8 +116,8 @@ pub struct DiagnoseParams {
     /// Hold out whole groups in each fold: a name (a CSV column) and each sample's group;
     /// `None` folds by station for data from several, else by pose.
     pub fold_groups: Option<(String, Vec<usize>)>,
-    /// Leave out the samples that the model as given, fitted to all of them, leaves far
-    /// beyond the noise (see [`crate::calibrate::gross_errors`]); they are listed in
+    /// Search again without the samples that the final model, fitted to all of them, leaves
+    /// far beyond the noise (see [`crate::calibrate::gross_errors`]); they are listed in
     /// [`DiagnosisReport::gross_errors`] either way.
     pub exclude_gross_errors: bool,
 }
@@ -257,11 +258,11 @@ pub struct LearnableResidual {
 pub struct DiagnosisReport {
     /// Measured positions used (those given, less the gross errors left out).
     pub n_samples: usize,
-    /// The samples (indices into those given) that the model as given, fitted to all of them,
-    /// leaves far beyond the noise, largest first; left out of the search when
-    /// [`DiagnoseParams::exclude_gross_errors`].
+    /// The samples (indices into those given) that the final model of a search on all of
+    /// them, fitted to all of them, leaves far beyond the noise, largest first; the search was
+    /// made again without them when [`DiagnoseParams::exclude_gross_errors`].
     pub gross_errors: Vec<Outlier>,
-    /// Whether the gross errors were left out.
+    /// Whether the search was made again without the gross errors.
     pub gross_errors_excluded: bool,
     /// A residual of the model as given that changes steadily with the sample order: an
     /// instrument drifting over the session (or poses measured in workspace order), which no
@@ -347,14 +348,21 @@ pub fn diagnose(
             reason: format!("must be between 0 and 1, got {}", params.min_rms_reduction),
         });
     }
-    let given = robot.error_models().len();
-    // The robot as given plus the accepted effects at their neutral values.
-    let mut model = robot.rebuild(robot.to_file())?;
-    let first = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
-    let gross_errors = first.report.outliers;
-    let drift = first.report.drift;
-    let exclude = params.exclude_gross_errors && !gross_errors.is_empty();
-    let (kept, fold_groups) = if exclude {
+    let first = search(
+        robot,
+        samples,
+        params.fold_groups.clone(),
+        plugins,
+        predictor,
+        params,
+        progress,
+    )?;
+    let mut diagnosis = first.diagnosis;
+    // Gross errors are those the final model leaves: a missing effect's largest residuals
+    // under the model as given are no gross errors, and once explained they are not flagged.
+    let gross_errors = first.gross_errors;
+    let exclude = params.exclude_gross_errors && !gross_errors.is_empty() && !diagnosis.report.interrupted;
+    if exclude {
         let keep: Vec<usize> = (0..samples.len())
             .filter(|i| !gross_errors.iter().any(|o| o.sample == *i))
             .collect();
@@ -362,11 +370,45 @@ pub fn diagnose(
             .fold_groups
             .clone()
             .map(|(name, g)| (name, keep.iter().map(|&i| g[i]).collect()));
-        (subset(samples, &keep), groups)
-    } else {
-        (samples.to_vec(), params.fold_groups.clone())
-    };
-    let samples = &kept[..];
+        diagnosis = search(
+            robot,
+            &subset(samples, &keep),
+            groups,
+            plugins,
+            predictor,
+            params,
+            progress,
+        )?
+        .diagnosis;
+    }
+    diagnosis.report.gross_errors = gross_errors;
+    diagnosis.report.gross_errors_excluded = exclude;
+    diagnosis.report.drift = first.drift;
+    Ok(diagnosis)
+}
+
+/// A search of [`diagnose`] and what it saw of the samples.
+struct Searched {
+    diagnosis: Diagnosis,
+    /// The samples the final model, fitted to all of them, leaves far beyond the noise.
+    gross_errors: Vec<Outlier>,
+    /// A drift of the model as given's residuals over the sample order.
+    drift: Option<Drift>,
+}
+
+/// The search of [`diagnose`] on `samples`, folds grouped by `fold_groups`.
+fn search(
+    robot: &Robot,
+    samples: &[Sample],
+    fold_groups: Option<(String, Vec<usize>)>,
+    plugins: &[PluginInfo],
+    predictor: Option<(&str, &dyn PredictorSpec)>,
+    params: &DiagnoseParams,
+    progress: &(dyn Fn(DiagnoseProgress) + Sync),
+) -> Result<Searched> {
+    let given = robot.error_models().len();
+    // The robot as given plus the accepted effects at their neutral values.
+    let mut model = robot.rebuild(robot.to_file())?;
     let (splits, folding) = crate::split::folds(
         samples,
         params.folds,
@@ -392,11 +434,10 @@ pub fn diagnose(
     let initial = ErrorStats::from_errors(&current.errors);
     let initial_residuals = describe_residuals(robot, samples, &current.errors);
     let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
-    let mut fitted = if exclude {
-        calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot
-    } else {
-        first.robot
-    };
+    let first = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
+    let drift = first.report.drift;
+    let mut gross_errors = first.report.outliers;
+    let mut fitted = first.robot;
     let mut steps: Vec<DiagnosisStep> = Vec::new();
     let mut last_ranking = Vec::new();
     let mut interrupted = false;
@@ -459,7 +500,8 @@ pub fn diagnose(
             .find(|o| o.effect == best.effect && o.candidate.location == best.location)
             .expect("the ranking is made of the offers");
         model = with_effect(&model, offer)?;
-        fitted = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?.robot;
+        let fit = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
+        (fitted, gross_errors) = (fit.robot, fit.report.outliers);
         let before = ErrorStats::from_errors(&current.errors);
         let after = best.heldout.expect("an accepted candidate was evaluated");
         let values = new_model_values(&fitted);
@@ -542,9 +584,9 @@ pub fn diagnose(
     };
     let report = DiagnosisReport {
         n_samples: samples.len(),
-        gross_errors,
-        gross_errors_excluded: exclude,
-        drift,
+        gross_errors: Vec::new(),
+        gross_errors_excluded: false,
+        drift: None,
         folds: folding.folds,
         grouped_by: folding.grouped_by,
         initial,
@@ -560,7 +602,11 @@ pub fn diagnose(
         heldout_norms_mm,
         interrupted,
     };
-    Ok(Diagnosis { robot: fitted, report })
+    Ok(Searched {
+        diagnosis: Diagnosis { robot: fitted, report },
+        gross_errors,
+        drift,
+    })
 }
 
 /// Every candidate the error-model plugins offer for `robot`, in registry order.

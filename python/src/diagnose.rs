@@ -12,9 +12,9 @@ use crate::robot::PyRobot;
 /// Diagnoses `robot` on `data`; returns the improved model (found effects added, calibrated
 /// on all the data) and the report as JSON text (what `armcomp diagnose --json` prints).
 /// `progress`, when given, is called as `progress(stage, done, total)` after every fold
-/// calibration (`stage`: "model as given", "effect N", "learnable residual"). Rows the model
-/// as given leaves far beyond the noise are left out of the search (`keep_outliers=True`
-/// keeps them); the report lists them (`gross_errors`, by sample) either way.
+/// calibration (`stage`: "model as given", "effect N", "learnable residual"). When the final
+/// model leaves rows far beyond the noise, the search is made again without them
+/// (`keep_outliers=True` keeps them); the report lists them (`gross_errors`) either way.
 #[pyfunction]
 #[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp", progress = None, keep_outliers = false))]
 #[allow(clippy::too_many_arguments)]

@@ -72,9 +72,9 @@ pub struct Args {
     /// an extension the platform's naming applies (`libNAME.so`, ...).
     #[arg(long = "library", value_name = "LIB")]
     libraries: Vec<PathBuf>,
-    /// Search with the rows the model as given leaves far beyond the noise (over 5 times the
-    /// robust noise per axis: a broken line of sight, a typo) instead of leaving them out;
-    /// they are listed either way.
+    /// Keep the rows the final model leaves far beyond the noise (over 5 times the robust
+    /// noise per axis: a broken line of sight, a typo) instead of searching again without
+    /// them; they are listed either way.
     #[arg(long)]
     keep_outliers: bool,
     #[command(flatten)]
@@ -232,11 +232,11 @@ fn print_report(r: &DiagnosisReport, gross_rows: &[usize]) {
     if !gross_rows.is_empty() {
         let listed: Vec<String> = gross_rows.iter().map(|r| r.to_string()).collect();
         println!(
-            "gross errors (residual of the model as given over {} times the robust noise) in data row(s) {}{}",
+            "gross errors (residual of the final model over {} times the robust noise) in data row(s) {}{}",
             armcomp_core::calibrate::GROSS_ERROR,
             listed.join(", "),
             if r.gross_errors_excluded {
-                " (0-based as --rows counts): left out of the search (--keep-outliers keeps them)"
+                " (0-based as --rows counts): the search was made again without them (--keep-outliers keeps them)"
             } else {
                 " (0-based as --rows counts): kept"
             }

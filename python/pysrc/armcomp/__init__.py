@@ -200,9 +200,9 @@ def diagnose(
     ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
     are the accepted effects. ``predictor`` (gp, ridge or None) scores what remains
     learnable. ``progress(stage, done, total)`` is called after every fold calibration
-    (stage: "model as given", "effect N", "learnable residual"). Samples the model as given
-    leaves far beyond the noise (a broken line of sight) are left out of the search unless
-    ``keep_outliers``; ``report.gross_errors`` lists them either way, ``report.drift`` a
+    (stage: "model as given", "effect N", "learnable residual"). When the final model leaves
+    samples far beyond the noise (a broken line of sight), the search is made again without
+    them unless ``keep_outliers``; ``report.gross_errors`` lists them either way, ``report.drift`` a
     residual drifting with the row order."""
     model, text = _native.diagnose(
         robot,
