@@ -28,3 +28,13 @@ pub fn requested() -> bool {
 pub fn check() -> Result<()> {
     if requested() { Err(Error::Interrupted) } else { Ok(()) }
 }
+
+/// `Ok(None)` for a computation a stop request ended, so that a search can keep what its other
+/// computations finished; other errors stay errors.
+pub fn finished<T>(result: Result<T>) -> Result<Option<T>> {
+    match result {
+        Ok(v) => Ok(Some(v)),
+        Err(Error::Interrupted) => Ok(None),
+        Err(e) => Err(e),
+    }
+}

@@ -122,6 +122,10 @@ pub struct LadderReport {
     pub folds_by: String,
     /// The noise and priors the evidence chose for the chosen rung on all rows.
     pub evidence: EvidenceReport,
+    /// Whether a stop request ([`crate::interrupt`]) ended the cross-validation: the rungs
+    /// are those whose every fold was fitted before it (the predictor's is not tried), and the
+    /// choice among them was fitted on all rows after it.
+    pub interrupted: bool,
 }
 
 /// The chosen model, fitted on all rows.
@@ -236,26 +240,40 @@ pub fn climb(
     let jobs: Vec<(usize, usize)> = (0..rungs.len())
         .flat_map(|r| (0..splits.len()).map(move |f| (r, f)))
         .collect();
-    let timed: Vec<(Robot, f64)> = jobs
+    let timed: Vec<Option<(Robot, f64)>> = jobs
         .par_iter()
         .map(|&(r, f)| {
+            if crate::interrupt::requested() {
+                return Ok(None);
+            }
             let start = Instant::now();
             let train = subset(samples, &splits[f].train);
-            let (cal, _) = fit_rung(robot, &train, params, rungs[r])?;
+            let Some((cal, _)) = crate::interrupt::finished(fit_rung(robot, &train, params, rungs[r]))? else {
+                return Ok(None);
+            };
             let mut model = cal.robot;
             register_held_out_stations(&mut model, &train, &subset(samples, &splits[f].test))?;
             tick();
-            Ok((model, start.elapsed().as_secs_f64()))
+            Ok(Some((model, start.elapsed().as_secs_f64())))
         })
         .collect::<Result<_>>()?;
+    let interrupted = timed.iter().any(Option::is_none);
+    // The rungs whose every fold was fitted, up to the first a stop left unfinished.
     let mut fold_models: Vec<Vec<Robot>> = Vec::new();
     let mut seconds = Vec::new();
     let mut it = timed.into_iter();
     for _ in &rungs {
-        let (models, secs): (Vec<Robot>, Vec<f64>) = it.by_ref().take(splits.len()).unzip();
+        let Some(fits) = it.by_ref().take(splits.len()).collect::<Option<Vec<_>>>() else {
+            break;
+        };
+        let (models, secs): (Vec<Robot>, Vec<f64>) = fits.into_iter().unzip();
         fold_models.push(models);
         seconds.push(secs.iter().sum::<f64>());
     }
+    if fold_models.is_empty() {
+        return Err(Error::Interrupted);
+    }
+    let rungs = &rungs[..fold_models.len()];
     let mut scores = Vec::new();
     let mut kept_errors: Option<Vec<f64>> = None;
     let mut chosen = 0;
@@ -270,7 +288,10 @@ pub fn climb(
     }
     let mut chosen_rung = rungs[chosen];
     let mut predictor_models = None;
-    if let Some(spec) = &params.predictor {
+    if interrupted {
+        // The choice is fitted on all rows, which the stop request would end at once.
+        crate::interrupt::clear();
+    } else if let Some(spec) = &params.predictor {
         let start = Instant::now();
         let models: Vec<Robot> = splits
             .par_iter()
@@ -307,7 +328,7 @@ pub fn climb(
             m
         }
         _ => {
-            if params.predictor.is_some() {
+            if params.predictor.is_some() && !interrupted {
                 // Not kept: its fit on all rows is not needed, and the count is complete.
                 tick();
             }
@@ -324,6 +345,7 @@ pub fn climb(
             folds: splits.len(),
             folds_by,
             evidence,
+            interrupted,
         },
     })
 }

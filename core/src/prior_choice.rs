@@ -42,8 +42,11 @@ pub struct PriorChoice {
     pub grouped_by: String,
     /// The seed that shuffled the poses into folds.
     pub seed: u64,
-    /// Every candidate, in the order tried.
+    /// Every candidate scored, in the order tried.
     pub scores: Vec<PriorScaleScore>,
+    /// Whether a stop request ([`crate::interrupt`]) ended the cross-validation: the choice is
+    /// the best of the candidates whose every fold was scored before it.
+    pub interrupted: bool,
 }
 
 /// Picks the factor on the prior standard deviations from `grid` that predicts held-out poses
@@ -69,29 +72,41 @@ pub fn choose_prior_scale(
         .flat_map(|g| (0..splits.len()).map(move |f| (g, f)))
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let sums: Vec<(f64, usize)> = jobs
+    let sums: Vec<Option<(f64, usize)>> = jobs
         .par_iter()
         .map(|&(g, f)| {
+            if crate::interrupt::requested() {
+                return Ok(None);
+            }
             let p = CalibrationParams {
                 prior_scale: grid[g],
                 ..params.clone()
             };
             let train = subset(samples, &splits[f].train);
             let test = subset(samples, &splits[f].test);
-            let mut fitted = calibrate(robot, &train, &p, &mut |_| {})?.robot;
+            let Some(fit) = crate::interrupt::finished(calibrate(robot, &train, &p, &mut |_| {}))? else {
+                return Ok(None);
+            };
+            let mut fitted = fit.robot;
             register_held_out_stations(&mut fitted, &train, &test)?;
             let errors = model_errors(&fitted, &test);
             progress(FitsProgress {
                 done: done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
                 total: jobs.len(),
             });
-            Ok((errors.iter().map(|e| e.norm_squared()).sum(), errors.len()))
+            Ok(Some((errors.iter().map(|e| e.norm_squared()).sum(), errors.len())))
         })
         .collect::<Result<_>>()?;
+    let interrupted = sums.iter().any(Option::is_none);
     let mut scores = Vec::with_capacity(grid.len());
     for (g, &scale) in grid.iter().enumerate() {
         let (mut sum, mut n) = (0.0, 0);
-        for (s, k) in &sums[g * splits.len()..(g + 1) * splits.len()] {
+        let folds = &sums[g * splits.len()..(g + 1) * splits.len()];
+        // A candidate with a fold the stop left unfitted is not scored.
+        if folds.iter().any(Option::is_none) {
+            continue;
+        }
+        for (s, k) in folds.iter().flatten() {
             sum += s;
             n += k;
         }
@@ -100,15 +115,19 @@ pub fn choose_prior_scale(
             held_out_rms_mm: (sum / n.max(1) as f64).sqrt() * 1e3,
         });
     }
-    let best = scores
+    let best = match scores
         .iter()
         .min_by(|a, b| a.held_out_rms_mm.total_cmp(&b.held_out_rms_mm))
-        .map_or(1.0, |s| s.scale);
+    {
+        Some(s) => s.scale,
+        None => return Err(Error::Interrupted),
+    };
     Ok(PriorChoice {
         scale: best,
         folds: splits.len(),
         grouped_by: folding.grouped_by,
         seed: plan.seed,
         scores,
+        interrupted,
     })
 }

@@ -146,7 +146,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             &mut observer,
         )?)
     };
-    let mut run = calibrate_on(&data.samples, &data.rows)?;
+    // Ctrl-C ends `--prior auto`'s cross-validation with the scales scored so far.
+    crate::STOP_KEEPS_RESULT.store(matches!(args.prior, Prior::Auto), std::sync::atomic::Ordering::Relaxed);
+    let first = calibrate_on(&data.samples, &data.rows);
+    crate::STOP_KEEPS_RESULT.store(false, std::sync::atomic::Ordering::Relaxed);
+    let mut run = first?;
     let outlier_rows: Vec<usize> = run
         .calibration
         .report
@@ -205,6 +209,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     for w in &report.warnings {
         eprintln!("warning: {w}");
+    }
+    if let Some(c) = choice.as_ref().filter(|c| c.interrupted) {
+        eprintln!(
+            "interrupted: the prior scale was chosen among the {} scored before the stop; the model was written",
+            c.scores.len()
+        );
+        return Ok(ExitCode::from(130));
     }
     if !report.converged {
         eprintln!(

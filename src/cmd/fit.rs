@@ -1,6 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Mutex;
+use std::sync::atomic::Ordering;
 
 use armcomp_core::io::write_atomic;
 
@@ -61,12 +62,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .expect("the template is valid"),
         );
     }
+    // Ctrl-C ends the cross-validation with the rungs fitted so far, the choice among them
+    // fitted on all rows.
+    crate::STOP_KEEPS_RESULT.store(true, Ordering::Relaxed);
     let ladder = armcomp::ops::fit::run(&robot, &data.samples, params, &|p| {
         if let Ok(b) = bar.lock() {
             b.set_length(p.total as u64);
             b.set_position(p.done as u64);
         }
     });
+    crate::STOP_KEEPS_RESULT.store(false, Ordering::Relaxed);
     if let Ok(b) = bar.lock() {
         b.finish_and_clear();
     }
@@ -122,6 +127,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     for w in &ladder.calibration.report.warnings {
         eprintln!("warning: {w}");
+    }
+    if r.interrupted {
+        eprintln!(
+            "interrupted: the model was chosen among the {} rung(s) whose folds were all fitted before the stop",
+            r.rungs.len()
+        );
+        return Ok(ExitCode::from(130));
     }
     Ok(if ladder.calibration.report.converged {
         ExitCode::SUCCESS

@@ -117,6 +117,10 @@ pub fn run(
                 by: FoldBy::choose(samples, fold_groups),
             };
             let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, &plan, fits)?;
+            if choice.interrupted {
+                // The final fit at the best scale scored: the stop request would end it at once.
+                armcomp_core::interrupt::clear();
+            }
             params.prior_scale = choice.scale;
             Some(choice)
         }
