@@ -237,25 +237,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
 /// The gross errors by data row, and a drift of the residuals over the rows.
 fn print_gross_errors(rows: &[usize], report: &CalibrationReport, excluded: bool) {
-    if !rows.is_empty() {
-        let listed: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
-        println!(
-            "gross errors (residual over {} times the robust noise) in data row(s) {}{}",
-            armcomp_core::calibrate::GROSS_ERROR,
-            listed.join(", "),
-            if excluded {
-                ": excluded, the model was fitted without them"
-            } else {
-                " (0-based as --rows counts; --exclude-outliers fits without them)"
-            }
-        );
-    }
+    let what = if excluded {
+        ": excluded, the model was fitted without them"
+    } else {
+        " (0-based as --rows counts; --exclude-outliers fits without them)"
+    };
+    super::print_gross_errors("", rows, what);
     if let Some(d) = &report.drift {
-        println!(
-            "the residual drifts with the row order: {:+.3}, {:+.3}, {:+.3} mm (x, y, z) from the first row to the last (t = {:.1}); \
-             a tracker or frame drifting over the session, or poses measured in workspace order",
-            d.change_mm[0], d.change_mm[1], d.change_mm[2], d.t
-        );
+        super::print_drift(d);
     }
 }
 

@@ -229,26 +229,14 @@ fn print_ranking(ranking: &[RankedCandidate]) {
 }
 
 fn print_report(r: &DiagnosisReport, gross_rows: &[usize]) {
-    if !gross_rows.is_empty() {
-        let listed: Vec<String> = gross_rows.iter().map(|r| r.to_string()).collect();
-        println!(
-            "gross errors (residual of the final model over {} times the robust noise) in data row(s) {}{}",
-            armcomp_core::calibrate::GROSS_ERROR,
-            listed.join(", "),
-            if r.gross_errors_excluded {
-                " (0-based as --rows counts): the search was made again without them (--keep-outliers keeps them)"
-            } else {
-                " (0-based as --rows counts): kept"
-            }
-        );
-    }
+    let what = if r.gross_errors_excluded {
+        " (0-based as --rows counts): the search was made again without them (--keep-outliers keeps them)"
+    } else {
+        " (0-based as --rows counts): kept"
+    };
+    super::print_gross_errors("of the final model ", gross_rows, what);
     if let Some(d) = &r.drift {
-        println!(
-            "the residual drifts with the row order: {:+.3}, {:+.3}, {:+.3} mm (x, y, z) from the first row to the last \
-             (t = {:.1}): an instrument or frame drifting over the session, or poses measured in workspace order, not an \
-             effect of the robot",
-            d.change_mm[0], d.change_mm[1], d.change_mm[2], d.t
-        );
+        super::print_drift(d);
     }
     println!(
         "{} measured positions, held-out scores (mean / RMS / max in mm; folds: {}, grouped by {})",

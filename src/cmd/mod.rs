@@ -133,3 +133,26 @@ pub fn read_stations(
     let new = robot.adopt_stations(&set.stations);
     Ok((set, new))
 }
+
+/// The data rows of gross errors (residual `whose` over 5 robust noises), then `what` became of
+/// them; nothing when there are none.
+pub fn print_gross_errors(whose: &str, rows: &[usize], what: &str) {
+    if !rows.is_empty() {
+        let listed: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
+        println!(
+            "gross errors (residual {whose}over {} times the robust noise) in data row(s) {}{what}",
+            armcomp_core::calibrate::GROSS_ERROR,
+            listed.join(", "),
+        );
+    }
+}
+
+/// A drift of the residuals over the row order, and what causes one.
+pub fn print_drift(d: &armcomp_core::calibrate::Drift) {
+    println!(
+        "the residual drifts with the row order: {:+.3}, {:+.3}, {:+.3} mm (x, y, z) from the first row to the last \
+         (t = {:.1}): a tracker or frame drifting over the session, or poses measured in workspace order, not an \
+         effect of the robot",
+        d.change_mm[0], d.change_mm[1], d.change_mm[2], d.t
+    );
+}
