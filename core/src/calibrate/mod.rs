@@ -223,6 +223,10 @@ pub struct CalibrationParams {
     /// compliances), where restarts rarely find a lower cost: the diagnosis does, so that a
     /// baseline gets the restarts its candidates get.
     pub restart_converged: bool,
+    /// Which parameters a restart moves: every free one, or only those along which the cost
+    /// has several minima (the diagnosis: a candidate is then compared with its baseline on
+    /// the minima of its own parameters, and a fit without such a parameter is not restarted).
+    pub restart_moves: RestartMoves,
     /// Seed of the restarts' perturbations; the same seed gives the same fit.
     pub seed: u64,
     /// Further factors on the prior standard deviations of whole groups (on top of
@@ -235,6 +239,17 @@ pub struct CalibrationParams {
     /// How each sample's residual enters the cost: least squares, or Huber's loss, which
     /// gross errors cannot pull far (plane contacts are always fitted by least squares).
     pub loss: Loss,
+}
+
+/// Which free parameters a restart of [`calibrate`] moves from where the fit ended.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum RestartMoves {
+    /// Every free parameter: by a normal draw of its prior (multimodal ones by their typical
+    /// size).
+    #[default]
+    Every,
+    /// Only the multimodal ones ([`ParamInfo::multimodal`]: backlash, rigidity scales).
+    Multimodal,
 }
 
 /// A fit whose RMS is this many times what the declared noise gives is restarted (see
@@ -256,6 +271,7 @@ impl Default for CalibrationParams {
             prior_scale: 1.0,
             restarts: 2,
             restart_converged: false,
+            restart_moves: RestartMoves::Every,
             seed: 0,
             group_prior_scales: Vec::new(),
             start: None,
@@ -1100,8 +1116,10 @@ pub fn calibrate(
         outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
     }
     let mut restarts_rms_mm = Vec::new();
+    let moved = |k: usize| params.restart_moves == RestartMoves::Every || held_space.params[k].info.multimodal;
     let another_minimum_likely =
-        params.restart_converged || !outcome.converged || free.iter().any(|&k| held_space.params[k].info.multimodal);
+        (params.restart_converged || !outcome.converged || free.iter().any(|&k| held_space.params[k].info.multimodal))
+            && free.iter().any(|&k| moved(k));
     if !free.is_empty() && another_minimum_likely && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
         let mut best_cost = problem.cost(&stage, &theta0, &free);
         let mut rng = StdRng::seed_from_u64(params.seed);
@@ -1117,7 +1135,7 @@ pub fn calibrate(
                 } else {
                     info.sigma
                 };
-                if spread.is_finite() {
+                if spread.is_finite() && moved(k) {
                     start[k] = (start[k] + z * spread).clamp(info.lower, info.upper);
                 }
             }
