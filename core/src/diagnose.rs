@@ -642,7 +642,6 @@ fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> Calibratio
     // A candidate with a multimodal parameter is restarted from other values of it, converged
     // or not; the geometry stays where the fit ended, so a candidate gains from the minima of
     // its own parameters only, and fits without such a parameter need no restart.
-    out.restart_converged = true;
     out.restart_moves = crate::calibrate::RestartMoves::Multimodal;
     if !out.identify.is_empty() {
         let added = model.error_models().iter().skip(given);

@@ -220,8 +220,7 @@ pub struct CalibrationParams {
     /// [`restart_converged`](Self::restart_converged)).
     pub restarts: usize,
     /// Also restart converged fits whose free parameters have one minimum each (geometry,
-    /// compliances), where restarts rarely find a lower cost: the diagnosis does, so that a
-    /// baseline gets the restarts its candidates get.
+    /// compliances), where restarts rarely find a lower cost.
     pub restart_converged: bool,
     /// Which parameters a restart moves: every free one, or only those along which the cost
     /// has several minima (the diagnosis: a candidate is then compared with its baseline on
