@@ -225,6 +225,18 @@ fn geometry_report(nominal: &Robot, samples: &[Sample]) -> armcomp_core::calibra
         .report
 }
 
+/// The samples `with_gross_errors` moves by 6 mm along x: a line of sight broken four times.
+const PLANTED: [usize; 4] = [7, 64, 131, 198];
+
+/// `clean` with the [`PLANTED`] samples off by 6 mm.
+fn with_gross_errors(clean: &[Sample]) -> Vec<Sample> {
+    let mut dirty = clean.to_vec();
+    for &i in &PLANTED {
+        dirty[i].position.x += 6e-3;
+    }
+    dirty
+}
+
 /// Four rows of 200 off by 6 mm (a line of sight broken): the calibration names exactly those
 /// samples as gross errors, on three seeds, and no sample of the clean data.
 #[test]
@@ -235,15 +247,10 @@ fn gross_errors_are_found_by_sample() {
         let clean = measure(&truth, 200, 0.05e-3, 400 + seed);
         let report = geometry_report(&nominal, &clean);
         assert!(report.outliers.is_empty(), "seed {seed}: {:?}", report.outliers);
-        let mut dirty = clean.clone();
-        let planted = [7, 64, 131, 198];
-        for &i in &planted {
-            dirty[i].position.x += 6e-3;
-        }
-        let report = geometry_report(&nominal, &dirty);
+        let report = geometry_report(&nominal, &with_gross_errors(&clean));
         let mut found: Vec<usize> = report.outliers.iter().map(|o| o.sample).collect();
         found.sort_unstable();
-        assert_eq!(found, planted, "seed {seed}");
+        assert_eq!(found, PLANTED, "seed {seed}");
     }
 }
 
@@ -258,10 +265,7 @@ fn huber_loss_is_not_pulled_by_gross_errors() {
         let truth = truth(&nominal, |_| 0.5, seed);
         let clean = measure(&truth, 200, 0.05e-3, 400 + seed);
         let held_out = measure(&truth, 100, 0.0, 700 + seed);
-        let mut dirty = clean.clone();
-        for &i in &[7, 64, 131, 198] {
-            dirty[i].position.x += 6e-3;
-        }
+        let dirty = with_gross_errors(&clean);
         let heldout_rms = |samples: &[Sample], loss: Loss| {
             let params = CalibrationParams {
                 identify: vec!["base".into(), "markers".into(), "geometry".into()],

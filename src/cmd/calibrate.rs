@@ -242,10 +242,7 @@ fn print_gross_errors(rows: &[usize], report: &CalibrationReport, excluded: bool
     } else {
         " (0-based as --rows counts; --exclude-outliers fits without them)"
     };
-    super::print_gross_errors("", rows, what);
-    if let Some(d) = &report.drift {
-        super::print_drift(d);
-    }
+    super::print_gross_errors("", rows, what, report.drift.as_ref());
 }
 
 fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {

@@ -234,10 +234,7 @@ fn print_report(r: &DiagnosisReport, gross_rows: &[usize]) {
     } else {
         " (0-based as --rows counts): kept"
     };
-    super::print_gross_errors("of the final model ", gross_rows, what);
-    if let Some(d) = &r.drift {
-        super::print_drift(d);
-    }
+    super::print_gross_errors("of the final model ", gross_rows, what, r.drift.as_ref());
     println!(
         "{} measured positions, held-out scores (mean / RMS / max in mm; folds: {}, grouped by {})",
         r.n_samples, r.folds, r.grouped_by

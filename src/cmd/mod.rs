@@ -135,8 +135,8 @@ pub fn read_stations(
 }
 
 /// The data rows of gross errors (residual `whose` over 5 robust noises), then `what` became of
-/// them; nothing when there are none.
-pub fn print_gross_errors(whose: &str, rows: &[usize], what: &str) {
+/// them (nothing when there are none), and a drift of the residuals over the rows.
+pub fn print_gross_errors(whose: &str, rows: &[usize], what: &str, drift: Option<&armcomp_core::calibrate::Drift>) {
     if !rows.is_empty() {
         let listed: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
         println!(
@@ -145,10 +145,13 @@ pub fn print_gross_errors(whose: &str, rows: &[usize], what: &str) {
             listed.join(", "),
         );
     }
+    if let Some(d) = drift {
+        print_drift(d);
+    }
 }
 
 /// A drift of the residuals over the row order, and what causes one.
-pub fn print_drift(d: &armcomp_core::calibrate::Drift) {
+fn print_drift(d: &armcomp_core::calibrate::Drift) {
     println!(
         "the residual drifts with the row order: {:+.3}, {:+.3}, {:+.3} mm (x, y, z) from the first row to the last \
          (t = {:.1}): a tracker or frame drifting over the session, or poses measured in workspace order, not an \

@@ -1111,6 +1111,12 @@ pub fn calibrate(
     if !frames.is_empty() && frames.len() < free.len() && params.start.is_none() {
         problem.levenberg_marquardt(&mut stage, &theta0, &frames, params, observer)?;
     }
+    let huber = params.loss == Loss::Huber && problem.constraints.is_none() && !free.is_empty();
+    // A warm start (the evidence's next round) is near the robust fit already: weighed as
+    // there, its fit need not first walk to the least-squares one and back.
+    if huber && params.start.is_some() {
+        problem.weights = problem.huber_weights(&stage);
+    }
     if !free.is_empty() {
         outcome = problem.levenberg_marquardt(&mut stage, &theta0, &free, params, observer)?;
     }
@@ -1158,7 +1164,7 @@ pub fn calibrate(
     }
     // Huber's loss by reweighting: each round fits least squares with the weights of where
     // the last ended, until no weight changes.
-    if params.loss == Loss::Huber && problem.constraints.is_none() && !free.is_empty() {
+    if huber {
         for _ in 0..robust::MAX_REWEIGHTS {
             let weights = problem.huber_weights(&stage);
             let change = weights
