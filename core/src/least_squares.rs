@@ -93,6 +93,20 @@ pub struct ConvergenceParams {
     pub min_step: f64,
 }
 
+/// When [`levenberg_marquardt`] gives up on a model that cannot explain the data: the cost
+/// still above `above_cost` and each of the last `iterations` accepted steps lowering it by
+/// less than the fraction `gain`. Such a fit crawls along directions the data barely
+/// determine, buying a little RMS with implausible values, for its whole iteration budget.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StallParams {
+    /// Consecutive slow accepted steps that end the loop.
+    pub iterations: usize,
+    /// Relative decrease of the cost below which an accepted step is slow.
+    pub gain: f64,
+    /// Only costs above this stall (below it the fit explains the data and converges).
+    pub above_cost: f64,
+}
+
 /// Settings of [`levenberg_marquardt`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LmParams {
@@ -115,6 +129,8 @@ pub struct LmParams {
     /// The convergence tests; without them the loop ends only on the iteration limit, a cost
     /// no damping lowers, or the iteration hook, and computes no standard deviations.
     pub convergence: Option<ConvergenceParams>,
+    /// Ends the loop early when the fit stalls far above the noise ([`LmStop::Stalled`]).
+    pub stall: Option<StallParams>,
 }
 
 impl Default for LmParams {
@@ -133,6 +149,7 @@ impl Default for LmParams {
                 min_improvement: 1e-4,
                 min_step: 1e-2,
             }),
+            stall: None,
         }
     }
 }
@@ -174,6 +191,10 @@ pub enum LmStop {
     NoDescent,
     /// The iteration hook asked to stop.
     Stopped,
+    /// The cost stayed above [`StallParams::above_cost`] while the last
+    /// [`StallParams::iterations`] accepted steps each lowered it by less than
+    /// [`StallParams::gain`].
+    Stalled,
 }
 
 /// What [`levenberg_marquardt`] did.
@@ -236,6 +257,8 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     // Why the last accepted step was small, when it was: the step test. Convergence needs it
     // and the Newton-step test at the point the step reached.
     let mut small_step: Option<SmallStep> = None;
+    // Consecutive slow accepted steps (see `StallParams`).
+    let mut slow = 0;
     let stop = loop {
         crate::interrupt::check()?;
         if params.convergence.is_none() && iterations >= params.max_iterations {
@@ -300,6 +323,9 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
             converged = true;
             break LmStop::Converged(step);
         }
+        if params.stall.is_some_and(|st| slow >= st.iterations) {
+            break LmStop::Stalled;
+        }
         if iterations >= params.max_iterations {
             break LmStop::IterationLimit;
         }
@@ -363,6 +389,10 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
                         if improvement < params.exact_jacobian_below {
                             approximate = false;
                         }
+                        slow = match params.stall {
+                            Some(st) if cost > st.above_cost && relative < st.gain => slow + 1,
+                            _ => 0,
+                        };
                         small_step = params.convergence.and_then(|conv| {
                             if relative < conv.tolerance || improvement < conv.min_improvement {
                                 Some(SmallStep::Improvement(improvement))

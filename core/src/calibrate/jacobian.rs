@@ -162,7 +162,7 @@ impl Problem<'_> {
         theta: &[f64],
         d: &Decoded,
         free: &[usize],
-        form: JacobianForm,
+        form: JacobianForm<'_>,
     ) -> Result<Vec<ColumnPlan>> {
         let space = self.space;
         free.iter()
@@ -219,7 +219,7 @@ impl Problem<'_> {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
                         let tree = space.tree(self.robot, &t)?;
-                        let deformed = form == JacobianForm::Exact && self.robot.deforms_at(&d.errors);
+                        let deformed = matches!(form, JacobianForm::Exact) && self.robot.deforms_at(&d.errors);
                         geometry_plan(&d.tree, tree, h, deformed)
                     }
                 })
@@ -243,12 +243,32 @@ impl Problem<'_> {
         d: &Decoded,
         e: &Evaluation,
         free: &[usize],
-        form: JacobianForm,
+        form: JacobianForm<'_>,
     ) -> Result<DMatrix<f64>> {
+        Ok(self.jacobian_parts(theta, d, e, free, form)?.0)
+    }
+
+    /// [`jacobian`](Self::jacobian) and, in the exact form, what the deformation's change adds
+    /// to the geometry columns (zero elsewhere; before the rows' robust weights): the exact
+    /// Jacobian minus the held one. That
+    /// part is about 1e-3 of the columns and changes slowly, so a fit reuses it
+    /// ([`HeldPlus`](JacobianForm::HeldPlus)) rather than re-evaluate the models for every
+    /// geometry column, pose and iteration.
+    pub(super) fn jacobian_parts(
+        &self,
+        theta: &[f64],
+        d: &Decoded,
+        e: &Evaluation,
+        free: &[usize],
+        form: JacobianForm<'_>,
+    ) -> Result<(DMatrix<f64>, Option<DMatrix<f64>>)> {
         let plans = self.column_plans(theta, d, free, form)?;
         let ncols = plans.len();
         let n_models = self.robot.error_models().len();
-        let rows: Vec<Vec<f64>> = self
+        let deformed = plans
+            .iter()
+            .any(|p| matches!(p, ColumnPlan::Twists { deformation: Some(_), .. }));
+        let rows: Vec<(Vec<f64>, Vec<f64>)> = self
             .samples
             .par_iter()
             .enumerate()
@@ -337,6 +357,30 @@ impl Problem<'_> {
                     let tw = if oriented.is_some() { self.turn_width } else { 0 };
                     let width = pw + tw;
                     let mut row = vec![0.0; width * ncols];
+                    let mut part = vec![0.0; if deformed { width * ncols } else { 0 }];
+                    // Column `c` of this sample's rows from the change of the point's position
+                    // and orientation (measurement frame).
+                    let write = |row: &mut [f64], c: usize, dp_meas: Vector3<f64>, dw_meas: Vector3<f64>| {
+                        if let (Some(gap), Some(cons)) = (&gap, &self.constraints) {
+                            if pw == 1 {
+                                row[width * c] = gap.normal.dot(&dp_meas) / self.sigma;
+                            }
+                            // A turn of the contact turns the normal seen from it the other way.
+                            let dm = gap.contact.inverse() * gap.normal.cross(&dw_meas);
+                            let t = gap.tilt_rows(cons, &dm, self.sigma_rot);
+                            row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
+                            return;
+                        }
+                        for a in 0..3 {
+                            row[width * c + a] = dp_meas[a] / self.sigma;
+                        }
+                        if let Some(map) = &turn_map {
+                            let dr = map * dw_meas;
+                            for a in 0..3 {
+                                row[width * c + 3 + a] = dr[a];
+                            }
+                        }
+                    };
                     for (c, plan) in plans.iter().enumerate() {
                         // The change of the point's position and orientation, measurement frame.
                         let (dp_meas, dw_meas) = match plan {
@@ -388,39 +432,38 @@ impl Problem<'_> {
                             } => {
                                 let mut dp = Vector3::zeros();
                                 let mut dw = Vector3::zeros();
-                                let mut turn_known = false;
-                                if let Some((tree, stepped, h)) = deformation {
-                                    self.robot.deformation_restepped_into(
-                                        tree, &d.errors, &s.q, cond, &ws.rigid, stepped, ws_fd,
-                                    );
-                                    scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
-                                    dp += sensitivity.effect(scratch);
-                                    if oriented.is_some() {
-                                        // The deformation's turn has no cheap map: the full
-                                        // model differenced, on pose samples only.
-                                        self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
-                                        dw = turn_of(ws_fd, tree, *h);
-                                        turn_known = true;
-                                    }
-                                }
                                 for (j, xi) in joints {
                                     // +1 on the point's path, −1 on the frame link's, 0 on both.
                                     let sign = f64::from(u8::from(support.contains(j)))
                                         - f64::from(u8::from(link_support.contains(j)));
                                     if sign != 0.0 {
                                         dp += sign * effect_at(&placed[*j], xi);
-                                        if !turn_known {
-                                            dw += sign * (placed[*j].rotation * xi.fixed_rows::<3>(3));
-                                        }
+                                        dw += sign * (placed[*j].rotation * xi.fixed_rows::<3>(3));
                                     }
                                 }
                                 for (i, xi) in points {
                                     if *i == s.point {
                                         dp += effect_at(&point_frame, xi);
-                                        if !turn_known {
-                                            dw += point_frame.rotation * xi.fixed_rows::<3>(3);
-                                        }
+                                        dw += point_frame.rotation * xi.fixed_rows::<3>(3);
                                     }
+                                }
+                                if let Some((tree, stepped, h)) = deformation {
+                                    self.robot.deformation_restepped_into(
+                                        tree, &d.errors, &s.q, cond, &ws.rigid, stepped, ws_fd,
+                                    );
+                                    scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
+                                    let dp_def = sensitivity.effect(scratch);
+                                    // The deformation's turn has no cheap map: the full model
+                                    // differenced, on pose samples only.
+                                    let dw_def = if oriented.is_some() {
+                                        self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
+                                        turn_of(ws_fd, tree, *h) - dw
+                                    } else {
+                                        Vector3::zeros()
+                                    };
+                                    write(&mut part, c, r_meas * dp_def, r_meas * dw_def);
+                                    dp += dp_def;
+                                    dw += dw_def;
                                 }
                                 (r_meas * dp, r_meas * dw)
                             }
@@ -449,31 +492,47 @@ impl Problem<'_> {
                                 (r_meas * sensitivity.effect(scratch), r_meas * dw)
                             }
                         };
-                        if let (Some(gap), Some(cons)) = (&gap, &self.constraints) {
-                            if pw == 1 {
-                                row[width * c] = gap.normal.dot(&dp_meas) / self.sigma;
-                            }
-                            // A turn of the contact turns the normal seen from it the other way.
-                            let dm = gap.contact.inverse() * gap.normal.cross(&dw_meas);
-                            let t = gap.tilt_rows(cons, &dm, self.sigma_rot);
-                            row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
-                            continue;
-                        }
-                        for a in 0..3 {
-                            row[width * c + a] = dp_meas[a] / self.sigma;
-                        }
-                        if let Some(map) = &turn_map {
-                            let dr = map * dw_meas;
-                            for a in 0..3 {
-                                row[width * c + 3 + a] = dr[a];
-                            }
-                        }
+                        write(&mut row, c, dp_meas, dw_meas);
                     }
-                    row
+                    (row, part)
                 },
             )
             .collect();
-        // Position rows in sample order, then the orientation rows of the oriented samples.
+        let (mut jac, part) = if deformed {
+            let (rows, parts): (Vec<_>, Vec<_>) = rows.into_iter().unzip();
+            (self.assemble(&rows, ncols), Some(self.assemble(&parts, ncols)))
+        } else {
+            let rows: Vec<_> = rows.into_iter().map(|(row, _)| row).collect();
+            (self.assemble(&rows, ncols), None)
+        };
+        if let (JacobianForm::HeldPlus(extra), None) = (form, &part) {
+            jac += extra;
+        }
+        // Known distances: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to a.
+        let r0 = self.position_rows() + self.turn_width * self.oriented.len();
+        for (k, known) in self.distances.iter().enumerate() {
+            let (_, u) = self.distance(d, k);
+            for (c, plan) in plans.iter().enumerate() {
+                if let ColumnPlan::FixedPoint { index, axis } = *plan {
+                    let sign = if index == known.a {
+                        1.0
+                    } else if index == known.b {
+                        -1.0
+                    } else {
+                        continue;
+                    };
+                    jac[(r0 + k, c)] = sign * u[axis] / known.sigma;
+                }
+            }
+        }
+        self.weigh_rows(|row, w| jac.row_mut(row).iter_mut().for_each(|v| *v *= w));
+        Ok((jac, part))
+    }
+
+    /// The Jacobian's sample rows (per sample: per column its position then orientation
+    /// entries) placed as the residuals are: position rows in sample order, then the
+    /// orientation rows of the oriented samples. Distance rows are left zero.
+    fn assemble(&self, rows: &[Vec<f64>], ncols: usize) -> DMatrix<f64> {
         let (pw, tw) = (self.position_width, self.turn_width);
         let mut jac = DMatrix::zeros(self.n_residuals(), ncols);
         for (s_idx, row) in rows.iter().enumerate() {
@@ -494,25 +553,7 @@ impl Problem<'_> {
                 }
             }
         }
-        // Known distances: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to a.
-        let r0 = self.position_rows() + tw * self.oriented.len();
-        for (k, known) in self.distances.iter().enumerate() {
-            let (_, u) = self.distance(d, k);
-            for (c, plan) in plans.iter().enumerate() {
-                if let ColumnPlan::FixedPoint { index, axis } = *plan {
-                    let sign = if index == known.a {
-                        1.0
-                    } else if index == known.b {
-                        -1.0
-                    } else {
-                        continue;
-                    };
-                    jac[(r0 + k, c)] = sign * u[axis] / known.sigma;
-                }
-            }
-        }
-        self.weigh_rows(|row, w| jac.row_mut(row).iter_mut().for_each(|v| *v *= w));
-        Ok(jac)
+        jac
     }
 }
 

@@ -228,6 +228,11 @@ pub struct CalibrationParams {
     pub restart_moves: RestartMoves,
     /// Seed of the restarts' perturbations; the same seed gives the same fit.
     pub seed: u64,
+    /// A fit whose RMS stays over [`STALL_ABOVE_NOISE`] times what the noise gives stops when
+    /// this many accepted steps in a row each lower its cost by less than [`STALL_GAIN`]: the
+    /// model cannot explain the data, and the rest of the budget would buy a little RMS with
+    /// poorly determined parameters. 0 never stops early.
+    pub stall_iterations: usize,
     /// Further factors on the prior standard deviations of whole groups (on top of
     /// [`prior_scale`](Self::prior_scale)); [`evidence`] chooses them from the data.
     pub group_prior_scales: Vec<(PriorGroup, f64)>,
@@ -255,6 +260,12 @@ pub enum RestartMoves {
 /// [`CalibrationParams::restarts`]); below it the fit explains the data to within its noise.
 pub const RESTART_ABOVE_NOISE: f64 = 1.5;
 
+/// See [`CalibrationParams::stall_iterations`].
+pub const STALL_ABOVE_NOISE: f64 = 3.0;
+
+/// See [`CalibrationParams::stall_iterations`]: a relative decrease of the cost (1 %).
+pub const STALL_GAIN: f64 = 0.01;
+
 impl Default for CalibrationParams {
     fn default() -> Self {
         CalibrationParams {
@@ -272,6 +283,7 @@ impl Default for CalibrationParams {
             restart_converged: false,
             restart_moves: RestartMoves::Every,
             seed: 0,
+            stall_iterations: 5,
             group_prior_scales: Vec::new(),
             start: None,
             loss: Loss::Squared,
@@ -880,8 +892,8 @@ pub(super) fn fit_plane(points: &[Vector3<f64>], axis: &Vector3<f64>) -> Isometr
 }
 
 /// How the Jacobian treats the deformation of a robot with error models.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum JacobianForm {
+#[derive(Debug, Clone, Copy)]
+enum JacobianForm<'a> {
     /// Every column exact: geometry columns add the change of the deformation a step causes
     /// (its moment arms), the models re-evaluated on the stepped rigid kinematics and mapped
     /// to the point at the deformed frames.
@@ -890,6 +902,10 @@ enum JacobianForm {
     /// held: a few vector operations per pose and column, off by the relative size of the
     /// deflections (about 1e-3), which is what an iteration far from the minimum needs.
     HeldDeformation,
+    /// The held form plus a deformation part the exact form returned earlier for the same
+    /// samples and columns ([`Problem::jacobian_parts`]): exact to the change of that part
+    /// since, which near a minimum is far below what the fit can resolve.
+    HeldPlus(&'a DMatrix<f64>),
 }
 
 /// How one Jacobian column is computed (see [`Problem::jacobian`]).
@@ -1104,6 +1120,7 @@ pub fn calibrate(
     };
     let mut outcome = StageOutcome {
         converged: free.is_empty(),
+        stalled: false,
         stop_reason: "nothing to identify".into(),
     };
     // A warm start has its frame already: the stage that protects the chain from a poor guess
@@ -1123,7 +1140,10 @@ pub fn calibrate(
     let mut restarts_rms_mm = Vec::new();
     let moved = |k: usize| params.restart_moves == RestartMoves::Every || held_space.params[k].info.multimodal;
     let another_minimum_likely =
-        (params.restart_converged || !outcome.converged || free.iter().any(|&k| held_space.params[k].info.multimodal))
+        // A stalled fit is not in another minimum's basin: its model cannot explain the data.
+        (params.restart_converged
+            || !(outcome.converged || outcome.stalled)
+            || free.iter().any(|&k| held_space.params[k].info.multimodal))
             && free.iter().any(|&k| moved(k));
     if !free.is_empty() && another_minimum_likely && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
         let mut best_cost = problem.cost(&stage, &theta0, &free);
@@ -1396,6 +1416,8 @@ struct Stage {
 /// How a Levenberg–Marquardt run ended.
 struct StageOutcome {
     converged: bool,
+    /// It stopped early, far above the noise ([`CalibrationParams::stall_iterations`]).
+    stalled: bool,
     stop_reason: String,
 }
 

@@ -8,7 +8,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::error::Result;
 use crate::least_squares::{
-    ConvergenceParams, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, levenberg_marquardt,
+    ConvergenceParams, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, StallParams, levenberg_marquardt,
 };
 
 use super::*;
@@ -27,6 +27,9 @@ struct StageFit<'s, 'p> {
     trial: Option<(Vec<f64>, Decoded, Evaluation)>,
     /// Iterations before this stage (one budget over all stages).
     before: usize,
+    /// What the deformation's change added to the geometry columns at the fit's first exact
+    /// Jacobian ([`Problem::jacobian_parts`]).
+    deformation_part: Option<DMatrix<f64>>,
     params: &'s CalibrationParams,
     observer: &'s mut dyn FnMut(&IterationInfo),
 }
@@ -51,17 +54,24 @@ impl LeastSquares for StageFit<'_, '_> {
         Ok(())
     }
 
+    /// The exact form is computed in full once per fit; later iterations add the deformation
+    /// part of that one to the held form, since the models' re-evaluation for every geometry
+    /// column is most of a deformed robot's fit.
     fn jacobian_into(&mut self, _x: &[f64], approximate: bool, j: &mut DMatrix<f64>) -> Result<()> {
-        let form = if approximate {
-            JacobianForm::HeldDeformation
-        } else {
-            JacobianForm::Exact
-        };
         let Stage { theta, d, e, .. } = &*self.stage;
-        *j = self.problem.jacobian(theta, d, e, self.free, form)?;
-        if form == JacobianForm::Exact {
-            self.stage.exact_jacobian = Some((self.free.to_vec(), j.clone()));
+        if approximate {
+            *j = self.problem.jacobian(theta, d, e, self.free, JacobianForm::HeldDeformation)?;
+            return Ok(());
         }
+        *j = match &self.deformation_part {
+            Some(part) => self.problem.jacobian(theta, d, e, self.free, JacobianForm::HeldPlus(part))?,
+            None => {
+                let (j, part) = self.problem.jacobian_parts(theta, d, e, self.free, JacobianForm::Exact)?;
+                self.deformation_part = part;
+                j
+            }
+        };
+        self.stage.exact_jacobian = Some((self.free.to_vec(), j.clone()));
         Ok(())
     }
 
@@ -128,6 +138,11 @@ impl Problem<'_> {
                 min_improvement: params.min_improvement,
                 min_step: params.min_step,
             }),
+            stall: (params.stall_iterations > 0).then(|| StallParams {
+                iterations: params.stall_iterations,
+                gain: STALL_GAIN,
+                above_cost: 0.5 * STALL_ABOVE_NOISE.powi(2) * self.n_residuals() as f64,
+            }),
             ..LmParams::default()
         };
         let mut fit = StageFit {
@@ -140,6 +155,7 @@ impl Problem<'_> {
             upper: free.iter().map(|&k| info(k).upper).collect(),
             trial: None,
             before,
+            deformation_part: None,
             params,
             observer,
         };
@@ -173,9 +189,17 @@ impl Problem<'_> {
             ),
             // The observer cannot stop the loop.
             LmStop::Stopped => "stopped".into(),
+            LmStop::Stalled => format!(
+                "stopped early: the RMS is over {STALL_ABOVE_NOISE} times what the noise gives and each of the last \
+                 {} steps lowered the cost by less than {}%, so the model cannot explain the data (an effect it \
+                 lacks, or the noise declared too small); the Newton step is {newton:.1e} standard deviations",
+                params.stall_iterations,
+                100.0 * STALL_GAIN
+            ),
         };
         Ok(StageOutcome {
             converged: report.converged,
+            stalled: report.stop == LmStop::Stalled,
             stop_reason,
         })
     }

@@ -341,6 +341,7 @@ fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &T
         exact_jacobian_below: 0.0,
         // Early stopping on the held-out rows decides the end.
         convergence: None,
+        stall: None,
     };
     let outcome = least_squares::levenberg_marquardt(&mut fit, params, &lm);
     fit.bar.finish_and_clear();
