@@ -1140,7 +1140,11 @@ compliance = { j2 = [1e-6, 1e-6], j4 = [1e-6, 1e-6], j5 = [1e-6, 1e-6] }
     let (stalled, crawled) = (fit(5), fit(0));
     assert!(!stalled.converged);
     assert!(stalled.stop_reason.contains("stopped early"), "{}", stalled.stop_reason);
-    assert!(stalled.after.rms_mm > 10.0 * noise_floor_mm(NOISE), "{}", stalled.after.rms_mm);
+    assert!(
+        stalled.after.rms_mm > 10.0 * noise_floor_mm(NOISE),
+        "{}",
+        stalled.after.rms_mm
+    );
     // Without the rule the same fit runs on (52 against 100, the whole budget, when written)
     // and lowers the RMS by a seventh (5.74 against 4.94 mm), still far from the noise.
     assert!(

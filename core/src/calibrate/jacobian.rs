@@ -265,9 +265,15 @@ impl Problem<'_> {
         let plans = self.column_plans(theta, d, free, form)?;
         let ncols = plans.len();
         let n_models = self.robot.error_models().len();
-        let deformed = plans
-            .iter()
-            .any(|p| matches!(p, ColumnPlan::Twists { deformation: Some(_), .. }));
+        let deformed = plans.iter().any(|p| {
+            matches!(
+                p,
+                ColumnPlan::Twists {
+                    deformation: Some(_),
+                    ..
+                }
+            )
+        });
         let rows: Vec<(Vec<f64>, Vec<f64>)> = self
             .samples
             .par_iter()

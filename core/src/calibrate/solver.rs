@@ -60,13 +60,19 @@ impl LeastSquares for StageFit<'_, '_> {
     fn jacobian_into(&mut self, _x: &[f64], approximate: bool, j: &mut DMatrix<f64>) -> Result<()> {
         let Stage { theta, d, e, .. } = &*self.stage;
         if approximate {
-            *j = self.problem.jacobian(theta, d, e, self.free, JacobianForm::HeldDeformation)?;
+            *j = self
+                .problem
+                .jacobian(theta, d, e, self.free, JacobianForm::HeldDeformation)?;
             return Ok(());
         }
         *j = match &self.deformation_part {
-            Some(part) => self.problem.jacobian(theta, d, e, self.free, JacobianForm::HeldPlus(part))?,
+            Some(part) => self
+                .problem
+                .jacobian(theta, d, e, self.free, JacobianForm::HeldPlus(part))?,
             None => {
-                let (j, part) = self.problem.jacobian_parts(theta, d, e, self.free, JacobianForm::Exact)?;
+                let (j, part) = self
+                    .problem
+                    .jacobian_parts(theta, d, e, self.free, JacobianForm::Exact)?;
                 self.deformation_part = part;
                 j
             }
