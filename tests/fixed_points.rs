@@ -5,15 +5,18 @@
 use std::path::Path;
 
 use armcomp_core::Robot;
+use armcomp_core::calibrate::evidence::{EvidenceParams, calibrate_with_evidence};
 use armcomp_core::calibrate::{
     CalibrationParams, ParamGroup, ParameterSpace, calibrate, identifiability, samples_jacobian,
 };
-use armcomp_core::measurement::{Sample, parse_csv};
+use armcomp_core::measurement::{Sample, parse_csv, write_csv};
 use armcomp_core::robot::Conditions;
 use armcomp_core::simulate::{FixedPointParams, simulate_fixed_points};
 use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
 
-use crate::common::{robot_from_toml, root};
+use crate::common::{random_configurations, robot_from_toml, root};
 
 /// The Panda of `robots/panda-sockets.toml` with its `[measurement] distances` line replaced by
 /// `distances` (empty for none).
@@ -146,6 +149,221 @@ fn a_fixed_point_truth_is_recovered_with_its_points() {
         after_mm < 0.05,
         "calibrated model off the truth by {after_mm} mm RMS (nominal {before_mm} mm)"
     );
+}
+
+/// The Panda measuring the ball's position with a tracker as well as putting it into sockets:
+/// `kind = "point"`, fixed points among the rows (and without them, no known distance).
+fn mixed_panda(sockets: bool) -> Robot {
+    let text = std::fs::read_to_string(root().join("robots/panda-sockets.toml")).unwrap();
+    let urdf = root().join("tests/data/urdf/panda_sockets.urdf");
+    let text: String = (text.lines())
+        .filter(|l| sockets || !l.starts_with("distances"))
+        .map(|l| {
+            l.replace("kind = \"fixed_point\"", "kind = \"point\"")
+                .replace("../tests/data/urdf/panda_sockets.urdf", &urdf.display().to_string())
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    robot_from_toml(&text)
+}
+
+/// Mixed data of `truth`: `n` tracker positions with noise `tracker_std` per axis (m), and
+/// the sockets' rows with encoder noise `joint_std` (rad); also the socket rows' actual
+/// position noise per axis (m), from the truth's tool at the noisy joint values.
+fn mixed_samples(truth: &Robot, n: usize, tracker_std: f64, joint_std: f64, seed: u64) -> (Vec<Sample>, f64) {
+    let params = FixedPointParams {
+        per_point: 30,
+        joint_noise_std: joint_std,
+        seed,
+    };
+    let mut samples = simulate_fixed_points(truth, &sockets(), params).unwrap().samples;
+    let points = sockets();
+    let socket_sq: f64 = (samples.iter())
+        .map(|s| {
+            let c = points
+                .iter()
+                .find(|(n, _)| Some(n) == s.fixed_point.as_ref())
+                .unwrap()
+                .1;
+            (model_point(truth, &s.q) - c).norm_squared()
+        })
+        .sum();
+    let socket_std = (socket_sq / (3.0 * samples.len() as f64)).sqrt();
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed + 100);
+    let noise = Normal::new(0.0, tracker_std).unwrap();
+    for q in random_configurations(truth, n, seed + 200) {
+        let p = model_point(truth, &q) + Vector3::from_fn(|_, _| noise.sample(&mut rng));
+        samples.push(Sample {
+            position: p,
+            fixed_point: None,
+            ..samples[0].clone()
+        });
+        samples.last_mut().unwrap().q = q;
+    }
+    (samples, socket_std)
+}
+
+#[test]
+fn mixed_positions_and_fixed_points_weigh_by_their_noise() {
+    let nominal = mixed_panda(true);
+    let (samples, _) = mixed_samples(&truth_of(&nominal, &CHANGES), 40, 2e-4, 2e-5, 5);
+    // No iteration: both linearisations are at the same parameters, the robot's values.
+    let normal = |fixed_point_std: f64| {
+        let params = CalibrationParams {
+            measurement_std: 2e-4,
+            fixed_point_std: Some(fixed_point_std),
+            max_iterations: 0,
+            restarts: 0,
+            start: Some(ParameterSpace::for_samples(&nominal, &samples).initial()),
+            ..CalibrationParams::default()
+        };
+        let lin = calibrate(&nominal, &samples, &params, &mut |_| {})
+            .unwrap()
+            .linearisation;
+        let j = &lin.jacobian;
+        let rows = |fixed: bool| -> Vec<usize> {
+            (0..lin.position_rows)
+                .filter(|i| lin.fixed_point_samples[i / 3] == fixed)
+                .collect()
+        };
+        let part = |rows: Vec<usize>| {
+            let m = j.select_rows(rows.iter());
+            m.transpose() * m
+        };
+        (part(rows(false)), part(rows(true)))
+    };
+    let (p1, f1) = normal(2e-5);
+    let (p2, f2) = normal(4e-5);
+    assert!(f1.norm() > 0.0 && p1.norm() > 0.0);
+    assert!(
+        (&p2 - &p1).norm() <= 1e-12 * p1.norm(),
+        "the tracker's weight is unchanged"
+    );
+    assert!(
+        (&f2 * 4.0 - &f1).norm() <= 1e-10 * f1.norm(),
+        "the sockets' weight is a quarter"
+    );
+}
+
+#[test]
+fn mixed_kinds_are_fitted_together_each_with_the_noise_of_its_own_rows() {
+    let nominal = mixed_panda(true);
+    let truth = truth_of(&nominal, &CHANGES);
+    for seed in [1, 2, 3] {
+        let tracker = 2e-4;
+        let (samples, socket_std) = mixed_samples(&truth, 40, tracker, 2e-5, seed);
+        let identify = CHANGES
+            .iter()
+            .map(|(n, _)| n.to_string())
+            .chain(["base".into()])
+            .collect();
+        let params = CalibrationParams {
+            identify,
+            ..CalibrationParams::default()
+        };
+        let (cal, ev) =
+            calibrate_with_evidence(&nominal, &samples, &params, &EvidenceParams::default(), &mut |_| {}).unwrap();
+        // Each kind's noise from its own residuals: the tracker's as drawn, the sockets' as the
+        // encoder noise put the ball off them (a tenth of the tracker's).
+        let fixed = ev.fixed_point_noise_mm.expect("mixed data estimate the sockets' noise") * 1e-3;
+        assert!(
+            (ev.noise_mm * 1e-3 / tracker - 1.0).abs() < 0.25,
+            "seed {seed}: tracker noise {} mm, drawn {} mm",
+            ev.noise_mm,
+            tracker * 1e3
+        );
+        assert!(
+            (fixed / socket_std - 1.0).abs() < 0.2,
+            "seed {seed}: socket noise {} mm, actual {} mm",
+            fixed * 1e3,
+            socket_std * 1e3
+        );
+        // The sockets, ten times the more precise, pin the geometry they see: the model puts
+        // the tool where the truth does (robot base frame, which the sockets see without the
+        // tracker's frame) better than the tracker's rows alone do.
+        let tracker_rows: Vec<Sample> = samples.iter().filter(|s| s.fixed_point.is_none()).cloned().collect();
+        let alone = calibrate(&mixed_panda(false), &tracker_rows, &params, &mut |_| {}).unwrap();
+        let (mixed_mm, alone_mm) = (base_spread_to(&cal.robot, &truth), base_spread_to(&alone.robot, &truth));
+        assert!(
+            mixed_mm < 0.02 && mixed_mm < 0.3 * alone_mm,
+            "seed {seed}: {mixed_mm} mm off the truth, the tracker alone {alone_mm} mm"
+        );
+        for (name, p) in sockets() {
+            let r = cal
+                .report
+                .params
+                .iter()
+                .find(|r| r.name == format!("fixed_point.{name}.x"))
+                .unwrap();
+            assert!(
+                (r.value - p.x).abs() < 1e-4,
+                "seed {seed}: {} {} against {}",
+                r.name,
+                r.value,
+                p.x
+            );
+        }
+    }
+}
+
+#[test]
+fn mixed_files_are_read_written_and_checked() {
+    let robot = mixed_panda(true);
+    let head = "panda_joint1[deg],panda_joint2[deg],panda_joint3[deg],panda_joint4[deg],panda_joint5[deg],panda_joint6[deg],panda_joint7[deg]";
+    let text = format!(
+        "{head},kind,fixed_point,x[mm],y[mm],z[mm]\n0,10,0,-90,0,90,0,fixed_point,hole_0,,,\n\
+         5,10,0,-90,0,90,0,point,,500,20,300\n"
+    );
+    let set = parse_csv(&text, Path::new("m.csv"), &robot.csv_layout()).unwrap();
+    assert_eq!(set.samples.len(), 2);
+    assert_eq!(set.samples[0].fixed_point.as_deref(), Some("hole_0"));
+    assert_eq!(set.samples[1].fixed_point, None);
+    assert!((set.samples[1].position - Vector3::new(0.5, 0.02, 0.3)).norm() < 1e-12);
+    // Written and read back, the same samples.
+    let written = write_csv(&set, robot.tree(), robot.units());
+    let again = parse_csv(&written, Path::new("w.csv"), &robot.csv_layout()).unwrap();
+    assert_eq!(again.samples, set.samples);
+    // A file of sockets alone joins a tracker's file (given to `--data` twice).
+    let sockets = format!("{head},fixed_point\n0,10,0,-90,0,90,0,hole_1\n");
+    let set = parse_csv(&sockets, Path::new("s.csv"), &robot.csv_layout()).unwrap();
+    assert_eq!(set.samples[0].fixed_point.as_deref(), Some("hole_1"));
+    let bad = [
+        (
+            format!("{head},kind,fixed_point,x,y,z\n0,10,0,-90,0,90,0,point,hole_0,,,\n"),
+            "column `kind` says `point`",
+        ),
+        (
+            format!("{head},kind,fixed_point,x,y,z\n0,10,0,-90,0,90,0,socket,hole_0,,,\n"),
+            "`socket` is not a measurement kind",
+        ),
+        (
+            format!("{head},fixed_point,x,y,z\n0,10,0,-90,0,90,0,,,,\n"),
+            "names the fixed point it was measured at",
+        ),
+        (
+            format!("{head},fixed_point\n0,10,0,-90,0,90,0,\n"),
+            "column `fixed_point` is empty",
+        ),
+    ];
+    for (text, message) in bad {
+        let e = parse_csv(&text, Path::new("b.csv"), &robot.csv_layout())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("b.csv:2") && e.contains(message), "{e}");
+    }
+}
+
+/// RMS distance (mm) between the tool of `a` and of `b` in their base frames over
+/// configurations spread over the ranges.
+fn base_spread_to(a: &Robot, b: &Robot) -> f64 {
+    let qs = armcomp_core::sampling::configurations(a.tree(), armcomp_core::sampling::Sampler::Sobol, 50, 11).unwrap();
+    let tool = |r: &Robot, q: &[f64]| {
+        let mut ws = r.workspace();
+        r.forward_with_into(r.tree(), r.error_values(), q, Conditions::default(), &mut ws);
+        ws.frames.point[r.markers()[0]].translation.vector
+    };
+    let sum: f64 = qs.iter().map(|q| (tool(a, q) - tool(b, q)).norm_squared()).sum();
+    (sum / qs.len() as f64).sqrt() * 1e3
 }
 
 /// RMS distance (mm) between the tool of `a` and of `b` over configurations spread over the
@@ -372,14 +590,15 @@ fn fixed_point_files_are_read_and_checked() {
             .to_string();
         assert!(e.contains(&format!("f.csv{line}")) && e.contains(message), "{e}");
     }
-    // A position robot refuses the column, and a distance needs fixed points.
+    // A position robot reads fixed points among its positions, but a row gives one or the
+    // other.
     let point_robot = crate::common::robot("industrial-6dof.toml");
     let names = point_robot.tree().coordinate_names().join(",");
     let text = format!("{names},x,y,z,fixed_point\n0,0,0,0,0,0,1,2,3,a\n");
     let e = parse_csv(&text, Path::new("p.csv"), &point_robot.csv_layout())
         .unwrap_err()
         .to_string();
-    assert!(e.contains("kind = \"fixed_point\""), "{e}");
+    assert!(e.contains("p.csv:2") && e.contains("gives no measured position"), "{e}");
     // A distance naming a fixed point the data lack is refused with its place in the file.
     let other = panda(r#"distances = [{ between = ["hole_0", "hole_9"], mm = 50.0 }]"#);
     let e = calibrate(&other, &set.samples, &CalibrationParams::default(), &mut |_| {})

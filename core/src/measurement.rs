@@ -112,6 +112,8 @@ enum Column {
         scale: f64,
     },
     Point,
+    /// What the row measures (`point`, `pose` or `fixed_point`), checked against its cells.
+    Kind,
     /// The name of the unknown fixed point the marker was put into, or of the unknown plane
     /// it was pressed on: the layout's [group column](CsvLayout::group_column).
     Group,
@@ -152,7 +154,7 @@ impl Column {
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
-            Column::Point | Column::Group | Column::Station | Column::Ignored => None,
+            Column::Point | Column::Kind | Column::Group | Column::Station | Column::Ignored => None,
         }
     }
 }
@@ -556,7 +558,10 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         } else {
             match name {
                 "point" => Column::Point,
+                "kind" => Column::Kind,
                 g if layout.group_column().is_some_and(|(c, _)| c == g) => Column::Group,
+                // Fixed-point rows among measured positions (mixed data).
+                "fixed_point" if !layout.planes => Column::Group,
                 g @ ("fixed_point" | "plane") => {
                     let what = if g == "plane" { "plane contacts" } else { "fixed points" };
                     return Err(err(
@@ -663,7 +668,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             ));
         }
     } else if with_positions {
-        if slots.is_empty() {
+        if slots.is_empty() && !has(&|k| matches!(k, Column::Group)) {
             return Err(err(
                 Some(header_line),
                 "missing columns `x`, `y`, `z` (measured position, e.g. `x[mm]`; or `x1, y1, z1`, ... for several points)".into(),
@@ -753,7 +758,7 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     let mut set = MeasurementSet::default();
     // A pose robot's file without orientation is a file of positions (another session's, a
     // tracker without a 6-DoF probe): its rows are point measurements, and the user is told.
-    if spelling.is_none() && layout.orientation && with_positions {
+    if spelling.is_none() && layout.orientation && with_positions && !slots.is_empty() {
         set.warnings.push(format!(
             "{}: the robot file measures poses but this file gives no orientation (qw, qx, qy, qz; rx, ry, rz; or \
              roll, pitch, yaw): its rows are used as positions only",
@@ -782,6 +787,12 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
     // Joints outside their limits: (rows, first line, worst value) per coordinate.
     let mut outside: Vec<(usize, usize, f64)> = vec![(0, 0, 0.0); names.len()];
     let mut rows_without_point = 0;
+    // In data that mix measured positions with fixed points, the rows naming a fixed point give
+    // no position (a robot of fixed points only has a group column of its own).
+    let mixed_group = columns
+        .iter()
+        .position(|c| matches!(c, Column::Group))
+        .filter(|_| with_positions && layout.group_column().is_none());
     let mut lines = LineCounter::new(text);
     for (row, record) in reader.records().enumerate() {
         let record = record.map_err(|e| err(Some(lines.line_at(e.position())), format!("cannot read the row: {e}")))?;
@@ -809,6 +820,8 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
             gravity: None,
             station: 0,
         };
+        let fixed_row = mixed_group.is_some_and(|k| !record[k].is_empty());
+        let mut kind_cell = None;
         let mut angles = [0.0; 4];
         let mut sensor_reading = Vector4::zeros();
         // Per slot, the position and how many of its cells were empty.
@@ -825,10 +838,13 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     })?;
                     continue;
                 }
+                Column::Kind => {
+                    kind_cell = Some(field);
+                    continue;
+                }
+                Column::Group if field.is_empty() && mixed_group.is_some() && !slots.is_empty() => continue,
                 Column::Group => {
-                    let (column, what) = layout
-                        .group_column()
-                        .expect("a group column has a layout that reads it");
+                    let (column, what) = layout.group_column().unwrap_or(("fixed_point", "fixed point"));
                     if field.is_empty() {
                         return Err(err(
                             Some(line),
@@ -857,6 +873,27 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                         }
                     };
                     continue;
+                }
+                Column::Position { .. } | Column::Orientation(..) if fixed_row => {
+                    if !field.is_empty() {
+                        return Err(err(
+                            Some(line),
+                            format!(
+                                "column `{head}`: a row naming a fixed point gives no measured position or \
+                                 orientation; empty this cell or the row's `fixed_point`"
+                            ),
+                        ));
+                    }
+                    continue;
+                }
+                Column::Position { slot: None, .. } if field.is_empty() && mixed_group.is_some() => {
+                    return Err(err(
+                        Some(line),
+                        format!(
+                            "column `{head}` is empty; a row gives its measured position or names the fixed point it \
+                             was measured at in `fixed_point`"
+                        ),
+                    ));
                 }
                 Column::Position {
                     slot: slot @ Some(_), ..
@@ -911,11 +948,14 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
                     }
                 }
                 Column::Sensor(k, scale) => sensor_reading[k] = v * scale,
-                Column::Point | Column::Group | Column::Station | Column::Ignored => {}
+                Column::Point | Column::Kind | Column::Group | Column::Station | Column::Ignored => {}
             }
         }
-        if let Some(spelling) = spelling {
+        if let Some(spelling) = spelling.filter(|_| !fixed_row) {
             s.orientation = Some(spelling.rotation(angles).map_err(|m| err(Some(line), m))?);
+        }
+        if let Some(kind) = kind_cell {
+            check_kind_cell(kind, &s).map_err(|m| err(Some(line), m))?;
         }
         if let Some(g) = sensor {
             let direction = g.kind.gravity_direction(&sensor_reading).map_err(|m| {
@@ -1000,6 +1040,36 @@ fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: 
         check_magnitudes(&set, &columns, &headers, tree, path)?;
     }
     Ok(set)
+}
+
+/// Checks a row's `kind` cell against what its other cells measure.
+fn check_kind_cell(kind: &str, s: &Sample) -> std::result::Result<(), String> {
+    let is = if s.fixed_point.is_some() {
+        "fixed_point"
+    } else if s.plane.is_some() {
+        "plane"
+    } else if s.orientation.is_some() {
+        "pose"
+    } else {
+        "point"
+    };
+    let gives = |k: &str| match k {
+        "fixed_point" => "names a fixed point and no position",
+        "plane" => "names a plane and no position",
+        "pose" => "gives a position and an orientation",
+        _ => "gives a position without an orientation",
+    };
+    match kind.trim() {
+        k if k == is => Ok(()),
+        k @ ("point" | "pose" | "fixed_point" | "plane") => Err(format!(
+            "column `kind` says `{k}`, but the row {}; a `{k}` row {}",
+            gives(is),
+            gives(k)
+        )),
+        k => Err(format!(
+            "column `kind`: `{k}` is not a measurement kind; expected point, pose, fixed_point or plane"
+        )),
+    }
 }
 
 /// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
@@ -1169,9 +1239,13 @@ fn check_magnitudes(
     tree: &KinematicTree,
     path: &Path,
 ) -> Result<()> {
-    let mut norms: Vec<f64> = set.samples.iter().map(|s| s.position.norm()).collect();
+    // Fixed-point rows of mixed data measure no position.
+    let mut norms: Vec<f64> = (set.samples.iter())
+        .filter(|s| s.fixed_point.is_none())
+        .map(|s| s.position.norm())
+        .collect();
     norms.sort_by(f64::total_cmp);
-    let median = norms[norms.len() / 2];
+    let median = norms.get(norms.len() / 2).copied().unwrap_or(0.0);
     let pos_scale = columns.iter().find_map(|c| {
         if let Column::Position { scale, .. } = c {
             Some(*scale)
@@ -1239,16 +1313,22 @@ pub fn write_csv_with_sensor(
         header.push("station".into());
     }
     let first = set.samples.first();
-    let fixed_points = first.is_some_and(|s| s.fixed_point.is_some());
+    // Mixed data give positions, and fixed points in a column of their own.
+    let fixed_points = set.samples.iter().any(|s| s.fixed_point.is_some());
     let planes = first.is_some_and(|s| s.plane.is_some());
+    let measured = set
+        .samples
+        .iter()
+        .find(|s| s.fixed_point.is_none() && s.plane.is_none());
     if fixed_points {
         header.push("fixed_point".into());
     } else if planes {
         header.push("plane".into());
-    } else {
+    }
+    if measured.is_some() {
         header.extend(["x", "y", "z"].map(|a| format!("{a}[{lu}]")));
     }
-    let with_quat = first.is_some_and(|s| s.orientation.is_some());
+    let with_quat = measured.is_some_and(|s| s.orientation.is_some());
     let with_payload = first.is_some_and(|s| s.payload.is_some());
     let with_temp = first.is_some_and(|s| s.temperature.is_some());
     if with_quat {
@@ -1277,12 +1357,22 @@ pub fn write_csv_with_sensor(
             row.push(set.stations[s.station].clone());
         }
         match (&s.fixed_point, &s.plane) {
-            (Some(name), _) if fixed_points => row.push(name.clone()),
-            (_, Some(name)) if planes => row.push(name.clone()),
-            _ => row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v)))),
+            (Some(name), _) => row.push(name.clone()),
+            (_, Some(name)) => row.push(name.clone()),
+            _ if fixed_points => row.push(String::new()),
+            _ => {}
         }
-        if with_quat && let Some(q) = s.orientation {
-            row.extend([q.w, q.i, q.j, q.k].map(|v| format!("{v}")));
+        if measured.is_some() {
+            match s.fixed_point.is_some() || s.plane.is_some() {
+                true => row.extend(std::iter::repeat_n(String::new(), 3)),
+                false => row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v)))),
+            }
+        }
+        if with_quat {
+            match s.orientation {
+                Some(q) => row.extend([q.w, q.i, q.j, q.k].map(|v| format!("{v}"))),
+                None => row.extend(std::iter::repeat_n(String::new(), 4)),
+            }
         }
         if with_payload {
             row.push(format!("{}", s.payload.unwrap_or(0.0)));

@@ -1484,10 +1484,11 @@ fn measurement_setup(
     if let Some(m) = &file.measurement {
         for (i, d) in m.distances.iter().enumerate() {
             let field = format!("measurement.distances[{i}]");
-            if m.kind != crate::robot_file::MeasurementKind::FixedPoint {
+            if m.kind == crate::robot_file::MeasurementKind::Plane {
                 issues.push(
                     field.clone(),
-                    "a known distance is between fixed points; expected `kind = \"fixed_point\"` in [measurement]",
+                    "a known distance is between fixed points, which plane contacts do not measure; expected `kind` \
+                     `fixed_point`, `point` or `pose` in [measurement]",
                 );
             }
             if d.between[0] == d.between[1] {

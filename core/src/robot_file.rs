@@ -245,7 +245,8 @@ pub struct MeasurementSpec {
     /// marker and is not named here holds 0, or the middle of its limits if 0 is outside them.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub hold: BTreeMap<String, f64>,
-    /// Known distances between fixed points (`kind = "fixed_point"`): without one the scale of
+    /// Known distances between fixed points (`kind = "fixed_point"`, or fixed points among
+    /// the positions of `"point"` or `"pose"`): without one the scale of
     /// the robot is not observable from fixed points alone.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub distances: Vec<DistanceSpec>,

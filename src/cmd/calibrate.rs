@@ -262,6 +262,9 @@ fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {
         if let Some(deg) = e.orientation_noise_deg {
             println!("orientation noise estimated from the data: {deg:.4}° per axis");
         }
+        if let (Some(mm), Some(std)) = (e.fixed_point_noise_mm, e.fixed_point_noise_std_mm) {
+            println!("fixed-point noise estimated from the data: {mm:.4} ± {std:.4} mm per axis");
+        }
     }
     if !e.groups.is_empty() {
         let groups: Vec<String> = e

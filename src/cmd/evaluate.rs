@@ -74,7 +74,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report.to_json())?);
     } else {
-        println!("{}", stats_line(&report.stats));
+        // Mixed data: the first line is the measured positions', the fixed points follow.
+        let mixed = report.fixed_points.is_some() && report.stats.n < data.samples.len();
+        let what = if mixed { "measured positions: " } else { "" };
+        println!("{what}{}", stats_line(&report.stats));
         if let Some(o) = &report.orientation {
             println!(
                 "  orientation: n {}  mean {:.4} deg  RMS {:.4} deg  max {:.4} deg",

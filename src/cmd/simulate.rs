@@ -34,9 +34,10 @@ pub struct Args {
     /// Seed for pose sampling and noise; the same seed gives the same bytes.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// For a truth of `kind = "fixed_point"`: a fixed point the tool is put into from --n
-    /// configurations each (found by inverse kinematics), as `name=x,y,z` in mm in the
-    /// measurement frame; repeat for several.
+    /// A fixed point the tool is put into from --n configurations each (found by inverse
+    /// kinematics), as `name=x,y,z` in mm in the measurement frame; repeat for several. For a
+    /// truth that measures positions (`kind = "point"`), its rows follow the tracker's: mixed
+    /// data.
     #[arg(long = "fixed-point", value_name = "NAME=X,Y,Z")]
     fixed_points: Vec<String>,
     /// For a truth of `kind = "plane"`: a plane the tool is pressed on from --n configurations
@@ -142,9 +143,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    if !args.fixed_points.is_empty() {
-        anyhow::bail!("--fixed-point needs a truth robot file of `kind = \"fixed_point\"` in its [measurement]");
-    }
     if !args.planes.is_empty() {
         anyhow::bail!("--plane needs a truth robot file of `kind = \"plane\"` in its [measurement]");
     }
@@ -167,16 +165,42 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "station" => armcomp_core::simulate::TiltDraw::PerStation,
         _ => armcomp_core::simulate::TiltDraw::PerRow,
     };
-    let set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
+    let mut set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
+    // Fixed points named for a truth that measures positions: mixed data, the tracker's rows
+    // then the fixed points'.
+    let contacts = (args.fixed_points.iter())
+        .map(|t| fixed_point(t).map(|(name, p)| (name, Contact::FixedPoint(p))))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if !contacts.is_empty() {
+        let params = armcomp_core::simulate::FixedPointParams {
+            per_point: args.n,
+            joint_noise_std: args.joint_noise_deg.to_radians(),
+            seed: args.seed,
+        };
+        let fixed = armcomp_core::simulate::simulate_contacts(&truth, &contacts, params)?;
+        let first = set.rows.last().map_or(0, |r| r + 1);
+        set.rows.extend(fixed.rows.iter().map(|r| r + first));
+        set.samples.extend(fixed.samples);
+    }
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }
     let text = write_csv_with_sensor(&set, truth.tree(), truth.units(), truth.gravity_sensor());
     write_atomic(&args.out, text.as_bytes())?;
     eprintln!(
-        "wrote {} measurements of {} poses to {} (noise {} mm per axis, seed {})",
+        "wrote {} measurements of {} poses{} to {} (noise {} mm per axis, seed {})",
         set.samples.len(),
         poses.len(),
+        if contacts.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " and {} configurations at {} fixed points (joint noise {} deg)",
+                args.n * contacts.len(),
+                contacts.len(),
+                args.joint_noise_deg
+            )
+        },
         args.out.display(),
         args.noise_mm,
         args.seed

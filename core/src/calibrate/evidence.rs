@@ -102,6 +102,11 @@ pub struct EvidenceReport {
     /// The orientation noise per axis (deg), when the robot measures poses: estimated from
     /// the orientation residuals alone, its own degrees of freedom, as the positions' is.
     pub orientation_noise_deg: Option<f64>,
+    /// The position noise per axis of the fixed-point rows (mm), when the data mix them with
+    /// measured positions: estimated from their residuals alone (a socket is not a tracker).
+    pub fixed_point_noise_mm: Option<f64>,
+    /// Its standard error (mm).
+    pub fixed_point_noise_std_mm: Option<f64>,
     /// The residual RMS of each axis of the measurement frame (mm): unequal values say the
     /// tracker is better along some axes.
     pub rms_per_axis_mm: [f64; 3],
@@ -132,9 +137,10 @@ pub struct EvidenceReport {
 struct Update {
     /// Per free parameter, how much the data determine it (`γₖ`).
     gamma: Vec<f64>,
-    /// Per residual kind (positions, orientations): the squared residuals in SI units, the
-    /// equations, and the share of the determined parameters (`γ`) its rows carry.
-    kinds: [Kind; 2],
+    /// Per residual kind (measured positions, orientations, fixed points of mixed data): the
+    /// squared residuals in SI units, the equations, and the share of the determined
+    /// parameters (`γ`) its rows carry.
+    kinds: [Kind; 3],
     log_evidence: f64,
 }
 
@@ -152,9 +158,21 @@ impl Kind {
     }
 }
 
+/// Residual row `i`'s kind (0 measured positions, 1 orientations, 2 fixed points of mixed
+/// data) and the noise it was whitened by.
+fn row_kind(lin: &Linearisation, i: usize) -> (usize, f64) {
+    if i >= lin.position_rows {
+        return (1, lin.orientation_noise);
+    }
+    // Mixed data have no plane contacts: three position rows a sample.
+    match lin.fixed_point_noise {
+        Some(sigma) if lin.fixed_point_samples[i / 3] => (2, sigma),
+        _ => (0, lin.noise),
+    }
+}
+
 fn update(lin: &Linearisation) -> Update {
     let n = lin.free.len();
-    let noise2 = lin.noise * lin.noise;
     let mut a: DMatrix<f64> = lin.jacobian.transpose() * &lin.jacobian;
     let alpha: Vec<f64> = lin.prior_sigma.iter().map(|s| s.powi(-2)).collect();
     for c in 0..n {
@@ -179,15 +197,11 @@ fn update(lin: &Linearisation) -> Update {
     let chi2 = lin.residuals.norm_squared();
     // Each kind's share of γ is the sum of its rows' leverages (J A⁻¹ Jᵀ)ᵢᵢ, so the kinds'
     // noises follow MacKay's update each over its own equations.
-    let mut kinds = [Kind::default(); 2];
+    let mut kinds = [Kind::default(); 3];
     let scaled = &lin.jacobian * &eig.eigenvectors;
     let measured_rows = lin.residuals.len() - lin.distance_rows;
     for (i, r) in lin.residuals.iter().take(measured_rows).enumerate() {
-        let (k, sigma) = if i < lin.position_rows {
-            (0, lin.noise)
-        } else {
-            (1, lin.orientation_noise)
-        };
+        let (k, sigma) = row_kind(lin, i);
         let leverage: f64 = (0..n)
             .map(|l| scaled[(i, l)].powi(2) / eig.eigenvalues[l].max(floor).max(f64::MIN_POSITIVE))
             .sum();
@@ -195,9 +209,12 @@ fn update(lin: &Linearisation) -> Update {
         kinds[k].n += 1.0;
         kinds[k].gamma += leverage;
     }
-    let log_noise: f64 = kinds[0].n * (2.0 * std::f64::consts::PI * noise2).ln()
-        + kinds[1].n * (2.0 * std::f64::consts::PI * lin.orientation_noise.powi(2)).ln();
-    debug_assert_eq!(kinds[0].n + kinds[1].n, measured_rows as f64);
+    let log_noise: f64 = [lin.noise, lin.orientation_noise, lin.fixed_point_noise.unwrap_or(1.0)]
+        .iter()
+        .zip(&kinds)
+        .map(|(sigma, kind)| kind.n * (2.0 * std::f64::consts::PI * sigma * sigma).ln())
+        .sum();
+    debug_assert_eq!(kinds.iter().map(|k| k.n).sum::<f64>(), measured_rows as f64);
     let prior: f64 = lin
         .free
         .iter()
@@ -253,6 +270,11 @@ pub fn calibrate_with_evidence(
                 let noise = u.kinds[1].noise().max(1e-9);
                 changed = changed.max((noise / p.orientation_std).ln().abs());
                 next.orientation_std = noise;
+            }
+            if let (true, Some(old)) = (u.kinds[2].n > 0.0, lin.fixed_point_noise) {
+                let noise = u.kinds[2].noise().max(1e-9);
+                changed = changed.max((noise / old).ln().abs());
+                next.fixed_point_std = Some(noise);
             }
         }
         if estimate_priors {
@@ -338,16 +360,26 @@ fn report(
         })
         .collect();
     groups.sort_by_key(|g| g.group);
+    // Measured positions only: a fixed point's residual is not along a tracker's axes.
     let mut axis = [0.0; 3];
     for (i, r) in lin.residuals.iter().take(lin.position_rows).enumerate() {
-        axis[i % 3] += (r * lin.noise).powi(2);
+        if let (0, sigma) = row_kind(lin, i) {
+            axis[i % 3] += (r * sigma).powi(2);
+        }
     }
-    let n = samples.len().max(1) as f64;
+    let n = (lin.fixed_point_samples.iter())
+        .filter(|&&f| !f || lin.fixed_point_noise.is_none())
+        .count()
+        .max(1) as f64;
     EvidenceReport {
         noise_estimated: evidence.estimate_noise,
         noise_mm: lin.noise * 1e3,
         noise_std_mm: lin.noise * 1e3 / (2.0 * dof).sqrt(),
         orientation_noise_deg: (u.kinds[1].n > 0.0).then(|| lin.orientation_noise.to_degrees()),
+        fixed_point_noise_mm: lin.fixed_point_noise.map(|s| s * 1e3),
+        fixed_point_noise_std_mm: lin
+            .fixed_point_noise
+            .map(|s| s * 1e3 / (2.0 * (u.kinds[2].n - u.kinds[2].gamma).max(1.0)).sqrt()),
         rms_per_axis_mm: axis.map(|s| (s / n).sqrt() * 1e3),
         determined: u.gamma.iter().sum(),
         n_free: lin.free.len(),

@@ -310,7 +310,7 @@ pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationPa
     }
     let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
-    let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
+    let problem = Problem::new(robot, &space, samples, Noise::of(params));
     let theta = problem.start()?;
     let (d, e, _) = problem.predict(&theta)?;
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;

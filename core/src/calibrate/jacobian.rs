@@ -688,7 +688,7 @@ pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) 
     }
     let space = ParameterSpace::for_samples(robot, samples);
     let selected = space.select(robot, identify)?;
-    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
+    let problem = Problem::new(robot, &space, samples, Noise::UNIT);
     let theta = problem.start()?;
     let (d, e, _) = problem.predict(&theta)?;
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;

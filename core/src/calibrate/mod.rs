@@ -52,6 +52,7 @@ use jacobian::*;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
 use registration::*;
 pub use registration::{register_held_out_stations, register_stations};
+use robust::gross_errors_by_kind;
 pub use robust::{Drift, GROSS_ERROR, HUBER_K, Loss, Outlier, drift, gross_errors, robust_noise};
 pub use score::{ScoreTest, score_test};
 use space::*;
@@ -191,6 +192,11 @@ pub struct CalibrationParams {
     /// Standard deviation of the measured orientation's noise per axis (rad), when the robot
     /// measures poses: weighs orientations against positions and priors.
     pub orientation_std: f64,
+    /// Standard deviation per axis of where the tool sits in a fixed point (m), for data that
+    /// mix fixed-point rows with measured positions (a socket is not a tracker); `None`: the
+    /// measured positions' [`measurement_std`](Self::measurement_std). Data of fixed points
+    /// alone are weighed by `measurement_std`.
+    pub fixed_point_std: Option<f64>,
     /// Most Levenberg–Marquardt iterations, over all stages of the fit.
     pub max_iterations: usize,
     /// Converged when an accepted step lowers the cost by less than this fraction.
@@ -272,6 +278,7 @@ impl Default for CalibrationParams {
             identify: Vec::new(),
             measurement_std: 1e-4,
             orientation_std: 1e-3,
+            fixed_point_std: None,
             max_iterations: 100,
             tolerance: 1e-10,
             min_improvement: 1e-4,
@@ -499,6 +506,11 @@ pub struct Linearisation {
     pub noise: f64,
     /// The orientation noise per axis it weighed orientations with (rad).
     pub orientation_noise: f64,
+    /// The position noise per axis it weighed fixed-point samples with (m), when the data mix
+    /// them with measured positions.
+    pub fixed_point_noise: Option<f64>,
+    /// Per sample, whether it was measured in a fixed point.
+    pub fixed_point_samples: Vec<bool>,
     /// How many leading residuals are positions; the rest are orientations, then the
     /// `distance_rows` known distances.
     pub position_rows: usize,
@@ -521,6 +533,12 @@ struct Problem<'a> {
     sigma: f64,
     /// The orientation noise per axis (rad).
     sigma_rot: f64,
+    /// The position noise per axis of fixed-point samples (m) when the data mix them with
+    /// measured positions, `sigma` otherwise.
+    sigma_fixed: f64,
+    /// Per sample, the square root of the weight its kind's noise gives it against `sigma`
+    /// (`sigma / sigma_fixed` for fixed-point samples of mixed data); empty: all 1.
+    kind_weights: Vec<f64>,
     /// The samples whose orientation is a residual block (the robot measures poses, or plane
     /// contacts with constrained tilts), in order.
     oriented: Vec<usize>,
@@ -540,6 +558,37 @@ struct Problem<'a> {
     weights: Vec<f64>,
 }
 
+/// Whether `samples` mix fixed-point samples with measured positions.
+fn mixes_fixed_points(samples: &[Sample]) -> bool {
+    samples.iter().any(|s| s.fixed_point.is_some()) && samples.iter().any(|s| s.fixed_point.is_none())
+}
+
+/// The noise a [`Problem`] weighs its residuals by: per axis of measured positions (m), of
+/// orientations (rad) and, in data that mix them with measured positions, of fixed points (m).
+#[derive(Debug, Clone, Copy)]
+struct Noise {
+    sigma: f64,
+    sigma_rot: f64,
+    sigma_fixed: Option<f64>,
+}
+
+impl Noise {
+    /// Unit noise: residuals in SI units.
+    const UNIT: Noise = Noise {
+        sigma: 1.0,
+        sigma_rot: 1.0,
+        sigma_fixed: None,
+    };
+
+    fn of(params: &CalibrationParams) -> Self {
+        Noise {
+            sigma: params.measurement_std,
+            sigma_rot: params.orientation_std,
+            sigma_fixed: params.fixed_point_std,
+        }
+    }
+}
+
 /// A known distance between fixed points `a` and `b` (indices into the space's fixed points),
 /// in metres, with its standard deviation.
 #[derive(Debug, Clone, Copy)]
@@ -551,7 +600,27 @@ struct KnownDistance {
 }
 
 impl<'a> Problem<'a> {
-    fn new(robot: &'a Robot, space: &'a ParameterSpace, samples: &'a [Sample], sigma: f64, sigma_rot: f64) -> Self {
+    fn new(robot: &'a Robot, space: &'a ParameterSpace, samples: &'a [Sample], noise: Noise) -> Self {
+        let Noise { sigma, sigma_rot, .. } = noise;
+        let sigma_fixed = if mixes_fixed_points(samples) {
+            noise.sigma_fixed.unwrap_or(sigma)
+        } else {
+            sigma
+        };
+        let kind_weights = if sigma_fixed == sigma {
+            Vec::new()
+        } else {
+            samples
+                .iter()
+                .map(|s| {
+                    if s.fixed_point.is_some() {
+                        sigma / sigma_fixed
+                    } else {
+                        1.0
+                    }
+                })
+                .collect()
+        };
         let constraints = robot.measures_planes().then(|| robot.plane_constraints());
         let (position_width, turn_width) = match constraints {
             Some(c) => (usize::from(c.height), c.tilts()),
@@ -595,6 +664,8 @@ impl<'a> Problem<'a> {
             samples,
             sigma,
             sigma_rot,
+            sigma_fixed,
+            kind_weights,
             oriented,
             fixed,
             plane,
@@ -603,6 +674,24 @@ impl<'a> Problem<'a> {
             turn_width,
             distances,
             weights: Vec::new(),
+        }
+    }
+
+    /// The noise it weighs residuals by.
+    fn noise(&self) -> Noise {
+        Noise {
+            sigma: self.sigma,
+            sigma_rot: self.sigma_rot,
+            sigma_fixed: Some(self.sigma_fixed),
+        }
+    }
+
+    /// The position noise per axis of sample `i` (m).
+    fn position_sigma(&self, i: usize) -> f64 {
+        if self.fixed[i].is_some() {
+            self.sigma_fixed
+        } else {
+            self.sigma
         }
     }
 
@@ -638,14 +727,21 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    /// The space's starting values with each fixed point started in closed form: the mean of
-    /// the points the starting model puts its samples at (measurement frame).
+    /// The space's starting values with each fixed point started in closed form (see
+    /// [`start_fixed_points`](Self::start_fixed_points)).
     fn start(&self) -> Result<Vec<f64>> {
         let mut theta = self.space.initial();
+        self.start_fixed_points(&mut theta)?;
+        Ok(theta)
+    }
+
+    /// Sets each fixed point of `theta` to the mean of the points the model at `theta` puts
+    /// its samples at (measurement frame).
+    fn start_fixed_points(&self, theta: &mut [f64]) -> Result<()> {
         if self.space.fixed_points.is_empty() {
-            return Ok(theta);
+            return Ok(());
         }
-        let (_, _, predicted) = self.predict(&theta)?;
+        let (_, _, predicted) = self.predict(theta)?;
         let mut sums = vec![(Vector3::zeros(), 0usize); self.space.fixed_points.len()];
         for (g, p) in self.fixed.iter().zip(&predicted) {
             if let Some(g) = g {
@@ -659,7 +755,7 @@ impl<'a> Problem<'a> {
                 theta[o..o + 3].copy_from_slice((sum / *n as f64).as_slice());
             }
         }
-        Ok(theta)
+        Ok(())
     }
 
     /// Sample `i`'s plane-contact residuals, unwhitened: its height above its plane (m) and
@@ -718,7 +814,7 @@ pub type ContactGaps = (Vec<Option<ContactGap>>, Vec<(String, bool)>);
 /// whether each was fitted.
 pub fn contact_gaps(robot: &Robot, samples: &[Sample]) -> Result<ContactGaps> {
     let space = ParameterSpace::for_samples(robot, samples);
-    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
+    let problem = Problem::new(robot, &space, samples, Noise::UNIT);
     let (d, e, _) = problem.predict(&space.initial())?;
     let gaps = (0..samples.len())
         .map(|i| {
@@ -1041,7 +1137,7 @@ pub fn calibrate(
     check_measurement_kinds(robot, samples)?;
     let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
-    let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
+    let problem = Problem::new(robot, &space, samples, Noise::of(params));
     // The priors' centre: the robot's values, the measurement frame as registered.
     let mut theta0 = problem.start()?;
     let (_, _, pred) = problem.predict(&theta0)?;
@@ -1070,6 +1166,10 @@ pub fn calibrate(
         .filter(|&&k| !register_base(&space, &mut theta0, k, samples, &pred))
         .count();
     let registered = !stations.is_empty() && unregistered == 0;
+    // Fixed points of mixed data start where the registered frame sees the model put them.
+    if unregistered < stations.len() {
+        problem.start_fixed_points(&mut theta0)?;
+    }
     let start = match &params.start {
         Some(start) if start.len() == theta0.len() => start.clone(),
         Some(start) => {
@@ -1120,7 +1220,6 @@ pub fn calibrate(
     };
     let mut outcome = StageOutcome {
         converged: free.is_empty(),
-        stalled: false,
         stop_reason: "nothing to identify".into(),
     };
     // A warm start has its frame already: the stage that protects the chain from a poor guess
@@ -1140,9 +1239,10 @@ pub fn calibrate(
     let mut restarts_rms_mm = Vec::new();
     let moved = |k: usize| params.restart_moves == RestartMoves::Every || held_space.params[k].info.multimodal;
     let another_minimum_likely =
-        // A stalled fit is not in another minimum's basin: its model cannot explain the data.
+        // A stalled fit counts as converged: it is not in another minimum's basin, its model
+        // cannot explain the data.
         (params.restart_converged
-            || !(outcome.converged || outcome.stalled)
+            || !outcome.converged
             || free.iter().any(|&k| held_space.params[k].info.multimodal))
             && free.iter().any(|&k| moved(k));
     if !free.is_empty() && another_minimum_likely && problem.rms_over_noise(&stage) > RESTART_ABOVE_NOISE {
@@ -1261,11 +1361,20 @@ pub fn calibrate(
     let (outliers, trend) = if problem.constraints.is_some() {
         (Vec::new(), None)
     } else {
-        (gross_errors(&residual_vectors), drift(&residual_vectors))
+        // A drift is the tracker's: the measured positions' alone.
+        let fixed: Vec<bool> = problem.fixed.iter().map(Option::is_some).collect();
+        let measured: Vec<Vector3<f64>> = (residual_vectors.iter().zip(&fixed))
+            .filter(|(_, f)| !**f)
+            .map(|(e, _)| *e)
+            .collect();
+        (gross_errors_by_kind(&residual_vectors, &fixed), drift(&measured))
     };
     // The RMS the noise gives: √3 σ in 3-D, σ for a plane's height.
     let dims = (problem.position_width.max(1)) as f64;
-    let rms_over_noise = after.rms_mm * 1e-3 / (dims.sqrt() * params.measurement_std);
+    let chi2: f64 = (residual_vectors.iter().enumerate())
+        .map(|(i, e)| (e.norm() / problem.position_sigma(i)).powi(2))
+        .sum();
+    let rms_over_noise = (chi2 / (dims * residual_vectors.len().max(1) as f64)).sqrt();
     // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
     // can shrink the arm onto positions read a thousand times too small.
     let unit_mistake = unit_mistake(&problem, &theta0)?;
@@ -1305,6 +1414,8 @@ pub fn calibrate(
         centre: theta0,
         noise: params.measurement_std,
         orientation_noise: params.orientation_std,
+        fixed_point_noise: mixes_fixed_points(samples).then_some(problem.sigma_fixed),
+        fixed_point_samples: problem.fixed.iter().map(Option::is_some).collect(),
         position_rows: problem.position_rows(),
         distance_rows: problem.distances.len(),
         residuals: r,
@@ -1415,9 +1526,9 @@ struct Stage {
 
 /// How a Levenberg–Marquardt run ended.
 struct StageOutcome {
+    /// It converged, or stopped early far above the noise
+    /// ([`CalibrationParams::stall_iterations`]), as far as its model can go.
     converged: bool,
-    /// It stopped early, far above the noise ([`CalibrationParams::stall_iterations`]).
-    stalled: bool,
     stop_reason: String,
 }
 
@@ -1430,8 +1541,8 @@ fn stats(targets: &[Vector3<f64>], predicted: &[Vector3<f64>]) -> ErrorStats {
     ErrorStats::from_errors(&measured_minus_modelled(targets, predicted))
 }
 
-/// Refuses fixed-point or plane samples on a robot that measures something else and the
-/// reverse, known distances naming a fixed point the samples lack, and a frame link on a robot
+/// Refuses plane samples on a robot that measures something else and the reverse, samples
+/// without a fixed point on a robot of fixed points, known distances naming a fixed point the samples lack, and a frame link on a robot
 /// with error models (whose deformation of the frame link's path the Jacobian leaves out).
 fn check_measurement_kinds(robot: &Robot, samples: &[Sample]) -> Result<()> {
     let planes = robot.measures_planes();
@@ -1455,17 +1566,16 @@ fn check_measurement_kinds(robot: &Robot, samples: &[Sample]) -> Result<()> {
                 .into(),
         });
     }
-    let expected = robot.measures_fixed_points();
-    if let Some(i) = samples.iter().position(|s| s.fixed_point.is_some() != expected) {
+    // Fixed-point samples may join measured positions (mixed data); a robot of fixed points
+    // measures nothing else.
+    if robot.measures_fixed_points()
+        && let Some(i) = samples.iter().position(|s| s.fixed_point.is_none())
+    {
         return Err(Error::InvalidArgument {
             what: format!("sample {}", i + 1),
-            reason: if expected {
-                "names no fixed point, but the robot file measures fixed points (`kind = \"fixed_point\"`)".into()
-            } else {
-                "names a fixed point, but the robot file measures positions; set `kind = \"fixed_point\"` in its \
-                 [measurement]"
-                    .into()
-            },
+            reason: "names no fixed point, but the robot file measures fixed points only (`kind = \"fixed_point\"`); \
+                     for data that mix measured positions with fixed points set `kind = \"point\"` (or `\"pose\"`)"
+                .into(),
         });
     }
     for (i, d) in robot.known_distances().iter().enumerate() {

@@ -25,7 +25,8 @@ pub(super) fn register_base(
     let (model, measured): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = samples
         .iter()
         .zip(measured_now)
-        .filter(|(s, _)| s.station == station)
+        // Fixed-point samples measure no position to register on.
+        .filter(|(s, _)| s.station == station && s.fixed_point.is_none())
         .map(|(s, p)| (t_now.inverse_transform_point(&(*p).into()).coords, s.position))
         .unzip();
     if model.is_empty() {
@@ -102,7 +103,7 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
         return Ok(None);
     }
     let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {
-        let p = Problem::new(problem.robot, problem.space, samples, problem.sigma, problem.sigma_rot);
+        let p = Problem::new(problem.robot, problem.space, samples, problem.noise());
         Ok(p.predict(theta0)?.1.world)
     };
     let measured: Vec<Vector3<f64>> = problem.samples.iter().map(|s| s.position).collect();
@@ -191,7 +192,7 @@ pub fn register_stations(robot: &mut Robot, samples: &[Sample], stations: &[usiz
     }
     let space = ParameterSpace::new(robot);
     let mut theta = space.initial();
-    let problem = Problem::new(robot, &space, samples, 1.0, 1.0);
+    let problem = Problem::new(robot, &space, samples, Noise::UNIT);
     let (_, _, measured_now) = problem.predict(&theta)?;
     let failed = stations
         .iter()

