@@ -483,3 +483,49 @@ fn ros_package_meshes_are_skipped_with_a_warning_and_stl_boxes_read() {
     let problems = armcomp::validate_file(&s.0.join("m.urdf"), &armcomp::robot_schema());
     assert!(problems.is_empty(), "{problems:?}");
 }
+
+/// The shortcut a calibration's Jacobian takes for a URDF parameter (the one placement it
+/// moves) against the whole tree built at the stepped values: that joint's placement, and
+/// every other joint and body exactly as before.
+#[test]
+fn each_urdf_parameter_moves_the_one_placement_it_names() {
+    let mut rng = StdRng::seed_from_u64(5);
+    for robot in [urdf("ur5.urdf"), robot("talos-left-arm.toml")] {
+        let chain = robot.chain();
+        let values: Vec<f64> = robot
+            .chain_values()
+            .iter()
+            .map(|v| v + rng.random_range(-0.01..0.01))
+            .collect();
+        let before = chain.tree(&values).unwrap();
+        for k in 0..values.len() {
+            let mut t = values.clone();
+            t[k] += 1e-3;
+            let after = chain.tree(&t).unwrap();
+            let (j, placed) = chain
+                .placement_moved_by(&t, k)
+                .expect("every URDF parameter belongs to a joint");
+            let moved = after.joints()[j].placement;
+            assert!(
+                (moved.to_homogeneous() - placed.to_homogeneous()).abs().max() < 1e-14,
+                "parameter {k}"
+            );
+            assert!(
+                (moved.to_homogeneous() - before.joints()[j].placement.to_homogeneous())
+                    .abs()
+                    .max()
+                    > 1e-5,
+                "parameter {k} moves joint {j}"
+            );
+            for (i, (a, b)) in before.joints().iter().zip(after.joints()).enumerate() {
+                if i != j {
+                    assert_eq!(a.placement, b.placement, "parameter {k} moves joint {i} too");
+                }
+                assert_eq!(a.motion, b.motion, "parameter {k} changes joint {i}'s motion");
+            }
+            for (a, b) in before.bodies().iter().zip(after.bodies()) {
+                assert_eq!(a.convention_frame, b.convention_frame, "parameter {k}");
+            }
+        }
+    }
+}

@@ -48,6 +48,13 @@ pub trait Chain: Debug + Send + Sync {
     /// The kinematic tree for parameter `values` (same order as [`params`](Chain::params)).
     /// Bodies carry names that points and links in the robot file refer to.
     fn tree(&self, values: &[f64]) -> Result<KinematicTree>;
+    /// When parameter `param` moves one joint's placement and nothing else (no motion axis,
+    /// no body frame): that joint (index into the [tree](Chain::tree)'s joints) and its
+    /// placement at `values`. A calibration's Jacobian then steps the parameter without
+    /// building a tree; `None` (the default) builds one.
+    fn placement_moved_by(&self, _values: &[f64], _param: usize) -> Option<(usize, Isometry3<f64>)> {
+        None
+    }
     /// The spec with `values` written back in the file's units, for model files.
     fn spec_with(&self, values: &[f64]) -> Box<dyn KinematicsSpec>;
     /// Mass properties and shapes of links that the convention's own description carries (a

@@ -218,9 +218,23 @@ impl Problem<'_> {
                     ParamGroup::Geometry => {
                         let (mut t, h) = step(theta, k, p);
                         t[k] += h;
-                        let tree = space.tree(self.robot, &t)?;
                         let deformed = matches!(form, JacobianForm::Exact) && self.robot.deforms_at(&d.errors);
-                        geometry_plan(&d.tree, tree, h, deformed)
+                        // A parameter that moves one placement alone is a twist at that joint:
+                        // the same column as the stepped tree's, without building it.
+                        let moved = (!deformed && k < space.n_chain)
+                            .then(|| self.robot.chain().placement_moved_by(&t[..space.n_chain], k))
+                            .flatten();
+                        match moved {
+                            Some((j, placed)) => ColumnPlan::Twists {
+                                joints: placement_twist(&d.tree.joints()[j].placement, &placed, h)
+                                    .map(|xi| (j, xi))
+                                    .into_iter()
+                                    .collect(),
+                                points: Vec::new(),
+                                deformation: None,
+                            },
+                            None => geometry_plan(&d.tree, space.tree(self.robot, &t)?, h, deformed),
+                        }
                     }
                 })
             })
@@ -574,13 +588,7 @@ pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64
     if !same_motion {
         return ColumnPlan::Finite { tree: stepped, h };
     }
-    let twist = |a: &Isometry3<f64>, b: &Isometry3<f64>| -> Option<Vector6<f64>> {
-        let rel = a.inverse() * b;
-        let v = rel.translation.vector / h;
-        let w = rel.rotation.scaled_axis() / h;
-        let xi = Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z);
-        (xi != Vector6::zeros()).then_some(xi)
-    };
+    let twist = |a: &Isometry3<f64>, b: &Isometry3<f64>| placement_twist(a, b, h);
     let joints: Vec<(usize, Vector6<f64>)> = tree
         .joints()
         .iter()
@@ -604,6 +612,16 @@ pub(super) fn geometry_plan(tree: &KinematicTree, stepped: KinematicTree, h: f64
         points,
         deformation,
     }
+}
+
+/// The twist (per unit step `h`, in `a`'s frame) that takes placement `a` to `b`; none when
+/// they are equal.
+fn placement_twist(a: &Isometry3<f64>, b: &Isometry3<f64>, h: f64) -> Option<Vector6<f64>> {
+    let rel = a.inverse() * b;
+    let v = rel.translation.vector / h;
+    let w = rel.rotation.scaled_axis() / h;
+    let xi = Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z);
+    (xi != Vector6::zeros()).then_some(xi)
 }
 
 /// The size a parameter of this kind typically has when it matters (SI): 10 mm, 0.6°, 1 %,

@@ -346,6 +346,17 @@ impl Chain for UrdfChain {
         Ok(tree)
     }
 
+    // Each joint's six parameters move its placement alone (the axis and the body frames are
+    // the file's), and the tree's joints are `self.joints` in order.
+    fn placement_moved_by(&self, values: &[f64], param: usize) -> Option<(usize, Isometry3<f64>)> {
+        let j = self
+            .joints
+            .iter()
+            .position(|j| (j.first_param..j.first_param + 6).contains(&param))?;
+        let joint = &self.joints[j];
+        Some((j, self.origin(joint, self.joint_values(joint, values))))
+    }
+
     fn spec_with(&self, values: &[f64]) -> Box<dyn KinematicsSpec> {
         let u = self.units;
         let mut joints = Vec::new();
