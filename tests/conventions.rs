@@ -1,8 +1,12 @@
-//! The same arm in MDH, classic DH and POE gives the same tool pose.
+//! The same arm in MDH, classic DH and POE gives the same tool pose; a parameter of a URDF or
+//! MDH chain moves its own joint's placement alone.
 
+use armcomp_urdf::robot_from_urdf;
 use proptest::prelude::*;
+use rand::rngs::StdRng;
+use rand::{Rng, SeedableRng};
 
-use crate::common::robot;
+use crate::common::{robot, root};
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(200))]
@@ -69,4 +73,55 @@ fn hayati_beta_tilts_the_parallel_axis() {
         * tz(0.1);
     assert!((moved - t.translation.vector).norm() < 1e-12);
     assert!((moved - base).norm() > 1e-3, "beta must matter");
+}
+
+/// The shortcut a calibration's Jacobian takes for a URDF or MDH parameter (the one placement it
+/// moves) against the whole tree built at the stepped values: that joint's placement, and
+/// every other joint and body exactly as before.
+#[test]
+fn each_urdf_and_mdh_parameter_moves_the_one_placement_it_names() {
+    let mut rng = StdRng::seed_from_u64(5);
+    for robot in [
+        robot_from_urdf(&root().join("robots/ur5.urdf")).unwrap(),
+        robot("talos-left-arm.toml"),
+        robot("rock-drill.toml"),
+        robot("industrial-6dof.toml"),
+    ] {
+        let chain = robot.chain();
+        let values: Vec<f64> = robot
+            .chain_values()
+            .iter()
+            .map(|v| v + rng.random_range(-0.01..0.01))
+            .collect();
+        let before = chain.tree(&values).unwrap();
+        for k in 0..values.len() {
+            let mut t = values.clone();
+            t[k] += 1e-3;
+            let after = chain.tree(&t).unwrap();
+            let (j, placed) = chain
+                .placement_moved_by(&t, k)
+                .expect("every parameter belongs to a joint");
+            let moved = after.joints()[j].placement;
+            assert!(
+                (moved.to_homogeneous() - placed.to_homogeneous()).abs().max() < 1e-14,
+                "parameter {k}"
+            );
+            assert!(
+                (moved.to_homogeneous() - before.joints()[j].placement.to_homogeneous())
+                    .abs()
+                    .max()
+                    > 1e-5,
+                "parameter {k} moves joint {j}"
+            );
+            for (i, (a, b)) in before.joints().iter().zip(after.joints()).enumerate() {
+                if i != j {
+                    assert_eq!(a.placement, b.placement, "parameter {k} moves joint {i} too");
+                }
+                assert_eq!(a.motion, b.motion, "parameter {k} changes joint {i}'s motion");
+            }
+            for (a, b) in before.bodies().iter().zip(after.bodies()) {
+                assert_eq!(a.convention_frame, b.convention_frame, "parameter {k}");
+            }
+        }
+    }
 }

@@ -400,6 +400,19 @@ impl ChainCore {
         &values[start..end]
     }
 
+    /// The joint that owns parameter `param` and its placement at `values`, for conventions
+    /// whose bodies keep their joint's frame (`post` the identity) and whose axes are fixed:
+    /// there a parameter moves its own joint's placement and nothing else.
+    pub fn placement_moved_by(
+        &self,
+        values: &[f64],
+        param: usize,
+        pre: impl Fn(&[f64]) -> Isometry3<f64>,
+    ) -> Option<(usize, Isometry3<f64>)> {
+        let j = self.joints.iter().rposition(|t| t.first_param <= param)?;
+        Some((j, self.joints[j].origin * pre(self.joint_values(values, j))))
+    }
+
     /// Compiles the tree; `geometry(j, values_of_j)` gives each joint's frames.
     pub fn tree(
         &self,

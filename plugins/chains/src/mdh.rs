@@ -116,6 +116,12 @@ impl Chain for MdhChain {
         })
     }
 
+    // A joint's MDH parameters move its placement alone: the axis is z and no body frame
+    // differs from its joint's.
+    fn placement_moved_by(&self, values: &[f64], param: usize) -> Option<(usize, Isometry3<f64>)> {
+        self.core.placement_moved_by(values, param, mdh_transform)
+    }
+
     fn spec_with(&self, values: &[f64]) -> Box<dyn KinematicsSpec> {
         let mut spec = self.spec.clone();
         for (j, joint) in spec.joints.iter_mut().enumerate() {
