@@ -2,6 +2,7 @@
 //! registry, composes the robot-file JSON Schema from their specs, and checks robot files
 //! (schema first, then semantics), reporting every problem with file, line and field.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod config;
 pub mod diagnosis_report;

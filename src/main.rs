@@ -1,5 +1,7 @@
 //! The `armcomp` command line.
 
+#![forbid(unsafe_code)]
+
 mod cmd;
 
 use std::process::ExitCode;

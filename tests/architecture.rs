@@ -112,3 +112,30 @@ fn core_modules_depend_one_way() {
         found.iter().map(|c| c.join(" → ")).collect::<Vec<_>>().join("; ")
     );
 }
+
+/// `unsafe` lives in the plugin SDK alone, and the compiler holds every other crate to it; the
+/// SDK documents each block (`clippy::undocumented_unsafe_blocks` denied there).
+#[test]
+fn unsafe_code_is_forbidden_outside_the_sdk() {
+    let roots = [
+        "core/src/lib.rs",
+        "plugins/chains/src/lib.rs",
+        "plugins/elastic/src/lib.rs",
+        "plugins/learn/src/lib.rs",
+        "plugins/urdf/src/lib.rs",
+        "report/src/lib.rs",
+        "repro/src/lib.rs",
+        "python/src/lib.rs",
+        "src/lib.rs",
+        "src/main.rs",
+    ];
+    for file in roots {
+        let text = std::fs::read_to_string(root().join(file)).unwrap();
+        assert!(
+            text.lines().any(|l| l.trim() == "#![forbid(unsafe_code)]"),
+            "{file} does not forbid unsafe code"
+        );
+    }
+    let sdk = std::fs::read_to_string(root().join("plugins/sdk/src/lib.rs")).unwrap();
+    assert!(sdk.contains("#![deny(clippy::undocumented_unsafe_blocks)]"));
+}

@@ -4,6 +4,7 @@
 //! The model/workspace split follows Pinocchio: [`KinematicTree`] is immutable, all buffers
 //! live in a [`TreeWorkspace`], so forward kinematics and Jacobians allocate nothing.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod batch;
 pub mod calibrate;

@@ -2,6 +2,7 @@
 //! and the operations of the command line, with numpy arrays in and out. The Python layer
 //! (`pysrc/armcomp`) turns the JSON reports into dataclasses and raises `NotConverged`.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod arrays;
 mod calibrate;
@@ -25,6 +26,7 @@ fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The user config applies as for the command line; run-time plugin libraries load only
     // from the folders it trusts.
     armcomp::config::apply(false).map_err(|e| errors::core_error(&e, None))?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<measurements::PyMeasurements>()?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate, m)?)?;

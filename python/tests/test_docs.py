@@ -24,3 +24,11 @@ def test_the_python_walk_through_runs(in_root, capsys):
     assert error.file.endswith("bad.csv") and error.line == 2 and error.field is not None
     assert namespace["best"].nq == namespace["robot"].nq
     assert (namespace["folder"] / "talos_calibrated.urdf").exists()
+
+
+def test_the_version_is_the_workspace_one():
+    import armcomp
+
+    cargo = (ROOT / "Cargo.toml").read_text()
+    version = re.search(r'\[workspace\.package\]\nversion = "([^"]+)"', cargo).group(1)
+    assert armcomp.__version__ == version

@@ -2,6 +2,7 @@
 //! (the `armcomp` command): HTML escaping and the page head, and the binning of the error
 //! histograms both pages plot.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod histogram;
 pub mod html;

@@ -7,6 +7,7 @@
 //! Robots are built from their files, whose plugin types (`mdh`, `joint_compliance`, ...) a
 //! program registers by linking the plugin crates, as the `armcomp` command does.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod agile_justin;
 pub mod demos;

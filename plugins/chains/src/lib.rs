@@ -2,6 +2,7 @@
 //! the product of exponentials. Each compiles to armcomp-core's kinematic tree and exposes its
 //! geometric parameters for identification.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod common;
 pub mod dh;

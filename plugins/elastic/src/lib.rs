@@ -9,6 +9,7 @@
 //! deformed arm for very elastic arms. Every model reads its loads from the mass model and
 //! gravity of the static state and writes small twists into the chain (paper Eq. 1–3).
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod candidates;
 mod common;

@@ -11,6 +11,7 @@
 //! - [`gp`]: Gaussian process regression with an ARD RBF kernel, with predictive uncertainty;
 //! - [`ridge`] and [`knn`]: baselines.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 /// `From<$fitted> for $model` and `$fitted::model()`, for fitted predictors that wrap the checked
 /// form they are stored in.

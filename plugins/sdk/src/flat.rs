@@ -293,7 +293,7 @@ pub(crate) unsafe fn text<'a>(s: AbiStr) -> Result<&'a str, String> {
 /// Every pointer of `t` must be valid for the lengths its counts declare (see [`AbiTree`]).
 pub(crate) unsafe fn tree_from_abi(t: &AbiTree) -> Result<KinematicTree, String> {
     let (nj, nb, np, nc) = (t.n_joints, t.n_joints + 1, t.n_points, t.n_coordinates);
-    // SAFETY (this block): the caller guarantees each array's length as documented on AbiTree.
+    // SAFETY: the caller guarantees each array's length as documented on AbiTree.
     let (body_names, frames, joint_names, parents, placements, motions, axes, coords, starts, offsets, limits) = unsafe {
         (
             slice(t.body_names, nb)?,

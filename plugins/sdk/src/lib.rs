@@ -21,6 +21,8 @@
 //! }
 //! ```
 #![warn(missing_docs)]
+// The only crate with `unsafe`: each block says why it is sound.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 pub mod abi;
 #[doc(hidden)]

@@ -2,6 +2,7 @@
 //! identifiable parameters, inertials and collision elements as link data), bare URDF files
 //! as robots, and calibrated URDFs written back.
 #![warn(missing_docs)]
+#![forbid(unsafe_code)]
 
 mod bare;
 mod chain;

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import _armcomp as _native
 from ._armcomp import Measurements, Robot
+from ._armcomp import __version__
 from ._convert import from_json
 from ._errors import ArmcompError, CalibrationWarning, InputError, NotConverged
 from ._reports import (
@@ -49,6 +50,7 @@ from ._reports import (
 )
 
 __all__ = [
+    "__version__",
     "ArmcompError",
     "AxisErrors",
     "CalibrationReport",

@@ -9,6 +9,8 @@ import numpy.typing as npt
 _Path = Union[str, PathLike]
 _Array = npt.ArrayLike
 
+__version__: str
+
 class Robot:
     """A robot: kinematics, points, error models and (for a model) identified values and a
     fitted predictor. Values are SI (m, rad) in and out."""
