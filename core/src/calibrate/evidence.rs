@@ -99,6 +99,11 @@ pub struct EvidenceReport {
     pub noise_mm: f64,
     /// Its standard error (mm), from the residual degrees of freedom.
     pub noise_std_mm: f64,
+    /// The equations of the measured positions (or plane heights) the parameters leave free,
+    /// `N − γ`: what the noise is measured on. Below one the parameters fit every row, the
+    /// estimate is driven towards zero with the residuals, and the noise is not determined by
+    /// these rows.
+    pub noise_dof: f64,
     /// The orientation noise per axis (deg), when the robot measures poses: estimated from
     /// the orientation residuals alone, its own degrees of freedom, as the positions' is.
     pub orientation_noise_deg: Option<f64>,
@@ -304,6 +309,15 @@ pub fn calibrate_with_evidence(
         rounds += 1;
     }
     let report = report(robot, samples, &fit.linearisation, &p, evidence, rounds, converged);
+    if evidence.estimate_noise && report.noise_dof < 1.0 {
+        fit.report.warnings.push(format!(
+            "the noise is not determined by these rows: the parameters fit all but {:.2} of the position \
+             equations, so its estimate ({:.4} mm) only follows the residuals towards zero; declare the \
+             instrument's noise or measure more rows",
+            report.noise_dof.max(0.0),
+            report.noise_mm
+        ));
+    }
     Ok((fit, report))
 }
 
@@ -375,6 +389,7 @@ fn report(
         noise_estimated: evidence.estimate_noise,
         noise_mm: lin.noise * 1e3,
         noise_std_mm: lin.noise * 1e3 / (2.0 * dof).sqrt(),
+        noise_dof: u.kinds[0].n - u.kinds[0].gamma,
         orientation_noise_deg: (u.kinds[1].n > 0.0).then(|| lin.orientation_noise.to_degrees()),
         fixed_point_noise_mm: lin.fixed_point_noise.map(|s| s * 1e3),
         fixed_point_noise_std_mm: lin

@@ -102,12 +102,14 @@ class GroupScale:
 @dataclass(frozen=True)
 class Evidence:
     """The noise and prior scales chosen by the evidence of the data (type-II maximum
-    likelihood): ``noise_mm`` with its standard error, how many parameters the data
+    likelihood): ``noise_mm`` with its standard error and the equations it was measured on
+    (``noise_dof``, below one: not determined by the rows), how many parameters the data
     determine, and the log evidence."""
 
     noise_estimated: bool
     noise_mm: float
     noise_std_mm: float
+    noise_dof: float
     rms_per_axis_mm: List[float]
     determined: float
     n_free: int
