@@ -13,6 +13,7 @@ use numpy::{
     AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike2, PyArrayMethods, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use crate::arrays::{Matrix, vector_arg};
 use crate::errors::{IntoPy, file_error, input_error};
@@ -92,9 +93,44 @@ impl PyRobot {
 
     /// `q` checked against the robot's joints.
     fn configuration(&self, q: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
-        let q = vector_arg(q, "q", "for several configurations, one a row, call fk_many")?;
+        let q = match q.cast::<PyDict>() {
+            Ok(named) => self.named_configuration(named)?,
+            Err(_) => vector_arg(q, "q", "for several configurations, one a row, call fk_many")?,
+        };
         self.robot.tree().check_q(&q).py()?;
         Ok(q)
+    }
+
+    /// Joint values given by name (`{"joint": value}`), in the robot's order: every joint
+    /// once, no other name, since another library's order is a silent error of metres.
+    fn named_configuration(&self, named: &Bound<'_, PyDict>) -> PyResult<Vec<f64>> {
+        let joints = self.robot.tree().coordinate_names();
+        let error = |message: String| input_error(&message, None, None, Some("q"));
+        let mut q: Vec<Option<f64>> = vec![None; joints.len()];
+        for (key, value) in named.iter() {
+            let name: String = key
+                .extract()
+                .map_err(|_| error(format!("joint names are strings, got {key}")))?;
+            let j = joints.iter().position(|n| *n == name).ok_or_else(|| {
+                error(format!(
+                    "`{name}` is no joint of the robot; its joints are {}",
+                    joints.join(", ")
+                ))
+            })?;
+            q[j] = Some(
+                value
+                    .extract()
+                    .map_err(|_| error(format!("joint `{name}`: expected a number, got {value}")))?,
+            );
+        }
+        let missing: Vec<&str> = (joints.iter().zip(&q))
+            .filter(|(_, v)| v.is_none())
+            .map(|(n, _)| n.as_str())
+            .collect();
+        if !missing.is_empty() {
+            return Err(error(format!("no value for joint(s) {}", missing.join(", "))));
+        }
+        Ok(q.into_iter().flatten().collect())
     }
 }
 
@@ -202,7 +238,8 @@ impl PyRobot {
         (names, values, units)
     }
 
-    /// Forward kinematics of the full model at `q` (SI): the positions of every point (a
+    /// Forward kinematics of the full model at `q` (SI; in the order of `joint_names`, or a
+    /// dict by joint name naming every joint once): the positions of every point (a
     /// `points × 3` array, m, base frame) and the tool pose (a 4 × 4 homogeneous matrix).
     fn fk<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<(Matrix<'py>, Matrix<'py>)> {
         let q = self.configuration(q)?;

@@ -130,3 +130,20 @@ def test_fk_rejects_wrong_sizes_and_non_finite_values():
     with pytest.raises(armcomp.InputError) as e:
         robot.fk_many([[0.0, 0.0], [0.0, math.nan]])
     assert "configuration 2" in str(e.value)
+
+
+def test_joint_values_by_name_are_those_by_position_in_any_order():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    q1, q2 = 0.3, -1.1
+    by_position = robot.fk([q1, q2])
+    by_name = robot.fk({"j2": q2, "j1": q1})
+    for a, b in zip(by_position, by_name):
+        np.testing.assert_array_equal(a, b)
+    # The textbook planar arm, so a swapped order would show.
+    x = 0.7 * math.cos(q1) + 0.4 * math.cos(q1 + q2)
+    assert abs(by_name[1][0, 3] - x) < 1e-12
+    np.testing.assert_array_equal(robot.jacobian({"j1": q1, "j2": q2}), robot.jacobian([q1, q2]))
+    with pytest.raises(armcomp.InputError, match="`j3` is no joint of the robot; its joints are j1, j2"):
+        robot.fk({"j1": q1, "j2": q2, "j3": 0.0})
+    with pytest.raises(armcomp.InputError, match="no value for joint"):
+        robot.fk({"j1": q1})

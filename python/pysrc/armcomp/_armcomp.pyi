@@ -1,13 +1,15 @@
 """Type stubs of the native module (``armcomp._armcomp``); use it through ``armcomp``."""
 
 from os import PathLike
-from typing import Callable, List, Optional, Sequence, Tuple, Union
+from typing import Callable, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
 
 _Path = Union[str, PathLike]
 _Array = npt.ArrayLike
+# Joint values in the robot's order, or by joint name.
+_Joints = Union[npt.ArrayLike, Mapping[str, float]]
 
 __version__: str
 
@@ -43,11 +45,11 @@ class Robot:
     @property
     def parameters(self) -> Tuple[List[str], np.ndarray, List[str]]:
         """``(names, values, units)`` of the identifiable parameters, values in SI units."""
-    def fk(self, q: _Array) -> Tuple[np.ndarray, np.ndarray]:
+    def fk(self, q: _Joints) -> Tuple[np.ndarray, np.ndarray]:
         """Positions of every point (points × 3, m, base frame) and the tool pose (4 × 4)."""
     def fk_many(self, q: _Array) -> np.ndarray:
         """``n × nq`` configurations → ``n × points × 3`` positions (m), in one call."""
-    def jacobian(self, q: _Array, point: Optional[str] = None) -> np.ndarray:
+    def jacobian(self, q: _Joints, point: Optional[str] = None) -> np.ndarray:
         """6 × nq: linear (rows 0–2) and angular (rows 3–5) velocity of the tool or ``point``."""
     def to_text(self, format: str = "toml") -> str:
         """The robot file with this robot's values (``toml`` or ``json``)."""
