@@ -108,6 +108,11 @@ def test_talos_levels_match_the_command_line(tmp_path):
     assert armcomp.evaluate(model, armcomp.Measurements.read(TALOS_DATA, rows="odd")).to_dict() == cli_json(
         "evaluate", "--model", tmp_path / "cli.toml", "--data", TALOS_DATA, "--rows", "odd"
     )
+    # A report's repr is a few lines; every field is one call away.
+    short, full = repr(report), report.full_repr()
+    assert len(short) < 1500 and f"params=<{len(report.params)} items>" in short, short
+    assert all(p.name in full for p in report.params)
+    assert f"after={report.after!r}" in short and "mean_mm=" in repr(report.after)
     cli("export-urdf", "--model", tmp_path / "cli.toml", "--out", tmp_path / "cli.urdf")
     assert model.to_urdf(tmp_path / "py.urdf") is None
     assert (tmp_path / "py.urdf").read_bytes() == (tmp_path / "cli.urdf").read_bytes()

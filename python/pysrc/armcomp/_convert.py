@@ -53,11 +53,40 @@ def from_json(cls: Type[T], text: str) -> T:
     return build(cls, json.loads(text))
 
 
+def _short(value: Any) -> str:
+    """One field in a report's repr: numbers to four significant digits, lists and tables
+    by their length, nested reports by their class."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, (list, tuple, dict)):
+        return f"<{len(value)} items>" if value else repr(value)
+    if isinstance(value, Report) and len(repr(value)) <= 160:
+        return repr(value)
+    if dataclasses.is_dataclass(value):
+        return f"{type(value).__name__}(...)"
+    if value is not None and type(value).__module__ == "numpy":
+        return f"<array {getattr(value, 'shape', '')}>"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
 class Report:
-    """Mixin of the report dataclasses: ``to_dict()`` gives the command line's JSON."""
+    """Mixin of the report dataclasses: a repr of a few lines (``full_repr()`` gives every
+    field), and ``to_dict()`` the command line's JSON."""
 
     _raw: Dict[str, Any]
 
     def to_dict(self) -> Dict[str, Any]:
         """The report as a dictionary: exactly what the command line prints with ``--json``."""
         return copy.deepcopy(self._raw)
+
+    def __repr__(self) -> str:
+        fields = (f for f in dataclasses.fields(self) if f.repr and not f.name.startswith("_"))
+        inner = ", ".join(f"{f.name}={_short(getattr(self, f.name))}" for f in fields)
+        return f"{type(self).__name__}({inner})"
+
+    def full_repr(self) -> str:
+        """Every field, nested reports and lists in full (a long text for a big model)."""
+        fields = (f for f in dataclasses.fields(self) if f.repr and not f.name.startswith("_"))
+        inner = ", ".join(f"{f.name}={getattr(self, f.name)!r}" for f in fields)
+        return f"{type(self).__name__}({inner})"

@@ -20,7 +20,7 @@ class AxisErrors:
     z: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class ErrorStats(Report):
     """Statistics of 3-D position errors (mm)."""
 
@@ -120,7 +120,7 @@ class Evidence:
     converged: bool
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class CalibrationReport(Report):
     """What calibration did and how well it fits (``armcomp calibrate --json``)."""
 
@@ -172,7 +172,7 @@ class RungScore:
     seconds: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class FitReport(Report):
     """The model ladder (``armcomp fit --json``): every rung's nested score, the rung chosen,
     the held-out error to expect, and the chosen rung's evidence and calibration on all rows."""
@@ -187,7 +187,7 @@ class FitReport(Report):
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class EvaluationReport(Report):
     """Errors of a model on measurements (``armcomp evaluate --json``), and per sample the
     measured minus modelled position (``errors``, n × 3, m, measurement frame)."""
@@ -270,7 +270,7 @@ class LearnableResidual:
     share_learnable: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class DiagnosisReport(Report):
     """The diagnosis (``armcomp diagnose --json``): effects found step by step."""
 
@@ -289,7 +289,7 @@ class DiagnosisReport(Report):
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class LearnReport(Report):
     """A fitted residual predictor: fitting time (s), training errors without and with it, and
     the errors with it on rows it was not fitted on (5-fold cross-validation; None with fewer
