@@ -171,6 +171,14 @@ impl PyRobot {
         PyRobot::new(py, robot)
     }
 
+    /// Pickling (multiprocessing): the robot file with this robot's values, rebuilt where its
+    /// relative paths (a URDF) resolve as they did.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (String, PathBuf))> {
+        let text = self.robot.to_text_for(Path::new("model.toml")).py()?;
+        let rebuild = py.get_type::<PyRobot>().getattr("from_toml")?;
+        Ok((rebuild, (text, self.robot.base_dir())))
+    }
+
     /// The robot's name.
     #[getter]
     fn name(&self) -> String {

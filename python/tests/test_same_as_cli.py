@@ -3,6 +3,7 @@ model bytes, the same JSON reports, the same measurements, poses and joint comma
 
 import csv
 import math
+import pickle
 import warnings
 
 import numpy as np
@@ -108,6 +109,12 @@ def test_talos_levels_match_the_command_line(tmp_path):
     assert armcomp.evaluate(model, armcomp.Measurements.read(TALOS_DATA, rows="odd")).to_dict() == cli_json(
         "evaluate", "--model", tmp_path / "cli.toml", "--data", TALOS_DATA, "--rows", "odd"
     )
+    # Pickled robots and models (multiprocessing) compute the same bits.
+    for original in (robot, model):
+        copy = pickle.loads(pickle.dumps(original))
+        q = np.linspace(-0.3, 0.3, original.nq)
+        for a, b in zip(original.fk(q), copy.fk(q)):
+            np.testing.assert_array_equal(a, b)
     # A report's repr is a few lines; every field is one call away.
     short, full = repr(report), report.full_repr()
     assert len(short) < 1500 and f"params=<{len(report.params)} items>" in short, short
@@ -136,6 +143,10 @@ def test_learn_writes_the_same_model(simulated, tmp_path):
     with_predictor.write_text(model.to_text() + '\n[predictor]\ntype = "ridge"\n')
     cli("learn", "--model", with_predictor, "--data", tmp / "cli.csv", "--out", tmp_path / "cli.toml")
     fitted, report = armcomp.learn(armcomp.Robot.load(with_predictor), data)
+    # A pickled model (multiprocessing) predicts as the original, its predictor included.
+    copy = pickle.loads(pickle.dumps(fitted))
+    assert armcomp.evaluate(copy, data).to_dict() == armcomp.evaluate(fitted, data).to_dict()
+    assert armcomp.evaluate(copy, data).rms_mm < armcomp.evaluate(model, data).rms_mm
     fitted.save(tmp_path / "py.toml")
     assert (tmp_path / "py.toml").read_bytes() == (tmp_path / "cli.toml").read_bytes()
     assert report.after.mean_mm <= report.before.mean_mm
