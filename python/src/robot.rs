@@ -264,11 +264,15 @@ impl PyRobot {
 
     /// Forward kinematics of many configurations in one call: `Q` is `n × nq` (SI), the result
     /// `n × points × 3` (m, base frame), computed without the GIL straight into the array.
+    /// With `tool=True` also the tool poses, `n × 4 × 4` homogeneous matrices: `(positions,
+    /// tools)`.
+    #[pyo3(signature = (q, tool = false))]
     fn fk_many<'py>(
         &self,
         py: Python<'py>,
         q: PyArrayLike2<'py, f64, AllowTypeChange>,
-    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        tool: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let (n, nq) = q.as_array().dim();
         let tree = self.robot.tree();
         if nq != tree.nq() {
@@ -292,14 +296,33 @@ impl PyRobot {
                 &copy
             }
         };
-        let out = PyArray3::<f64>::zeros(py, [n, tree.points().len(), 3], false);
+        let points = tree.points().len();
+        if tool {
+            // Whole poses: one buffer for the batch, then the two arrays from it.
+            let mut poses = vec![nalgebra::IsometryMatrix3::identity(); n * points];
+            py.detach(|| self.with_scratch(|s| self.robot.forward_many_into(n, qs, &mut poses, &mut s.batch)))
+                .py()?;
+            let t = self.robot.tool();
+            let positions = numpy::ndarray::Array3::from_shape_fn((n, points, 3), |(i, p, k)| {
+                poses[i * points + p].translation.vector[k]
+            });
+            let mut tools = numpy::ndarray::Array3::zeros((n, 4, 4));
+            for (i, mut m) in tools.outer_iter_mut().enumerate() {
+                let h = poses[i * points + t].to_homogeneous();
+                m.indexed_iter_mut().for_each(|((r, c), v)| *v = h[(r, c)]);
+            }
+            return Ok((positions.into_pyarray(py), tools.into_pyarray(py))
+                .into_pyobject(py)?
+                .into_any());
+        }
+        let out = PyArray3::<f64>::zeros(py, [n, points, 3], false);
         {
             let mut write = out.readwrite();
             let slice = write.as_slice_mut().expect("a new array is contiguous");
             py.detach(|| self.with_scratch(|s| self.robot.point_positions_many_into(n, qs, slice, &mut s.batch)))
                 .py()?;
         }
-        Ok(out)
+        Ok(out.into_any())
     }
 
     /// The 6 × nq Jacobian of the tool (or the named point) at `q`: rows 0–2 its linear

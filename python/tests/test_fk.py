@@ -147,3 +147,15 @@ def test_joint_values_by_name_are_those_by_position_in_any_order():
         robot.fk({"j1": q1, "j2": q2, "j3": 0.0})
     with pytest.raises(armcomp.InputError, match="no value for joint"):
         robot.fk({"j1": q1})
+
+
+def test_fk_many_gives_the_tool_poses_of_fk():
+    robot = armcomp.Robot.load(ROOT / "robots" / "industrial-6dof.toml")
+    Q = np.random.default_rng(3).uniform(-1.0, 1.0, (50, robot.nq))
+    positions, tools = robot.fk_many(Q, tool=True)
+    assert tools.shape == (50, 4, 4)
+    np.testing.assert_array_equal(positions, robot.fk_many(Q))
+    for q, p, t in zip(Q, positions, tools):
+        one_p, one_t = robot.fk(q)
+        np.testing.assert_array_equal(p, one_p)
+        np.testing.assert_array_equal(t, one_t)

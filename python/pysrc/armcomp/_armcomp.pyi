@@ -1,7 +1,7 @@
 """Type stubs of the native module (``armcomp._armcomp``); use it through ``armcomp``."""
 
 from os import PathLike
-from typing import Callable, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import Callable, List, Literal, Mapping, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -47,8 +47,13 @@ class Robot:
         """``(names, values, units)`` of the identifiable parameters, values in SI units."""
     def fk(self, q: _Joints) -> Tuple[np.ndarray, np.ndarray]:
         """Positions of every point (points × 3, m, base frame) and the tool pose (4 × 4)."""
-    def fk_many(self, q: _Array) -> np.ndarray:
-        """``n × nq`` configurations → ``n × points × 3`` positions (m), in one call."""
+    @overload
+    def fk_many(self, q: _Array) -> np.ndarray: ...
+    @overload
+    def fk_many(self, q: _Array, tool: Literal[True]) -> Tuple[np.ndarray, np.ndarray]: ...
+    def fk_many(self, q: _Array, tool: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
+        """``n × nq`` configurations → ``n × points × 3`` positions (m), in one call; with
+        ``tool=True`` also the ``n × 4 × 4`` tool poses."""
     def jacobian(self, q: _Joints, point: Optional[str] = None) -> np.ndarray:
         """6 × nq: linear (rows 0–2) and angular (rows 3–5) velocity of the tool or ``point``."""
     def to_text(self, format: str = "toml") -> str:
