@@ -18,6 +18,7 @@ mod plan;
 mod progress;
 mod robot;
 mod simulate;
+mod validate;
 
 use pyo3::prelude::*;
 
@@ -37,5 +38,7 @@ fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(learn::learn, m)?)?;
     m.add_function(wrap_pyfunction!(compensate::compensate, m)?)?;
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::check_pose, m)?)?;
     Ok(())
 }

@@ -92,7 +92,7 @@ impl PyRobot {
     }
 
     /// `q` checked against the robot's joints.
-    fn configuration(&self, q: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    pub(crate) fn configuration(&self, q: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
         let q = match q.cast::<PyDict>() {
             Ok(named) => self.named_configuration(named)?,
             Err(_) => vector_arg(q, "q", "for several configurations, one a row, call fk_many")?,

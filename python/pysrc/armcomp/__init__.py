@@ -14,6 +14,7 @@ Long calls release the GIL and stop on Ctrl-C (``KeyboardInterrupt``).
 from __future__ import annotations
 
 import json
+import os
 import warnings
 from typing import Callable, Iterable, Optional, Sequence, Tuple, Union
 
@@ -87,6 +88,8 @@ __all__ = [
     "learn",
     "plan",
     "simulate",
+    "validate",
+    "check_pose",
 ]
 
 
@@ -338,3 +341,18 @@ def plan(
         rows=None if rows is None else list(rows),
         selection=None if selection is None else json.loads(selection),
     )
+
+
+def validate(path: Union[str, "os.PathLike[str]"]) -> list:
+    """The problems of a robot file as ``armcomp validate --json`` lists them (``file``,
+    ``line``, the field ``path``, ``message``): syntax and types, semantics, the JSON Schema.
+    An empty list means the file is valid."""
+    return _native.validate(path)
+
+
+def check_pose(robot: Robot, q) -> list:
+    """Self-collisions and collisions with fixtures at one configuration ``q`` (SI, by position
+    or a dict by joint name), as ``armcomp check-pose --json`` lists its ``contacts``: ``first``,
+    ``second``, ``fixture``, ``distance`` (m, negative for an overlap) and the closest points
+    ``point_first``, ``point_second`` (m, base frame). An empty list means no collision."""
+    return _native.check_pose(robot, q)

@@ -1,0 +1,49 @@
+"""`validate` and `check_pose` from Python: the command line's checks, against files whose
+problems and contacts are known by construction."""
+
+import math
+
+import armcomp
+from conftest import ROOT
+
+ARM = """<robot name="arm">
+  <link name="base"><collision><geometry><box size="0.4 0.4 0.2"/></geometry></collision></link>
+  <link name="upper"><collision><origin xyz="0 0 0.3"/><geometry><cylinder radius="0.05" length="0.4"/></geometry></collision></link>
+  <link name="lower"><collision><origin xyz="0.25 0 0" rpy="0 1.5707963267948966 0"/><geometry><capsule radius="0.04" length="0.3"/></geometry></collision></link>
+  <joint name="shoulder" type="revolute">
+    <origin xyz="0 0 0.1"/><parent link="base"/><child link="upper"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
+  </joint>
+  <joint name="elbow" type="revolute">
+    <origin xyz="0 0 0.5"/><parent link="upper"/><child link="lower"/>
+    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
+  </joint>
+</robot>"""
+
+
+def test_validate_lists_the_problems_of_a_file_by_line_and_field(tmp_path):
+    assert armcomp.validate(ROOT / "robots" / "rock-drill.toml") == []
+    text = (ROOT / "robots" / "rock-drill.toml").read_text()
+    # The first joint's limits reversed, on a line we know.
+    lines = text.splitlines()
+    i = next(k for k, l in enumerate(lines) if l.strip().startswith("limits"))
+    lines[i] = "limits = [90, -90]"
+    bad = tmp_path / "bad.toml"
+    bad.write_text("\n".join(lines))
+    problems = armcomp.validate(bad)
+    assert problems, "reversed limits are a problem"
+    assert problems[0]["file"].endswith("bad.toml")
+    assert problems[0]["line"] == i + 1
+    assert "limits" in problems[0]["path"]
+
+
+def test_check_pose_finds_the_contact_the_geometry_gives(tmp_path):
+    path = tmp_path / "arm.urdf"
+    path.write_text(ARM)
+    robot = armcomp.Robot.load(path)
+    assert armcomp.check_pose(robot, [0.0, 0.0]) == []
+    # Upper arm horizontal, elbow folded back: the lower capsule (radius 40 mm) lies with its
+    # axis on the base box's top face, so they overlap by its radius.
+    contacts = armcomp.check_pose(robot, {"shoulder": math.pi / 2, "elbow": math.pi / 2})
+    assert [(c["first"], c["second"], c["fixture"]) for c in contacts] == [("base", "lower", False)]
+    assert abs(contacts[0]["distance"] + 0.04) < 1e-9
