@@ -1,7 +1,8 @@
 //! Choosing how strongly the priors hold a calibration, by cross-validation on the training
 //! data alone: each candidate prior scale calibrates on k − 1 folds of the poses (of the
 //! stations, for data from several: a held-out station is registered before it is scored) and is scored
-//! on the fold left out; the scale with the lowest pooled held-out RMS wins.
+//! on the fold left out (plane contacts by their height above the plane the training folds
+//! identified); the scale with the lowest pooled held-out RMS wins.
 //!
 //! A full-geometry calibration from a few dozen poses has nearly as many parameters as
 //! equations: with the robot file's priors as written it fits the noise, with much tighter
@@ -11,7 +12,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, FitsProgress, calibrate, register_held_out_stations};
+use crate::calibrate::{CalibrationParams, FitsProgress, calibrate, contact_gaps, register_held_out_stations};
 use crate::error::{Error, Result};
 use crate::evaluate::model_errors;
 use crate::measurement::Sample;
@@ -27,7 +28,8 @@ pub const DEFAULT_GRID: [f64; 8] = [0.01, 0.03, 0.1, 0.3, 1.0, 3.0, 10.0, f64::I
 pub struct PriorScaleScore {
     /// The factor on the prior standard deviations (`null` in JSON for no priors).
     pub scale: f64,
-    /// Pooled RMS of the 3-D position error over the held-out folds (mm).
+    /// Pooled RMS of the 3-D position error over the held-out folds (mm); for plane contacts,
+    /// of the height above the plane.
     pub held_out_rms_mm: f64,
 }
 
@@ -60,7 +62,12 @@ pub fn choose_prior_scale(
     plan: &FoldPlan,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<PriorChoice> {
-    crate::measurement::require_positions(samples, "the prior's cross-validation")?;
+    // Plane contacts are scored by their height above the plane the training folds identified;
+    // fixed points (whose position each fold would identify anew) are not scored.
+    let planes = samples.iter().any(|s| s.plane.is_some());
+    if !planes {
+        crate::measurement::require_positions(samples, "the prior's cross-validation")?;
+    }
     if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
         return Err(Error::InvalidArgument {
             what: "prior scales to try".into(),
@@ -88,13 +95,21 @@ pub fn choose_prior_scale(
                 return Ok(None);
             };
             let mut fitted = fit.robot;
-            register_held_out_stations(&mut fitted, &train, &test)?;
-            let errors = model_errors(&fitted, &test);
+            let scored = if planes {
+                let (gaps, _) = contact_gaps(&fitted, &test)?;
+                gaps.iter()
+                    .flatten()
+                    .fold((0.0, 0), |(sum, n), g| (sum + g.height * g.height, n + 1))
+            } else {
+                register_held_out_stations(&mut fitted, &train, &test)?;
+                let errors = model_errors(&fitted, &test);
+                (errors.iter().map(|e| e.norm_squared()).sum(), errors.len())
+            };
             progress(FitsProgress {
                 done: done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
                 total: jobs.len(),
             });
-            Ok(Some((errors.iter().map(|e| e.norm_squared()).sum(), errors.len())))
+            Ok(Some(scored))
         })
         .collect::<Result<_>>()?;
     let interrupted = sums.iter().any(Option::is_none);
