@@ -9,6 +9,7 @@ use anyhow::Context;
 use armcomp_core::design::Criterion;
 use armcomp_core::evaluate::ErrorStats;
 use armcomp_core::measurement::read_csv;
+use armcomp_repro::agile_justin::{PAPER_FULL_MODEL_MEAN_MM as JUSTIN_TARGET_MM, TARGET_POSES as JUSTIN_TARGET_POSES};
 use armcomp_repro::demos::report::Curve;
 use armcomp_repro::learning_curve::{LearningCurveReport, agile_justin_curve, talos_curves};
 
@@ -39,12 +40,6 @@ fn default_hint<T>(result: anyhow::Result<T>, defaulted: bool, path: &str, flag:
         result
     }
 }
-
-/// The paper's full-data held-out mean on Agile Justin (mm).
-const JUSTIN_TARGET_MM: f64 = 3.12;
-
-/// The most tool-chosen poses the Agile Justin target allows.
-const JUSTIN_TARGET_POSES: usize = 80;
 
 /// A progress display counting fits (the fits of all curves run one curve after another).
 fn progress() -> indicatif::ProgressBar {

@@ -76,11 +76,7 @@ pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
             armcomp_core::limits::Cost::per_unit(k, 0.0, FOLD_FLOPS)
         })?;
     }
-    let predictor = armcomp_learn::RidgeSpec {
-        lambda: 0.05,
-        degree: 1,
-        trig: true,
-    };
+    let predictor = armcomp_repro::agile_justin::PREDICTOR;
     let predictor: Option<&dyn PredictorSpec> = (!opts.no_predictor).then_some(&predictor);
     let steps = step_table(&robot, &samples, &split, &STEPS, predictor)?;
     let kfold = if opts.folds > 0 {
@@ -171,7 +167,8 @@ pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
     if !out.leave_one_out.is_empty() {
         let last = out.steps.get(STEPS.len() - 1).map_or(f64::NAN, |s| s.test.mean_mm);
         println!(
-            "\n   leave one out: the full model without one group, held-out mean (mm; full model {last:.2}, paper 3.12)"
+            "\n   leave one out: the full model without one group, held-out mean (mm; full model {last:.2}, paper {})",
+            armcomp_repro::agile_justin::PAPER_FULL_MODEL_MEAN_MM
         );
         println!("   {:<52} {:>6} {:>6}", "without", "paper", "ours");
         for r in &out.leave_one_out {
