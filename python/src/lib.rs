@@ -40,5 +40,6 @@ fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(plan::plan, m)?)?;
     m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
     m.add_function(wrap_pyfunction!(validate::check_pose, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::schema, m)?)?;
     Ok(())
 }

@@ -1,4 +1,4 @@
-//! `armcomp validate` and `armcomp check-pose` from Python.
+//! `armcomp validate`, `armcomp schema` and `armcomp check-pose` from Python.
 
 use std::path::PathBuf;
 
@@ -26,6 +26,13 @@ pub fn validate(py: Python<'_>, path: PathBuf) -> PyResult<Vec<Bound<'_, PyDict>
             Ok(out)
         })
         .collect()
+}
+
+/// The JSON Schema of robot files as `armcomp schema` prints it (JSON text), for editors and
+/// checkers.
+#[pyfunction]
+pub fn schema() -> String {
+    armcomp::schema_text()
 }
 
 /// Collisions at configuration `q` as `armcomp check-pose` finds them: one dict per pair in

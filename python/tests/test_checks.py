@@ -1,6 +1,7 @@
 """`validate` and `check_pose` from Python: the command line's checks, against files whose
 problems and contacts are known by construction."""
 
+import json
 import math
 
 import armcomp
@@ -47,3 +48,8 @@ def test_check_pose_finds_the_contact_the_geometry_gives(tmp_path):
     contacts = armcomp.check_pose(robot, {"shoulder": math.pi / 2, "elbow": math.pi / 2})
     assert [(c["first"], c["second"], c["fixture"]) for c in contacts] == [("base", "lower", False)]
     assert abs(contacts[0]["distance"] + 0.04) < 1e-9
+
+
+def test_schema_is_the_committed_one():
+    committed = json.loads((ROOT / "schemas" / "robot.schema.json").read_text())
+    assert json.loads(armcomp.schema()) == committed

@@ -90,6 +90,7 @@ __all__ = [
     "simulate",
     "validate",
     "check_pose",
+    "schema",
 ]
 
 
@@ -356,3 +357,8 @@ def check_pose(robot: Robot, q) -> list:
     ``second``, ``fixture``, ``distance`` (m, negative for an overlap) and the closest points
     ``point_first``, ``point_second`` (m, base frame). An empty list means no collision."""
     return _native.check_pose(robot, q)
+
+
+def schema() -> str:
+    """The JSON Schema of robot files (JSON text), as ``armcomp schema`` prints it."""
+    return _native.schema()
