@@ -4,7 +4,7 @@
 use armcomp_core::{CollisionModel, Robot};
 use nalgebra::Vector3;
 
-use crate::common::{Scratch, robot_from_toml};
+use crate::common::{Scratch, robot_from_toml, root};
 
 /// A planar 3R arm (z axes parallel, links 500 and 400 mm) with a 100 mm sphere on the base,
 /// a box on the first link that overlaps it (adjacent: never checked), a 50 mm sphere on the
@@ -179,23 +179,7 @@ ignore = [["j1", "nowhere"]]
 
 #[test]
 fn check_pose_reports_collisions_as_text_and_json() {
-    let s = Scratch::new("collision-cli");
-    let robot = s.file(
-        "arm.urdf",
-        r#"<robot name="arm">
-  <link name="base"><collision><geometry><box size="0.4 0.4 0.2"/></geometry></collision></link>
-  <link name="upper"><collision><origin xyz="0 0 0.3"/><geometry><cylinder radius="0.05" length="0.4"/></geometry></collision></link>
-  <link name="lower"><collision><origin xyz="0.25 0 0" rpy="0 1.5707963267948966 0"/><geometry><capsule radius="0.04" length="0.3"/></geometry></collision></link>
-  <joint name="shoulder" type="revolute">
-    <origin xyz="0 0 0.1"/><parent link="base"/><child link="upper"/>
-    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
-  </joint>
-  <joint name="elbow" type="revolute">
-    <origin xyz="0 0 0.5"/><parent link="upper"/><child link="lower"/>
-    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
-  </joint>
-</robot>"#,
-    );
+    let robot = root().join("tests/data/robots/two-link-collision.urdf");
     let r = robot.to_str().unwrap();
     let (code, out, err) = crate::cli::armcomp(&["check-pose", "--robot", r, "--q", "0,0"]);
     assert_eq!(code, 0, "{err}");

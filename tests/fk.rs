@@ -151,3 +151,30 @@ link = "left"
     assert!((r - nalgebra::Vector3::new(0.0, 0.5, 1.0)).norm() < 1e-12, "{r:?}");
     assert!((l - nalgebra::Vector3::new(0.0, -0.5, 1.0)).norm() < 1e-12, "{l:?}");
 }
+
+/// Joint values by name: each named coordinate gets its value and the others none, whatever the
+/// order; a fixed or mimic joint, an unknown name and a name given twice are refused.
+#[test]
+fn joint_values_by_name_land_on_their_coordinates() {
+    let robot = crate::common::robot("talos-left-arm.toml");
+    let tree = robot.tree();
+    let names = tree.coordinate_names();
+    let (a, b) = (names[3].as_str(), names[1].as_str());
+    let q = tree.coordinates_by_name([(a, 0.25), (b, -0.5)]).unwrap();
+    assert_eq!(q.iter().flatten().count(), 2);
+    assert_eq!((q[3], q[1]), (Some(0.25), Some(-0.5)));
+    let fixed = tree
+        .joints()
+        .iter()
+        .map(|j| j.name.as_str())
+        .find(|n| !names.iter().any(|c| c == n))
+        .expect("TALOS has fixed joints");
+    for (pairs, expected) in [
+        (vec![(fixed, 0.0)], "is fixed or follows another joint"),
+        (vec![("no_such_joint", 0.0)], "has no joint `no_such_joint`"),
+        (vec![(a, 0.0), (a, 1.0)], "is given twice"),
+    ] {
+        let e = tree.coordinates_by_name(pairs).unwrap_err().to_string();
+        assert!(e.contains(expected), "{e}");
+    }
+}

@@ -51,8 +51,8 @@ pub struct CollisionGeometry {
     pub ignore: Vec<(usize, usize)>,
 }
 
-/// One pair of shapes closer than the margin.
-#[derive(Debug, Clone, PartialEq)]
+/// One pair of shapes closer than the margin (as `armcomp check-pose --json` lists it).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Contact {
     /// The first link.
     pub first: String,

@@ -333,6 +333,35 @@ impl KinematicTree {
         self.joints.iter().position(|j| j.name == name)
     }
 
+    /// Joint values given by name, in the order of `q`: per coordinate the value named for it,
+    /// `None` where none was (the caller says what that means). A name that is no coordinate
+    /// (a fixed or mimic joint, or none at all) and a name given twice are errors.
+    pub fn coordinates_by_name<'a>(&self, named: impl IntoIterator<Item = (&'a str, f64)>) -> Result<Vec<Option<f64>>> {
+        let mut q = vec![None; self.nq()];
+        for (name, value) in named {
+            let reason = match self.coord_names.iter().position(|n| n == name) {
+                Some(i) if q[i].is_none() => {
+                    q[i] = Some(value);
+                    continue;
+                }
+                Some(_) => format!("`{name}` is given twice"),
+                None if self.joint_index(name).is_some() => format!(
+                    "joint `{name}` is fixed or follows another joint (mimic); set one of: {}",
+                    self.coord_names.join(", ")
+                ),
+                None => format!(
+                    "the robot has no joint `{name}`; its joints are: {}",
+                    self.coord_names.join(", ")
+                ),
+            };
+            return Err(Error::InvalidArgument {
+                what: "joint values by name".into(),
+                reason,
+            });
+        }
+        Ok(q)
+    }
+
     /// The value of joint `j` for joint vector `q` (rad or m; 0 for fixed joints).
     #[inline]
     pub fn joint_value(&self, j: usize, q: &[f64]) -> f64 {

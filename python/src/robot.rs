@@ -104,26 +104,22 @@ impl PyRobot {
     /// Joint values given by name (`{"joint": value}`), in the robot's order: every joint
     /// once, no other name, since another library's order is a silent error of metres.
     fn named_configuration(&self, named: &Bound<'_, PyDict>) -> PyResult<Vec<f64>> {
-        let joints = self.robot.tree().coordinate_names();
         let error = |message: String| input_error(&message, None, None, Some("q"));
-        let mut q: Vec<Option<f64>> = vec![None; joints.len()];
+        let mut pairs = Vec::with_capacity(named.len());
         for (key, value) in named.iter() {
             let name: String = key
                 .extract()
                 .map_err(|_| error(format!("joint names are strings, got {key}")))?;
-            let j = joints.iter().position(|n| *n == name).ok_or_else(|| {
-                error(format!(
-                    "`{name}` is no joint of the robot; its joints are {}",
-                    joints.join(", ")
-                ))
-            })?;
-            q[j] = Some(
-                value
-                    .extract()
-                    .map_err(|_| error(format!("joint `{name}`: expected a number, got {value}")))?,
-            );
+            let v: f64 = value
+                .extract()
+                .map_err(|_| error(format!("joint `{name}`: expected a number, got {value}")))?;
+            pairs.push((name, v));
         }
-        let missing: Vec<&str> = (joints.iter().zip(&q))
+        let tree = self.robot.tree();
+        let q = tree
+            .coordinates_by_name(pairs.iter().map(|(n, v)| (n.as_str(), *v)))
+            .py()?;
+        let missing: Vec<&str> = (tree.coordinate_names().iter().zip(&q))
             .filter(|(_, v)| v.is_none())
             .map(|(n, _)| n.as_str())
             .collect();

@@ -7,19 +7,8 @@ import math
 import armcomp
 from conftest import ROOT
 
-ARM = """<robot name="arm">
-  <link name="base"><collision><geometry><box size="0.4 0.4 0.2"/></geometry></collision></link>
-  <link name="upper"><collision><origin xyz="0 0 0.3"/><geometry><cylinder radius="0.05" length="0.4"/></geometry></collision></link>
-  <link name="lower"><collision><origin xyz="0.25 0 0" rpy="0 1.5707963267948966 0"/><geometry><capsule radius="0.04" length="0.3"/></geometry></collision></link>
-  <joint name="shoulder" type="revolute">
-    <origin xyz="0 0 0.1"/><parent link="base"/><child link="upper"/>
-    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
-  </joint>
-  <joint name="elbow" type="revolute">
-    <origin xyz="0 0 0.5"/><parent link="upper"/><child link="lower"/>
-    <axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/>
-  </joint>
-</robot>"""
+# The two-link arm the Rust check-pose test uses (box base, capsule forearm of radius 40 mm).
+ARM = ROOT / "tests" / "data" / "robots" / "two-link-collision.urdf"
 
 
 def test_validate_lists_the_problems_of_a_file_by_line_and_field(tmp_path):
@@ -38,10 +27,8 @@ def test_validate_lists_the_problems_of_a_file_by_line_and_field(tmp_path):
     assert "limits" in problems[0]["path"]
 
 
-def test_check_pose_finds_the_contact_the_geometry_gives(tmp_path):
-    path = tmp_path / "arm.urdf"
-    path.write_text(ARM)
-    robot = armcomp.Robot.load(path)
+def test_check_pose_finds_the_contact_the_geometry_gives():
+    robot = armcomp.Robot.load(ARM)
     assert armcomp.check_pose(robot, [0.0, 0.0]) == []
     # Upper arm horizontal, elbow folded back: the lower capsule (radius 40 mm) lies with its
     # axis on the base box's top face, so they overlap by its radius.

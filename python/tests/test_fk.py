@@ -143,7 +143,7 @@ def test_joint_values_by_name_are_those_by_position_in_any_order():
     x = 0.7 * math.cos(q1) + 0.4 * math.cos(q1 + q2)
     assert abs(by_name[1][0, 3] - x) < 1e-12
     np.testing.assert_array_equal(robot.jacobian({"j1": q1, "j2": q2}), robot.jacobian([q1, q2]))
-    with pytest.raises(armcomp.InputError, match="`j3` is no joint of the robot; its joints are j1, j2"):
+    with pytest.raises(armcomp.InputError, match="no joint `j3`; its joints are: j1, j2"):
         robot.fk({"j1": q1, "j2": q2, "j3": 0.0})
     with pytest.raises(armcomp.InputError, match="no value for joint"):
         robot.fk({"j1": q1})

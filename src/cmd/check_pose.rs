@@ -29,23 +29,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut ws = model.workspace();
     let contacts = model.check(&q, &mut ws);
     if args.json {
-        let list: Vec<_> = contacts
-            .iter()
-            .map(|c| {
-                serde_json::json!({
-                    "first": c.first,
-                    "second": c.second,
-                    "fixture": c.fixture,
-                    "distance": c.distance,
-                    "point_first": [c.point_first.x, c.point_first.y, c.point_first.z],
-                    "point_second": [c.point_second.x, c.point_second.y, c.point_second.z],
-                })
-            })
-            .collect();
         let out = serde_json::json!({
             "collides": !contacts.is_empty(),
             "pairs_checked": model.pair_count(),
-            "contacts": list,
+            "contacts": contacts,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else if contacts.is_empty() {

@@ -29,7 +29,7 @@ pub struct Args {
 pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>> {
     let tree = robot.tree();
     let names = tree.coordinate_names();
-    let value = |i: usize, what: &str, part: &str| -> anyhow::Result<f64> {
+    let number = |what: &str, part: &str| -> anyhow::Result<f64> {
         let v: f64 = part
             .trim()
             .parse()
@@ -37,13 +37,16 @@ pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>>
         if !v.is_finite() {
             bail!("--q {what} is not finite");
         }
+        Ok(v)
+    };
+    // Coordinate `i`'s value in SI units.
+    let si = |i: usize, v: f64| {
         let prismatic = tree.coordinate_is_prismatic().get(i).copied().unwrap_or(false);
-        Ok(if deg && !prismatic { v.to_radians() } else { v })
+        if deg && !prismatic { v.to_radians() } else { v }
     };
     let parts: Vec<&str> = text.split(',').collect();
     let q = if parts.iter().any(|p| p.contains('=')) {
-        let mut q = vec![0.0; tree.nq()];
-        let mut seen = vec![false; tree.nq()];
+        let mut named = Vec::with_capacity(parts.len());
         for part in parts {
             let Some((name, v)) = part.split_once('=') else {
                 bail!(
@@ -51,29 +54,19 @@ pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>>
                 );
             };
             let name = name.trim();
-            let Some(i) = names.iter().position(|n| n == name) else {
-                if tree.joint_index(name).is_some() {
-                    bail!(
-                        "--q: joint `{name}` is fixed or follows another joint (mimic); set one of: {}",
-                        names.join(", ")
-                    );
-                }
-                bail!(
-                    "--q: the robot has no joint `{name}`; its joints are: {}",
-                    names.join(", ")
-                );
-            };
-            if std::mem::replace(&mut seen[i], true) {
-                bail!("--q gives `{name}` twice");
-            }
-            q[i] = value(i, &format!("value of `{name}`"), v)?;
+            named.push((name, number(&format!("value of `{name}`"), v)?));
         }
-        q
+        // Joints not named stay at zero.
+        let q = tree.coordinates_by_name(named).context("--q")?;
+        q.into_iter()
+            .enumerate()
+            .map(|(i, v)| v.map_or(0.0, |v| si(i, v)))
+            .collect()
     } else {
         let q = parts
             .iter()
             .enumerate()
-            .map(|(i, part)| value(i, &format!("value {}", i + 1), part))
+            .map(|(i, part)| Ok(si(i, number(&format!("value {}", i + 1), part)?)))
             .collect::<anyhow::Result<Vec<f64>>>()?;
         if q.len() != tree.nq() {
             bail!(

@@ -348,7 +348,7 @@ def validate(path: Union[str, "os.PathLike[str]"]) -> list:
     """The problems of a robot file as ``armcomp validate --json`` lists them (``file``,
     ``line``, the field ``path``, ``message``): syntax and types, semantics, the JSON Schema.
     An empty list means the file is valid."""
-    return _native.validate(path)
+    return json.loads(_native.validate(path))
 
 
 def check_pose(robot: Robot, q) -> list:
@@ -356,7 +356,7 @@ def check_pose(robot: Robot, q) -> list:
     or a dict by joint name), as ``armcomp check-pose --json`` lists its ``contacts``: ``first``,
     ``second``, ``fixture``, ``distance`` (m, negative for an overlap) and the closest points
     ``point_first``, ``point_second`` (m, base frame). An empty list means no collision."""
-    return _native.check_pose(robot, q)
+    return json.loads(_native.check_pose(robot, q))
 
 
 def schema() -> str:
