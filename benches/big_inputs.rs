@@ -6,10 +6,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use armcomp_core::Robot;
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::{read_csv, write_csv};
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::{read_csv, write_csv};
+use armcomp_core::model::sampling::{Sampler, configurations};
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn root() -> &'static Path {

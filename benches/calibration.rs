@@ -4,10 +4,10 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
-use armcomp_core::robot_file::{Format, SourceFile};
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::{Robot, RobotFile};
 use criterion::{Criterion, criterion_group, criterion_main};
 

@@ -4,10 +4,10 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
-use armcomp_core::evaluate::fit_residual_predictor;
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
+use armcomp_core::algorithms::evaluate::fit_residual_predictor;
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_learn::GpSpec;
 use armcomp_repro::twins::Twin;
 use criterion::{Criterion, criterion_group, criterion_main};

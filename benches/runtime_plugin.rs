@@ -9,9 +9,9 @@ use std::process::Command;
 use std::time::Duration;
 
 use armcomp_core::calibrate::samples_jacobian;
-use armcomp_core::measurement::Sample;
-use armcomp_core::robot_file::{Format, SourceFile};
-use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::{Robot, RobotFile};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;

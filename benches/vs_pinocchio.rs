@@ -14,7 +14,7 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use armcomp_core::robot_file::PointSpec;
+use armcomp_core::robot::robot_file::PointSpec;
 use armcomp_core::{KinematicTree, PointKinematics, PointKinematicsWorkspace, Robot, TreeWorkspace};
 use libloading::Library;
 use nalgebra::{IsometryMatrix3, Matrix6xX};

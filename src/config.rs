@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Result;
-use armcomp_core::robot_file::SourceFile;
+use armcomp_core::robot::robot_file::SourceFile;
 use serde::Deserialize;
 
 /// What the user config says.
@@ -31,7 +31,7 @@ pub struct UserConfig {
 pub fn apply(allow_plugins: bool) -> Result<()> {
     let config = load()?;
     if let Some(mb) = config.max_input_mb {
-        armcomp_core::io::set_max_input_bytes(mb.saturating_mul(1 << 20));
+        armcomp_core::support::io::set_max_input_bytes(mb.saturating_mul(1 << 20));
     }
     armcomp_sdk::set_policy(armcomp_sdk::PluginPolicy {
         allow: allow_plugins,

@@ -4,9 +4,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use armcomp_core::diagnose::DiagnosisReport;
-use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::io::{check_report_folder, write_folder_atomic};
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::analysis::diagnose::DiagnosisReport;
+use armcomp_core::support::io::{check_report_folder, write_folder_atomic};
 use armcomp_report::histogram::bin_counts;
 use armcomp_report::html::{escape, page_start};
 use plotters::prelude::*;

@@ -58,19 +58,19 @@ enum Command {
 }
 
 /// Set by commands that keep their best result when stopped: the first Ctrl-C asks the
-/// computation to stop there ([`armcomp_core::interrupt`]), a second ends the process.
+/// computation to stop there ([`armcomp_core::support::interrupt`]), a second ends the process.
 pub static STOP_KEEPS_RESULT: AtomicBool = AtomicBool::new(false);
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // A run stopped by Ctrl-C or `kill` leaves no hidden temporary beside its outputs.
     let _ = ctrlc::set_handler(|| {
-        if STOP_KEEPS_RESULT.load(Ordering::Relaxed) && !armcomp_core::interrupt::requested() {
-            armcomp_core::interrupt::request();
+        if STOP_KEEPS_RESULT.load(Ordering::Relaxed) && !armcomp_core::support::interrupt::requested() {
+            armcomp_core::support::interrupt::request();
             eprintln!("\nstopping: the result so far is kept once the running calibrations end (Ctrl-C again to quit)");
             return;
         }
-        armcomp_core::io::remove_pending_temporaries();
+        armcomp_core::support::io::remove_pending_temporaries();
         std::process::exit(130);
     });
     if let Err(e) = armcomp::config::apply(cli.allow_plugins) {

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use armcomp_core::robot_file::SourceFile;
+use armcomp_core::robot::robot_file::SourceFile;
 use armcomp_core::{Error, Robot, RobotFile};
 use serde_json::Value;
 
@@ -105,7 +105,8 @@ pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
 /// [`validate_file`], with the plugin libraries that were not loaded apart from the problems.
 pub fn check_file(path: &Path, schema: &Value) -> Validation {
     let mut warnings = Vec::new();
-    let (diagnostics, inputs) = armcomp_core::io::recording_reads(|| diagnose_file(path, schema, &mut warnings));
+    let (diagnostics, inputs) =
+        armcomp_core::support::io::recording_reads(|| diagnose_file(path, schema, &mut warnings));
     let (not_loaded, problems) = diagnostics
         .into_iter()
         .partition(|d| d.message.starts_with(armcomp_sdk::NOT_ALLOWED));

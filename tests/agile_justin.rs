@@ -4,9 +4,9 @@
 use std::path::Path;
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::split::subset;
+use armcomp_core::data::split::subset;
 use armcomp_repro::agile_justin::{
     MEASUREMENTS, STEPS, diagnose_from_frames, half_split, kfold_errors, parse_measurements, step_table,
 };
@@ -105,7 +105,7 @@ fn reader_names_the_line_of_bad_input() {
     assert!(e.contains("m.csv:1") && e.contains("joints"), "{e}");
 }
 
-fn frames_only(r: &Robot, samples: &[armcomp_core::measurement::Sample]) -> Robot {
+fn frames_only(r: &Robot, samples: &[armcomp_core::data::measurement::Sample]) -> Robot {
     let params = CalibrationParams {
         identify: STEPS[0].identify.iter().map(|s| s.to_string()).collect(),
         measurement_std: armcomp_repro::agile_justin::MEASUREMENT_STD,

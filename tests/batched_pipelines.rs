@@ -4,11 +4,11 @@
 //! against hand calculations in `fk.rs`), to 1e-12 m on rigid robots, to the bit otherwise.
 
 use armcomp::read_robot;
-use armcomp_core::evaluate::model_errors;
-use armcomp_core::measurement::Sample;
-use armcomp_core::plan::{Space, spread, trajectory_similar};
-use armcomp_core::sampling::Sampler;
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::algorithms::evaluate::model_errors;
+use armcomp_core::algorithms::plan::{Space, spread, trajectory_similar};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::model::sampling::Sampler;
 use armcomp_core::{Conditions, Error, Robot};
 use nalgebra::{IsometryMatrix3, Matrix6xX, Vector3};
 

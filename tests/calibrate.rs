@@ -2,12 +2,12 @@
 //! held-out poses, identifiability reports, limits and splits.
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::Sample;
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
-use armcomp_core::split::{holdout, kfold, pose_groups};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::split::{holdout, kfold, pose_groups};
+use armcomp_core::model::sampling::{Sampler, configurations};
 
 use crate::common::robot;
 
@@ -329,11 +329,11 @@ fn calibrate_and_evaluate_on_the_command_line() {
     let nominal = robot("industrial-6dof.toml");
     let (truth, _) = truth_of(&nominal, &[("j2.a", 2e-3), ("j3.alpha", 0.005), ("base.x", 0.5)]);
     let write = |name: &str, samples: &[Sample]| {
-        let set = armcomp_core::measurement::MeasurementSet {
+        let set = armcomp_core::data::measurement::MeasurementSet {
             samples: samples.to_vec(),
             ..Default::default()
         };
-        let text = armcomp_core::measurement::write_csv(&set, truth.tree(), truth.units());
+        let text = armcomp_core::data::measurement::write_csv(&set, truth.tree(), truth.units());
         dir.file(name, &text)
     };
     let train = write("train.csv", &measure(&truth, 120, 11));
@@ -383,7 +383,7 @@ fn calibrate_and_evaluate_on_the_command_line() {
     assert!(before["mean_mm"].as_f64().unwrap() > 100.0);
     // Independent check of the statistics: recompute from the errors of the written model.
     let reloaded = Robot::from_path(&model).unwrap();
-    let samples = armcomp_core::measurement::read_csv(&test, &reloaded.csv_layout())
+    let samples = armcomp_core::data::measurement::read_csv(&test, &reloaded.csv_layout())
         .unwrap()
         .samples;
     let errors = position_errors(&reloaded, &samples);
@@ -584,17 +584,21 @@ fn the_written_model_file_is_the_fit_for_every_robot_kind() {
     let with_payload = |name: &str, mass: f64| {
         let r = robot(name);
         let mut file = r.to_file();
-        file.payload = Some(armcomp_core::robot_file::PayloadSpec { mass, point: None });
+        file.payload = Some(armcomp_core::robot::robot_file::PayloadSpec { mass, point: None });
         r.rebuild(file).unwrap()
     };
     let with_predictor = |name: &str| {
         let r = robot(name);
         let samples = measure(&r, 30, 77);
-        let fitted =
-            armcomp_core::evaluate::fit_residual_predictor(&r, &armcomp_learn::RidgeSpec::default(), &samples).unwrap();
+        let fitted = armcomp_core::algorithms::evaluate::fit_residual_predictor(
+            &r,
+            &armcomp_learn::RidgeSpec::default(),
+            &samples,
+        )
+        .unwrap();
         let mut file = r.to_file();
         file.fitted_predictor = Some(fitted);
-        file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
+        file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
         r.rebuild(file).unwrap()
     };
     type Case<'a> = (&'a str, Robot, Vec<(&'a str, f64)>);
@@ -778,15 +782,15 @@ fn calibrate_exit_codes_for_nonsense_inputs() {
     let nominal_path = crate::common::root().join("robots/industrial-6dof.toml");
     let nominal = robot("industrial-6dof.toml");
     let (truth, _) = truth_of(&nominal, &[("j2.a", 2e-3), ("base.x", 0.5)]);
-    let set = armcomp_core::measurement::MeasurementSet {
+    let set = armcomp_core::data::measurement::MeasurementSet {
         samples: measure(&truth, 60, 41),
         ..Default::default()
     };
-    let units = armcomp_core::units::Units {
-        length: armcomp_core::units::LengthUnit::M,
+    let units = armcomp_core::model::units::Units {
+        length: armcomp_core::model::units::LengthUnit::M,
         ..truth.units()
     };
-    let text = armcomp_core::measurement::write_csv(&set, truth.tree(), units);
+    let text = armcomp_core::data::measurement::write_csv(&set, truth.tree(), units);
     let mislabelled = text.replacen("x[m],y[m],z[m]", "x[mm],y[mm],z[mm]", 1);
     assert_ne!(text, mislabelled);
     let run = |data: &std::path::Path, identify: &str| {

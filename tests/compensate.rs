@@ -1,11 +1,11 @@
 //! Compensation: commanding the truth robot with the computed command lands on the target.
 
 use armcomp_core::PredictorSpec;
-use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range, tool_chain};
-use armcomp_core::evaluate::{ErrorStats, fit_residual_predictor, position_errors};
-use armcomp_core::ik::{IkParams, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
-use armcomp_core::measurement::{read_csv, write_csv};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, mid_range, tool_chain};
+use armcomp_core::algorithms::evaluate::{ErrorStats, fit_residual_predictor, position_errors};
+use armcomp_core::algorithms::ik::{IkParams, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::{read_csv, write_csv};
 use armcomp_learn::{GpSpec, KnnSpec, RidgeSpec};
 use nalgebra::Matrix3xX;
 use nalgebra::{Isometry3, Vector3};
@@ -94,7 +94,7 @@ fn ik_with_a_linear_offset_solves_the_offset_model() {
 /// enough for the fixed-point iteration to contract everywhere; where it does not, the miss it
 /// reports is the true one.
 /// The truth measured without noise at 120 random configurations.
-fn noiseless_data(truth: &armcomp_core::Robot, seed: u64) -> armcomp_core::measurement::MeasurementSet {
+fn noiseless_data(truth: &armcomp_core::Robot, seed: u64) -> armcomp_core::data::measurement::MeasurementSet {
     let params = SimulateParams {
         noise_std: 0.0,
         seed: 1,
@@ -218,10 +218,10 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         // The joint columns read back as poses; command the truth with them.
         let commands = read_csv(
             &out,
-            &armcomp_core::measurement::CsvLayout::strict(truth.tree(), truth.units(), truth.tool()),
+            &armcomp_core::data::measurement::CsvLayout::strict(truth.tree(), truth.units(), truth.tool()),
         );
         assert!(commands.is_err(), "commands carry no measured x, y, z");
-        let poses = armcomp_core::measurement::parse_poses(
+        let poses = armcomp_core::data::measurement::parse_poses(
             &text
                 .lines()
                 .map(|l| l.split(',').take(7).collect::<Vec<_>>().join(","))
@@ -241,7 +241,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
     }
     // Uncompensated through the nominal deflection model, for scale.
     let mut comp = Compensator::for_model(&nominal, CompensationParams::default()).unwrap();
-    let q0 = armcomp_core::compensate::mid_range(&nominal);
+    let q0 = armcomp_core::algorithms::compensate::mid_range(&nominal);
     let mut before = 0.0;
     for t in &goals {
         comp.compensate(t, &q0, CompensationMode::Exact).unwrap();
@@ -321,7 +321,7 @@ fn compensate_cli_reads_pose_targets() {
     assert_eq!(code, 0, "{err}");
     let text = std::fs::read_to_string(&out).unwrap();
     let nq = model.tree().nq();
-    let poses = armcomp_core::measurement::parse_poses(
+    let poses = armcomp_core::data::measurement::parse_poses(
         &text
             .lines()
             .map(|l| l.split(',').take(nq).collect::<Vec<_>>().join(","))
@@ -398,12 +398,12 @@ fn a_residual_predictor_learns_several_points_and_compensates_the_tool() {
     assert_eq!(predictor.n_inputs(), model.tree().nq() + 3);
     let mut file = model.to_file();
     file.fitted_predictor = Some(predictor);
-    file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
+    file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
     let learned = model.rebuild(file).unwrap();
     for &point in model.markers() {
         let of_point: Vec<_> = test.iter().filter(|s| s.point == point).cloned().collect();
         assert!(of_point.len() > 20);
-        let before = ErrorStats::from_errors(&armcomp_core::evaluate::model_errors(&model, &of_point));
+        let before = ErrorStats::from_errors(&armcomp_core::algorithms::evaluate::model_errors(&model, &of_point));
         let after = ErrorStats::from_errors(&position_errors(&learned, &of_point));
         assert!(
             after.rms_mm < 0.5 * before.rms_mm,
@@ -602,7 +602,7 @@ fn compensate_cli_keeps_the_start_outside_the_measured_chain() {
         .map(|l| l.split(',').take(nq).collect::<Vec<_>>().join(","))
         .collect::<Vec<_>>()
         .join("\n");
-    let commands = armcomp_core::measurement::parse_poses(&joint_columns, &out, &r.csv_layout()).unwrap();
+    let commands = armcomp_core::data::measurement::parse_poses(&joint_columns, &out, &r.csv_layout()).unwrap();
     assert_eq!(commands.len(), targets.len());
     for (q, target) in commands.iter().zip(&targets) {
         for (c, name) in names.iter().enumerate() {

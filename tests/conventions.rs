@@ -53,7 +53,7 @@ fn hayati_beta_tilts_the_parallel_axis() {
     let moved = tree.point_positions(&q)[r.tool()];
     let base = r.forward(&q).unwrap().point[r.tool()].translation.vector;
     // Independent composition: insert Ry(beta) between Tx(a2) and Rz(q3) by hand.
-    use armcomp_core::geom::{rx, ry, rz, tx, tz};
+    use armcomp_core::model::geom::{rx, ry, rz, tx, tz};
     let d = std::f64::consts::PI / 180.0;
     let t = rz(q[0])
         * rx(-90.0 * d)

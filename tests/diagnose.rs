@@ -5,12 +5,12 @@
 //! turn; nothing is added when nothing is missing; a seed gives the same result.
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::Sample;
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::robot::Conditions;
-use armcomp_core::sampling::{Sampler, configurations};
 use armcomp_core::{ErrorModelSpec, PredictorSpec};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
@@ -712,7 +712,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             station: 0,
         })
         .collect();
-    let loads = armcomp_core::residuals::gravity_loads(&robot, &samples);
+    let loads = armcomp_core::algorithms::residuals::gravity_loads(&robot, &samples);
     for (q, l) in poses.iter().zip(&loads) {
         let (c1, c12) = (q[0].cos(), (q[0] + q[1]).cos());
         let tau2 = -g * (1.0 * 0.2 * c12 + 0.5 * 0.4 * c12);

@@ -2,12 +2,12 @@
 //! parameter spreads are known.
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
 use armcomp_core::calibrate::{CalibrationParams, Loss, ParameterSpace, PriorGroup};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::Sample;
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::model::sampling::{Sampler, configurations};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
@@ -164,8 +164,8 @@ fn prior_scales_of_groups_are_recovered_within_a_factor_two() {
 /// would absorb part of it and that fold's error would fall below the planted displacement.
 #[test]
 fn nested_scores_never_fit_the_rows_that_score_them() {
-    use armcomp_core::evaluate::position_errors;
-    use armcomp_core::ladder::{LadderParams, Rung, climb};
+    use armcomp_core::algorithms::evaluate::position_errors;
+    use armcomp_core::analysis::ladder::{LadderParams, Rung, climb};
     let nominal = robot("industrial-6dof.toml");
     let truth = truth(&nominal, |_| 0.0, 1);
     let space = ParameterSpace::new(&nominal);
@@ -215,9 +215,9 @@ fn nested_scores_never_fit_the_rows_that_score_them() {
 #[test]
 #[ignore = "minutes; a measurement for docs/calibration.md"]
 fn agile_justin_ladder() {
-    use armcomp_core::evaluate::{ErrorStats, position_errors};
-    use armcomp_core::ladder::{LadderParams, climb};
-    use armcomp_core::split::subset;
+    use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+    use armcomp_core::analysis::ladder::{LadderParams, climb};
+    use armcomp_core::data::split::subset;
     use armcomp_repro::agile_justin::{MEASUREMENTS, half_split, parse_measurements};
     let justin = robot("agile-justin.toml");
     let samples = parse_measurements(MEASUREMENTS, std::path::Path::new("m.csv"), &justin).unwrap();

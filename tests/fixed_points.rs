@@ -5,13 +5,13 @@
 use std::path::Path;
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::simulate::{FixedPointParams, simulate_fixed_points};
 use armcomp_core::calibrate::evidence::{EvidenceParams, calibrate_with_evidence};
 use armcomp_core::calibrate::{
     CalibrationParams, ParamGroup, ParameterSpace, calibrate, identifiability, samples_jacobian,
 };
-use armcomp_core::measurement::{Sample, parse_csv, write_csv};
+use armcomp_core::data::measurement::{Sample, parse_csv, write_csv};
 use armcomp_core::robot::Conditions;
-use armcomp_core::simulate::{FixedPointParams, simulate_fixed_points};
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -356,7 +356,9 @@ fn mixed_files_are_read_written_and_checked() {
 /// RMS distance (mm) between the tool of `a` and of `b` in their base frames over
 /// configurations spread over the ranges.
 fn base_spread_to(a: &Robot, b: &Robot) -> f64 {
-    let qs = armcomp_core::sampling::configurations(a.tree(), armcomp_core::sampling::Sampler::Sobol, 50, 11).unwrap();
+    let qs =
+        armcomp_core::model::sampling::configurations(a.tree(), armcomp_core::model::sampling::Sampler::Sobol, 50, 11)
+            .unwrap();
     let tool = |r: &Robot, q: &[f64]| {
         let mut ws = r.workspace();
         r.forward_with_into(r.tree(), r.error_values(), q, Conditions::default(), &mut ws);
@@ -369,7 +371,9 @@ fn base_spread_to(a: &Robot, b: &Robot) -> f64 {
 /// RMS distance (mm) between the tool of `a` and of `b` over configurations spread over the
 /// ranges.
 fn spread_to(a: &Robot, b: &Robot) -> f64 {
-    let qs = armcomp_core::sampling::configurations(a.tree(), armcomp_core::sampling::Sampler::Sobol, 50, 11).unwrap();
+    let qs =
+        armcomp_core::model::sampling::configurations(a.tree(), armcomp_core::model::sampling::Sampler::Sobol, 50, 11)
+            .unwrap();
     let sum: f64 = qs
         .iter()
         .map(|q| (model_point(a, q) - model_point(b, q)).norm_squared())
@@ -384,7 +388,7 @@ fn the_known_distance_fixes_the_scale_the_fixed_points_cannot_see() {
     let space = ParameterSpace::new(&nominal);
     let mut theta = space.initial();
     for (k, p) in space.params.iter().enumerate() {
-        if p.info.quantity == armcomp_core::param::Quantity::Length && p.group == ParamGroup::Geometry {
+        if p.info.quantity == armcomp_core::model::param::Quantity::Length && p.group == ParamGroup::Geometry {
             theta[k] *= 1.02;
         }
     }

@@ -6,10 +6,10 @@
 
 use std::path::Path;
 
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::analysis::design::{Criterion, SelectionParams, select_poses};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::design::{Criterion, SelectionParams, select_poses};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::{RowSelection, Sample, read_csv};
+use armcomp_core::data::measurement::{RowSelection, Sample, read_csv};
 use armcomp_core::{Result, Robot};
 use armcomp_repro::agile_justin::{MEASUREMENTS, STEPS, half_split, parse_measurements, step_table};
 use armcomp_repro::demos::report::{Curve, write_page};

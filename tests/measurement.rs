@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use armcomp_core::measurement::{CsvLayout, MeasurementSet, Sample, parse_csv, write_csv};
+use armcomp_core::data::measurement::{CsvLayout, MeasurementSet, Sample, parse_csv, write_csv};
 use armcomp_core::{AngleUnit, LengthUnit, Robot, Units};
 use nalgebra::{Isometry3, Vector3};
 

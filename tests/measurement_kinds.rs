@@ -3,9 +3,9 @@
 
 use armcomp_core::Robot;
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, samples_jacobian};
-use armcomp_core::measurement::{Sample, parse_csv};
+use armcomp_core::data::measurement::{Sample, parse_csv};
+use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::robot::Conditions;
-use armcomp_core::sampling::{Sampler, configurations};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand::rngs::StdRng;

@@ -7,7 +7,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use armcomp_core::Robot;
-use armcomp_core::measurement::{parse_csv, parse_poses};
+use armcomp_core::data::measurement::{parse_csv, parse_poses};
 use proptest::prelude::*;
 
 use crate::common::root;

@@ -4,10 +4,12 @@
 use std::process::Command;
 
 use armcomp_core::CollisionModel;
+use armcomp_core::algorithms::plan::{Space, resample_by_arc_length, spread, trajectory_similar};
+use armcomp_core::analysis::design::{
+    Criterion, Design, SelectionParams, optimal_subset, pose_candidates, select_poses,
+};
 use armcomp_core::calibrate::{ParameterSpace, identification_jacobian};
-use armcomp_core::design::{Criterion, Design, SelectionParams, optimal_subset, pose_candidates, select_poses};
-use armcomp_core::plan::{Space, resample_by_arc_length, spread, trajectory_similar};
-use armcomp_core::sampling::{Sampler, configurations};
+use armcomp_core::model::sampling::{Sampler, configurations};
 use nalgebra::{DMatrix, Vector3};
 
 use crate::common::robots::PENDULUM;
@@ -190,7 +192,7 @@ xyz = [-1.0, 0.3, 0.0]
             .unwrap();
         assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
         let text = std::fs::read_to_string(&out).unwrap();
-        armcomp_core::measurement::parse_poses(&text, "out.csv".as_ref(), &r.csv_layout()).unwrap()
+        armcomp_core::data::measurement::parse_poses(&text, "out.csv".as_ref(), &r.csv_layout()).unwrap()
     };
     let pool_arg = pool.to_str().unwrap();
     let measured_arg = measured.to_str().unwrap();
@@ -318,7 +320,7 @@ fn plan_cli_is_deterministic_and_reads_back_as_poses() {
     let b = run("b.csv", "d-optimal");
     assert_eq!(a, b);
     let r = robot("industrial-6dof.toml");
-    let poses = armcomp_core::measurement::parse_poses(&a, "a.csv".as_ref(), &r.csv_layout()).unwrap();
+    let poses = armcomp_core::data::measurement::parse_poses(&a, "a.csv".as_ref(), &r.csv_layout()).unwrap();
     assert_eq!(poses.len(), 15);
     let halton = run("c.csv", "halton");
     assert_ne!(halton, a);
@@ -332,11 +334,11 @@ fn retrospective_selection_names_rows_that_calibrate_reads() {
     let bin = env!("CARGO_BIN_EXE_armcomp");
     let r = robot("talos-left-arm.toml");
     let data = root().join("data/talos-left-arm/measurements.csv");
-    let all = armcomp_core::measurement::read_csv(&data, &r.csv_layout()).unwrap();
+    let all = armcomp_core::data::measurement::read_csv(&data, &r.csv_layout()).unwrap();
     let train = all.select_rows(&"even".parse().unwrap());
     let pool = dir.file(
         "train.csv",
-        &armcomp_core::measurement::write_csv(&train, r.tree(), r.units()),
+        &armcomp_core::data::measurement::write_csv(&train, r.tree(), r.units()),
     );
     let out = dir.0.join("chosen.csv");
     let output = Command::new(bin)
@@ -363,13 +365,13 @@ fn retrospective_selection_names_rows_that_calibrate_reads() {
     assert_eq!(rows.len(), 15);
     assert!(report["identifiability"]["n_params"].as_u64().unwrap() == 18);
     // The pool file's row k is the data file's row 2k.
-    let written = armcomp_core::measurement::read_csv(&out, &r.csv_layout()).unwrap();
+    let written = armcomp_core::data::measurement::read_csv(&out, &r.csv_layout()).unwrap();
     for (k, &row) in rows.iter().enumerate() {
         assert_eq!(written.samples[k], all.samples[2 * row], "row {row}");
     }
     // The row list is a valid `--rows` argument selecting the same samples of the pool.
     let list: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
-    let pool_set = armcomp_core::measurement::read_csv(&pool, &r.csv_layout()).unwrap();
+    let pool_set = armcomp_core::data::measurement::read_csv(&pool, &r.csv_layout()).unwrap();
     let again = pool_set.select_rows(&list.join(",").parse().unwrap());
     assert_eq!(again.samples.len(), 15);
     assert!(again.samples.iter().all(|s| written.samples.contains(s)));

@@ -3,12 +3,12 @@
 //! the command line round trip.
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::simulate::{Contact, FixedPointParams, simulate_contacts};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, identifiability};
-use armcomp_core::geom::xyz_rpy;
-use armcomp_core::measurement::{CsvLayout, Sample, parse_csv};
+use armcomp_core::data::measurement::{CsvLayout, Sample, parse_csv};
+use armcomp_core::model::geom::xyz_rpy;
 use armcomp_core::robot::Conditions;
-use armcomp_core::robot_file::{Format, RobotFile, SourceFile};
-use armcomp_core::simulate::{Contact, FixedPointParams, simulate_contacts};
+use armcomp_core::robot::robot_file::{Format, RobotFile, SourceFile};
 use nalgebra::{Isometry3, Vector3};
 
 use crate::common::{robot_from_toml, root};
@@ -483,14 +483,20 @@ fn the_prior_choice_scores_plane_contacts_by_their_held_out_height() {
             orientation_std: 6e-5,
             ..CalibrationParams::default()
         };
-        let plan = armcomp_core::split::FoldPlan {
+        let plan = armcomp_core::data::split::FoldPlan {
             k: 4,
             seed,
-            by: armcomp_core::split::FoldBy::Poses,
+            by: armcomp_core::data::split::FoldBy::Poses,
         };
-        let choice =
-            armcomp_core::prior_choice::choose_prior_scale(&nominal, &samples, &params, &[1e-3, 1.0], &plan, &|_| {})
-                .unwrap();
+        let choice = armcomp_core::analysis::prior_choice::choose_prior_scale(
+            &nominal,
+            &samples,
+            &params,
+            &[1e-3, 1.0],
+            &plan,
+            &|_| {},
+        )
+        .unwrap();
         let [tight, file] = [0, 1].map(|i| choice.scores[i].held_out_rms_mm);
         assert_eq!(choice.scale, 1.0, "seed {seed}: {:?}", choice.scores);
         assert!(tight > 10.0 * file, "seed {seed}: {tight} mm against {file} mm");
@@ -505,7 +511,7 @@ fn the_prior_choice_scores_plane_contacts_by_their_held_out_height() {
 fn the_diagnosis_and_the_ladder_refuse_plane_rows() {
     let robot = panda("");
     let samples = simulated(&truth_of(&robot, &CHANGES), 4, 0.0, 8);
-    let ladder_params = armcomp_core::ladder::LadderParams {
+    let ladder_params = armcomp_core::analysis::ladder::LadderParams {
         calibration: CalibrationParams::default(),
         noise_declared: false,
         folds: 2,
@@ -513,12 +519,13 @@ fn the_diagnosis_and_the_ladder_refuse_plane_rows() {
         fold_groups: None,
         predictor: None,
     };
-    let ladder = armcomp_core::ladder::climb(&robot, &samples, &ladder_params, &|_| {})
+    let ladder = armcomp_core::analysis::ladder::climb(&robot, &samples, &ladder_params, &|_| {})
         .unwrap_err()
         .to_string();
-    let diagnosis = armcomp_core::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
-        .unwrap_err()
-        .to_string();
+    let diagnosis =
+        armcomp_core::analysis::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
+            .unwrap_err()
+            .to_string();
     for e in [ladder, diagnosis] {
         assert!(e.contains("sample 1") && e.contains("plane-contact measurement"), "{e}");
     }
@@ -558,7 +565,7 @@ fn talos_table_contacts_beat_the_published_one_chain_figures() {
             .samples
     };
     let gap = |robot: &Robot, samples: &[Sample]| {
-        let mut errors = armcomp_core::evaluate::model_errors(robot, samples);
+        let mut errors = armcomp_core::algorithms::evaluate::model_errors(robot, samples);
         let planes = armcomp_core::calibrate::evaluate_planes(robot, samples, &mut errors);
         planes.unwrap().expect("plane rows").rms_mm
     };

@@ -1,6 +1,6 @@
 //! The shipped robot files: valid, round-trip, and the committed schema is current.
 
-use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::{Robot, RobotFile};
 
 use crate::common::{random_configurations, root};

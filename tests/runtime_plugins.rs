@@ -5,12 +5,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::OnceLock;
 
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::analysis::diagnose::{DiagnoseParams, diagnose};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::diagnose::{DiagnoseParams, diagnose};
-use armcomp_core::robot_file::SourceFile;
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, simulate};
-use armcomp_core::subtree_loads::SubtreeLoads;
+use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
+use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::robot::robot_file::SourceFile;
 use armcomp_core::{
     Error, FittedPredictor, Perturbation, PredictorSpec, Robot, RobotFile, StaticState, TrainingSet, TreeWorkspace,
 };
@@ -86,7 +86,7 @@ fn linked_robot(mass_per_length: f64) -> Robot {
     let src = SourceFile {
         path: "linked.toml".into(),
         text: head.into(),
-        format: armcomp_core::robot_file::Format::Toml,
+        format: armcomp_core::robot::robot_file::Format::Toml,
     };
     let mut file: RobotFile = src.parse().unwrap();
     file.error_models.push(Box::new(cable_sag::CableSagSpec {
@@ -101,7 +101,7 @@ fn robot_from_text(text: &str, path: &Path) -> armcomp_core::Result<Robot> {
     let src = SourceFile {
         path: path.to_path_buf(),
         text: text.into(),
-        format: armcomp_core::robot_file::Format::Toml,
+        format: armcomp_core::robot::robot_file::Format::Toml,
     };
     let file: RobotFile = src.parse()?;
     Robot::from_source(file, &src)

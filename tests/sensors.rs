@@ -5,11 +5,11 @@
 use std::path::Path;
 
 use armcomp_core::Robot;
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::algorithms::simulate::{SimulateParams, TiltDraw, random_stations, simulate_tilted};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::{Sample, parse_csv};
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, TiltDraw, random_stations, simulate_tilted};
+use armcomp_core::data::measurement::{Sample, parse_csv};
+use armcomp_core::model::sampling::{Sampler, configurations};
 
 use crate::common::{robot, robot_from_toml};
 
@@ -186,7 +186,7 @@ kind = "inclinometer"
 link = "arm"
 columns = ["arm_roll", "arm_pitch"]"#;
 
-fn read(robot: &Robot, text: &str) -> Result<armcomp_core::measurement::MeasurementSet, String> {
+fn read(robot: &Robot, text: &str) -> Result<armcomp_core::data::measurement::MeasurementSet, String> {
     parse_csv(text, Path::new("m.csv"), &robot.csv_layout()).map_err(|e| e.to_string())
 }
 
@@ -258,7 +258,7 @@ fn sensor_declarations_are_checked() {
         let src = armcomp_core::SourceFile {
             path: "s.toml".into(),
             text,
-            format: armcomp_core::robot_file::Format::Toml,
+            format: armcomp_core::robot::robot_file::Format::Toml,
         };
         match src.parse::<armcomp_core::RobotFile>() {
             Ok(file) => Robot::from_source(file, &src).unwrap_err().to_string(),

@@ -2,9 +2,9 @@
 
 use std::process::Command;
 
-use armcomp_core::measurement::parse_csv;
-use armcomp_core::sampling::{Sampler, unit_points};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::parse_csv;
+use armcomp_core::model::sampling::{Sampler, unit_points};
 
 use crate::common::{Scratch, random_configurations, robot, root};
 
@@ -121,7 +121,7 @@ fn simulate_is_byte_identical_for_a_seed_and_reads_back() {
     let set = parse_csv(
         std::str::from_utf8(&a).unwrap(),
         std::path::Path::new("a.csv"),
-        &armcomp_core::measurement::CsvLayout::strict(r.tree(), r.units(), r.tool()),
+        &armcomp_core::data::measurement::CsvLayout::strict(r.tree(), r.units(), r.tool()),
     )
     .unwrap();
     assert_eq!(set.samples.len(), 50);

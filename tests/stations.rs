@@ -3,11 +3,11 @@
 //! station column of one value changes nothing, a new station is registered for evaluation,
 //! and cross-validation holds out whole stations.
 
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::algorithms::simulate::{SimulateParams, random_stations, simulate};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, register_stations};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::{MeasurementSet, parse_csv, write_csv};
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, random_stations, simulate};
+use armcomp_core::data::measurement::{MeasurementSet, parse_csv, write_csv};
+use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::{Robot, Station};
 
 use crate::common::robot;
@@ -210,8 +210,8 @@ fn an_empty_station_cell_names_its_line() {
 /// never seen, as it would in use.
 #[test]
 fn grouped_folds_see_through_a_signal_planted_per_station() {
-    use armcomp_core::evaluate::cross_validated_predictor_errors;
-    use armcomp_core::split::FoldBy;
+    use armcomp_core::algorithms::evaluate::cross_validated_predictor_errors;
+    use armcomp_core::data::split::FoldBy;
     use rand::{Rng, SeedableRng};
 
     let (groups, per_group) = (6, 25);
@@ -286,7 +286,7 @@ fn a_predictor_learned_at_one_station_lowers_the_error_at_another() {
         // Each station as a user has it: a data set in its own instrument frame.
         let at = |k: usize| -> Vec<_> {
             let rows = data.samples.iter().filter(|s| s.station == k);
-            rows.map(|s| armcomp_core::measurement::Sample {
+            rows.map(|s| armcomp_core::data::measurement::Sample {
                 station: 0,
                 ..s.clone()
             })
@@ -300,8 +300,9 @@ fn a_predictor_learned_at_one_station_lowers_the_error_at_another() {
             .unwrap()
             .robot;
         let mut file = model.to_file();
-        file.fitted_predictor = Some(armcomp_core::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
-        file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
+        file.fitted_predictor =
+            Some(armcomp_core::algorithms::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
+        file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
         let learned = model.rebuild(file).unwrap();
         // Station B: only the frame registered, with and without the predictor.
         let moved = calibrate(&learned, register, &with_identify(&["base"]), &mut |_| {}).unwrap();
@@ -318,8 +319,9 @@ fn a_predictor_learned_at_one_station_lowers_the_error_at_another() {
         // The same predictor read in the measurement frame it was learned in: what a predictor
         // that does not follow the robot gives at the new station.
         let mut file = moved.robot.to_file();
-        file.fitted_predictor = Some(armcomp_core::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
-        file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Measurement);
+        file.fitted_predictor =
+            Some(armcomp_core::algorithms::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
+        file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Measurement);
         let stuck = moved.robot.rebuild(file).unwrap();
         let in_old_frame = ErrorStats::from_errors(&position_errors(&stuck, held_out)).rms_mm;
         println!(

@@ -4,11 +4,11 @@
 
 use std::process::Command;
 
+use armcomp_core::algorithms::evaluate::{ErrorStats, model_errors};
+use armcomp_core::analysis::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::evaluate::{ErrorStats, model_errors};
-use armcomp_core::measurement::{MeasurementSet, RowSelection, parse_csv, read_csv};
-use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
-use armcomp_core::split::{FoldBy, FoldPlan};
+use armcomp_core::data::measurement::{MeasurementSet, RowSelection, parse_csv, read_csv};
+use armcomp_core::data::split::{FoldBy, FoldPlan};
 
 use crate::common::{Scratch, random_configurations, robot, root};
 
@@ -18,7 +18,7 @@ fn data() -> (armcomp_core::Robot, MeasurementSet) {
     (r, set)
 }
 
-fn rows(set: &MeasurementSet, spec: &str) -> Vec<armcomp_core::measurement::Sample> {
+fn rows(set: &MeasurementSet, spec: &str) -> Vec<armcomp_core::data::measurement::Sample> {
     set.select_rows(&spec.parse::<RowSelection>().unwrap()).samples
 }
 

@@ -3,7 +3,7 @@
 
 use std::f64::consts::FRAC_PI_2;
 
-use armcomp_core::geom::{rx, rz, tx, tz};
+use armcomp_core::model::geom::{rx, rz, tx, tz};
 use armcomp_core::{Robot, RobotFile};
 use armcomp_urdf::robot_from_urdf;
 use nalgebra::{Isometry3, Vector3};
@@ -113,11 +113,11 @@ fn origin_xyz_rpy_and_axis_follow_the_urdf_convention() {
     let axis = nalgebra::Unit::new_normalize(Vector3::new(0.0, 0.6, 0.8));
     let (c, sn) = (q.cos(), q.sin());
     // Rodrigues, written out.
-    let k = armcomp_core::geom::skew(&axis);
+    let k = armcomp_core::model::geom::skew(&axis);
     let rot = nalgebra::Matrix3::identity() + k * sn + k * k * (1.0 - c);
     let tip_in_joint = rot * Vector3::new(0.2, 0.0, 0.0);
     let (r0, p0, y0) = (0.3f64, -0.4f64, 1.1f64);
-    let rpy = armcomp_core::geom::rz(y0) * armcomp_core::geom::ry(p0) * rx(r0);
+    let rpy = armcomp_core::model::geom::rz(y0) * armcomp_core::model::geom::ry(p0) * rx(r0);
     let expected = Vector3::new(0.1, 0.2, 0.3) + rpy.rotation * tip_in_joint;
     let got = body_position(&r, &[q], "tip");
     assert!((got - expected).norm() < 1e-12, "{got:?} vs {expected:?}");
@@ -469,7 +469,7 @@ fn ros_package_meshes_are_skipped_with_a_warning_and_stl_boxes_read() {
     assert!(w.contains("bounding box"), "{w}");
     let shapes = &r.collision().shapes;
     assert_eq!(shapes.len(), 1);
-    let armcomp_core::shape::Shape::Box(size) = shapes[0].shape else {
+    let armcomp_core::model::shape::Shape::Box(size) = shapes[0].shape else {
         panic!("{:?}", shapes[0].shape)
     };
     // STL stores single precision.

@@ -7,7 +7,7 @@ use std::f64::consts::FRAC_PI_2;
 use std::path::PathBuf;
 
 use armcomp_core::Robot;
-use armcomp_core::geom::{rx, rz, tx, tz};
+use armcomp_core::model::geom::{rx, rz, tx, tz};
 use armcomp_urdf::robot_from_urdf;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde_json::Value;

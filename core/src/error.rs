@@ -162,7 +162,7 @@ pub enum Error {
         reason: String,
     },
     /// A size asked for (poses, pool, draws, folds, rows, columns) costs more memory or time
-    /// than a request may take (see [`crate::limits`]).
+    /// than a request may take (see [`crate::support::limits`]).
     #[error("{what} {asked}: at most {limit} {unit}; {reason}")]
     TooLarge {
         /// The size, by the name its caller knows it (`--n`, `--pool`, `columns`).
@@ -240,7 +240,7 @@ pub enum Error {
         /// What is wrong, naming the type or call.
         message: String,
     },
-    /// Stopped on request (see [`crate::interrupt`]) before the result was complete.
+    /// Stopped on request (see [`crate::support::interrupt`]) before the result was complete.
     #[error("interrupted")]
     Interrupted,
 }

@@ -6,72 +6,40 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
-pub mod batch;
+pub mod algorithms;
+pub mod analysis;
 pub mod calibrate;
-pub mod candidate;
-pub mod collision;
-pub mod compensate;
-pub mod design;
-pub mod diagnose;
+pub mod data;
 pub mod error;
-pub mod evaluate;
-mod frame;
-pub mod geom;
-pub mod gravity;
-pub mod ik;
-pub mod interrupt;
-pub mod io;
-pub mod ladder;
-mod lanes;
-pub mod least_squares;
-pub mod limits;
-pub mod mass;
-pub mod measurement;
-pub mod param;
-pub mod perturbation;
-pub mod plan;
+pub mod kinematics;
+pub mod model;
 pub mod plugin;
-pub mod point_kinematics;
-pub mod point_kinematics_many;
-pub mod prior_choice;
-pub mod registry;
-pub mod residuals;
 pub mod robot;
-pub mod robot_file;
 pub mod role;
-pub mod sampling;
-pub mod sensor;
-pub mod shape;
-pub mod simulate;
-mod sincos;
-pub mod split;
-pub mod subtree_loads;
-pub mod tree;
-pub mod units;
-pub mod workspace;
+pub mod support;
 
-pub use batch::BatchWorkspace;
-pub use candidate::{Candidate, CandidateFn, CandidateScope, CandidateTemplate};
-pub use collision::{CollisionModel, CollisionWorkspace, Contact};
-pub use error::{Error, Issue, Issues, Result};
-pub use ik::{
+pub use algorithms::ik::{
     IkError, IkMethod, IkParams, IkReport, IkTarget, IkWorkspace, LinearOffset, solve_ik, solve_ik_with_offset,
 };
-pub use param::{ParamInfo, Quantity};
-pub use perturbation::Perturbation;
+pub use error::{Error, Issue, Issues, Result};
+pub use kinematics::collision::{CollisionModel, CollisionWorkspace, Contact};
+pub use kinematics::point_kinematics::{PointKinematics, PointKinematicsWorkspace};
+pub use kinematics::point_kinematics_many::PointKinematicsManyWorkspace;
+pub use kinematics::workspace::{PointSensitivity, TreeWorkspace};
+pub use model::param::{ParamInfo, Quantity};
+pub use model::perturbation::Perturbation;
+pub use model::tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
+pub use model::units::{AngleUnit, LengthUnit, Units};
 pub use plugin::{
     BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, Loads, ModelContext,
     PredictorSpec, StaticState, TrainingSet,
 };
-pub use point_kinematics::{PointKinematics, PointKinematicsWorkspace};
-pub use point_kinematics_many::PointKinematicsManyWorkspace;
-pub use registry::PluginInfo;
+pub use robot::batch::BatchWorkspace;
+pub use robot::candidate::{Candidate, CandidateFn, CandidateScope, CandidateTemplate};
+pub use robot::registry::PluginInfo;
+pub use robot::robot_file::{RobotFile, SourceFile};
 pub use robot::{Conditions, Robot, RobotWorkspace, Station};
-pub use robot_file::{RobotFile, SourceFile};
 pub use role::Role;
-pub use tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
-pub use units::{AngleUnit, LengthUnit, Units};
-pub use workspace::{PointSensitivity, TreeWorkspace};
 
 // Plugin crates implement the typetag traits; they re-export these so they need not depend on
 // the macro crates' versions themselves.

@@ -1,7 +1,7 @@
 //! `compensate`: joint commands for a batch of targets, as `armcomp compensate` computes them.
 
 use armcomp::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run};
-use armcomp_core::compensate::CompensationMode;
+use armcomp_core::algorithms::compensate::CompensationMode;
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
 use pyo3::prelude::*;

@@ -1,8 +1,8 @@
 //! `diagnose`: finds the effects a model misses, as `armcomp diagnose` does.
 
 use armcomp::ops::diagnose::LearnableBy;
+use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseStage};
 use armcomp_core::calibrate::CalibrationParams;
-use armcomp_core::diagnose::{DiagnoseParams, DiagnoseStage};
 use pyo3::prelude::*;
 
 use crate::errors::{IntoPy, input_error};

@@ -1,6 +1,6 @@
 //! Long calls run on a worker thread with the GIL released while the calling thread watches
 //! for Ctrl-C: on `KeyboardInterrupt` it asks the computation to stop
-//! ([`armcomp_core::interrupt`]), waits for it to return at its next check, and raises.
+//! ([`armcomp_core::support::interrupt`]), waits for it to return at its next check, and raises.
 
 use std::sync::{Condvar, Mutex, PoisonError};
 use std::time::Duration;
@@ -32,14 +32,14 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
         let mut signal = None;
         while !py.detach(finished) {
             if let Err(e) = py.check_signals() {
-                armcomp_core::interrupt::request();
+                armcomp_core::support::interrupt::request();
                 signal = Some(e);
                 break;
             }
         }
         let joined = py.detach(|| worker.join());
         if let Some(e) = signal {
-            armcomp_core::interrupt::clear();
+            armcomp_core::support::interrupt::clear();
             return Err(e);
         }
         joined.map_err(|_| PyRuntimeError::new_err("armcomp panicked; this is a bug, please report it"))

@@ -7,7 +7,7 @@
 use std::path::PathBuf;
 
 use armcomp_core::Robot;
-use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
+use armcomp_core::data::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
 use pyo3::exceptions::PyValueError;
@@ -307,7 +307,7 @@ impl PyMeasurements {
         robot: Option<PyRef<'_, PyRobot>>,
         rows: Option<&str>,
     ) -> PyResult<Self> {
-        let text = armcomp_core::io::read_text(&path).map_err(|e| file_error(&e, &path))?;
+        let text = armcomp_core::support::io::read_text(&path).map_err(|e| file_error(&e, &path))?;
         let rows = rows
             .map(|r| r.parse::<RowSelection>())
             .transpose()

@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, TryLockError};
 
 use armcomp_core::calibrate::ParameterSpace;
-use armcomp_core::io::{check_output, write_atomic};
-use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::{check_output, write_atomic};
 use armcomp_core::{BatchWorkspace, PointKinematicsWorkspace, Robot, RobotFile};
 use nalgebra::{IsometryMatrix3, Matrix6xX};
 use numpy::ndarray::Array2;

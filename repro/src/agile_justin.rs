@@ -10,12 +10,12 @@
 use std::path::Path;
 use std::time::Instant;
 
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::diagnose::{DiagnoseParams, DiagnosisReport, diagnose};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::split::{Split, holdout, kfold, pose_groups, subset};
 use armcomp_core::error::Location;
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::Sample;
-use armcomp_core::split::{Split, holdout, kfold, pose_groups, subset};
 use armcomp_core::{Error, PredictorSpec, Result, Robot, TrainingSet};
 use nalgebra::Vector3;
 use serde::Serialize;

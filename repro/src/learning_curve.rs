@@ -8,12 +8,12 @@
 
 use std::path::Path;
 
+use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+use armcomp_core::analysis::design::{Criterion, SelectionParams, select_poses};
+use armcomp_core::analysis::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::design::{Criterion, SelectionParams, select_poses};
-use armcomp_core::evaluate::{ErrorStats, position_errors};
-use armcomp_core::measurement::{MeasurementSet, RowSelection, Sample};
-use armcomp_core::prior_choice::{DEFAULT_GRID, choose_prior_scale};
-use armcomp_core::split::{FoldBy, FoldPlan, pose_groups, subset};
+use armcomp_core::data::measurement::{MeasurementSet, RowSelection, Sample};
+use armcomp_core::data::split::{FoldBy, FoldPlan, pose_groups, subset};
 use armcomp_core::{Result, Robot};
 use rand::SeedableRng;
 use rand::rngs::StdRng;

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::{Error, Result, Robot};
 
 /// A built-in robot file: its name, its path in the repository and its text.

@@ -3,8 +3,8 @@ use std::process::ExitCode;
 
 use armcomp::ops::calibrate::Prior;
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, Loss};
-use armcomp_core::io::write_atomic;
-use armcomp_core::param::Quantity;
+use armcomp_core::model::param::Quantity;
+use armcomp_core::support::io::write_atomic;
 
 use super::{check_output, read_stations};
 
@@ -131,7 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             *slot = None;
         }
     };
-    let mut calibrate_on = |samples: &[armcomp_core::measurement::Sample], rows: &[usize]| -> anyhow::Result<_> {
+    let mut calibrate_on = |samples: &[armcomp_core::data::measurement::Sample], rows: &[usize]| -> anyhow::Result<_> {
         let choices = armcomp::ops::calibrate::Choices {
             prior: args.prior,
             noise_declared: declared,

@@ -2,8 +2,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp::ops::compensate as ops;
-use armcomp_core::compensate::CompensationMode;
-use armcomp_core::io::write_atomic;
+use armcomp_core::algorithms::compensate::CompensationMode;
+use armcomp_core::support::io::write_atomic;
 
 #[derive(clap::Args)]
 pub struct Args {

@@ -48,7 +48,7 @@ pub struct Args {
     learning_curve: bool,
     /// Learning curves: how the tool chooses (d-optimal, a-optimal or uncertainty).
     #[arg(long, default_value = "uncertainty")]
-    curve_method: armcomp_core::design::Criterion,
+    curve_method: armcomp_core::analysis::design::Criterion,
     /// Learning curves: random subsets per size.
     #[arg(long, default_value_t = 10)]
     draws: usize,
@@ -192,8 +192,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             if args.draws == 0 {
                 bail!("--draws 0: the random subsets the tool's choice is compared with need at least 1 draw per size");
             }
-            armcomp_core::limits::check("--draws", args.draws, "draws", &|d| {
-                armcomp_core::limits::Cost::per_unit(d, 0.0, DRAW_FLOPS)
+            armcomp_core::support::limits::check("--draws", args.draws, "draws", &|d| {
+                armcomp_core::support::limits::Cost::per_unit(d, 0.0, DRAW_FLOPS)
             })?;
             let opts = super::demo_curve::CurveParams {
                 json: args.json,

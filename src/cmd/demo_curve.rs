@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
-use armcomp_core::design::Criterion;
-use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::measurement::read_csv;
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::analysis::design::Criterion;
+use armcomp_core::data::measurement::read_csv;
 use armcomp_repro::agile_justin::{PAPER_FULL_MODEL_MEAN_MM as JUSTIN_TARGET_MM, TARGET_POSES as JUSTIN_TARGET_POSES};
 use armcomp_repro::demos::report::Curve;
 use armcomp_repro::learning_curve::{LearningCurveReport, agile_justin_curve, talos_curves};

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use armcomp_core::PredictorSpec;
-use armcomp_core::diagnose::DiagnosisReport;
-use armcomp_core::evaluate::ErrorStats;
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::analysis::diagnose::DiagnosisReport;
 use armcomp_repro::agile_justin::{
     GROUPS, STEPS, StepResult, diagnose_from_frames, half_split, kfold_errors, leave_one_out, parse_measurements,
     step_table,
@@ -71,9 +71,9 @@ pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
     let split = half_split(&samples, opts.seed)?;
     if opts.folds > 0 {
         // The folds are checked before the step table's seconds of fitting, not after.
-        armcomp_core::split::kfold(&samples, opts.folds, opts.seed)?;
-        armcomp_core::limits::check("--folds", opts.folds, "folds", &|k| {
-            armcomp_core::limits::Cost::per_unit(k, 0.0, FOLD_FLOPS)
+        armcomp_core::data::split::kfold(&samples, opts.folds, opts.seed)?;
+        armcomp_core::support::limits::check("--folds", opts.folds, "folds", &|k| {
+            armcomp_core::support::limits::Cost::per_unit(k, 0.0, FOLD_FLOPS)
         })?;
     }
     let predictor = armcomp_repro::agile_justin::PREDICTOR;

@@ -6,10 +6,10 @@ use armcomp::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
 use std::sync::atomic::Ordering;
 
-use armcomp_core::diagnose::{DiagnoseParams, DiagnoseStage, DiagnosisReport, RankedCandidate};
-use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::io::write_atomic;
-use armcomp_core::residuals::ResidualDescription;
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::algorithms::residuals::ResidualDescription;
+use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseStage, DiagnosisReport, RankedCandidate};
+use armcomp_core::support::io::write_atomic;
 
 use super::{check_output, inputs, read_measurements};
 

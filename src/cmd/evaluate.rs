@@ -1,8 +1,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::io::write_atomic;
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::support::io::write_atomic;
 
 use armcomp_core::calibrate::register_stations;
 

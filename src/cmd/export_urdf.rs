@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::bail;
-use armcomp_core::io::write_atomic;
+use armcomp_core::support::io::write_atomic;
 
 use super::read_measurements;
 

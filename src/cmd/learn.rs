@@ -3,7 +3,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, bail};
 use armcomp_core::RobotFile;
-use armcomp_core::io::write_atomic;
+use armcomp_core::support::io::write_atomic;
 
 use super::{check_output, read_measurements};
 

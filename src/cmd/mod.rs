@@ -22,12 +22,12 @@ pub mod validate;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Robot;
-use armcomp_core::measurement::{MeasurementSet, RowSelection, read_csv};
+use armcomp_core::data::measurement::{MeasurementSet, RowSelection, read_csv};
 
 /// Checks, before the computation, that `out` may be written and replaces none of the files
 /// the run reads: `robot`'s (its file, URDF, meshes, libraries) and `others`.
 pub fn check_output(out: &Path, robot: &Robot, others: &[&Path]) -> anyhow::Result<()> {
-    Ok(armcomp_core::io::check_output(out, &inputs(robot, others))?)
+    Ok(armcomp_core::support::io::check_output(out, &inputs(robot, others))?)
 }
 
 /// Every file the run reads: `robot`'s and `others`.
@@ -66,8 +66,8 @@ impl GroupBy {
         };
         let mut values = Vec::new();
         for file in files {
-            let text = armcomp_core::io::read_text(file)?;
-            values.extend(armcomp_core::measurement::column_values(&text, file, column)?);
+            let text = armcomp_core::support::io::read_text(file)?;
+            values.extend(armcomp_core::data::measurement::column_values(&text, file, column)?);
         }
         Ok(Some((column.clone(), armcomp::ops::fit::groups_of(&values, rows))))
     }

@@ -3,9 +3,9 @@ use std::process::ExitCode;
 
 use anyhow::bail;
 use armcomp::ops::plan::{PlanParams, PlanPool};
-use armcomp_core::design::{Criterion, SelectionReport};
-use armcomp_core::io::write_atomic;
-use armcomp_core::measurement::{MeasurementSet, has_positions, parse_poses, write_csv, write_poses};
+use armcomp_core::analysis::design::{Criterion, SelectionReport};
+use armcomp_core::data::measurement::{MeasurementSet, has_positions, parse_poses, write_csv, write_poses};
+use armcomp_core::support::io::write_atomic;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -83,7 +83,7 @@ fn read_pool(robot: &armcomp_core::Robot, text: Option<&str>) -> anyhow::Result<
         Ok(n) => Ok(PlanPool::Sampled(n)),
         Err(_) => {
             let path = Path::new(t);
-            let text = armcomp_core::io::read_text(path)?;
+            let text = armcomp_core::support::io::read_text(path)?;
             Ok(if has_positions(&text) {
                 PlanPool::Measured(super::read_measurements(robot, path, None)?)
             } else {
@@ -108,7 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let trajectory = match &args.trajectory {
         Some(path) => Some(parse_poses(
-            &armcomp_core::io::read_text(path)?,
+            &armcomp_core::support::io::read_text(path)?,
             path,
             &robot.csv_layout(),
         )?),

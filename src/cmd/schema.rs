@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::io::{check_output, write_atomic};
+use armcomp_core::support::io::{check_output, write_atomic};
 
 #[derive(clap::Args)]
 pub struct Args {

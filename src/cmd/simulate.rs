@@ -1,9 +1,9 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::io::write_atomic;
-use armcomp_core::measurement::{parse_poses, write_csv, write_csv_with_sensor};
-use armcomp_core::simulate::Contact;
+use armcomp_core::algorithms::simulate::Contact;
+use armcomp_core::data::measurement::{parse_poses, write_csv, write_csv_with_sensor};
+use armcomp_core::support::io::write_atomic;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -53,7 +53,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0)]
     joint_noise_deg: f64,
     /// Measure from this many stations (total-station set-ups), each its own measurement
-    /// frame drawn from --seed around the truth's (see `armcomp_core::simulate::random_stations`):
+    /// frame drawn from --seed around the truth's (see `armcomp_core::algorithms::simulate::random_stations`):
     /// the poses in as many consecutive blocks, and a `station` column (`st1`, `st2`, ...).
     /// Default: the truth's stations, or one.
     #[arg(long, value_parser = super::at_least_one)]
@@ -78,7 +78,7 @@ fn plane(text: &str, spread_mm: f64) -> anyhow::Result<(String, Contact)> {
     let parsed = text.split_once('=').and_then(|(name, v)| {
         let v: Vec<f64> = v.split(',').map(|c| c.trim().parse().ok()).collect::<Option<_>>()?;
         (v.len() == 6 && v.iter().all(|x| x.is_finite()) && !name.trim().is_empty()).then(|| {
-            let pose = armcomp_core::geom::xyz_rpy(
+            let pose = armcomp_core::model::geom::xyz_rpy(
                 [v[0] * 1e-3, v[1] * 1e-3, v[2] * 1e-3],
                 [v[3].to_radians(), v[4].to_radians(), v[5].to_radians()],
             );
@@ -125,12 +125,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 .map(|t| fixed_point(t).map(|(name, p)| (name, Contact::FixedPoint(p))))
                 .collect::<anyhow::Result<Vec<_>>>()?
         };
-        let params = armcomp_core::simulate::FixedPointParams {
+        let params = armcomp_core::algorithms::simulate::FixedPointParams {
             per_point: args.n,
             joint_noise_std: args.joint_noise_deg.to_radians(),
             seed: args.seed,
         };
-        let set = armcomp_core::simulate::simulate_contacts(&truth, &contacts, params)?;
+        let set = armcomp_core::algorithms::simulate::simulate_contacts(&truth, &contacts, params)?;
         write_atomic(&args.out, write_csv(&set, truth.tree(), truth.units()).as_bytes())?;
         eprintln!(
             "wrote {} configurations at {} {} to {} (joint noise {} deg, seed {})",
@@ -148,22 +148,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(k) = args.stations {
         // A stream of its own: the same seed draws the same poses whatever the stations.
-        let stations =
-            armcomp_core::simulate::random_stations(&truth, k, args.seed.wrapping_add(0x5851_f42d_4c95_7f2d));
+        let stations = armcomp_core::algorithms::simulate::random_stations(
+            &truth,
+            k,
+            args.seed.wrapping_add(0x5851_f42d_4c95_7f2d),
+        );
         truth.set_stations(stations);
     }
     let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
     super::check_output(&args.out, &truth, &poses_file)?;
     let poses = match &args.poses {
         Some(p) => {
-            let text = armcomp_core::io::read_text(p)?;
+            let text = armcomp_core::support::io::read_text(p)?;
             parse_poses(&text, p, &truth.csv_layout())?
         }
         None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
     let draw = match args.tilt_per.as_str() {
-        "station" => armcomp_core::simulate::TiltDraw::PerStation,
-        _ => armcomp_core::simulate::TiltDraw::PerRow,
+        "station" => armcomp_core::algorithms::simulate::TiltDraw::PerStation,
+        _ => armcomp_core::algorithms::simulate::TiltDraw::PerRow,
     };
     let mut set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
     // Fixed points named for a truth that measures positions: mixed data, the tracker's rows
@@ -172,12 +175,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .map(|t| fixed_point(t).map(|(name, p)| (name, Contact::FixedPoint(p))))
         .collect::<anyhow::Result<Vec<_>>>()?;
     if !contacts.is_empty() {
-        let params = armcomp_core::simulate::FixedPointParams {
+        let params = armcomp_core::algorithms::simulate::FixedPointParams {
             per_point: args.n,
             joint_noise_std: args.joint_noise_deg.to_radians(),
             seed: args.seed,
         };
-        let fixed = armcomp_core::simulate::simulate_contacts(&truth, &contacts, params)?;
+        let fixed = armcomp_core::algorithms::simulate::simulate_contacts(&truth, &contacts, params)?;
         let first = set.rows.last().map_or(0, |r| r + 1);
         set.rows.extend(fixed.rows.iter().map(|r| r + first));
         set.samples.extend(fixed.samples);

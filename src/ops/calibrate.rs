@@ -1,11 +1,11 @@
 //! `calibrate`: the prior choice around [`armcomp_core::calibrate::calibrate`] and its JSON report.
 
 use armcomp_core::Robot;
+use armcomp_core::analysis::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
 use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
 use armcomp_core::calibrate::{Calibration, CalibrationParams, FitsProgress, IterationInfo, calibrate};
-use armcomp_core::measurement::Sample;
-use armcomp_core::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
-use armcomp_core::split::{FoldBy, FoldPlan};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::split::{FoldBy, FoldPlan};
 
 /// How strongly the robot file's priors hold the parameters.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -119,7 +119,7 @@ pub fn run(
             let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, &plan, fits)?;
             if choice.interrupted {
                 // The final fit at the best scale scored: the stop request would end it at once.
-                armcomp_core::interrupt::clear();
+                armcomp_core::support::interrupt::clear();
             }
             params.prior_scale = choice.scale;
             Some(choice)

@@ -4,11 +4,13 @@
 use std::path::Path;
 
 use anyhow::{Context, bail};
-use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
-use armcomp_core::ik::IkTarget;
-use armcomp_core::measurement::{CsvLayout, csv_text, joint_header, joint_row, listed, parse_poses, split_header};
-use armcomp_core::tree::Coordinate;
-use armcomp_core::units::LengthUnit;
+use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
+use armcomp_core::algorithms::ik::IkTarget;
+use armcomp_core::data::measurement::{
+    CsvLayout, csv_text, joint_header, joint_row, listed, parse_poses, split_header,
+};
+use armcomp_core::model::tree::Coordinate;
+use armcomp_core::model::units::LengthUnit;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 
@@ -109,7 +111,7 @@ pub fn locked_by_name(robot: &Robot, names: &[String]) -> anyhow::Result<Vec<boo
 /// without a column starts where [`default_start`] puts it), one row per target or one row
 /// for all.
 pub fn read_starts(path: &Path, robot: &Robot) -> anyhow::Result<Vec<Vec<f64>>> {
-    let text = armcomp_core::io::read_text(path)?;
+    let text = armcomp_core::support::io::read_text(path)?;
     let layout = CsvLayout {
         hold: default_start(robot).into_iter().map(Some).collect(),
         ..robot.csv_layout()
@@ -165,7 +167,7 @@ pub fn run(
         locked: comp.locked().to_vec(),
     };
     for (i, t) in targets.iter().enumerate() {
-        armcomp_core::interrupt::check()?;
+        armcomp_core::support::interrupt::check()?;
         let position = to_base.transform_point(&Point3::from(t.position)).coords;
         let target = match t.orientation {
             Some(r) => IkTarget::Pose(Isometry3::from_parts(position.into(), to_base.rotation * r)),
@@ -229,7 +231,7 @@ pub fn orientation(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
 /// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
 /// numbers, erroring with file, line and column.
 pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Target)>> {
-    let text = armcomp_core::io::read_text(path)?;
+    let text = armcomp_core::support::io::read_text(path)?;
     // The same reading rules as measurement files: `#` comments, blank lines skipped, cells
     // trimmed, quoted cells allowed.
     let mut reader = csv::ReaderBuilder::new()
@@ -237,7 +239,7 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
         .trim(csv::Trim::All)
         .comment(Some(b'#'))
         .from_reader(text.as_bytes());
-    let mut lines = armcomp_core::measurement::LineCounter::new(&text);
+    let mut lines = armcomp_core::data::measurement::LineCounter::new(&text);
     let header = reader
         .headers()
         .with_context(|| format!("{}: the header is not readable CSV", path.display()))?

@@ -1,8 +1,8 @@
 //! `diagnose`: the residual predictor that scores what remains learnable, around
-//! [`armcomp_core::diagnose::diagnose`].
+//! [`armcomp_core::analysis::diagnose::diagnose`].
 
-use armcomp_core::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, DiagnosisReport, diagnose};
-use armcomp_core::measurement::Sample;
+use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, DiagnosisReport, diagnose};
+use armcomp_core::data::measurement::Sample;
 use armcomp_core::{PredictorSpec, Robot};
 
 /// The predictor that scores the learnable residual.

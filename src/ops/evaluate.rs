@@ -3,12 +3,12 @@
 use std::collections::BTreeMap;
 
 use armcomp_core::Robot;
-use armcomp_core::calibrate::{PlaneEvaluation, evaluate_planes};
-use armcomp_core::evaluate::{
+use armcomp_core::algorithms::evaluate::{
     AngleStats, ErrorStats, FixedPointEvaluation, StationStats, evaluate_fixed_points, orientation_errors, per_station,
     position_errors,
 };
-use armcomp_core::measurement::{Sample, csv_text, joint_header, joint_row};
+use armcomp_core::calibrate::{PlaneEvaluation, evaluate_planes};
+use armcomp_core::data::measurement::{Sample, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
 
 /// How far a model is from measurements.

@@ -1,8 +1,8 @@
 //! `export-urdf`: a model's identified URDF geometry, and what URDF cannot hold of it.
 
 use armcomp_core::Robot;
-use armcomp_core::evaluate::position_errors;
-use armcomp_core::measurement::Sample;
+use armcomp_core::algorithms::evaluate::position_errors;
+use armcomp_core::data::measurement::Sample;
 use armcomp_urdf::{CalibratedUrdf, ZERO_BELOW};
 use nalgebra::Isometry3;
 

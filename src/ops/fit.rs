@@ -1,11 +1,11 @@
-//! `fit`: the model ladder of [`armcomp_core::ladder`] with the predictor named as the command
+//! `fit`: the model ladder of [`armcomp_core::analysis::ladder`] with the predictor named as the command
 //! line names it, and its JSON report.
 
 use armcomp_core::Robot;
+use armcomp_core::analysis::ladder::{Ladder, LadderParams, climb};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::FitsProgress;
-use armcomp_core::ladder::{Ladder, LadderParams, climb};
-use armcomp_core::measurement::Sample;
+use armcomp_core::data::measurement::Sample;
 
 /// How `fit` is asked to choose.
 #[derive(Debug, Clone, PartialEq)]

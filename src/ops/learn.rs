@@ -2,10 +2,10 @@
 
 use std::time::Instant;
 
-use armcomp_core::evaluate::{
+use armcomp_core::algorithms::evaluate::{
     ErrorStats, cross_validated_predictor_errors, fit_residual_predictor, model_errors, position_errors,
 };
-use armcomp_core::measurement::Sample;
+use armcomp_core::data::measurement::Sample;
 use armcomp_core::{Error, PredictorSpec, Robot, RobotFile, Role};
 
 /// A model with its fitted predictor and how much the predictor removes on the training data.
@@ -20,7 +20,7 @@ pub struct LearnRun {
     /// Errors with the predictor on poses it was not fitted on (every pose held out once in
     /// [`CV_FOLDS`]-fold cross-validation, whole stations for data from several), and how the
     /// folds were drawn; `None` with too few poses for that.
-    pub cross_validated: Option<(ErrorStats, armcomp_core::split::Folding)>,
+    pub cross_validated: Option<(ErrorStats, armcomp_core::data::split::Folding)>,
     /// Fitting time (s).
     pub seconds: f64,
 }
@@ -105,9 +105,9 @@ pub fn run(
     let fitted = fit_residual_predictor(robot, spec, samples)?;
     let seconds = start.elapsed().as_secs_f64();
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
-    let poses = armcomp_core::split::pose_groups(samples).len();
+    let poses = armcomp_core::data::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {
-        let by = armcomp_core::split::FoldBy::choose(samples, fold_groups);
+        let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups);
         Some(cross_validated_predictor_errors(
             robot, spec, samples, CV_FOLDS, 0, &by,
         )?)
@@ -118,7 +118,7 @@ pub fn run(
         file.predictor = Some(spec);
     }
     file.fitted_predictor = Some(fitted);
-    file.predictor_frame = Some(armcomp_core::robot_file::PredictorFrame::Base);
+    file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
     let written = Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)?;
     let after = ErrorStats::from_errors(&position_errors(&written, samples));
     Ok(LearnRun {

@@ -4,12 +4,12 @@
 
 use std::cell::RefCell;
 
-use armcomp_core::collision::CollisionModel;
-use armcomp_core::design::{Criterion, SelectionParams, SelectionReport, pose_candidates, select_poses};
-use armcomp_core::limits::{self, Cost};
-use armcomp_core::measurement::{MeasurementSet, Sample};
-use armcomp_core::plan::{Space, spread, trajectory_similar};
-use armcomp_core::sampling::Sampler;
+use armcomp_core::algorithms::plan::{Space, spread, trajectory_similar};
+use armcomp_core::analysis::design::{Criterion, SelectionParams, SelectionReport, pose_candidates, select_poses};
+use armcomp_core::data::measurement::{MeasurementSet, Sample};
+use armcomp_core::kinematics::collision::CollisionModel;
+use armcomp_core::model::sampling::Sampler;
+use armcomp_core::support::limits::{self, Cost};
 use armcomp_core::{Error, Result, Robot};
 
 /// Where the optimal and trajectory methods pick from.
@@ -250,7 +250,7 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
 }
 
 /// Checks the sizes asked for (`n` poses, or the `--next` ones, and a sampled pool) against
-/// [the limits](armcomp_core::limits) before anything is sampled: drawing a pose costs its
+/// [the limits](armcomp_core::support::limits) before anything is sampled: drawing a pose costs its
 /// tries (20 for the quasi-random samplers, each a collision check, and through IK in
 /// Cartesian space), and the optimal methods score every pool pose at every pick and exchange
 /// pass against the parameters' information.

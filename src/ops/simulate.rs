@@ -1,13 +1,13 @@
 //! `simulate`: measurements of a truth robot at drawn or given poses, with tracker noise.
 
 use armcomp_core::Robot;
-use armcomp_core::limits::{self, Cost};
-use armcomp_core::measurement::MeasurementSet;
-use armcomp_core::sampling::{Sampler, configurations};
-use armcomp_core::simulate::{SimulateParams, TiltDraw, simulate_tilted};
+use armcomp_core::algorithms::simulate::{SimulateParams, TiltDraw, simulate_tilted};
+use armcomp_core::data::measurement::MeasurementSet;
+use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::support::limits::{self, Cost};
 
 /// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or
-/// grid); `n` is checked against [the limits](armcomp_core::limits) of simulating them first.
+/// grid); `n` is checked against [the limits](armcomp_core::support::limits) of simulating them first.
 pub fn draw_poses(truth: &Robot, sampler: &str, n: usize, seed: u64) -> armcomp_core::Result<Vec<Vec<f64>>> {
     let sampler = Sampler::parse(sampler)?;
     let pose = truth.pose_cost();

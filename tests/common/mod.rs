@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use armcomp_core::robot_file::{Format, SourceFile};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::{Robot, RobotFile};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};

@@ -2,8 +2,8 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
+use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
-use crate::measurement::Sample;
 use crate::robot::Robot;
 
 use super::*;

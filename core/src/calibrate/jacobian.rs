@@ -4,14 +4,14 @@
 
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3, Vector6};
 
+use crate::data::measurement::Sample;
 use crate::error::Result;
-use crate::geom::{exp_twist, so3_right_jacobian_inverse};
-use crate::measurement::Sample;
-use crate::param::{ParamInfo, Quantity};
-use crate::perturbation::Perturbation;
+use crate::kinematics::workspace::PointSensitivity;
+use crate::model::geom::{exp_twist, so3_right_jacobian_inverse};
+use crate::model::param::{ParamInfo, Quantity};
+use crate::model::perturbation::Perturbation;
+use crate::model::tree::KinematicTree;
 use crate::robot::{Conditions, Robot};
-use crate::tree::KinematicTree;
-use crate::workspace::PointSensitivity;
 
 use super::*;
 

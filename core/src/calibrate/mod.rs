@@ -13,7 +13,7 @@
 //! Files: `space` (the parameters by name, the robot with a parameter vector written in),
 //! `jacobian` (evaluation and columns), `identifiability` (what the data cannot determine),
 //! `solver` (a stage as a problem for the shared Levenberg–Marquardt loop of
-//! [`crate::least_squares`]: bounds, priors, the Jacobian forms, progress), `registration`
+//! [`crate::support::least_squares`]: bounds, priors, the Jacobian forms, progress), `registration`
 //! (the measurement frame in closed form, mislabelled units), `score` (what further parameters
 //! would gain, predicted at a fit); the driver [`calibrate`] and the
 //! report types are here.
@@ -29,13 +29,13 @@ use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::algorithms::evaluate::{AngleStats, ErrorStats, StationStats, per_station};
+use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
-use crate::evaluate::{AngleStats, ErrorStats, StationStats, per_station};
-use crate::measurement::Sample;
-use crate::param::{ParamInfo, Quantity};
+use crate::model::param::{ParamInfo, Quantity};
+use crate::model::tree::KinematicTree;
+use crate::robot::robot_file::PredictorFrame;
 use crate::robot::{PlaneConstraints, Robot};
-use crate::robot_file::PredictorFrame;
-use crate::tree::KinematicTree;
 
 pub mod evidence;
 mod identifiability;
@@ -380,7 +380,7 @@ pub struct ParamResult {
     /// the robot.
     pub at_bound: bool,
     /// Whether the value lies in the range its model calls physically plausible
-    /// ([`crate::param::ParamInfo::plausible`]); a fit that needs an implausible value is warned about.
+    /// ([`crate::model::param::ParamInfo::plausible`]); a fit that needs an implausible value is warned about.
     pub plausible: bool,
 }
 
@@ -1588,7 +1588,7 @@ fn check_measurement_kinds(robot: &Robot, samples: &[Sample]) -> Result<()> {
                     what: format!("measurement.distances[{i}]"),
                     reason: format!(
                         "`{name}` is no fixed point of the data; its `fixed_point` column names {}",
-                        crate::measurement::listed(&names)
+                        crate::data::measurement::listed(&names)
                     ),
                 });
             }

@@ -2,8 +2,8 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
+use crate::data::measurement::Sample;
 use crate::error::Result;
-use crate::measurement::Sample;
 
 use super::*;
 

@@ -1,5 +1,5 @@
 //! A calibration stage as a least-squares problem for the shared Levenberg–Marquardt loop
-//! ([`crate::least_squares`]): the free parameters with their bounds and priors, the fast
+//! ([`crate::support::least_squares`]): the free parameters with their bounds and priors, the fast
 //! Jacobian form while it makes progress, the iterations reported to the observer.
 
 use std::ops::ControlFlow;
@@ -7,7 +7,7 @@ use std::ops::ControlFlow;
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::Result;
-use crate::least_squares::{
+use crate::support::least_squares::{
     ConvergenceParams, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, StallParams, levenberg_marquardt,
 };
 

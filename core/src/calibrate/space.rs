@@ -4,10 +4,10 @@
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
-use crate::geom::xyz_rpy;
-use crate::param::{ParamInfo, Quantity};
+use crate::model::geom::xyz_rpy;
+use crate::model::param::{ParamInfo, Quantity};
+use crate::model::tree::{KinematicTree, Motion};
 use crate::robot::Robot;
-use crate::tree::{KinematicTree, Motion};
 
 use super::*;
 
@@ -233,7 +233,7 @@ impl ParameterSpace {
                             && on_measured_chain(&p.info.name)
                             && is_joint_offset(robot.tree(), &p.info.name)
                     }
-                    w if w.contains('*') => crate::param::name_matches(w, &p.info.name),
+                    w if w.contains('*') => crate::model::param::name_matches(w, &p.info.name),
                     w => p.model_type == w || p.info.name == w,
                 };
                 if hit {
@@ -269,7 +269,7 @@ impl ParameterSpace {
             .filter(|&k| {
                 !fixed
                     .iter()
-                    .any(|f| crate::param::name_matches(f, &self.params[k].info.name))
+                    .any(|f| crate::model::param::name_matches(f, &self.params[k].info.name))
             })
             .collect())
     }
@@ -477,7 +477,7 @@ pub(super) fn apply(robot: &Robot, space: &ParameterSpace, theta: &[f64]) -> Res
     // of the same planes against them.
     for i in 0..space.planes.len() {
         let (xyz, rpy) = base_xyz_rpy(&space.plane_pose(theta, i));
-        let spec = crate::robot_file::PlaneSpec {
+        let spec = crate::robot::robot_file::PlaneSpec {
             name: space.planes[i].clone(),
             xyz: xyz.map(|v| units.len_out(v)),
             rpy: rpy.map(|v| units.ang_out(v)),

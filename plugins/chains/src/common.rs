@@ -1,7 +1,7 @@
 //! What every convention shares: joint kinds, limits, mimic couplings, tree topology, priors,
 //! and the compiler from per-joint geometry to a [`KinematicTree`].
 
-use armcomp_core::geom::xyz_rpy;
+use armcomp_core::model::geom::xyz_rpy;
 use armcomp_core::{BuildContext, Coupling, Issues, KinematicTree, Limits, Motion, ParamInfo, Quantity, Result, Units};
 use nalgebra::{Isometry3, Unit, Vector3};
 use schemars::JsonSchema;
@@ -95,7 +95,7 @@ where
     D: serde::Deserializer<'de>,
     T: serde::Deserialize<'de>,
 {
-    armcomp_core::robot_file::tracked(d, "joints")
+    armcomp_core::robot::robot_file::tracked(d, "joints")
 }
 
 /// Declares a convention's joint struct: the shared fields plus the convention's own geometry.

@@ -5,7 +5,7 @@
 //! `Rz(theta) Tz(d) Tx(a) Rx(alpha)` is the child link's convention frame, so points are still
 //! given in the DH frame of their link.
 
-use armcomp_core::geom::{rx, rz, tx, tz};
+use armcomp_core::model::geom::{rx, rz, tx, tz};
 use armcomp_core::{BuildContext, Chain, Issues, KinematicTree, KinematicsSpec, ParamInfo, Quantity, Result};
 use nalgebra::{Isometry3, Vector3};
 use schemars::JsonSchema;

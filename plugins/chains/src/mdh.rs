@@ -4,7 +4,7 @@
 //! and moves about (revolute) or along (prismatic) its own z axis. Link frames are the joint
 //! frames after motion, so points on a link are given in its MDH frame.
 
-use armcomp_core::geom::{rx, ry, rz, tx, tz};
+use armcomp_core::model::geom::{rx, ry, rz, tx, tz};
 use armcomp_core::{BuildContext, Chain, Issues, KinematicTree, KinematicsSpec, ParamInfo, Quantity, Result};
 use nalgebra::{Isometry3, Vector3};
 use schemars::JsonSchema;

@@ -6,7 +6,7 @@
 //! is base-aligned at home and sits on its axis, which makes the product of exponentials exact:
 //! `exp([S] q) = Tr(r) · Rot(axis, q) · Tr(-r)` telescopes along the chain.
 
-use armcomp_core::geom::unit;
+use armcomp_core::model::geom::unit;
 use armcomp_core::{BuildContext, Chain, Error, Issues, KinematicTree, KinematicsSpec, ParamInfo, Quantity, Result};
 use nalgebra::{Isometry3, Vector3};
 use schemars::JsonSchema;

@@ -12,7 +12,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{check_positive, resolve_joint_table};
-use armcomp_core::gravity::joint_gravity_load;
+use armcomp_core::plugin::gravity::joint_gravity_load;
 
 fn default_smoothing() -> f64 {
     1.0

@@ -11,7 +11,7 @@
 //! height lies in the plane the link swings in. When the link's z axis runs along the beam (a
 //! telescopic section sliding along its own z) the link frame's x axis takes its place.
 //! `EI_y` (section z, height) resists deflection along `z`, `EI_z` along `y` (see
-//! `armcomp_core::mass`), `GJ` twist about `x`.
+//! `armcomp_core::model::mass`), `GJ` twist about `x`.
 //!
 //! **Loads**, from gravity in the rigid configuration: the link's own weight spread uniformly
 //! over its free length (its centre of mass is taken at mid-span, as in the paper); for a
@@ -28,7 +28,7 @@
 
 use std::collections::BTreeMap;
 
-use armcomp_core::mass::BeamRigidity;
+use armcomp_core::model::mass::BeamRigidity;
 use armcomp_core::{
     ErrorModel, ErrorModelSpec, Issues, ModelContext, Motion, ParamInfo, Perturbation, Quantity, StaticState,
 };
@@ -37,7 +37,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{check_positive, name_list, world_motion_to_twist};
-use armcomp_core::gravity::subtree_wrench;
+use armcomp_core::plugin::gravity::subtree_wrench;
 
 /// Links below this free length (m) are treated as rigid.
 const MIN_LENGTH: f64 = 1e-9;

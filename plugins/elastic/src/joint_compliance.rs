@@ -20,7 +20,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::resolve_joint_table;
-use armcomp_core::gravity::joint_gravity_load;
+use armcomp_core::plugin::gravity::joint_gravity_load;
 
 /// Checks a compliance: finite and not negative.
 pub(crate) fn check_compliance(issues: &mut Issues, path: &str, v: f64) -> bool {

@@ -14,7 +14,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::{check_finite, name_list};
-use armcomp_core::gravity::subtree_wrench;
+use armcomp_core::plugin::gravity::subtree_wrench;
 
 /// Lateral compliance as written in the robot file.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]

@@ -2,7 +2,7 @@
 //! equation; joint compliance against a known torque; Eq. 5 against the composed chain.
 
 use crate::common::{PENDULUM, perturbation_of, rel, robot, robot_issues};
-use armcomp_core::geom::skew;
+use armcomp_core::model::geom::skew;
 use armcomp_core::{Perturbation, TreeWorkspace};
 use armcomp_elastic::tool_differential_world;
 use nalgebra::{Matrix3, Vector3, Vector6};

@@ -359,7 +359,7 @@ fn subtree_loads_are_the_sums_over_each_subtree() {
     let tree = r.tree();
     let mut frames = TreeWorkspace::new(tree);
     tree.forward_into(&Q, &mut frames);
-    let loads = armcomp_core::subtree_loads::SubtreeLoads::of(tree, &frames, r.mass());
+    let loads = armcomp_core::kinematics::subtree_loads::SubtreeLoads::of(tree, &frames, r.mass());
     let g = r.gravity();
     let about = nalgebra::Vector3::new(0.3, -0.2, 0.5);
     let payload = r.mass().payload.as_ref().expect("the arm carries a payload");

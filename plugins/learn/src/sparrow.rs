@@ -150,7 +150,7 @@ pub fn sparrow_search(
 
     let bar = progress(params.iterations as u64, "sparrows");
     for _ in 0..params.iterations {
-        armcomp_core::interrupt::check()?;
+        armcomp_core::support::interrupt::check()?;
         order.sort_by(|&a, &c| best_f[a].total_cmp(&best_f[c]));
         let (g, w) = (order[0], order[n - 1]);
         let (f_g, f_w) = (best_f[g], best_f[w]);

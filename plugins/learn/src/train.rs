@@ -1,10 +1,10 @@
 //! Gradient training of a [`Network`]: Adam on seeded mini-batches, or Levenberg–Marquardt for
-//! small networks (core's shared loop, [`armcomp_core::least_squares`]), both with early
+//! small networks (core's shared loop, [`armcomp_core::support::least_squares`]), both with early
 //! stopping on a held-out share of the rows.
 
 use std::ops::ControlFlow;
 
-use armcomp_core::least_squares::{self, Damping, LeastSquares, LmIteration, LmParams};
+use armcomp_core::support::least_squares::{self, Damping, LeastSquares, LmIteration, LmParams};
 use armcomp_core::{Error, Result};
 use indicatif::ProgressBar;
 use nalgebra::{DMatrix, DVector};
@@ -179,7 +179,7 @@ impl EarlyStopping {
 
 /// Refines `params` in place by the configured gradient method; the best weights by the
 /// monitored error (held-out rows, or training rows when none are held out) are kept.
-/// A stop request ([`armcomp_core::interrupt`]) ends training early with [`Error::Interrupted`].
+/// A stop request ([`armcomp_core::support::interrupt`]) ends training early with [`Error::Interrupted`].
 pub(crate) fn train(
     net: &Network,
     params: &mut [f64],
@@ -191,7 +191,7 @@ pub(crate) fn train(
         GradientMethod::Adam => adam(net, params, data, tp, rng),
         GradientMethod::LevenbergMarquardt => levenberg_marquardt(net, params, data, tp)?,
     }
-    armcomp_core::interrupt::check()
+    armcomp_core::support::interrupt::check()
 }
 
 fn monitored(data: &NetData) -> &[usize] {
@@ -217,7 +217,7 @@ fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, 
     let mut step = 0;
     for _ in 0..tp.max_epochs {
         // A stopped run ends here; the fit that called it returns the interruption.
-        if armcomp_core::interrupt::requested() {
+        if armcomp_core::support::interrupt::requested() {
             break;
         }
         order.shuffle(rng);

@@ -184,7 +184,7 @@ pub struct AbiTree {
     pub point_locals: *const f64,
 }
 
-/// The mass model (see `armcomp_core::mass::MassModel`), per body in tree order.
+/// The mass model (see `armcomp_core::model::mass::MassModel`), per body in tree order.
 #[repr(C)]
 #[derive(Debug, Clone, Copy)]
 pub struct AbiMass {

@@ -15,8 +15,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 use std::sync::OnceLock;
 
-use armcomp_core::mass::MassModel;
-use armcomp_core::subtree_loads::SubtreeLoads;
+use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
+use armcomp_core::model::mass::MassModel;
 use armcomp_core::{
     AngleUnit, BuildContext, CandidateTemplate, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree,
     LengthUnit, Limits, ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace,

@@ -6,7 +6,7 @@
 
 use std::marker::PhantomData;
 
-use armcomp_core::mass::{BeamRigidity, BodyMass, MassModel, Payload};
+use armcomp_core::model::mass::{BeamRigidity, BodyMass, MassModel, Payload};
 use armcomp_core::{Coordinate, Coupling, KinematicTree, Limits, Motion, StaticState, TreeWorkspace};
 use nalgebra::{Isometry3, Quaternion, Translation3, Unit, UnitQuaternion, Vector3};
 

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use armcomp_core::robot_file::PointSpec;
+use armcomp_core::robot::robot_file::PointSpec;
 use armcomp_core::{Robot, RobotFile, Units};
 
 use crate::chain::UrdfSpec;

@@ -13,7 +13,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Issue;
-use armcomp_core::shape::Shape;
+use armcomp_core::model::shape::Shape;
 use nalgebra::Isometry3;
 
 use crate::mesh::{MeshOutcome, mesh_bounding_box};
@@ -104,7 +104,7 @@ impl UrdfDocument {
     /// Reads and checks a URDF file. Every problem names its line (when it has one) and its
     /// element, but not the file: an [`armcomp_core::Error::InvalidFile`] of `path` holds them.
     pub fn load(path: &Path) -> Result<UrdfDocument, Vec<Issue>> {
-        let text = armcomp_core::io::read_text(path).map_err(|e| {
+        let text = armcomp_core::support::io::read_text(path).map_err(|e| {
             // The issue is reported within the file, which it need not name again.
             vec![match e {
                 armcomp_core::Error::InputAt { location, message } => Issue {
@@ -221,7 +221,7 @@ impl UrdfDocument {
             });
             let mut collisions = Vec::new();
             for c in &l.collision {
-                let origin = armcomp_core::geom::xyz_rpy(c.origin.xyz.0, c.origin.rpy.0);
+                let origin = armcomp_core::model::geom::xyz_rpy(c.origin.xyz.0, c.origin.rpy.0);
                 match collision_shape(&c.geometry, dir) {
                     Ok(MeshOutcome::Shape(pose, shape)) => {
                         if matches!(c.geometry, urdf_rs::Geometry::Mesh { .. }) {

@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
-use armcomp_core::shape::Shape;
+use armcomp_core::model::shape::Shape;
 use nalgebra::{Isometry3, Vector3};
 
 /// What became of a collision geometry.
@@ -43,7 +43,7 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
                     "mesh file not found (a path relative to the URDF's folder, or absolute)".into(),
                 ));
             }
-            armcomp_core::io::check_input_file(&p).map_err(|m| format!("mesh file `{}` {m}", p.display()))?;
+            armcomp_core::support::io::check_input_file(&p).map_err(|m| format!("mesh file `{}` {m}", p.display()))?;
             p
         }
     };
@@ -56,7 +56,7 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
             "not an STL file, and only STL meshes are read (as their bounding box)".into(),
         ));
     }
-    let bytes = armcomp_core::io::read_bytes(&path).map_err(|e| e.to_string())?;
+    let bytes = armcomp_core::support::io::read_bytes(&path).map_err(|e| e.to_string())?;
     let mesh = match stl_io::read_stl(&mut std::io::Cursor::new(bytes)) {
         Ok(m) => m,
         Err(e) => return Ok(MeshOutcome::Skipped(format!("cannot read `{}`: {e}", path.display()))),

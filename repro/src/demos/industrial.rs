@@ -7,14 +7,14 @@
 //! or on 500 arbitrary pool points, measured with the identified model in the controller.
 //! Tested at 50 targets along the path, which every model commands at the task's orientation.
 
+use armcomp_core::algorithms::compensate::CompensationMode;
+use armcomp_core::algorithms::evaluate::fit_residual_predictor;
+use armcomp_core::algorithms::ik::IkWorkspace;
+use armcomp_core::algorithms::plan::{resample_by_arc_length, trajectory_similar};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::compensate::CompensationMode;
-use armcomp_core::evaluate::fit_residual_predictor;
-use armcomp_core::ik::IkWorkspace;
-use armcomp_core::measurement::Sample;
-use armcomp_core::plan::{resample_by_arc_length, trajectory_similar};
-use armcomp_core::sampling::{Sampler, unit_points};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::Sample;
+use armcomp_core::model::sampling::{Sampler, unit_points};
 use armcomp_core::{Result, Robot};
 use armcomp_learn::MlpSpec;
 use nalgebra::{UnitQuaternion, Vector3};

@@ -11,12 +11,12 @@ pub mod seed_sweep;
 use std::fmt;
 use std::time::Instant;
 
-use armcomp_core::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
-use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
-use armcomp_core::measurement::Sample;
+use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::algorithms::ik::{IkParams, IkTarget, IkWorkspace, solve_ik};
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+use armcomp_core::data::measurement::Sample;
 use armcomp_core::plugin::FittedPredictor;
-use armcomp_core::simulate::{SimulateParams, simulate};
 use armcomp_core::{Result, Robot};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 use serde::Serialize;

@@ -7,8 +7,8 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Result;
-use armcomp_core::evaluate::ErrorStats;
-use armcomp_core::io::{check_report_folder, write_folder_atomic};
+use armcomp_core::algorithms::evaluate::ErrorStats;
+use armcomp_core::support::io::{check_report_folder, write_folder_atomic};
 
 use super::{PaperMetric, Table, plots};
 use crate::learning_curve::LearningCurveReport;

@@ -1,13 +1,13 @@
 //! The deflection paper's Sec. III on the rock-drill twin: grid training sets (Sec. III.B),
 //! 40 random test targets, the five control groups of Table I, then this project's pipelines.
 
+use armcomp_core::algorithms::compensate::CompensationMode;
+use armcomp_core::algorithms::evaluate::fit_residual_predictor;
+use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
-use armcomp_core::compensate::CompensationMode;
-use armcomp_core::evaluate::fit_residual_predictor;
-use armcomp_core::measurement::Sample;
+use armcomp_core::data::measurement::Sample;
 use armcomp_core::plugin::PredictorSpec;
-use armcomp_core::robot_file::{Format, SourceFile};
-use armcomp_core::simulate::{SimulateParams, simulate};
+use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::{Result, Robot};
 use armcomp_learn::{GpSpec, SparrowParams, SsaBpSpec};
 use rand::rngs::StdRng;

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use armcomp_core::subtree_loads::SubtreeLoads;
+use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
 use armcomp_core::{Perturbation, Robot, RobotFile, StaticState, TreeWorkspace};
 use nalgebra::Vector3;
 

@@ -90,7 +90,7 @@ impl GpSpec {
         let mut best: Option<(Vec<f64>, f64)> = None;
         let mut iterations = 0;
         for start in &starts {
-            armcomp_core::interrupt::check()?;
+            armcomp_core::support::interrupt::check()?;
             let (theta, value) = lbfgs::minimize(
                 start,
                 self.max_iterations,

@@ -5,7 +5,7 @@ use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
 
-use armcomp_core::subtree_loads::SubtreeLoads;
+use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
 use armcomp_core::{
     Error, ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, Quantity, Result, Role,
     StaticState, TreeWorkspace,

@@ -233,8 +233,8 @@ impl PluginLibrary {
         if let Origin::CommandLine = origin {
             lock(&NAMED).push(canonical.clone());
         }
-        armcomp_core::io::check_input_file(&canonical).map_err(|m| unusable(&canonical, m))?;
-        armcomp_core::io::note_read(&canonical);
+        armcomp_core::support::io::check_input_file(&canonical).map_err(|m| unusable(&canonical, m))?;
+        armcomp_core::support::io::note_read(&canonical);
         let mut libraries = lock(&LIBRARIES);
         if let Some(lib) = libraries.get(&canonical) {
             return Ok(lib);

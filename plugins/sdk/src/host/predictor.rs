@@ -152,7 +152,7 @@ impl PluginPredictor {
 
     fn load(record: PredictorRecord) -> Result<Self> {
         // The library lies beside the model file that stores the predictor.
-        let folder = armcomp_core::robot_file::folder_being_read().unwrap_or_default();
+        let folder = armcomp_core::robot::robot_file::folder_being_read().unwrap_or_default();
         let lib = PluginLibrary::load_for_file(&folder, &record.library)?;
         let ty = lib.find(&record.model, Role::Predictor)?;
         let json = record.fitted.to_string();

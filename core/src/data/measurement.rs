@@ -1,0 +1,1459 @@
+//! Measurement CSV files: one row per measured pose.
+//!
+//! Columns (any order; units in brackets, else the robot file's units):
+//! one per joint coordinate named as the joint (`j2[deg]`, `j3[mm]`), required only for the
+//! joints that move a measured point (the measured chain; the others hold the robot file's
+//! `hold` values); `x`, `y`, `z` (`x[mm]`), the position in the measurement frame, with an
+//! optional `point` (the measured point's name; default: the first marker), or numbered
+//! triples `x1, y1, z1`, `x2, ...` for several points measured at once (the robot file's
+//! markers in order; all three cells of a point left empty when it was not seen); optional
+//! orientation in one of three spellings: a unit quaternion `qw, qx, qy, qz` (either sign), a
+//! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
+//! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
+//! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
+//! `tau_<joint>[Nm]`; optional `station` (a name: the instrument set-up that measured the row,
+//! each its own measurement frame); the columns of the robot file's sensor (`[[sensors]]`: an
+//! accelerometer's reading, an inclinometer's roll and pitch), which give the direction of
+//! gravity per row. A robot file of `kind = "fixed_point"` reads rows without a position: a
+//! `fixed_point` column names the unknown fixed point the marker was put into (`socket_a`); one of
+//! `kind = "plane"`, a `plane` column names the unknown plane it was pressed on (`table`).
+//! Other columns (timestamps, marker quality, joints of other limbs) are
+//! ignored with one notice. Repeated rows are kept: repeatability measurements are data.
+
+use std::path::Path;
+
+use nalgebra::{Quaternion, UnitQuaternion, Vector3, Vector4};
+
+use crate::error::{Error, Location, Result};
+use crate::kinematics::sensor::{GravityReading, GravitySensor, SensorKind};
+use crate::model::tree::KinematicTree;
+use crate::model::units::{AngleUnit, LengthUnit, Units};
+
+/// One measured pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Joint values (rad, m), one per independent coordinate.
+    pub q: Vec<f64>,
+    /// Index of the measured point in the tree's points.
+    pub point: usize,
+    /// Measured position in the measurement frame (m).
+    pub position: Vector3<f64>,
+    /// Measured orientation, when the tracker gives one.
+    pub orientation: Option<UnitQuaternion<f64>>,
+    /// Payload mass (kg), when given.
+    pub payload: Option<f64>,
+    /// Ambient temperature (°C), when given.
+    pub temperature: Option<f64>,
+    /// Joint torques (N m), one per coordinate, when given.
+    pub torque: Option<Vec<f64>>,
+    /// The unknown fixed point the measured point was put into, by name, for fixed-point
+    /// measurements (`position` is then unused).
+    pub fixed_point: Option<String>,
+    /// The unknown plane the measured point (a contact frame) was pressed on, by name, for
+    /// plane contacts (`position` is then unused).
+    pub plane: Option<String>,
+    /// The direction of gravity the robot's sensor measured, when its columns are given.
+    pub gravity: Option<GravityReading>,
+    /// The station (instrument set-up) that measured it: an index into
+    /// [`MeasurementSet::stations`] and, once the robot is given the data's stations
+    /// ([`Robot::with_stations`](crate::Robot::with_stations)), into the robot's; 0 when the
+    /// data have one station.
+    pub station: usize,
+}
+
+/// Refuses fixed-point and plane samples for `what`, which scores models on held-out measured
+/// positions: such a row measures none.
+pub fn require_positions(samples: &[Sample], what: &str) -> Result<()> {
+    match samples
+        .iter()
+        .position(|s| s.fixed_point.is_some() || s.plane.is_some())
+    {
+        Some(i) => Err(Error::InvalidArgument {
+            what: format!("sample {}", i + 1),
+            reason: format!(
+                "is a {} measurement, which gives no position for {what} to score models on; calibrate it \
+                 (`armcomp calibrate`) and compare {} with `armcomp evaluate`",
+                if samples[i].plane.is_some() {
+                    "plane-contact"
+                } else {
+                    "fixed-point"
+                },
+                if samples[i].plane.is_some() {
+                    "planes"
+                } else {
+                    "fixed points"
+                },
+            ),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// A set of measured poses, with the warnings raised while reading it.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct MeasurementSet {
+    /// The samples, in file order.
+    pub samples: Vec<Sample>,
+    /// The data row (0-based, header and comments excluded) each sample comes from; several
+    /// samples share a row when it measures several points.
+    pub rows: Vec<usize>,
+    /// Non-fatal findings (joint values outside limits, ...), each naming its line.
+    pub warnings: Vec<String>,
+    /// The names of the stations the samples' [`Sample::station`] index, in order of first
+    /// appearance; empty when the data have no `station` column (one station).
+    pub stations: Vec<String>,
+}
+
+/// What a column holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Column {
+    Joint {
+        coord: usize,
+        scale: f64,
+    },
+    Point,
+    /// What the row measures (`point`, `pose` or `fixed_point`), checked against its cells.
+    Kind,
+    /// The name of the unknown fixed point the marker was put into, or of the unknown plane
+    /// it was pressed on: the layout's [group column](CsvLayout::group_column).
+    Group,
+    /// `slot`: which measured point a numbered column (`x2` → 1) is; `None` for plain `x`.
+    Position {
+        slot: Option<usize>,
+        axis: usize,
+        scale: f64,
+    },
+    /// An orientation cell: its spelling, which of its cells, and the angle unit's scale
+    /// (1 for a quaternion).
+    Orientation(Spelling, usize, f64),
+    Payload(f64),
+    Temperature(f64),
+    Torque(usize),
+    /// A cell of the gravity sensor's reading, and its unit's scale to SI.
+    Sensor(usize, f64),
+    Station,
+    /// A column armcomp does not use (a timestamp, marker quality, another limb's joint).
+    Ignored,
+}
+
+impl Column {
+    /// `v`, a cell of this column, in SI, and the magnitude beyond which it cannot be a
+    /// measurement (a typo, a corrupt file; such a number would also overflow the squares and
+    /// sums it goes into), with that bound in words.
+    fn si_and_bound(&self, v: f64) -> Option<(f64, f64, &'static str)> {
+        match *self {
+            // A thousand turns, or 10 km of travel.
+            Column::Joint { scale, .. } => Some((v * scale, 1e4, "10000 rad (or m for a prismatic joint)")),
+            Column::Position { scale, .. } => Some((v * scale, 1e4, "10 km")),
+            Column::Payload(scale) => Some((v * scale, 1e6, "1000 t")),
+            Column::Temperature(offset) => Some((v + offset, 1e4, "10000 °C")),
+            Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
+            // An accelerometer's scale is free (its direction is used); an inclinometer's
+            // angles are checked against their ranges.
+            Column::Sensor(_, scale) => Some((v * scale, 1e6, "1e6")),
+            // A quaternion's norm is checked to be 1.
+            Column::Orientation(Spelling::Quaternion, ..) => None,
+            Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
+            Column::Point | Column::Kind | Column::Group | Column::Station | Column::Ignored => None,
+        }
+    }
+}
+
+/// How a measurement file writes an orientation (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Spelling {
+    Quaternion,
+    RotationVector,
+    RollPitchYaw,
+}
+
+impl Spelling {
+    const ALL: [(Spelling, [&'static str; 4]); 3] = [
+        (Spelling::Quaternion, ["qw", "qx", "qy", "qz"]),
+        (Spelling::RotationVector, ["rx", "ry", "rz", ""]),
+        (Spelling::RollPitchYaw, ["roll", "pitch", "yaw", ""]),
+    ];
+
+    /// The spelling and cell of column `name`, if it is an orientation column.
+    fn of(name: &str) -> Option<(Spelling, usize)> {
+        Spelling::ALL
+            .iter()
+            .find_map(|(s, cells)| cells.iter().position(|c| !c.is_empty() && *c == name).map(|k| (*s, k)))
+    }
+
+    fn cells(self) -> &'static [&'static str] {
+        let cells = &Spelling::ALL
+            .iter()
+            .find(|(s, _)| *s == self)
+            .expect("every spelling is listed")
+            .1;
+        if self == Spelling::Quaternion {
+            cells
+        } else {
+            &cells[..3]
+        }
+    }
+
+    /// The rotation of cells `v` (angles in rad); an error for a quaternion whose norm is not 1.
+    fn rotation(self, v: [f64; 4]) -> std::result::Result<UnitQuaternion<f64>, String> {
+        match self {
+            Spelling::Quaternion => {
+                let q = Quaternion::new(v[0], v[1], v[2], v[3]);
+                if (q.norm() - 1.0).abs() > 1e-3 {
+                    return Err(format!("orientation quaternion has norm {:.6}, expected 1", q.norm()));
+                }
+                Ok(UnitQuaternion::from_quaternion(q))
+            }
+            Spelling::RotationVector => Ok(UnitQuaternion::from_scaled_axis(Vector3::new(v[0], v[1], v[2]))),
+            Spelling::RollPitchYaw => Ok(UnitQuaternion::from_euler_angles(v[0], v[1], v[2])),
+        }
+    }
+}
+
+/// Splits a column header `x[mm]` into its name and optional unit.
+pub fn split_header(h: &str) -> (&str, Option<&str>) {
+    let h = h.trim();
+    match (h.find('['), h.ends_with(']')) {
+        (Some(i), true) => (h[..i].trim(), Some(h[i + 1..h.len() - 1].trim())),
+        _ => (h, None),
+    }
+}
+
+/// What a measurement CSV is read against: the robot's joints and points, and the values of
+/// joints a file may leave out ([`Robot::csv_layout`](crate::Robot::csv_layout) builds it).
+#[derive(Debug, Clone)]
+pub struct CsvLayout<'a> {
+    /// The kinematic tree: joint names, limits, points.
+    pub tree: &'a KinematicTree,
+    /// Units of columns whose header gives none.
+    pub units: Units,
+    /// The measured points: numbered position columns `x1, y1, z1`, `x2, ...` are `points[0]`,
+    /// `points[1]`, ...; plain `x, y, z` without a `point` column measure `points[0]`.
+    pub points: Vec<usize>,
+    /// Per independent coordinate, the value it holds when the file has no column for it
+    /// (rad or m); `None` makes its column required.
+    pub hold: Vec<Option<f64>>,
+    /// Whether the robot measures poses: a file without orientation columns is then read as
+    /// positions with a warning.
+    pub orientation: bool,
+    /// Whether the robot measures fixed points: rows then name their fixed point in a
+    /// `fixed_point` column instead of giving a position.
+    pub fixed_points: bool,
+    /// Whether the robot measures plane contacts: rows then name their plane in a `plane`
+    /// column instead of giving a position.
+    pub planes: bool,
+    /// The robot's sensor giving the direction of gravity per row, whose columns are read
+    /// when the file has them.
+    pub gravity_sensor: Option<GravitySensor>,
+}
+
+impl<'a> CsvLayout<'a> {
+    /// A layout in which every joint needs a column and plain `x, y, z` measure `point`.
+    pub fn strict(tree: &'a KinematicTree, units: Units, point: usize) -> Self {
+        CsvLayout {
+            tree,
+            units,
+            points: vec![point],
+            hold: vec![None; tree.nq()],
+            orientation: false,
+            fixed_points: false,
+            planes: false,
+            gravity_sensor: None,
+        }
+    }
+
+    /// The column rows without a measured position name their group in (`fixed_point` or
+    /// `plane`), with what it names, when the robot measures such rows.
+    pub fn group_column(&self) -> Option<(&'static str, &'static str)> {
+        if self.fixed_points {
+            Some(("fixed_point", "fixed point"))
+        } else if self.planes {
+            Some(("plane", "plane"))
+        } else {
+            None
+        }
+    }
+}
+
+/// Reads measurements (see the module documentation) against `layout`.
+pub fn read_csv(path: &Path, layout: &CsvLayout<'_>) -> Result<MeasurementSet> {
+    let text = crate::support::io::read_text(path)?;
+    parse_csv(&text, path, layout)
+}
+
+/// Parses measurement CSV text (see [`read_csv`]); `path` is used in messages.
+pub fn parse_csv(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<MeasurementSet> {
+    parse_table(text, path, layout, true)
+}
+
+/// Parses a CSV of joint configurations only (joint columns, same header rules); other
+/// columns, if present, are ignored.
+pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Vec<Vec<f64>>> {
+    Ok(parse_table(text, path, layout, false)?
+        .samples
+        .into_iter()
+        .map(|s| s.q)
+        .collect())
+}
+
+/// Whether `name` is a column measurement files give a meaning of their own (besides the
+/// fixed names the robot file checks): an orientation cell or a numbered position.
+pub fn is_measurement_column(name: &str) -> bool {
+    Spelling::of(name).is_some() || numbered_position(name).is_some()
+}
+
+/// The 1-based line of the record a csv reader read at `position` in `text` (0 when
+/// unknown). The reader's own line count leaves out comment lines, and its position is where
+/// it started reading, before the comment and blank lines it skipped: those are skipped here.
+/// For many records of one text use a [`LineCounter`].
+pub fn line_at(text: &str, position: Option<&csv::Position>) -> usize {
+    LineCounter::new(text).line_at(position)
+}
+
+/// [`line_at`] for the records of one text read in order: the newlines are counted on from the
+/// previous record, so numbering every row of a file stays linear in its size.
+#[derive(Debug, Clone)]
+pub struct LineCounter<'a> {
+    text: &'a str,
+    /// A byte offset and the 1-based line it is on.
+    byte: usize,
+    line: usize,
+}
+
+impl<'a> LineCounter<'a> {
+    /// A counter at the start of `text`.
+    pub fn new(text: &'a str) -> Self {
+        LineCounter { text, byte: 0, line: 1 }
+    }
+
+    /// The 1-based line of the record read at `position` (0 when unknown); positions before
+    /// the previous one are counted from the start again.
+    pub fn line_at(&mut self, position: Option<&csv::Position>) -> usize {
+        let Some(p) = position else { return 0 };
+        let start = (p.byte() as usize).min(self.text.len());
+        if start < self.byte {
+            (self.byte, self.line) = (0, 1);
+        }
+        self.line += self.text.as_bytes()[self.byte..start]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count();
+        self.byte = start;
+        let skipped = self
+            .text
+            .get(start..)
+            .unwrap_or_default()
+            .lines()
+            .take_while(|l| l.trim().is_empty() || l.starts_with('#'))
+            .count();
+        self.line + skipped
+    }
+}
+
+/// An error in measurement file `path` at `line`.
+fn input_error(path: &Path, line: Option<usize>, message: String) -> Error {
+    Error::InputAt {
+        location: Location {
+            line,
+            ..Location::file(path)
+        },
+        message,
+    }
+}
+
+/// A reader of measurement CSV `text` (comments `#`, cells trimmed, rows of any length) and its
+/// header; `path` is used in messages.
+fn open_table<'t>(text: &'t str, path: &Path) -> Result<(csv::Reader<&'t [u8]>, csv::StringRecord)> {
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let headers = reader
+        .headers()
+        .map_err(|e| {
+            input_error(
+                path,
+                Some(line_at(text, e.position())),
+                format!("cannot read the header: {e}"),
+            )
+        })?
+        .clone();
+    Ok((reader, headers))
+}
+
+/// The values of column `name` of measurement CSV `text`, one per data row (header and
+/// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
+/// into sessions or stations. `path` is used in messages.
+pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
+    let err = |line: Option<usize>, message: String| input_error(path, line, message);
+    let (mut reader, headers) = open_table(text, path)?;
+    let Some(col) = headers.iter().position(|h| split_header(h).0 == name) else {
+        return Err(err(
+            Some(line_at(text, headers.position())),
+            format!(
+                "no column `{name}` to group the rows by; the header has {}",
+                headers.iter().collect::<Vec<_>>().join(", ")
+            ),
+        ));
+    };
+    let mut lines = LineCounter::new(text);
+    reader
+        .records()
+        .map(|r| {
+            let r = r.map_err(|e| err(Some(line_at(text, e.position())), format!("cannot read the row: {e}")))?;
+            match r.get(col) {
+                Some(v) if !v.is_empty() => Ok(v.to_string()),
+                _ => Err(err(
+                    Some(lines.line_at(r.position())),
+                    format!("column `{name}` is empty in this row; every row needs its group"),
+                )),
+            }
+        })
+        .collect()
+}
+
+/// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
+/// `x1`, ...): measurements rather than joint configurations alone.
+pub fn has_positions(text: &str) -> bool {
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    reader.headers().is_ok_and(|h| {
+        h.iter().any(|c| {
+            let (name, _) = split_header(c);
+            matches!(name, "x" | "y" | "z") || numbered_position(name).is_some()
+        })
+    })
+}
+
+/// `x3` → `(axis 0, slot 2)`: a numbered position column.
+fn numbered_position(name: &str) -> Option<(usize, usize)> {
+    let axis = ["x", "y", "z"].iter().position(|a| name.starts_with(a))?;
+    let k: usize = name[1..].parse().ok().filter(|k| *k >= 1)?;
+    Some((axis, k - 1))
+}
+
+fn parse_table(text: &str, path: &Path, layout: &CsvLayout<'_>, with_positions: bool) -> Result<MeasurementSet> {
+    let (tree, units) = (layout.tree, layout.units);
+    let err = |line: Option<usize>, message: String| input_error(path, line, message);
+    let (mut reader, headers) = open_table(text, path)?;
+    let header_line = line_at(text, headers.position());
+    // Every cell of a column is read and kept in the row's record: a column costs its share
+    // of each line.
+    let lines = text.lines().count().max(1) as f64;
+    crate::support::limits::check("columns of the header", headers.len(), "columns", &|n| {
+        crate::support::limits::Cost::per_unit(n, 64.0 + 16.0 * lines, 50.0 * lines)
+    })
+    .map_err(|e| err(Some(header_line), e.to_string()))?;
+    // Counted before any row is parsed: a file of millions of rows is refused at once.
+    let rows = text
+        .lines()
+        .skip(header_line)
+        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .count();
+    crate::support::limits::check(
+        "data rows of a measurement file",
+        rows,
+        "rows",
+        &crate::support::limits::measurement_row_cost,
+    )
+    .map_err(|e| err(None, e.to_string()))?;
+    // Spreadsheets export `;`- or tab-separated files, whose header reads as one mangled column.
+    if let Some((_, words)) = [(';', "semicolons"), ('\t', "tabs")]
+        .into_iter()
+        .find(|(d, _)| headers.iter().any(|h| h.contains(*d)))
+    {
+        return Err(err(
+            Some(header_line),
+            format!(
+                "the header separates its columns by {words}; measurement files are comma-separated (save the file as CSV with `,` between values)"
+            ),
+        ));
+    }
+    let names = tree.coordinate_names();
+    let mut columns = Vec::new();
+    let mut seen: std::collections::HashSet<&str> = std::collections::HashSet::new();
+    let mut ignored: Vec<&str> = Vec::new();
+    for h in headers.iter() {
+        let (name, unit) = split_header(h);
+        if !seen.insert(name) {
+            return Err(err(Some(header_line), format!("column `{name}` appears twice")));
+        }
+        let length = |u: Option<&str>| -> Result<f64> {
+            match u {
+                None => Ok(units.length.to_si()),
+                Some(u) => LengthUnit::parse(u).map(LengthUnit::to_si).ok_or_else(|| {
+                    err(
+                        Some(header_line),
+                        format!("column `{h}`: unknown length unit `{u}` (expected m, cm, mm or in)"),
+                    )
+                }),
+            }
+        };
+        let col = if let Some(c) = names.iter().position(|n| n == name) {
+            let scale = if tree.coordinate_is_prismatic()[c] {
+                length(unit)?
+            } else {
+                match unit {
+                    None => units.angle.to_si(),
+                    Some(u) => AngleUnit::parse(u).map(AngleUnit::to_si).ok_or_else(|| {
+                        err(Some(header_line), format!("column `{h}`: joint `{name}` is revolute; expected an angle unit (rad or deg), got `{u}`"))
+                    })?,
+                }
+            };
+            Column::Joint { coord: c, scale }
+        } else if !with_positions {
+            ignored.push(h);
+            Column::Ignored
+        } else if let Some((sensor, cell)) = layout
+            .gravity_sensor
+            .as_ref()
+            .and_then(|g| g.columns.iter().position(|c| c == name).map(|k| (g, k)))
+        {
+            let scale = sensor.kind.column_scale(unit, units.angle).map_err(|m| {
+                err(
+                    Some(header_line),
+                    format!("column `{h}` of sensor `{}`: {m}", sensor.name),
+                )
+            })?;
+            Column::Sensor(cell, scale)
+        } else if let Some((axis, slot)) = numbered_position(name) {
+            if slot >= layout.points.len() {
+                let measured: Vec<&str> = layout.points.iter().map(|&p| tree.points()[p].name.as_str()).collect();
+                return Err(err(
+                    Some(header_line),
+                    format!(
+                        "column `{h}`: the robot measures {} point(s) ({}); numbered columns x1, x2, ... are the robot file's `[measurement] markers` in order",
+                        measured.len(),
+                        measured.join(", ")
+                    ),
+                ));
+            }
+            Column::Position {
+                slot: Some(slot),
+                axis,
+                scale: length(unit)?,
+            }
+        } else if let Some((spelling, cell)) = Spelling::of(name) {
+            let scale = match (spelling, unit) {
+                (Spelling::Quaternion, None) => 1.0,
+                (Spelling::Quaternion, Some(u)) => {
+                    return Err(err(
+                        Some(header_line),
+                        format!("column `{h}`: a quaternion has no unit, got `{u}`"),
+                    ));
+                }
+                (_, None) => units.angle.to_si(),
+                (_, Some(u)) => AngleUnit::parse(u).map(AngleUnit::to_si).ok_or_else(|| {
+                    err(
+                        Some(header_line),
+                        format!("column `{h}`: expected an angle unit (rad or deg), got `{u}`"),
+                    )
+                })?,
+            };
+            Column::Orientation(spelling, cell, scale)
+        } else {
+            match name {
+                "point" => Column::Point,
+                "kind" => Column::Kind,
+                g if layout.group_column().is_some_and(|(c, _)| c == g) => Column::Group,
+                // Fixed-point rows among measured positions (mixed data).
+                "fixed_point" if !layout.planes => Column::Group,
+                g @ ("fixed_point" | "plane") => {
+                    let what = if g == "plane" { "plane contacts" } else { "fixed points" };
+                    return Err(err(
+                        Some(header_line),
+                        format!(
+                            "column `{g}`: the robot file does not measure {what}; a file of {what} needs `kind = \
+                             \"{g}\"` in the robot file's [measurement]"
+                        ),
+                    ));
+                }
+                "station" => Column::Station,
+                "x" | "y" | "z" => Column::Position {
+                    slot: None,
+                    axis: (name.as_bytes()[0] - b'x') as usize,
+                    scale: length(unit)?,
+                },
+
+                "payload" => Column::Payload(match unit {
+                    None | Some("kg") => 1.0,
+                    Some("g") => 1e-3,
+                    Some(u) => {
+                        return Err(err(
+                            Some(header_line),
+                            format!("column `{h}`: expected a mass unit (kg or g), got `{u}`"),
+                        ));
+                    }
+                }),
+                "temperature" => Column::Temperature(match unit {
+                    None | Some("C") | Some("degC") => 0.0,
+                    Some("K") => -273.15,
+                    Some(u) => {
+                        return Err(err(
+                            Some(header_line),
+                            format!("column `{h}`: expected C or K, got `{u}`"),
+                        ));
+                    }
+                }),
+                n if n.starts_with("tau_") => match names.iter().position(|j| j == &n[4..]) {
+                    Some(c) => Column::Torque(c),
+                    None => {
+                        return Err(err(
+                            Some(header_line),
+                            format!("column `{h}`: `{}` is not a joint", &n[4..]),
+                        ));
+                    }
+                },
+                _ => {
+                    ignored.push(h);
+                    Column::Ignored
+                }
+            }
+        };
+        columns.push(col);
+    }
+    let has = |f: &dyn Fn(&Column) -> bool| columns.iter().any(f);
+    let missing: Vec<String> = names
+        .iter()
+        .enumerate()
+        .filter(|&(c, _)| {
+            layout.hold[c].is_none() && !has(&|k| matches!(k, Column::Joint { coord, .. } if *coord == c))
+        })
+        .map(|(c, n)| format!("{n}[{}]", if tree.coordinate_is_prismatic()[c] { "mm" } else { "deg" }))
+        .collect();
+    if !missing.is_empty() {
+        return Err(err(
+            Some(header_line),
+            format!(
+                "missing column(s) for {} joint(s) that move the measured points: {}",
+                missing.len(),
+                missing.join(", ")
+            ),
+        ));
+    }
+    // Position columns: plain `x, y, z`, or numbered triples, one per measured point.
+    let slots: Vec<Option<usize>> = {
+        let mut s: Vec<Option<usize>> = columns
+            .iter()
+            .filter_map(|c| match c {
+                Column::Position { slot, .. } => Some(*slot),
+                _ => None,
+            })
+            .collect();
+        s.sort();
+        s.dedup();
+        s
+    };
+    if with_positions && let Some((column, what)) = layout.group_column() {
+        if !has(&|k| matches!(k, Column::Group)) {
+            return Err(err(
+                Some(header_line),
+                format!(
+                    "missing column `{column}` (the name of the {what} each row's marker was measured at); the robot \
+                     file measures {what}s"
+                ),
+            ));
+        }
+        if !slots.is_empty() || has(&|k| matches!(k, Column::Orientation(..))) {
+            return Err(err(
+                Some(header_line),
+                format!(
+                    "a {what} file gives no measured position or orientation (its {what}s are identified); remove \
+                     the x, y, z or orientation columns, or set the robot file's [measurement] kind to `point`"
+                ),
+            ));
+        }
+    } else if with_positions {
+        if slots.is_empty() && !has(&|k| matches!(k, Column::Group)) {
+            return Err(err(
+                Some(header_line),
+                "missing columns `x`, `y`, `z` (measured position, e.g. `x[mm]`; or `x1, y1, z1`, ... for several points)".into(),
+            ));
+        }
+        if slots.contains(&None) && slots.len() > 1 {
+            return Err(err(
+                Some(header_line),
+                "plain `x, y, z` and numbered `x1, y1, z1` columns cannot be mixed".into(),
+            ));
+        }
+        if slots.iter().any(Option::is_some) && has(&|k| matches!(k, Column::Point)) {
+            return Err(err(
+                Some(header_line),
+                "a `point` column goes with plain `x, y, z`; numbered columns name their point already".into(),
+            ));
+        }
+        for slot in &slots {
+            let suffix = slot.map(|s| (s + 1).to_string()).unwrap_or_default();
+            for (axis, a) in ["x", "y", "z"].iter().enumerate() {
+                if !has(&|k| matches!(k, Column::Position { slot: s, axis: x, .. } if s == slot && *x == axis)) {
+                    return Err(err(
+                        Some(header_line),
+                        format!("missing column `{a}{suffix}` (measured position, e.g. `{a}{suffix}[mm]`)"),
+                    ));
+                }
+            }
+        }
+    }
+    let mut spellings: Vec<Spelling> = columns
+        .iter()
+        .filter_map(|c| match c {
+            Column::Orientation(s, ..) => Some(*s),
+            _ => None,
+        })
+        .collect();
+    let n_cells = spellings.len();
+    spellings.dedup();
+    let spelling = match spellings.as_slice() {
+        [] => None,
+        [s] if n_cells == s.cells().len() => Some(*s),
+        [s] => {
+            return Err(err(
+                Some(header_line),
+                format!("an orientation needs all its columns: {}", s.cells().join(", ")),
+            ));
+        }
+        _ => {
+            return Err(err(
+                Some(header_line),
+                "the orientation is given in several spellings; keep one of qw, qx, qy, qz (quaternion), rx, ry, rz \
+                 (rotation vector) or roll, pitch, yaw"
+                    .into(),
+            ));
+        }
+    };
+    if spelling.is_some() && slots.len() > 1 {
+        return Err(err(
+            Some(header_line),
+            "an orientation goes with one measured point, not several".into(),
+        ));
+    }
+    let has_torque = has(&|k| matches!(k, Column::Torque(_)));
+    let sensor_cells = columns.iter().filter(|c| matches!(c, Column::Sensor(..))).count();
+    let sensor = layout.gravity_sensor.as_ref().filter(|_| sensor_cells > 0);
+    if let Some(g) = sensor
+        && sensor_cells < g.columns.len()
+    {
+        let missing: Vec<&str> = g
+            .columns
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| !has(&|c| matches!(c, Column::Sensor(cell, _) if *cell == k)))
+            .map(|(_, c)| c.as_str())
+            .collect();
+        return Err(err(
+            Some(header_line),
+            format!(
+                "sensor `{}` needs all its columns ({}); missing {}",
+                g.name,
+                g.columns.join(", "),
+                listed(&missing)
+            ),
+        ));
+    }
+
+    let mut set = MeasurementSet::default();
+    // A pose robot's file without orientation is a file of positions (another session's, a
+    // tracker without a 6-DoF probe): its rows are point measurements, and the user is told.
+    if spelling.is_none() && layout.orientation && with_positions && !slots.is_empty() {
+        set.warnings.push(format!(
+            "{}: the robot file measures poses but this file gives no orientation (qw, qx, qy, qz; rx, ry, rz; or \
+             roll, pitch, yaw): its rows are used as positions only",
+            path.display()
+        ));
+    }
+    if let Some(g) = layout
+        .gravity_sensor
+        .as_ref()
+        .filter(|_| with_positions && sensor.is_none())
+    {
+        set.warnings.push(format!(
+            "{}: no columns of sensor `{}` ({}): its rows are evaluated with the robot file's gravity",
+            path.display(),
+            g.name,
+            g.columns.join(", ")
+        ));
+    }
+    if !ignored.is_empty() {
+        set.warnings.push(format!(
+            "{}: column(s) {} ignored (not a joint of the robot or a measurement column)",
+            path.display(),
+            listed(&ignored)
+        ));
+    }
+    // Joints outside their limits: (rows, first line, worst value) per coordinate.
+    let mut outside: Vec<(usize, usize, f64)> = vec![(0, 0, 0.0); names.len()];
+    let mut rows_without_point = 0;
+    // In data that mix measured positions with fixed points, the rows naming a fixed point give
+    // no position (a robot of fixed points only has a group column of its own).
+    let mixed_group = columns
+        .iter()
+        .position(|c| matches!(c, Column::Group))
+        .filter(|_| with_positions && layout.group_column().is_none());
+    let mut lines = LineCounter::new(text);
+    for (row, record) in reader.records().enumerate() {
+        let record = record.map_err(|e| err(Some(lines.line_at(e.position())), format!("cannot read the row: {e}")))?;
+        let line = lines.line_at(record.position());
+        if record.len() != columns.len() {
+            return Err(err(
+                Some(line),
+                format!(
+                    "expected {} values (one per column), got {}",
+                    columns.len(),
+                    record.len()
+                ),
+            ));
+        }
+        let mut s = Sample {
+            q: layout.hold.iter().map(|h| h.unwrap_or(0.0)).collect(),
+            point: layout.points[0],
+            position: Vector3::zeros(),
+            orientation: None,
+            payload: None,
+            temperature: None,
+            torque: has_torque.then(|| vec![0.0; names.len()]),
+            fixed_point: None,
+            plane: None,
+            gravity: None,
+            station: 0,
+        };
+        let fixed_row = mixed_group.is_some_and(|k| !record[k].is_empty());
+        let mut kind_cell = None;
+        let mut angles = [0.0; 4];
+        let mut sensor_reading = Vector4::zeros();
+        // Per slot, the position and how many of its cells were empty.
+        let mut positions = vec![(Vector3::zeros(), 0usize); slots.len()];
+        for (field, (col, head)) in record.iter().zip(columns.iter().zip(headers.iter())) {
+            match col {
+                Column::Ignored => continue,
+                Column::Point => {
+                    s.point = tree.point_index(field).ok_or_else(|| {
+                        err(
+                            Some(line),
+                            format!("column `point`: `{field}` is not a point of the robot"),
+                        )
+                    })?;
+                    continue;
+                }
+                Column::Kind => {
+                    kind_cell = Some(field);
+                    continue;
+                }
+                Column::Group if field.is_empty() && mixed_group.is_some() && !slots.is_empty() => continue,
+                Column::Group => {
+                    let (column, what) = layout.group_column().unwrap_or(("fixed_point", "fixed point"));
+                    if field.is_empty() {
+                        return Err(err(
+                            Some(line),
+                            format!("column `{column}` is empty; every row names the {what} it was measured at"),
+                        ));
+                    }
+                    if layout.planes {
+                        s.plane = Some(field.to_string());
+                    } else {
+                        s.fixed_point = Some(field.to_string());
+                    }
+                    continue;
+                }
+                Column::Station if field.is_empty() => {
+                    return Err(err(
+                        Some(line),
+                        "column `station` is empty in this row; every row needs its station's name".into(),
+                    ));
+                }
+                Column::Station => {
+                    s.station = match set.stations.iter().position(|n| n == field) {
+                        Some(k) => k,
+                        None => {
+                            set.stations.push(field.to_string());
+                            set.stations.len() - 1
+                        }
+                    };
+                    continue;
+                }
+                Column::Position { .. } | Column::Orientation(..) if fixed_row => {
+                    if !field.is_empty() {
+                        return Err(err(
+                            Some(line),
+                            format!(
+                                "column `{head}`: a row naming a fixed point gives no measured position or \
+                                 orientation; empty this cell or the row's `fixed_point`"
+                            ),
+                        ));
+                    }
+                    continue;
+                }
+                Column::Position { slot: None, .. } if field.is_empty() && mixed_group.is_some() => {
+                    return Err(err(
+                        Some(line),
+                        format!(
+                            "column `{head}` is empty; a row gives its measured position or names the fixed point it \
+                             was measured at in `fixed_point`"
+                        ),
+                    ));
+                }
+                Column::Position {
+                    slot: slot @ Some(_), ..
+                } if field.is_empty() => {
+                    let k = slots.iter().position(|s| s == slot).unwrap_or(0);
+                    positions[k].1 += 1;
+                    continue;
+                }
+                Column::Sensor(..) if field.trim().is_empty() => {
+                    return Err(err(
+                        Some(line),
+                        format!("column `{head}`: empty; the sensor's reading is needed on every row"),
+                    ));
+                }
+                _ => {}
+            }
+            let v: f64 = field
+                .parse()
+                .map_err(|_| err(Some(line), format!("column `{head}`: `{field}` is not a number")))?;
+            if !v.is_finite() {
+                return Err(err(
+                    Some(line),
+                    format!("column `{head}`: {field} is not a finite number"),
+                ));
+            }
+            if let Some((si, bound, words)) = col.si_and_bound(v)
+                && si.abs() > bound
+            {
+                return Err(err(
+                    Some(line),
+                    format!("column `{head}`: {field} is not a measurement; expected a magnitude of at most {words}"),
+                ));
+            }
+            match *col {
+                Column::Joint { coord, scale } => s.q[coord] = v * scale,
+                Column::Position { slot, axis, scale } => {
+                    let k = slots.iter().position(|s| *s == slot).unwrap_or(0);
+                    positions[k].0[axis] = v * scale;
+                }
+                Column::Orientation(_, k, scale) => angles[k] = v * scale,
+                Column::Payload(_) if v < 0.0 => {
+                    return Err(err(
+                        Some(line),
+                        format!("column `{head}`: expected a mass of zero or more, got {field}"),
+                    ));
+                }
+                Column::Payload(scale) => s.payload = Some(v * scale),
+                Column::Temperature(offset) => s.temperature = Some(v + offset),
+                Column::Torque(c) => {
+                    if let Some(t) = s.torque.as_mut() {
+                        t[c] = v;
+                    }
+                }
+                Column::Sensor(k, scale) => sensor_reading[k] = v * scale,
+                Column::Point | Column::Kind | Column::Group | Column::Station | Column::Ignored => {}
+            }
+        }
+        if let Some(spelling) = spelling.filter(|_| !fixed_row) {
+            s.orientation = Some(spelling.rotation(angles).map_err(|m| err(Some(line), m))?);
+        }
+        if let Some(kind) = kind_cell {
+            check_kind_cell(kind, &s).map_err(|m| err(Some(line), m))?;
+        }
+        if let Some(g) = sensor {
+            let direction = g.kind.gravity_direction(&sensor_reading).map_err(|m| {
+                err(
+                    Some(line),
+                    format!("sensor `{}` (columns {}): {m}", g.name, g.columns.join(", ")),
+                )
+            })?;
+            s.gravity = Some(GravityReading {
+                body: g.body,
+                direction,
+            });
+        }
+        for (c, lim) in tree.coordinate_limits().iter().enumerate() {
+            if let Some(l) = lim
+                && (s.q[c] < l.lower - 1e-9 || s.q[c] > l.upper + 1e-9)
+            {
+                let o = &mut outside[c];
+                if o.0 == 0 {
+                    o.1 = line;
+                }
+                o.0 += 1;
+                let beyond = (l.lower - s.q[c]).max(s.q[c] - l.upper);
+                o.2 = o.2.max(beyond);
+            }
+        }
+        if !with_positions || s.fixed_point.is_some() || s.plane.is_some() {
+            set.samples.push(s);
+            set.rows.push(row);
+            continue;
+        }
+        let before = set.samples.len();
+        for (k, slot) in slots.iter().enumerate() {
+            let (position, empty) = positions[k];
+            match (slot, empty) {
+                (Some(_), 3) => continue, // the point was not seen in this row
+                (Some(i), 1 | 2) => {
+                    return Err(err(
+                        Some(line),
+                        format!(
+                            "point {}: some of x{0}, y{0}, z{0} are empty; give all three or none",
+                            i + 1
+                        ),
+                    ));
+                }
+                _ => {}
+            }
+            let mut sample = s.clone();
+            if let Some(i) = slot {
+                sample.point = layout.points[*i];
+            }
+            sample.position = position;
+            set.samples.push(sample);
+            set.rows.push(row);
+        }
+        if set.samples.len() == before {
+            rows_without_point += 1;
+        }
+    }
+    for (c, (rows, first, worst)) in outside.iter().enumerate().filter(|(_, o)| o.0 > 0) {
+        let (value, unit) = if tree.coordinate_is_prismatic()[c] {
+            (worst * 1e3, "mm")
+        } else {
+            (worst.to_degrees(), "deg")
+        };
+        set.warnings.push(format!(
+            "{}:{first}: joint `{}` is outside its limits in {rows} row(s) (first on this line; at most {value:.3} {unit} beyond)",
+            path.display(),
+            names[c]
+        ));
+    }
+    if rows_without_point > 0 {
+        set.warnings.push(format!(
+            "{}: {rows_without_point} row(s) measure no point (every position cell empty) and were skipped",
+            path.display()
+        ));
+    }
+    if set.samples.is_empty() {
+        return Err(err(None, "no measurements (only a header)".into()));
+    }
+    if with_positions && layout.group_column().is_none() {
+        check_magnitudes(&set, &columns, &headers, tree, path)?;
+    }
+    Ok(set)
+}
+
+/// Checks a row's `kind` cell against what its other cells measure.
+fn check_kind_cell(kind: &str, s: &Sample) -> std::result::Result<(), String> {
+    let is = if s.fixed_point.is_some() {
+        "fixed_point"
+    } else if s.plane.is_some() {
+        "plane"
+    } else if s.orientation.is_some() {
+        "pose"
+    } else {
+        "point"
+    };
+    let gives = |k: &str| match k {
+        "fixed_point" => "names a fixed point and no position",
+        "plane" => "names a plane and no position",
+        "pose" => "gives a position and an orientation",
+        _ => "gives a position without an orientation",
+    };
+    match kind.trim() {
+        k if k == is => Ok(()),
+        k @ ("point" | "pose" | "fixed_point" | "plane") => Err(format!(
+            "column `kind` says `{k}`, but the row {}; a `{k}` row {}",
+            gives(is),
+            gives(k)
+        )),
+        k => Err(format!(
+            "column `kind`: `{k}` is not a measurement kind; expected point, pose, fixed_point or plane"
+        )),
+    }
+}
+
+/// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
+pub fn listed(names: &[&str]) -> String {
+    let mut text = names
+        .iter()
+        .take(10)
+        .map(|c| format!("`{c}`"))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if names.len() > 10 {
+        text.push_str(&format!(" and {} more", names.len() - 10));
+    }
+    text
+}
+
+/// Which data rows of a measurement file to use (0-based, header excluded): comma-separated
+/// `even`, `odd`, a row `N`, or a half-open range `A..B`, `A..`, `..B`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RowSelection(Vec<RowRange>);
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RowRange {
+    Even,
+    Odd,
+    Span(usize, Option<usize>),
+}
+
+impl std::str::FromStr for RowSelection {
+    type Err = Error;
+
+    fn from_str(text: &str) -> Result<Self> {
+        let invalid = |item: &str, reason: &str| Error::InvalidArgument {
+            what: format!("row selection `{item}`"),
+            reason: reason.into(),
+        };
+        let bad = |item: &str| {
+            invalid(
+                item,
+                "expected `even`, `odd`, a row number or a range `A..B`, `A..`, `..B` (rows 0-based)",
+            )
+        };
+        let number = |t: &str, item: &str| t.trim().parse::<usize>().map_err(|_| bad(item));
+        let items = text
+            .split(',')
+            .map(|item| {
+                let t = item.trim();
+                Ok(match t {
+                    "even" => RowRange::Even,
+                    "odd" => RowRange::Odd,
+                    _ => match t.split_once("..") {
+                        Some((a, b)) => {
+                            let start = if a.trim().is_empty() { 0 } else { number(a, item)? };
+                            let end = if b.trim().is_empty() {
+                                None
+                            } else {
+                                Some(number(b, item)?)
+                            };
+                            if end.is_some_and(|e| e <= start) {
+                                return Err(invalid(item, "the range is empty"));
+                            }
+                            RowRange::Span(start, end)
+                        }
+                        None => {
+                            let n = number(t, item)?;
+                            RowRange::Span(n, Some(n + 1))
+                        }
+                    },
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(RowSelection(items))
+    }
+}
+
+/// The selection as it is written (`even,3,10..20`), for messages.
+impl std::fmt::Display for RowSelection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        for (k, r) in self.0.iter().enumerate() {
+            if k > 0 {
+                write!(f, ",")?;
+            }
+            match *r {
+                RowRange::Even => write!(f, "even")?,
+                RowRange::Odd => write!(f, "odd")?,
+                RowRange::Span(a, Some(b)) if b == a + 1 => write!(f, "{a}")?,
+                RowRange::Span(a, Some(b)) => write!(f, "{a}..{b}")?,
+                RowRange::Span(a, None) => write!(f, "{a}..")?,
+            }
+        }
+        Ok(())
+    }
+}
+
+impl RowSelection {
+    /// Whether data row `row` is selected.
+    pub fn contains(&self, row: usize) -> bool {
+        self.0.iter().any(|r| match *r {
+            RowRange::Even => row.is_multiple_of(2),
+            RowRange::Odd => row % 2 == 1,
+            RowRange::Span(a, b) => row >= a && b.is_none_or(|b| row < b),
+        })
+    }
+}
+
+impl MeasurementSet {
+    /// The samples of the selected rows, and their rows.
+    pub fn select_rows(&self, selection: &RowSelection) -> MeasurementSet {
+        let (samples, rows) = self
+            .samples
+            .iter()
+            .zip(&self.rows)
+            .filter(|(_, r)| selection.contains(**r))
+            .map(|(s, r)| (s.clone(), *r))
+            .unzip();
+        MeasurementSet {
+            samples,
+            rows,
+            warnings: self.warnings.clone(),
+            stations: self.stations.clone(),
+        }
+    }
+
+    /// Several measurement files read as one set, each file its own station named by
+    /// `names[i]` (its file name, say) unless it has a `station` column, whose names are
+    /// used: rows of different files with the same station name share a frame. Data rows are
+    /// numbered on across the files, in order. One set is returned as it is.
+    pub fn from_files(sets: Vec<MeasurementSet>, names: &[String]) -> MeasurementSet {
+        if sets.len() == 1 {
+            return sets.into_iter().next().unwrap_or_default();
+        }
+        let mut out = MeasurementSet::default();
+        for (set, name) in sets.into_iter().zip(names) {
+            let first_row = out.rows.last().map_or(0, |r| r + 1);
+            let own: Vec<&String> = if set.stations.is_empty() {
+                vec![name]
+            } else {
+                set.stations.iter().collect()
+            };
+            let index: Vec<usize> = own
+                .iter()
+                .map(|n| match out.stations.iter().position(|o| o == *n) {
+                    Some(k) => k,
+                    None => {
+                        out.stations.push((*n).clone());
+                        out.stations.len() - 1
+                    }
+                })
+                .collect();
+            out.samples.extend(set.samples.into_iter().map(|mut s| {
+                s.station = index[s.station];
+                s
+            }));
+            out.rows.extend(set.rows.iter().map(|r| first_row + r));
+            out.warnings.extend(set.warnings);
+        }
+        out
+    }
+}
+
+/// Catches unit mistakes that the numbers give away: millimetres declared as metres, degrees
+/// declared as radians.
+fn check_magnitudes(
+    set: &MeasurementSet,
+    columns: &[Column],
+    headers: &csv::StringRecord,
+    tree: &KinematicTree,
+    path: &Path,
+) -> Result<()> {
+    // Fixed-point rows of mixed data measure no position.
+    let mut norms: Vec<f64> = (set.samples.iter())
+        .filter(|s| s.fixed_point.is_none())
+        .map(|s| s.position.norm())
+        .collect();
+    norms.sort_by(f64::total_cmp);
+    let median = norms.get(norms.len() / 2).copied().unwrap_or(0.0);
+    let pos_scale = columns.iter().find_map(|c| {
+        if let Column::Position { scale, .. } = c {
+            Some(*scale)
+        } else {
+            None
+        }
+    });
+    // No arm measured by a tracker sits 50 m from it; such numbers are millimetres.
+    if pos_scale == Some(1.0) && median > 50.0 {
+        return Err(Error::InputAt {
+            location: Location::file(path),
+            message: format!(
+                "positions are declared in metres but their median distance is {median:.0} m; they look like millimetres (write `x[mm]`)"
+            ),
+        });
+    }
+    for (col, head) in columns.iter().zip(headers.iter()) {
+        if let Column::Joint { coord, scale } = *col {
+            let max = set.samples.iter().map(|s| s.q[coord].abs()).fold(0.0, f64::max);
+            let prismatic = tree.coordinate_is_prismatic()[coord];
+            if !prismatic && scale == 1.0 && max > 4.0 * std::f64::consts::PI {
+                return Err(Error::InputAt {
+                    location: Location::file(path),
+                    message: format!(
+                        "column `{head}` is in radians but reaches {max:.1}; it looks like degrees (write `[deg]`)"
+                    ),
+                });
+            }
+            if prismatic && scale == 1.0 && max > 50.0 {
+                return Err(Error::InputAt {
+                    location: Location::file(path),
+                    message: format!(
+                        "column `{head}` is in metres but reaches {max:.1}; it looks like millimetres (write `[mm]`)"
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Writes measurements as CSV in the given units (joint columns as `name[unit]`, positions as
+/// `x[unit]`, or the `fixed_point` or `plane` column of samples without a position); deterministic text for equal
+/// inputs.
+pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> String {
+    write_csv_with_sensor(set, tree, units, None)
+}
+
+/// [`write_csv`] with the columns of `sensor` (an accelerometer's in g, an inclinometer's in
+/// the angle unit) for the samples' measured gravity, when every sample carries one.
+pub fn write_csv_with_sensor(
+    set: &MeasurementSet,
+    tree: &KinematicTree,
+    units: Units,
+    sensor: Option<&GravitySensor>,
+) -> String {
+    let lu = units.length.symbol();
+    let mut header = joint_header(tree, units);
+    let several_points = set.samples.iter().any(|s| s.point != set.samples[0].point);
+    if several_points {
+        header.push("point".into());
+    }
+    let with_station = !set.stations.is_empty();
+    if with_station {
+        header.push("station".into());
+    }
+    let first = set.samples.first();
+    // Mixed data give positions, and fixed points in a column of their own.
+    let fixed_points = set.samples.iter().any(|s| s.fixed_point.is_some());
+    let planes = first.is_some_and(|s| s.plane.is_some());
+    let measured = set
+        .samples
+        .iter()
+        .find(|s| s.fixed_point.is_none() && s.plane.is_none());
+    if fixed_points {
+        header.push("fixed_point".into());
+    } else if planes {
+        header.push("plane".into());
+    }
+    if measured.is_some() {
+        header.extend(["x", "y", "z"].map(|a| format!("{a}[{lu}]")));
+    }
+    let with_quat = measured.is_some_and(|s| s.orientation.is_some());
+    let with_payload = first.is_some_and(|s| s.payload.is_some());
+    let with_temp = first.is_some_and(|s| s.temperature.is_some());
+    if with_quat {
+        header.extend(["qw", "qx", "qy", "qz"].map(String::from));
+    }
+    if with_payload {
+        header.push("payload[kg]".into());
+    }
+    if with_temp {
+        header.push("temperature[C]".into());
+    }
+    let sensor = sensor.filter(|_| first.is_some() && set.samples.iter().all(|s| s.gravity.is_some()));
+    if let Some(g) = sensor {
+        let unit = match g.kind {
+            SensorKind::Accelerometer => "g",
+            SensorKind::Inclinometer => units.angle.symbol(),
+        };
+        header.extend(g.columns.iter().map(|c| format!("{c}[{unit}]")));
+    }
+    let rows = set.samples.iter().map(|s| {
+        let mut row = joint_row(&s.q, tree, units);
+        if several_points {
+            row.push(tree.points()[s.point].name.clone());
+        }
+        if with_station {
+            row.push(set.stations[s.station].clone());
+        }
+        match (&s.fixed_point, &s.plane) {
+            (Some(name), _) => row.push(name.clone()),
+            (_, Some(name)) => row.push(name.clone()),
+            _ if fixed_points => row.push(String::new()),
+            _ => {}
+        }
+        if measured.is_some() {
+            match s.fixed_point.is_some() || s.plane.is_some() {
+                true => row.extend(std::iter::repeat_n(String::new(), 3)),
+                false => row.extend(s.position.iter().map(|v| format!("{}", units.len_out(*v)))),
+            }
+        }
+        if with_quat {
+            match s.orientation {
+                Some(q) => row.extend([q.w, q.i, q.j, q.k].map(|v| format!("{v}"))),
+                None => row.extend(std::iter::repeat_n(String::new(), 4)),
+            }
+        }
+        if with_payload {
+            row.push(format!("{}", s.payload.unwrap_or(0.0)));
+        }
+        if with_temp {
+            row.push(format!("{}", s.temperature.unwrap_or(20.0)));
+        }
+        if let (Some(g), Some(reading)) = (sensor, s.gravity) {
+            let cells = g.kind.cells_for(&reading.direction);
+            row.extend(cells.iter().take(g.columns.len()).map(|&v| match g.kind {
+                SensorKind::Accelerometer => format!("{v}"),
+                SensorKind::Inclinometer => format!("{}", units.ang_out(v)),
+            }));
+        }
+        row
+    });
+    csv_text(std::iter::once(header).chain(rows))
+}
+
+/// CSV text of `records`, the header first, every record as long as the header, through the
+/// csv crate: a field with a comma, a quote or a line break is quoted, lines end in `\n`.
+pub fn csv_text<R, F>(records: impl IntoIterator<Item = R>) -> String
+where
+    R: IntoIterator<Item = F>,
+    F: AsRef<[u8]>,
+{
+    let mut writer = csv::Writer::from_writer(Vec::new());
+    for record in records {
+        writer
+            .write_record(record)
+            .expect("records as long as the header write to memory");
+    }
+    let bytes = writer.into_inner().expect("writing to memory cannot fail");
+    String::from_utf8(bytes).expect("the fields are text")
+}
+
+/// Joint column headers with units (`j2[deg]`, `j3[mm]`).
+pub fn joint_header(tree: &KinematicTree, units: Units) -> Vec<String> {
+    let (lu, au) = (units.length.symbol(), units.angle.symbol());
+    tree.coordinate_names()
+        .iter()
+        .zip(tree.coordinate_is_prismatic())
+        .map(|(n, p)| format!("{n}[{}]", if *p { lu } else { au }))
+        .collect()
+}
+
+/// Joint values of one row in the header's units.
+pub fn joint_row(q: &[f64], tree: &KinematicTree, units: Units) -> Vec<String> {
+    q.iter()
+        .zip(tree.coordinate_is_prismatic())
+        .map(|(v, p)| format!("{}", if *p { units.len_out(*v) } else { units.ang_out(*v) }))
+        .collect()
+}
+
+/// Writes joint configurations as a poses CSV (the joint columns of the measurement format),
+/// which [`parse_poses`] and `armcomp simulate --poses` read back.
+pub fn write_poses(poses: &[Vec<f64>], tree: &KinematicTree, units: Units) -> String {
+    let rows = poses.iter().map(|q| joint_row(q, tree, units));
+    csv_text(std::iter::once(joint_header(tree, units)).chain(rows))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn record_lines_count_comment_and_blank_lines() {
+        // Lines: 1 header, 2 comment, 3 row, 4 blank, 5 comment, 6 row, 7 row.
+        let text = "a,b\n# note\n1,2\n\n# another\n3,4\n5,6\n";
+        let mut reader = csv::ReaderBuilder::new()
+            .comment(Some(b'#'))
+            .from_reader(text.as_bytes());
+        let header = reader.headers().unwrap().clone();
+        let rows: Vec<csv::StringRecord> = reader.records().map(|r| r.unwrap()).collect();
+        let mut lines = LineCounter::new(text);
+        assert_eq!(lines.line_at(header.position()), 1);
+        let got: Vec<usize> = rows.iter().map(|r| lines.line_at(r.position())).collect();
+        assert_eq!(got, [3, 6, 7]);
+        // Out of order: counted from the start again, as the one-off function does.
+        assert_eq!(lines.line_at(rows[0].position()), 3);
+        assert_eq!(line_at(text, rows[2].position()), 7);
+        assert_eq!(lines.line_at(None), 0);
+    }
+}
