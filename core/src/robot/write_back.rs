@@ -1,0 +1,62 @@
+//! Writing a robot's parameter values back into its description.
+
+use std::path::Path;
+
+use crate::error::Result;
+use crate::robot::Robot;
+use crate::robot::robot_file::RobotFile;
+
+impl Robot {
+    /// The description with the current parameter values written back, in the file's units.
+    pub fn to_file(&self) -> RobotFile {
+        self.file_with(&self.chain_values, &self.error_values)
+    }
+
+    /// The model's text for `path` (JSON for `.json`, else TOML). With a fitted predictor it is
+    /// the description the robot was built from, whose values the predictor was fitted to (as
+    /// `armcomp learn` writes a model); else the current values written back into it (as
+    /// `armcomp calibrate` does).
+    pub fn to_text_for(&self, path: &Path) -> Result<String> {
+        if self.predictor().is_some() {
+            self.file.to_text_for(path)
+        } else {
+            self.to_file().to_text_for(path)
+        }
+    }
+
+    /// The description with other chain and error-model values written back (file units).
+    pub fn file_with(&self, chain_values: &[f64], error_values: &[Vec<f64>]) -> RobotFile {
+        let mut out = RobotFile {
+            name: self.file.name.clone(),
+            description: self.file.description.clone(),
+            units: self.units(),
+            gravity: self.file.gravity,
+            kinematics: self.chain.spec_with(chain_values),
+            links: self.file.links.clone(),
+            points: self.file.points.clone(),
+            tool: self.file.tool.clone(),
+            payload: self.file.payload.clone(),
+            error_models: self
+                .error_models
+                .iter()
+                .zip(error_values)
+                .map(|(m, v)| m.spec_with(v))
+                .collect(),
+            predictor: None,
+            fitted_predictor: None,
+            predictor_frame: None,
+            measurement: self.file.measurement.clone(),
+            sensors: self.file.sensors.clone(),
+            fixtures: self.file.fixtures.clone(),
+            collision: self.file.collision.clone(),
+            fixed: self.file.fixed.clone(),
+        };
+        // Predictor specs are not clonable trait objects; round-trip through JSON keeps them.
+        if let Some(p) = &self.file.predictor {
+            out.predictor = serde_json::to_value(p)
+                .ok()
+                .and_then(|v| serde_json::from_value(v).ok());
+        }
+        out
+    }
+}
