@@ -14,11 +14,13 @@
 //! interpolation*, 1992). The fit and these updates alternate, each fit starting where the last
 //! ended, until no hyper-parameter changes by more than a few percent.
 
+use super::{Calibration, CalibrationParams, IterationInfo, Linearisation, ParameterSpace, PriorGroup, calibrate};
+use crate::data::measurement::Sample;
+use crate::error::Result;
+use crate::robot::Robot;
 use nalgebra::DMatrix;
 use nalgebra::linalg::SymmetricEigen;
 use serde::Serialize;
-
-use super::*;
 
 /// Which parameters share a prior scale.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

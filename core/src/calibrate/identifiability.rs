@@ -2,11 +2,15 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
+use super::jacobian::typical_scale;
+use super::space::prior_space;
+use super::{
+    Assessment, CalibrationParams, Deficiency, IdentifiabilityReport, JacobianForm, Noise, PRIOR_BOX, ParameterSpace,
+    Problem, note_measurement_kinds,
+};
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
 use crate::robot::Robot;
-
-use super::*;
 
 /// See [`analyse`]: below this many noise standard deviations over all the data, a typical
 /// change of a parameter is not seen. Real columns are many orders of magnitude above it

@@ -4,6 +4,11 @@
 
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3, Vector6};
 
+use super::{
+    ColumnPlan, Decoded, Evaluation, JacobianForm, Noise, ParamGroup, ParameterSpace, PlaneGap, Problem, SpaceParam,
+    Stage,
+};
+use crate::algorithms::evaluate::AngleStats;
 use crate::data::measurement::Sample;
 use crate::error::Result;
 use crate::kinematics::workspace::PointSensitivity;
@@ -12,8 +17,7 @@ use crate::model::param::{ParamInfo, Quantity};
 use crate::model::perturbation::Perturbation;
 use crate::model::tree::KinematicTree;
 use crate::robot::{Conditions, Robot};
-
-use super::*;
+use rayon::prelude::*;
 
 /// The pose of the robot's frame link (`[measurement] frame_link`) in the root frame of
 /// the kinematics last evaluated into `ws`; the identity without one.

@@ -26,7 +26,6 @@ use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Ve
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
-use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::algorithms::evaluate::{AngleStats, ErrorStats, StationStats, per_station};
@@ -47,15 +46,15 @@ mod solver;
 mod space;
 
 pub use identifiability::identifiability;
-use identifiability::*;
-use jacobian::*;
+use identifiability::{assess, normal_equations};
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
-use registration::*;
+use jacobian::{to_meas, typical_size};
+use registration::{register_base, unit_mistake};
 pub use registration::{register_held_out_stations, register_stations};
 use robust::gross_errors_by_kind;
 pub use robust::{Drift, GROSS_ERROR, HUBER_K, Loss, Outlier, drift, gross_errors, robust_noise};
 pub use score::{ScoreTest, score_test};
-use space::*;
+use space::{apply, prior_space};
 
 /// Which part of the model a parameter belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -2,10 +2,10 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
+use super::{Noise, ParameterSpace, Problem};
 use crate::data::measurement::Sample;
 use crate::error::Result;
-
-use super::*;
+use crate::robot::Robot;
 
 /// Registers station `station`'s measurement frame in closed form: the rigid transform that
 /// best maps the model's points (robot base frame) onto that station's measured ones (see

@@ -13,9 +13,13 @@
 //! A candidate that starts away from the fit (a link bending at its nominal stiffness) is
 //! judged by the cost it reaches, not by the drop from where it starts.
 
+use super::space::prior_space;
+use super::{CalibrationParams, JacobianForm, Noise, Problem};
+use crate::data::measurement::Sample;
+use crate::error::Result;
+use crate::model::param::ParamInfo;
+use crate::robot::Robot;
 use nalgebra::{DMatrix, DVector};
-
-use super::*;
 
 /// What adding parameters to a fitted model is predicted to gain.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -6,12 +6,14 @@ use std::ops::ControlFlow;
 
 use nalgebra::{DMatrix, DVector};
 
+use super::{
+    CalibrationParams, Decoded, Evaluation, IterationInfo, JacobianForm, ParamGroup, Problem, STALL_ABOVE_NOISE,
+    STALL_GAIN, Stage, StageOutcome,
+};
 use crate::error::Result;
 use crate::support::least_squares::{
     ConvergenceParams, LeastSquares, LmIteration, LmParams, LmStop, SmallStep, StallParams, levenberg_marquardt,
 };
-
-use super::*;
 
 /// One stage's fit over the parameters `free` of the full vector `stage.theta`.
 struct StageFit<'s, 'p> {

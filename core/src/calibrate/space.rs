@@ -3,13 +3,15 @@
 
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
+use super::SpaceParam;
+use super::jacobian::frame_link_pose;
+use super::{CalibrationParams, Decoded, ParamGroup, ParameterSpace, PriorGroup, fit_plane};
+use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
 use crate::model::geom::xyz_rpy;
 use crate::model::param::{ParamInfo, Quantity};
 use crate::model::tree::{KinematicTree, Motion};
 use crate::robot::Robot;
-
-use super::*;
 
 impl ParameterSpace {
     /// The parameters of `robot`, starting at its current values.
