@@ -2,11 +2,12 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
+use super::driver::note_measurement_kinds;
 use super::jacobian::typical_scale;
 use super::space::prior_space;
 use super::{
     Assessment, CalibrationParams, Deficiency, IdentifiabilityReport, JacobianForm, Noise, PRIOR_BOX, ParameterSpace,
-    Problem, note_measurement_kinds,
+    Problem,
 };
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};

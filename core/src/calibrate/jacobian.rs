@@ -2,7 +2,7 @@
 //! for markers, the first-order effect of the change of deformation for error models (and,
 //! in the exact form, for geometry, whose moment arms the deformation depends on).
 
-use nalgebra::{DMatrix, DVector, Isometry3, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3, Vector6};
 
 use super::{
     ColumnPlan, Decoded, Evaluation, JacobianForm, Noise, ParamGroup, ParameterSpace, PlaneGap, Problem, SpaceParam,
@@ -16,7 +16,7 @@ use crate::model::geom::{exp_twist, so3_right_jacobian_inverse};
 use crate::model::param::{ParamInfo, Quantity};
 use crate::model::perturbation::Perturbation;
 use crate::model::tree::KinematicTree;
-use crate::robot::{Conditions, Robot};
+use crate::robot::{Conditions, Robot, RobotWorkspace};
 use rayon::prelude::*;
 
 /// The pose of the robot's frame link (`[measurement] frame_link`) in the root frame of
@@ -282,7 +282,6 @@ impl Problem<'_> {
     ) -> Result<(DMatrix<f64>, Option<DMatrix<f64>>)> {
         let plans = self.column_plans(theta, d, free, form)?;
         let ncols = plans.len();
-        let n_models = self.robot.error_models().len();
         let deformed = plans.iter().any(|p| {
             matches!(
                 p,
@@ -292,234 +291,11 @@ impl Problem<'_> {
                 }
             )
         });
-        let rows: Vec<(Vec<f64>, Vec<f64>)> = self
-            .samples
-            .par_iter()
-            .enumerate()
+        let rows: Vec<(Vec<f64>, Vec<f64>)> = (0..self.samples.len())
+            .into_par_iter()
             .map_init(
-                || {
-                    let pert = Perturbation::zeros(&d.tree);
-                    (
-                        self.robot.workspace(),
-                        self.robot.workspace(),
-                        vec![pert.clone(); n_models],
-                        pert.clone(),
-                        pert,
-                        vec![Isometry3::identity(); d.tree.joints().len()],
-                        PointSensitivity::default(),
-                    )
-                },
-                |(ws, ws_fd, base_perts, scratch, stepped, placed, sensitivity), (s_idx, s)| {
-                    let cond = Conditions::of(s);
-                    self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
-                    // Root-frame changes seen from the measurement frame (through the frame
-                    // link's, when the measurements are expressed in one).
-                    let link = frame_link_pose(self.robot, &d.tree, ws);
-                    let r_meas = (d.frames[s.station].rotation * link.rotation.inverse())
-                        .to_rotation_matrix()
-                        .into_inner();
-                    for (i, bp) in base_perts.iter_mut().enumerate() {
-                        bp.clear();
-                        self.robot.model_perturbation_into(i, &d.tree, &d.errors[i], s, ws, bp);
-                    }
-                    if n_models > 0 {
-                        sensitivity.update(&d.tree, &ws.frames, &ws.perturbation, s.point);
-                    }
-                    let body = d.tree.points()[s.point].body;
-                    let support = d.tree.support(body);
-                    // The joints that move the frame link move the measured point the other way.
-                    let link_support = self.robot.frame_link().map_or(&[][..], |b| d.tree.support(b));
-                    let p = ws.frames.point[s.point].translation.vector;
-                    // Geometry moves a joint's placement, which the deformation's twist
-                    // follows: its twist acts at the placed frame before that twist (and a
-                    // point's before its own), not at the deformed one.
-                    let frames = &ws.frames;
-                    let deformation = &ws.perturbation;
-                    for &j in support.iter().chain(link_support) {
-                        placed[j] = frames.joint_frame[j];
-                        if n_models > 0 {
-                            placed[j] *= exp_twist(&deformation.joint_twist[j]).inverse();
-                        }
-                    }
-                    let point_frame = if n_models > 0 {
-                        frames.point[s.point] * exp_twist(&deformation.point_twist[s.point]).inverse()
-                    } else {
-                        frames.point[s.point]
-                    };
-                    let effect_at = |f: &Isometry3<f64>, xi: &Vector6<f64>| -> Vector3<f64> {
-                        let v = f.rotation * xi.fixed_rows::<3>(0);
-                        let w = f.rotation * xi.fixed_rows::<3>(3);
-                        v + w.cross(&(p - f.translation.vector))
-                    };
-                    let oriented = self.oriented.binary_search(&s_idx).ok();
-                    // Rows of the orientation block: J_r⁻¹(r) R̂ᵀ per unit turn of the model
-                    // (measurement frame), so a turn maps to the change of log(R_measᵀ R̂).
-                    let turn_map = oriented.filter(|_| self.constraints.is_none()).map(|_| {
-                        let model = d.frames[s.station].rotation * e.rotation[s_idx];
-                        let r = orientation_residual(d, e, s, s_idx);
-                        so3_right_jacobian_inverse(&r) * model.inverse().to_rotation_matrix().into_inner()
-                            / self.sigma_rot
-                    });
-                    // The change of the point's pose relative to the frame link (root-aligned, as
-                    // `r_meas` expects) from the full model re-evaluated into `ws_fd`.
-                    let moved = |ws_fd: &crate::robot::RobotWorkspace, tree: &KinematicTree, h: f64| {
-                        let before = link.inverse() * ws.frames.point[s.point];
-                        let stepped = frame_link_pose(self.robot, tree, ws_fd);
-                        let after = stepped.inverse() * ws_fd.frames.point[s.point];
-                        let dp = link.rotation * (after.translation.vector - before.translation.vector) / h;
-                        let dw = link.rotation * (after.rotation * before.rotation.inverse()).scaled_axis() / h;
-                        (dp, dw)
-                    };
-                    let turn_of =
-                        |ws_fd: &crate::robot::RobotWorkspace, tree: &KinematicTree, h: f64| moved(ws_fd, tree, h).1;
-                    // A plane contact's residuals and the maps from the point's change to theirs.
-                    let gap = match (self.plane[s_idx], &self.constraints) {
-                        (Some(g), Some(_)) => Some(self.plane_gap(d, e, s_idx, g)),
-                        _ => None,
-                    };
-                    let pw = self.position_width;
-                    let tw = if oriented.is_some() { self.turn_width } else { 0 };
-                    let width = pw + tw;
-                    let mut row = vec![0.0; width * ncols];
-                    let mut part = vec![0.0; if deformed { width * ncols } else { 0 }];
-                    // Column `c` of this sample's rows from the change of the point's position
-                    // and orientation (measurement frame).
-                    let write = |row: &mut [f64], c: usize, dp_meas: Vector3<f64>, dw_meas: Vector3<f64>| {
-                        if let (Some(gap), Some(cons)) = (&gap, &self.constraints) {
-                            if pw == 1 {
-                                row[width * c] = gap.normal.dot(&dp_meas) / self.sigma;
-                            }
-                            // A turn of the contact turns the normal seen from it the other way.
-                            let dm = gap.contact.inverse() * gap.normal.cross(&dw_meas);
-                            let t = gap.tilt_rows(cons, &dm, self.sigma_rot);
-                            row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
-                            return;
-                        }
-                        for a in 0..3 {
-                            row[width * c + a] = dp_meas[a] / self.sigma;
-                        }
-                        if let Some(map) = &turn_map {
-                            let dr = map * dw_meas;
-                            for a in 0..3 {
-                                row[width * c + 3 + a] = dr[a];
-                            }
-                        }
-                    };
-                    for (c, plan) in plans.iter().enumerate() {
-                        // The change of the point's position and orientation, measurement frame.
-                        let (dp_meas, dw_meas) = match plan {
-                            ColumnPlan::Marker { point, axis } => {
-                                if *point != s.point {
-                                    continue;
-                                }
-                                if *axis < 3 {
-                                    (r_meas * e.marker_rot[s_idx].column(*axis), Vector3::zeros())
-                                } else {
-                                    // A turn about the point's own axis, before its deformation.
-                                    let axis = point_frame.rotation * Vector3::ith(*axis - 3, 1.0);
-                                    (Vector3::zeros(), r_meas * axis)
-                                }
-                            }
-                            // The target moves, not the model: minus the axis.
-                            ColumnPlan::FixedPoint { index, axis } => {
-                                if self.fixed[s_idx] != Some(*index) {
-                                    continue;
-                                }
-                                (-Vector3::ith(*axis, 1.0), Vector3::zeros())
-                            }
-                            // The plane moves: its rows directly, the model unchanged.
-                            ColumnPlan::Plane { index, origin, normal } => {
-                                let (Some(gap), Some(cons)) = (&gap, &self.constraints) else {
-                                    continue;
-                                };
-                                if self.plane[s_idx] != Some(*index) {
-                                    continue;
-                                }
-                                if pw == 1 {
-                                    row[width * c] = (normal.dot(&gap.offset) - gap.normal.dot(origin)) / self.sigma;
-                                }
-                                let t = gap.tilt_rows(cons, &(gap.contact.inverse() * normal), self.sigma_rot);
-                                row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
-                                continue;
-                            }
-                            ColumnPlan::Base { station, .. } if *station != s.station => continue,
-                            ColumnPlan::Base { from, to, h, .. } => (
-                                (to.transform_point(&e.world[s_idx].into())
-                                    - from.transform_point(&e.world[s_idx].into()))
-                                    / *h,
-                                (to.rotation * from.rotation.inverse()).scaled_axis() / *h,
-                            ),
-                            ColumnPlan::Twists {
-                                joints,
-                                points,
-                                deformation,
-                            } => {
-                                let mut dp = Vector3::zeros();
-                                let mut dw = Vector3::zeros();
-                                for (j, xi) in joints {
-                                    // +1 on the point's path, −1 on the frame link's, 0 on both.
-                                    let sign = f64::from(u8::from(support.contains(j)))
-                                        - f64::from(u8::from(link_support.contains(j)));
-                                    if sign != 0.0 {
-                                        dp += sign * effect_at(&placed[*j], xi);
-                                        dw += sign * (placed[*j].rotation * xi.fixed_rows::<3>(3));
-                                    }
-                                }
-                                for (i, xi) in points {
-                                    if *i == s.point {
-                                        dp += effect_at(&point_frame, xi);
-                                        dw += point_frame.rotation * xi.fixed_rows::<3>(3);
-                                    }
-                                }
-                                if let Some((tree, stepped, h)) = deformation {
-                                    self.robot.deformation_restepped_into(
-                                        tree, &d.errors, &s.q, cond, &ws.rigid, stepped, ws_fd,
-                                    );
-                                    scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
-                                    let dp_def = sensitivity.effect(scratch);
-                                    // The deformation's turn has no cheap map: the full model
-                                    // differenced, on pose samples only.
-                                    let dw_def = if oriented.is_some() {
-                                        self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
-                                        turn_of(ws_fd, tree, *h) - dw
-                                    } else {
-                                        Vector3::zeros()
-                                    };
-                                    write(&mut part, c, r_meas * dp_def, r_meas * dw_def);
-                                    dp += dp_def;
-                                    dw += dw_def;
-                                }
-                                (r_meas * dp, r_meas * dw)
-                            }
-                            ColumnPlan::Loads { errors, h } => {
-                                // A changed load changes what every elastic model does.
-                                self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
-                                let (dp, dw) = moved(ws_fd, &d.tree, *h);
-                                (r_meas * dp, r_meas * dw)
-                            }
-                            ColumnPlan::Finite { tree, h } => {
-                                self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
-                                let (dp, dw) = moved(ws_fd, tree, *h);
-                                (r_meas * dp, r_meas * dw)
-                            }
-                            ColumnPlan::Model { model, errors, h } => {
-                                stepped.clear();
-                                self.robot
-                                    .model_perturbation_into(*model, &d.tree, &errors[*model], s, ws, stepped);
-                                scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
-                                let dw = if oriented.is_some() {
-                                    self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
-                                    turn_of(ws_fd, &d.tree, *h)
-                                } else {
-                                    Vector3::zeros()
-                                };
-                                (r_meas * sensitivity.effect(scratch), r_meas * dw)
-                            }
-                        };
-                        write(&mut row, c, dp_meas, dw_meas);
-                    }
-                    (row, part)
-                },
+                || RowBuffers::new(self.robot, d),
+                |b, s_idx| self.sample_rows(&plans, d, e, s_idx, deformed, b),
             )
             .collect();
         let (mut jac, part) = if deformed {
@@ -532,7 +308,14 @@ impl Problem<'_> {
         if let (JacobianForm::HeldPlus(extra), None) = (form, &part) {
             jac += extra;
         }
-        // Known distances: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to a.
+        self.distance_rows(d, &plans, &mut jac);
+        self.weigh_rows(|row, w| jac.row_mut(row).iter_mut().for_each(|v| *v *= w));
+        Ok((jac, part))
+    }
+
+    /// Known distances' rows: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to
+    /// a.
+    fn distance_rows(&self, d: &Decoded, plans: &[ColumnPlan], jac: &mut DMatrix<f64>) {
         let r0 = self.position_rows() + self.turn_width * self.oriented.len();
         for (k, known) in self.distances.iter().enumerate() {
             let (_, u) = self.distance(d, k);
@@ -549,8 +332,230 @@ impl Problem<'_> {
                 }
             }
         }
-        self.weigh_rows(|row, w| jac.row_mut(row).iter_mut().for_each(|v| *v *= w));
-        Ok((jac, part))
+    }
+
+    /// Sample `s_idx`'s rows of the Jacobian (per column its position then orientation
+    /// entries) and, when `deformed`, the part the deformation's change adds to them.
+    fn sample_rows(
+        &self,
+        plans: &[ColumnPlan],
+        d: &Decoded,
+        e: &Evaluation,
+        s_idx: usize,
+        deformed: bool,
+        b: &mut RowBuffers,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let view = self.sample_view(d, e, s_idx, b);
+        let ncols = plans.len();
+        let mut row = vec![0.0; view.width * ncols];
+        let mut part = vec![0.0; if deformed { view.width * ncols } else { 0 }];
+        for (c, plan) in plans.iter().enumerate() {
+            if let Some((dp_meas, dw_meas)) = self.column_change(plan, c, d, &view, b, &mut row, &mut part) {
+                view.write(self, &mut row, c, dp_meas, dw_meas);
+            }
+        }
+        (row, part)
+    }
+
+    /// Evaluates the full model at sample `s_idx` into `b` and gathers what its rows are
+    /// built from.
+    fn sample_view<'v>(&self, d: &'v Decoded, e: &Evaluation, s_idx: usize, b: &mut RowBuffers) -> SampleView<'v> {
+        let s = &self.samples[s_idx];
+        let n_models = self.robot.error_models().len();
+        let cond = Conditions::of(s);
+        let ws = &mut b.ws;
+        self.robot.forward_with_into(&d.tree, &d.errors, &s.q, cond, ws);
+        // Root-frame changes seen from the measurement frame (through the frame link's, when
+        // the measurements are expressed in one).
+        let link = frame_link_pose(self.robot, &d.tree, ws);
+        let r_meas = (d.frames[s.station].rotation * link.rotation.inverse())
+            .to_rotation_matrix()
+            .into_inner();
+        for (i, bp) in b.base_perts.iter_mut().enumerate() {
+            bp.clear();
+            self.robot.model_perturbation_into(i, &d.tree, &d.errors[i], s, ws, bp);
+        }
+        if n_models > 0 {
+            b.sensitivity.update(&d.tree, &ws.frames, &ws.perturbation, s.point);
+        }
+        let body = d.tree.points()[s.point].body;
+        let support = d.tree.support(body);
+        // The joints that move the frame link move the measured point the other way.
+        let link_support = self.robot.frame_link().map_or(&[][..], |b| d.tree.support(b));
+        // Geometry moves a joint's placement, which the deformation's twist follows: its twist
+        // acts at the placed frame before that twist (and a point's before its own), not at
+        // the deformed one.
+        let (frames, deformation) = (&ws.frames, &ws.perturbation);
+        for &j in support.iter().chain(link_support) {
+            b.placed[j] = frames.joint_frame[j];
+            if n_models > 0 {
+                b.placed[j] *= exp_twist(&deformation.joint_twist[j]).inverse();
+            }
+        }
+        let point_frame = if n_models > 0 {
+            frames.point[s.point] * exp_twist(&deformation.point_twist[s.point]).inverse()
+        } else {
+            frames.point[s.point]
+        };
+        let oriented = self.oriented.binary_search(&s_idx).ok();
+        // Rows of the orientation block: J_r⁻¹(r) R̂ᵀ per unit turn of the model (measurement
+        // frame), so a turn maps to the change of log(R_measᵀ R̂).
+        let turn_map = oriented.filter(|_| self.constraints.is_none()).map(|_| {
+            let model = d.frames[s.station].rotation * e.rotation[s_idx];
+            let r = orientation_residual(d, e, s, s_idx);
+            so3_right_jacobian_inverse(&r) * model.inverse().to_rotation_matrix().into_inner() / self.sigma_rot
+        });
+        // A plane contact's residuals and the maps from the point's change to theirs.
+        let gap = match (self.plane[s_idx], &self.constraints) {
+            (Some(g), Some(_)) => Some(self.plane_gap(d, e, s_idx, g)),
+            _ => None,
+        };
+        let tw = if oriented.is_some() { self.turn_width } else { 0 };
+        SampleView {
+            s_idx,
+            point: s.point,
+            world: e.world[s_idx],
+            marker_rot: e.marker_rot[s_idx],
+            cond,
+            link,
+            before: link.inverse() * frames.point[s.point],
+            r_meas,
+            support,
+            link_support,
+            p: frames.point[s.point].translation.vector,
+            point_frame,
+            oriented: oriented.is_some(),
+            turn_map,
+            gap,
+            pw: self.position_width,
+            tw,
+            width: self.position_width + tw,
+        }
+    }
+
+    /// The change of the sample's point position and orientation (measurement frame) per unit
+    /// of column `c`'s parameter; `None` when the column does not move it or has written its
+    /// rows itself (a plane's). The exact form's deformation share is also written to `part`.
+    #[allow(clippy::too_many_arguments)]
+    fn column_change(
+        &self,
+        plan: &ColumnPlan,
+        c: usize,
+        d: &Decoded,
+        v: &SampleView<'_>,
+        b: &mut RowBuffers,
+        row: &mut [f64],
+        part: &mut [f64],
+    ) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let s = &self.samples[v.s_idx];
+        let (r_meas, cond) = (v.r_meas, v.cond);
+        let RowBuffers {
+            ws,
+            ws_fd,
+            base_perts,
+            scratch,
+            stepped,
+            placed,
+            sensitivity,
+        } = b;
+        Some(match plan {
+            ColumnPlan::Marker { point, axis } => {
+                if *point != s.point {
+                    return None;
+                }
+                if *axis < 3 {
+                    (r_meas * v.marker_rot.column(*axis), Vector3::zeros())
+                } else {
+                    // A turn about the point's own axis, before its deformation.
+                    let axis = v.point_frame.rotation * Vector3::ith(*axis - 3, 1.0);
+                    (Vector3::zeros(), r_meas * axis)
+                }
+            }
+            // The target moves, not the model: minus the axis.
+            ColumnPlan::FixedPoint { index, axis } => {
+                if self.fixed[v.s_idx] != Some(*index) {
+                    return None;
+                }
+                (-Vector3::ith(*axis, 1.0), Vector3::zeros())
+            }
+            // The plane moves: its rows directly, the model unchanged.
+            ColumnPlan::Plane { index, origin, normal } => {
+                let (Some(gap), Some(cons)) = (&v.gap, &self.constraints) else {
+                    return None;
+                };
+                if self.plane[v.s_idx] != Some(*index) {
+                    return None;
+                }
+                let (pw, width) = (v.pw, v.width);
+                if pw == 1 {
+                    row[width * c] = (normal.dot(&gap.offset) - gap.normal.dot(origin)) / self.sigma;
+                }
+                let t = gap.tilt_rows(cons, &(gap.contact.inverse() * normal), self.sigma_rot);
+                row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..v.tw]);
+                return None;
+            }
+            ColumnPlan::Base { station, .. } if *station != s.station => return None,
+            ColumnPlan::Base { from, to, h, .. } => (
+                (to.transform_point(&v.world.into()) - from.transform_point(&v.world.into())) / *h,
+                (to.rotation * from.rotation.inverse()).scaled_axis() / *h,
+            ),
+            ColumnPlan::Twists {
+                joints,
+                points,
+                deformation,
+            } => {
+                let (mut dp, mut dw) = v.twists_effect(joints, points, placed);
+                if let Some((tree, stepped_joints, h)) = deformation {
+                    self.robot.deformation_restepped_into(
+                        tree,
+                        &d.errors,
+                        &s.q,
+                        cond,
+                        &ws.rigid,
+                        stepped_joints,
+                        ws_fd,
+                    );
+                    scratch.set_difference(&ws_fd.perturbation, &ws.perturbation, 1.0 / *h);
+                    let dp_def = sensitivity.effect(scratch);
+                    // The deformation's turn has no cheap map: the full model differenced, on
+                    // pose samples only.
+                    let dw_def = if v.oriented {
+                        self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
+                        v.moved(self.robot, ws_fd, tree, *h).1 - dw
+                    } else {
+                        Vector3::zeros()
+                    };
+                    v.write(self, part, c, r_meas * dp_def, r_meas * dw_def);
+                    dp += dp_def;
+                    dw += dw_def;
+                }
+                (r_meas * dp, r_meas * dw)
+            }
+            ColumnPlan::Loads { errors, h } => {
+                // A changed load changes what every elastic model does.
+                self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
+                let (dp, dw) = v.moved(self.robot, ws_fd, &d.tree, *h);
+                (r_meas * dp, r_meas * dw)
+            }
+            ColumnPlan::Finite { tree, h } => {
+                self.robot.forward_with_into(tree, &d.errors, &s.q, cond, ws_fd);
+                let (dp, dw) = v.moved(self.robot, ws_fd, tree, *h);
+                (r_meas * dp, r_meas * dw)
+            }
+            ColumnPlan::Model { model, errors, h } => {
+                stepped.clear();
+                self.robot
+                    .model_perturbation_into(*model, &d.tree, &errors[*model], s, ws, stepped);
+                scratch.set_difference(stepped, &base_perts[*model], 1.0 / *h);
+                let dw = if v.oriented {
+                    self.robot.forward_with_into(&d.tree, errors, &s.q, cond, ws_fd);
+                    v.moved(self.robot, ws_fd, &d.tree, *h).1
+                } else {
+                    Vector3::zeros()
+                };
+                (r_meas * sensitivity.effect(scratch), r_meas * dw)
+            }
+        })
     }
 
     /// The Jacobian's sample rows (per sample: per column its position then orientation
@@ -718,4 +723,138 @@ pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) 
         jac,
         selected.iter().map(|&k| space.params[k].info.name.clone()).collect(),
     ))
+}
+
+/// Per-thread buffers of the Jacobian's sample rows: the model at the sample, the model
+/// re-evaluated for a column, the error models' own perturbations, and the placed frames.
+struct RowBuffers {
+    ws: RobotWorkspace,
+    ws_fd: RobotWorkspace,
+    base_perts: Vec<Perturbation>,
+    scratch: Perturbation,
+    stepped: Perturbation,
+    placed: Vec<Isometry3<f64>>,
+    sensitivity: PointSensitivity,
+}
+
+impl RowBuffers {
+    fn new(robot: &Robot, d: &Decoded) -> Self {
+        let pert = Perturbation::zeros(&d.tree);
+        RowBuffers {
+            ws: robot.workspace(),
+            ws_fd: robot.workspace(),
+            base_perts: vec![pert.clone(); robot.error_models().len()],
+            scratch: pert.clone(),
+            stepped: pert,
+            placed: vec![Isometry3::identity(); d.tree.joints().len()],
+            sensitivity: PointSensitivity::default(),
+        }
+    }
+}
+
+/// One sample's model at the fit's parameters: what its Jacobian rows are built from.
+struct SampleView<'v> {
+    s_idx: usize,
+    /// The measured point.
+    point: usize,
+    cond: Conditions,
+    /// The modelled point (robot base frame) and the marker's rotation.
+    world: Vector3<f64>,
+    marker_rot: Matrix3<f64>,
+    /// The frame link's pose, and the point's relative to it.
+    link: Isometry3<f64>,
+    before: Isometry3<f64>,
+    /// Root-frame directions seen from the measurement frame.
+    r_meas: Matrix3<f64>,
+    /// The joints moving the point, and those moving the frame link.
+    support: &'v [usize],
+    link_support: &'v [usize],
+    /// The point (root frame) and its frame before its own deformation.
+    p: Vector3<f64>,
+    point_frame: Isometry3<f64>,
+    oriented: bool,
+    turn_map: Option<Matrix3<f64>>,
+    gap: Option<PlaneGap>,
+    /// Rows per sample: position, turn, both.
+    pw: usize,
+    tw: usize,
+    width: usize,
+}
+
+impl SampleView<'_> {
+    /// The point's move (root frame) when frame `f` moves by twist `xi` (its own frame).
+    fn effect_at(&self, f: &Isometry3<f64>, xi: &Vector6<f64>) -> Vector3<f64> {
+        let v = f.rotation * xi.fixed_rows::<3>(0);
+        let w = f.rotation * xi.fixed_rows::<3>(3);
+        v + w.cross(&(self.p - f.translation.vector))
+    }
+
+    /// The point's move and turn (root frame) from geometry twists at the joints' placed
+    /// frames (`placed`) and at the point.
+    fn twists_effect(
+        &self,
+        joints: &[(usize, Vector6<f64>)],
+        points: &[(usize, Vector6<f64>)],
+        placed: &[Isometry3<f64>],
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let mut dp = Vector3::zeros();
+        let mut dw = Vector3::zeros();
+        for (j, xi) in joints {
+            // +1 on the point's path, −1 on the frame link's, 0 on both.
+            let sign =
+                f64::from(u8::from(self.support.contains(j))) - f64::from(u8::from(self.link_support.contains(j)));
+            if sign != 0.0 {
+                dp += sign * self.effect_at(&placed[*j], xi);
+                dw += sign * (placed[*j].rotation * xi.fixed_rows::<3>(3));
+            }
+        }
+        for (i, xi) in points {
+            if *i == self.point {
+                dp += self.effect_at(&self.point_frame, xi);
+                dw += self.point_frame.rotation * xi.fixed_rows::<3>(3);
+            }
+        }
+        (dp, dw)
+    }
+
+    /// The change of the point's pose relative to the frame link (root-aligned, as `r_meas`
+    /// expects) per unit step `h`, from the full model re-evaluated into `ws_fd`.
+    fn moved(
+        &self,
+        robot: &Robot,
+        ws_fd: &RobotWorkspace,
+        tree: &KinematicTree,
+        h: f64,
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let stepped = frame_link_pose(robot, tree, ws_fd);
+        let after = stepped.inverse() * ws_fd.frames.point[self.point];
+        let dp = self.link.rotation * (after.translation.vector - self.before.translation.vector) / h;
+        let dw = self.link.rotation * (after.rotation * self.before.rotation.inverse()).scaled_axis() / h;
+        (dp, dw)
+    }
+
+    /// Writes column `c` of this sample's rows from the change of the point's position and
+    /// orientation (measurement frame).
+    fn write(&self, problem: &Problem<'_>, row: &mut [f64], c: usize, dp_meas: Vector3<f64>, dw_meas: Vector3<f64>) {
+        let (pw, tw, width) = (self.pw, self.tw, self.width);
+        if let (Some(gap), Some(cons)) = (&self.gap, &problem.constraints) {
+            if pw == 1 {
+                row[width * c] = gap.normal.dot(&dp_meas) / problem.sigma;
+            }
+            // A turn of the contact turns the normal seen from it the other way.
+            let dm = gap.contact.inverse() * gap.normal.cross(&dw_meas);
+            let t = gap.tilt_rows(cons, &dm, problem.sigma_rot);
+            row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..tw]);
+            return;
+        }
+        for a in 0..3 {
+            row[width * c + a] = dp_meas[a] / problem.sigma;
+        }
+        if let Some(map) = &self.turn_map {
+            let dr = map * dw_meas;
+            for a in 0..3 {
+                row[width * c + 3 + a] = dr[a];
+            }
+        }
+    }
 }

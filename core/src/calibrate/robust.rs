@@ -5,7 +5,8 @@
 use nalgebra::Vector3;
 use serde::Serialize;
 
-use super::{Problem, Stage, measured_minus_modelled, to_meas};
+use super::driver::measured_minus_modelled;
+use super::{Problem, Stage, to_meas};
 
 /// How each sample's residual enters the fit's cost.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
