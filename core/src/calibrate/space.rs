@@ -251,7 +251,7 @@ impl ParameterSpace {
                     types.join(", ")
                 };
                 return Err(Error::InvalidArgument {
-                    what: "--identify".into(),
+                    what: "what to identify".into(),
                     reason: format!(
                         "`{word}` matches no parameter; use base, markers, geometry, offsets, errors, fixed_points, \
                          planes, all, an error model of this robot ({types}), or a name pattern such as `j2.*`"

@@ -75,8 +75,8 @@ pub fn require_positions(samples: &[Sample], what: &str) -> Result<()> {
         Some(i) => Err(Error::InvalidArgument {
             what: format!("sample {}", i + 1),
             reason: format!(
-                "is a {} measurement, which gives no position for {what} to score models on; calibrate it \
-                 (`armcomp calibrate`) and compare {} with `armcomp evaluate`",
+                "is a {} measurement, which gives no position for {what} to score models on; calibrate from it \
+                 and compare {} by evaluating the model on them",
                 if samples[i].plane.is_some() {
                     "plane-contact"
                 } else {
