@@ -403,9 +403,9 @@ impl Problem<'_> {
             Some((columns, j)) if columns == free => j,
             _ => self.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?,
         };
-        let (condition_number_free, params_out) =
-            self.parameter_results(space, selected, &free, &theta, &start.theta0, &r, &j);
+        let (condition_number_free, std) = covariance(space, &free, &r, &j);
         identifiability.condition_number_free = condition_number_free;
+        let params_out = self.parameter_results(space, selected, &free, &theta, &start.theta0, &std);
         // Measured minus modelled, once for the statistics, the gross errors and the trend.
         let residual_vectors = measured_minus_modelled(&self.targets(&d, &pred), &pred);
         let after = ErrorStats::from_errors(&residual_vectors);
@@ -475,10 +475,7 @@ impl Problem<'_> {
         })
     }
 
-    /// Each selected parameter's value and standard deviation (the linearised covariance at
-    /// the solution, scaled by the fit's own residual variance), and the condition number of
-    /// the free parameters' normal equations.
-    #[allow(clippy::too_many_arguments)]
+    /// Each selected parameter's value and standard deviation (`std` per free parameter).
     fn parameter_results(
         &self,
         space: &ParameterSpace,
@@ -486,17 +483,8 @@ impl Problem<'_> {
         free: &[usize],
         theta: &[f64],
         theta0: &[f64],
-        r: &DVector<f64>,
-        j: &DMatrix<f64>,
-    ) -> (f64, Vec<ParamResult>) {
-        let mut a = j.transpose() * j;
-        for (c, &k) in free.iter().enumerate() {
-            a[(c, c)] += space.params[k].info.sigma.powi(-2);
-        }
-        let dof = (r.len() as f64 - free.len() as f64).max(1.0);
-        let s2 = r.norm_squared() / dof;
-        let (condition_number_free, inv_diag) = normal_equations(&a);
-        let cov_diag: Vec<f64> = inv_diag.iter().map(|v| s2 * v).collect();
+        std: &[f64],
+    ) -> Vec<ParamResult> {
         // A fixed point starts where the data put it (no file holds it).
         let mut initial = space.initial();
         for (k, p) in space.params.iter().enumerate() {
@@ -504,7 +492,7 @@ impl Problem<'_> {
                 initial[k] = theta0[k];
             }
         }
-        let results = (selected.iter())
+        (selected.iter())
             .map(|&k| {
                 // The bounds the fit kept, the prior's box included.
                 let info = &self.space.params[k].info;
@@ -515,14 +503,13 @@ impl Problem<'_> {
                     unit: info.quantity.si_unit(),
                     initial: initial[k],
                     value: theta[k],
-                    std: c.map_or(0.0, |c| cov_diag[c].max(0.0).sqrt()),
+                    std: c.map_or(0.0, |c| std[c]),
                     fixed: c.is_none(),
                     at_bound: c.is_some() && (theta[k] <= info.lower || theta[k] >= info.upper),
                     plausible: info.is_plausible(theta[k]),
                 }
             })
-            .collect();
-        (condition_number_free, results)
+            .collect()
     }
 
     /// The rows far beyond the noise and a trend with row order, of the measured positions.
@@ -540,6 +527,21 @@ impl Problem<'_> {
             .collect();
         (gross_errors_by_kind(residuals, &fixed), drift(&measured))
     }
+}
+
+/// The condition number of the free parameters' normal equations (priors of `space`
+/// included) and each one's standard deviation: the linearised covariance at the solution,
+/// scaled by the fit's own residual variance.
+fn covariance(space: &ParameterSpace, free: &[usize], r: &DVector<f64>, j: &DMatrix<f64>) -> (f64, Vec<f64>) {
+    let mut a = j.transpose() * j;
+    for (c, &k) in free.iter().enumerate() {
+        a[(c, c)] += space.params[k].info.sigma.powi(-2);
+    }
+    let dof = (r.len() as f64 - free.len() as f64).max(1.0);
+    let s2 = r.norm_squared() / dof;
+    let (condition_number_free, inv_diag) = normal_equations(&a);
+    let std = inv_diag.iter().map(|v| (s2 * v).max(0.0).sqrt()).collect();
+    (condition_number_free, std)
 }
 
 /// What the fit's residuals say against the declared noise.

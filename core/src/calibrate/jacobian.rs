@@ -347,14 +347,16 @@ impl Problem<'_> {
     ) -> (Vec<f64>, Vec<f64>) {
         let view = self.sample_view(d, e, s_idx, b);
         let ncols = plans.len();
-        let mut row = vec![0.0; view.width * ncols];
-        let mut part = vec![0.0; if deformed { view.width * ncols } else { 0 }];
+        let mut out = SampleRows {
+            row: vec![0.0; view.width * ncols],
+            part: vec![0.0; if deformed { view.width * ncols } else { 0 }],
+        };
         for (c, plan) in plans.iter().enumerate() {
-            if let Some((dp_meas, dw_meas)) = self.column_change(plan, c, d, &view, b, &mut row, &mut part) {
-                view.write(self, &mut row, c, dp_meas, dw_meas);
+            if let Some((dp_meas, dw_meas)) = self.column_change(plan, c, d, &view, b, &mut out) {
+                view.write(self, &mut out.row, c, dp_meas, dw_meas);
             }
         }
-        (row, part)
+        (out.row, out.part)
     }
 
     /// Evaluates the full model at sample `s_idx` into `b` and gathers what its rows are
@@ -436,7 +438,6 @@ impl Problem<'_> {
     /// The change of the sample's point position and orientation (measurement frame) per unit
     /// of column `c`'s parameter; `None` when the column does not move it or has written its
     /// rows itself (a plane's). The exact form's deformation share is also written to `part`.
-    #[allow(clippy::too_many_arguments)]
     fn column_change(
         &self,
         plan: &ColumnPlan,
@@ -444,8 +445,7 @@ impl Problem<'_> {
         d: &Decoded,
         v: &SampleView<'_>,
         b: &mut RowBuffers,
-        row: &mut [f64],
-        part: &mut [f64],
+        out: &mut SampleRows,
     ) -> Option<(Vector3<f64>, Vector3<f64>)> {
         let s = &self.samples[v.s_idx];
         let (r_meas, cond) = (v.r_meas, v.cond);
@@ -488,10 +488,10 @@ impl Problem<'_> {
                 }
                 let (pw, width) = (v.pw, v.width);
                 if pw == 1 {
-                    row[width * c] = (normal.dot(&gap.offset) - gap.normal.dot(origin)) / self.sigma;
+                    out.row[width * c] = (normal.dot(&gap.offset) - gap.normal.dot(origin)) / self.sigma;
                 }
                 let t = gap.tilt_rows(cons, &(gap.contact.inverse() * normal), self.sigma_rot);
-                row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..v.tw]);
+                out.row[width * c + pw..width * (c + 1)].copy_from_slice(&t[..v.tw]);
                 return None;
             }
             ColumnPlan::Base { station, .. } if *station != s.station => return None,
@@ -525,7 +525,7 @@ impl Problem<'_> {
                     } else {
                         Vector3::zeros()
                     };
-                    v.write(self, part, c, r_meas * dp_def, r_meas * dw_def);
+                    v.write(self, &mut out.part, c, r_meas * dp_def, r_meas * dw_def);
                     dp += dp_def;
                     dw += dw_def;
                 }
@@ -750,6 +750,13 @@ impl RowBuffers {
             sensitivity: PointSensitivity::default(),
         }
     }
+}
+
+/// One sample's Jacobian rows (per column its position then orientation entries) and the
+/// part of them the deformation's change adds (empty unless the exact form has one).
+struct SampleRows {
+    row: Vec<f64>,
+    part: Vec<f64>,
 }
 
 /// One sample's model at the fit's parameters: what its Jacobian rows are built from.

@@ -91,6 +91,15 @@ struct Row<'c> {
     positions: Vec<(Vector3<f64>, usize)>,
 }
 
+/// One cell of a row: its text, its column, the column's header and the row's line.
+#[derive(Clone, Copy)]
+struct Cell<'c, 'h> {
+    field: &'c str,
+    col: &'h Column,
+    head: &'h str,
+    line: usize,
+}
+
 /// Per coordinate, the rows outside its limits, the first one's line and the worst excess.
 type Outside = Vec<(usize, usize, f64)>;
 
@@ -534,7 +543,8 @@ impl<'t> Table<'t, '_> {
             positions: vec![(Vector3::zeros(), 0); header.slots.len()],
         };
         for (field, (col, head)) in record.iter().zip(header.columns.iter().zip(header.record.iter())) {
-            if self.text_cell(&mut row, field, col, head, line, header, stations)? {
+            let cell = Cell { field, col, head, line };
+            if self.text_cell(&mut row, &cell, header, stations)? {
                 continue;
             }
             let v: f64 = field
@@ -551,24 +561,21 @@ impl<'t> Table<'t, '_> {
                     format!("column `{head}`: {field} is not a measurement; expected a magnitude of at most {words}"),
                 ));
             }
-            self.number_cell(&mut row, v, field, col, head, line, header)?;
+            self.number_cell(&mut row, v, &cell, header)?;
         }
         Ok(row)
     }
 
     /// Reads a cell that is not a number (a point's, group's, station's or kind's name, an
     /// ignored cell, an empty position cell); whether it was one.
-    #[allow(clippy::too_many_arguments)]
     fn text_cell<'c>(
         &self,
         row: &mut Row<'c>,
-        field: &'c str,
-        col: &Column,
-        head: &str,
-        line: usize,
+        cell: &Cell<'c, '_>,
         header: &Header<'_>,
         stations: &mut Vec<String>,
     ) -> Result<bool> {
+        let Cell { field, col, head, line } = *cell;
         let err = |message: String| Err(self.err(Some(line), message));
         match col {
             Column::Ignored => {}
@@ -638,17 +645,8 @@ impl<'t> Table<'t, '_> {
     }
 
     /// Stores a cell's number `v` (as written; `field` is its text) where its column says.
-    #[allow(clippy::too_many_arguments)]
-    fn number_cell(
-        &self,
-        row: &mut Row<'_>,
-        v: f64,
-        field: &str,
-        col: &Column,
-        head: &str,
-        line: usize,
-        header: &Header<'_>,
-    ) -> Result<()> {
+    fn number_cell(&self, row: &mut Row<'_>, v: f64, cell: &Cell<'_, '_>, header: &Header<'_>) -> Result<()> {
+        let Cell { field, col, head, line } = *cell;
         let s = &mut row.sample;
         match *col {
             Column::Joint { coord, scale } => s.q[coord] = v * scale,
