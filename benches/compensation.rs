@@ -4,6 +4,7 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+use armcomp_core::FitControl;
 use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, mid_range};
 use armcomp_core::algorithms::evaluate::fit_residual_predictor;
 use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
@@ -28,7 +29,8 @@ fn bench(c: &mut Criterion) {
         },
     )
     .expect("data");
-    let gp = fit_residual_predictor(&model, &GpSpec::default(), &data.samples).expect("GP fits");
+    let gp =
+        fit_residual_predictor(&model, &GpSpec::default(), &data.samples, &FitControl::default()).expect("GP fits");
     let targets: Vec<_> = configurations(truth.tree(), Sampler::Halton, 64, 3)
         .expect("targets")
         .iter()

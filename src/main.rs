@@ -5,7 +5,9 @@
 mod cmd;
 
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Mutex, PoisonError};
+
+use armcomp_core::support::cancel::Cancel;
 
 use clap::{Parser, Subcommand};
 
@@ -57,16 +59,27 @@ enum Command {
     CheckPose(cmd::check_pose::Args),
 }
 
-/// Set by commands that keep their best result when stopped: the first Ctrl-C asks the
-/// computation to stop there ([`armcomp_core::support::interrupt`]), a second ends the process.
-pub static STOP_KEEPS_RESULT: AtomicBool = AtomicBool::new(false);
+/// The token of the computation running in [`stoppable`]: the first Ctrl-C cancels it, a
+/// second (or one while nothing runs there) ends the process.
+static STOPPABLE: Mutex<Option<Cancel>> = Mutex::new(None);
+
+/// Runs `work` of a command that keeps its best result when stopped, with the token the first
+/// Ctrl-C cancels.
+pub fn stoppable<T>(work: impl FnOnce(&Cancel) -> T) -> T {
+    let cancel = Cancel::new();
+    *STOPPABLE.lock().unwrap_or_else(PoisonError::into_inner) = Some(cancel.clone());
+    let out = work(&cancel);
+    *STOPPABLE.lock().unwrap_or_else(PoisonError::into_inner) = None;
+    out
+}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // A run stopped by Ctrl-C or `kill` leaves no hidden temporary beside its outputs.
     let _ = ctrlc::set_handler(|| {
-        if STOP_KEEPS_RESULT.load(Ordering::Relaxed) && !armcomp_core::support::interrupt::requested() {
-            armcomp_core::support::interrupt::request();
+        let running = STOPPABLE.lock().unwrap_or_else(PoisonError::into_inner).clone();
+        if let Some(cancel) = running.filter(|c| !c.is_cancelled()) {
+            cancel.cancel();
             eprintln!("\nstopping: the result so far is kept once the running calibrations end (Ctrl-C again to quit)");
             return;
         }

@@ -8,6 +8,7 @@ use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::data::split::{holdout, kfold, pose_groups};
 use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::support::cancel::Cancel;
 
 use crate::common::robot;
 
@@ -251,6 +252,47 @@ fn an_iteration_cap_reports_non_convergence_and_keeps_the_best_result() {
     assert!(r.stop_reason.contains("iteration limit"), "{}", r.stop_reason);
     assert_eq!(r.iterations, 1);
     assert!(r.after.rms_mm < r.before.rms_mm);
+}
+
+#[test]
+fn a_cancelled_calibration_stops_and_one_running_beside_it_does_not() {
+    let nominal = robot("rock-drill.toml");
+    let (truth, _) = truth_of(&nominal, &[("base.x", 0.5), ("base.yaw", 0.3), ("j2.a", 2e-3)]);
+    let data = measure(&truth, 60, 7);
+    let params = CalibrationParams {
+        measurement_std: NOISE,
+        ..Default::default()
+    };
+    let expected = calibrate(&nominal, &data, &params, &mut |_| {}).unwrap().report;
+    let stopped = CalibrationParams {
+        cancel: Cancel::new(),
+        ..params.clone()
+    };
+    let going = CalibrationParams {
+        cancel: Cancel::new(),
+        ..params.clone()
+    };
+    let (mut iterations_after_stop, stop) = (0, stopped.cancel.clone());
+    let (a, b) = rayon::join(
+        // Stopped from inside, after its first iteration, while the other runs.
+        || {
+            calibrate(&nominal, &data, &stopped, &mut |_| {
+                iterations_after_stop += usize::from(stop.is_cancelled());
+                stop.cancel();
+            })
+        },
+        || calibrate(&nominal, &data, &going, &mut |_| {}),
+    );
+    assert!(matches!(a, Err(armcomp_core::Error::Interrupted)), "{a:?}");
+    assert!(
+        iterations_after_stop <= 1,
+        "{iterations_after_stop} iterations after the stop"
+    );
+    let b = b.unwrap().report;
+    assert!(b.converged && b.iterations == expected.iterations);
+    for (p, q) in b.params.iter().zip(&expected.params) {
+        assert_eq!(p.value.to_bits(), q.value.to_bits(), "{}", p.name);
+    }
 }
 
 #[test]
@@ -594,6 +636,7 @@ fn the_written_model_file_is_the_fit_for_every_robot_kind() {
             &r,
             &armcomp_learn::RidgeSpec::default(),
             &samples,
+            &armcomp_core::FitControl::default(),
         )
         .unwrap();
         let mut file = r.to_file();

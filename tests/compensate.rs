@@ -1,11 +1,11 @@
 //! Compensation: commanding the truth robot with the computed command lands on the target.
 
-use armcomp_core::PredictorSpec;
 use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, mid_range, tool_chain};
 use armcomp_core::algorithms::evaluate::{ErrorStats, fit_residual_predictor, position_errors};
 use armcomp_core::algorithms::ik::{IkParams, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
 use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::data::measurement::{read_csv, write_csv};
+use armcomp_core::{FitControl, PredictorSpec};
 use armcomp_learn::{GpSpec, KnnSpec, RidgeSpec};
 use nalgebra::Matrix3xX;
 use nalgebra::{Isometry3, Vector3};
@@ -121,7 +121,7 @@ fn exact_mode_solves_model_plus_residual() {
     let knn = KnnSpec::default();
     let rotation = model.t_meas_base().rotation.inverse();
     for (name, spec) in [("gp", &gp as &dyn PredictorSpec), ("ridge", &ridge), ("knn", &knn)] {
-        let predictor = fit_residual_predictor(&model, spec, &data.samples).unwrap();
+        let predictor = fit_residual_predictor(&model, spec, &data.samples, &FitControl::default()).unwrap();
         let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationParams::default()).unwrap();
         let q0 = mid_range(&model);
         let (mut out, mut scratch) = ([0.0; 3], Vec::new());
@@ -276,7 +276,7 @@ fn exact_mode_keeps_the_orientation_of_a_pose_target() {
     let truth = robot("rock-drill-truth.toml");
     let model = robot("rock-drill-deflection.toml");
     let data = noiseless_data(&truth, 41);
-    let predictor = fit_residual_predictor(&model, &quick_gp(), &data.samples).unwrap();
+    let predictor = fit_residual_predictor(&model, &quick_gp(), &data.samples, &FitControl::default()).unwrap();
     let rotation = model.t_meas_base().rotation.inverse();
     let mut comp = Compensator::new(&model, Some(predictor.as_ref()), CompensationParams::default()).unwrap();
     let (mut out, mut scratch) = ([0.0; 3], Vec::new());
@@ -394,7 +394,7 @@ fn a_residual_predictor_learns_several_points_and_compensates_the_tool() {
     assert_eq!(model.markers().len(), 2);
     let data = noiseless_data(&truth, 41);
     let (train, test) = data.samples.split_at(160);
-    let predictor = fit_residual_predictor(&model, &quick_gp(), train).unwrap();
+    let predictor = fit_residual_predictor(&model, &quick_gp(), train, &FitControl::default()).unwrap();
     assert_eq!(predictor.n_inputs(), model.tree().nq() + 3);
     let mut file = model.to_file();
     file.fitted_predictor = Some(predictor);

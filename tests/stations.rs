@@ -8,7 +8,7 @@ use armcomp_core::algorithms::simulate::{SimulateParams, random_stations, simula
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate, register_stations};
 use armcomp_core::data::measurement::{MeasurementSet, parse_csv, write_csv};
 use armcomp_core::model::sampling::{Sampler, configurations};
-use armcomp_core::{Robot, Station};
+use armcomp_core::{FitControl, Robot, Station};
 
 use crate::common::robot;
 
@@ -238,11 +238,20 @@ fn grouped_folds_see_through_a_signal_planted_per_station() {
     }
     let planted_rms = (offsets.iter().map(|o| o.norm_squared()).sum::<f64>() / groups as f64).sqrt() * 1e3;
     let knn = armcomp_learn::KnnSpec::default();
-    let (random, random_folds) =
-        cross_validated_predictor_errors(&truth, &knn, &data.samples, 5, 0, &FoldBy::Poses).unwrap();
+    let (random, random_folds) = cross_validated_predictor_errors(
+        &truth,
+        &knn,
+        &data.samples,
+        5,
+        0,
+        &FoldBy::Poses,
+        &FitControl::default(),
+    )
+    .unwrap();
     let by = FoldBy::choose(&data.samples, None);
     assert_eq!(by, FoldBy::Stations);
-    let (grouped, grouped_folds) = cross_validated_predictor_errors(&truth, &knn, &data.samples, 5, 0, &by).unwrap();
+    let (grouped, grouped_folds) =
+        cross_validated_predictor_errors(&truth, &knn, &data.samples, 5, 0, &by, &FitControl::default()).unwrap();
     assert_eq!(random_folds.to_string(), "folds: 5, grouped by pose");
     assert_eq!(grouped_folds.to_string(), "folds: 5, grouped by station");
     // Random folds: the station's own offset is learned from its neighbours.
@@ -300,8 +309,10 @@ fn a_predictor_learned_at_one_station_lowers_the_error_at_another() {
             .unwrap()
             .robot;
         let mut file = model.to_file();
-        file.fitted_predictor =
-            Some(armcomp_core::algorithms::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
+        file.fitted_predictor = Some(
+            armcomp_core::algorithms::evaluate::fit_residual_predictor(&model, &gp, &a, &FitControl::default())
+                .unwrap(),
+        );
         file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
         let learned = model.rebuild(file).unwrap();
         // Station B: only the frame registered, with and without the predictor.
@@ -319,8 +330,10 @@ fn a_predictor_learned_at_one_station_lowers_the_error_at_another() {
         // The same predictor read in the measurement frame it was learned in: what a predictor
         // that does not follow the robot gives at the new station.
         let mut file = moved.robot.to_file();
-        file.fitted_predictor =
-            Some(armcomp_core::algorithms::evaluate::fit_residual_predictor(&model, &gp, &a).unwrap());
+        file.fitted_predictor = Some(
+            armcomp_core::algorithms::evaluate::fit_residual_predictor(&model, &gp, &a, &FitControl::default())
+                .unwrap(),
+        );
         file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Measurement);
         let stuck = moved.robot.rebuild(file).unwrap();
         let in_old_frame = ErrorStats::from_errors(&position_errors(&stuck, held_out)).rms_mm;

@@ -240,7 +240,7 @@ pub enum Error {
         /// What is wrong, naming the type or call.
         message: String,
     },
-    /// Stopped on request (see [`crate::support::interrupt`]) before the result was complete.
+    /// Stopped on request (see [`crate::support::cancel`]) before the result was complete.
     #[error("interrupted")]
     Interrupted,
 }

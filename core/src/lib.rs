@@ -31,8 +31,8 @@ pub use model::perturbation::Perturbation;
 pub use model::tree::{Body, Coordinate, Coupling, Joint, KinematicTree, Limits, Motion, Point};
 pub use model::units::{AngleUnit, LengthUnit, Units};
 pub use plugin::{
-    BuildContext, Chain, ErrorModel, ErrorModelSpec, FittedPredictor, KinematicsSpec, LinkData, Loads, ModelContext,
-    PredictorSpec, StaticState, TrainingSet,
+    BuildContext, Chain, ErrorModel, ErrorModelSpec, FitControl, FittedPredictor, KinematicsSpec, LinkData, Loads,
+    ModelContext, PredictorSpec, StaticState, TrainingProgress, TrainingSet,
 };
 pub use robot::batch::BatchWorkspace;
 pub use robot::candidate::{Candidate, CandidateFn, CandidateScope, CandidateTemplate};

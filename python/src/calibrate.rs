@@ -67,11 +67,14 @@ pub fn calibrate(
         loss,
         ..CalibrationParams::default()
     };
-    let run = crate::interrupt::run(py, || {
+    let run = crate::interrupt::run(py, |cancel| {
         armcomp::ops::calibrate::run(
             &robot,
             &set.samples,
-            params,
+            CalibrationParams {
+                cancel: cancel.clone(),
+                ..params
+            },
             armcomp::ops::calibrate::Choices {
                 prior,
                 noise_declared: noise_mm.is_some(),

@@ -78,7 +78,10 @@ pub fn compensate<'py>(
     let locked = locked_by_name(&robot, &lock).map_err(|e| bad("lock", format!("{e:#}")))?;
     let joints = Joints::new(&robot, starts, locked).map_err(|e| bad("start", format!("{e:#}")))?;
     let describe = |i: usize| format!("target {i}");
-    let out = crate::interrupt::run(py, || run(&robot, &targets, &joints, mode, frame, &describe))?.py()?;
+    let out = crate::interrupt::run(py, |cancel| {
+        run(&robot, &targets, &joints, mode, frame, &describe, cancel)
+    })?
+    .py()?;
     let std = out
         .std
         .iter()

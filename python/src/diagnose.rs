@@ -60,7 +60,9 @@ pub fn diagnose(
         exclude_gross_errors: !keep_outliers,
         ..DiagnoseParams::default()
     };
-    let diagnosis = crate::interrupt::run(py, || {
+    let diagnosis = crate::interrupt::run(py, |cancel| {
+        let mut params = params.clone();
+        params.calibration.cancel = cancel.clone();
         armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
             let stage = match p.stage {
                 DiagnoseStage::Baseline => "model as given".to_string(),

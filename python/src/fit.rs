@@ -41,14 +41,16 @@ pub fn fit(
         }
         None => None,
     };
-    let params = armcomp::ops::fit::FitParams {
-        noise_mm,
-        folds,
-        seed,
-        fold_groups,
-        predictor: predictor.filter(|p| *p != "none").map(str::to_string),
-    };
-    let ladder = crate::interrupt::run(py, || {
+    let predictor = predictor.filter(|p| *p != "none").map(str::to_string);
+    let ladder = crate::interrupt::run(py, |cancel| {
+        let params = armcomp::ops::fit::FitParams {
+            noise_mm,
+            folds,
+            seed,
+            fold_groups,
+            predictor,
+            cancel: cancel.clone(),
+        };
         armcomp::ops::fit::run(&robot, &set.samples, params, &|p| {
             crate::progress::report(progress.as_ref(), "model choice", p.done, p.total)
         })

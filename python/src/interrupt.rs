@@ -1,22 +1,25 @@
 //! Long calls run on a worker thread with the GIL released while the calling thread watches
-//! for Ctrl-C: on `KeyboardInterrupt` it asks the computation to stop
-//! ([`armcomp_core::support::interrupt`]), waits for it to return at its next check, and raises.
+//! for Ctrl-C: on `KeyboardInterrupt` it cancels the call's own token (other calls, in other
+//! threads, go on), waits for the computation to return at its next check, and raises.
 
 use std::sync::{Condvar, Mutex, PoisonError};
 use std::time::Duration;
 
+use armcomp_core::support::cancel::Cancel;
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
 /// How often the calling thread looks for a pending signal.
 const POLL: Duration = Duration::from_millis(50);
 
-/// Runs `work` without the GIL, interruptible by Ctrl-C in the calling (main) thread.
-pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult<T> {
+/// Runs `work` without the GIL with a token of its own, which Ctrl-C in the calling (main)
+/// thread cancels.
+pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce(&Cancel) -> T + Send) -> PyResult<T> {
     let done = (Mutex::new(false), Condvar::new());
+    let cancel = Cancel::new();
     std::thread::scope(|s| {
         let worker = s.spawn(|| {
-            let out = work();
+            let out = work(&cancel);
             *done.0.lock().unwrap_or_else(PoisonError::into_inner) = true;
             done.1.notify_all();
             out
@@ -32,14 +35,13 @@ pub fn run<T: Send>(py: Python<'_>, work: impl FnOnce() -> T + Send) -> PyResult
         let mut signal = None;
         while !py.detach(finished) {
             if let Err(e) = py.check_signals() {
-                armcomp_core::support::interrupt::request();
+                cancel.cancel();
                 signal = Some(e);
                 break;
             }
         }
         let joined = py.detach(|| worker.join());
         if let Some(e) = signal {
-            armcomp_core::support::interrupt::clear();
             return Err(e);
         }
         joined.map_err(|_| PyRuntimeError::new_err("armcomp panicked; this is a bug, please report it"))

@@ -1,6 +1,6 @@
 //! `learn`: fits a model's residual predictor, as `armcomp learn` does.
 
-use armcomp_core::RobotFile;
+use armcomp_core::{FitControl, RobotFile, TrainingProgress};
 use pyo3::prelude::*;
 
 use crate::errors::IntoPy;
@@ -12,12 +12,13 @@ use crate::robot::PyRobot;
 /// `(seconds, before, after)` with the training errors of the model alone and with the
 /// predictor as JSON text.
 #[pyfunction]
-#[pyo3(signature = (model, data, predictor = None))]
+#[pyo3(signature = (model, data, predictor = None, progress = None))]
 pub fn learn(
     py: Python<'_>,
     model: PyRef<'_, PyRobot>,
     data: PyRef<'_, PyMeasurements>,
     predictor: Option<&str>,
+    progress: Option<Py<PyAny>>,
 ) -> PyResult<(PyRobot, String)> {
     let predictor = predictor
         .map(armcomp::ops::learn::default_predictor)
@@ -33,8 +34,13 @@ pub fn learn(
             reason: format!("its description does not read back: {e}"),
         })
         .py()?;
-    let run = crate::interrupt::run(py, || {
-        armcomp::ops::learn::run(&robot, file, &set.samples, predictor, None)
+    let run = crate::interrupt::run(py, |cancel| {
+        let report = |p: TrainingProgress| crate::progress::report(progress.as_ref(), p.stage, p.done, p.total);
+        let control = FitControl {
+            progress: Some(&report),
+            cancel: cancel.clone(),
+        };
+        armcomp::ops::learn::run(&robot, file, &set.samples, predictor, None, &control)
     })?
     .py()?;
     let json = serde_json::json!({

@@ -91,7 +91,7 @@ pub fn plan<'py>(
         per_point,
         seed,
     };
-    let planned = crate::interrupt::run(py, || run(&r, &params))?.py()?;
+    let planned = crate::interrupt::run(py, |_| run(&r, &params))?.py()?;
     crate::errors::warn_all(py, &planned.warnings)?;
     let selection = planned.selection_json().map(|v| v.to_string());
     Ok((

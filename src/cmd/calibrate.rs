@@ -4,6 +4,7 @@ use std::process::ExitCode;
 use armcomp::ops::calibrate::Prior;
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, Loss};
 use armcomp_core::model::param::Quantity;
+use armcomp_core::support::cancel::Cancel;
 use armcomp_core::support::io::write_atomic;
 
 use super::{check_output, read_stations};
@@ -131,26 +132,31 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             *slot = None;
         }
     };
-    let mut calibrate_on = |samples: &[armcomp_core::data::measurement::Sample], rows: &[usize]| -> anyhow::Result<_> {
-        let choices = armcomp::ops::calibrate::Choices {
-            prior: args.prior,
-            noise_declared: declared,
-            fold_groups: groups(rows)?,
+    let mut calibrate_on =
+        |samples: &[armcomp_core::data::measurement::Sample], rows: &[usize], cancel: &Cancel| -> anyhow::Result<_> {
+            let choices = armcomp::ops::calibrate::Choices {
+                prior: args.prior,
+                noise_declared: declared,
+                fold_groups: groups(rows)?,
+            };
+            Ok(armcomp::ops::calibrate::run(
+                &robot,
+                samples,
+                CalibrationParams {
+                    cancel: cancel.clone(),
+                    ..params.clone()
+                },
+                choices,
+                &fits,
+                &mut observer,
+            )?)
         };
-        Ok(armcomp::ops::calibrate::run(
-            &robot,
-            samples,
-            params.clone(),
-            choices,
-            &fits,
-            &mut observer,
-        )?)
-    };
     // Ctrl-C ends `--prior auto`'s cross-validation with the scales scored so far.
-    crate::STOP_KEEPS_RESULT.store(matches!(args.prior, Prior::Auto), std::sync::atomic::Ordering::Relaxed);
-    let first = calibrate_on(&data.samples, &data.rows);
-    crate::STOP_KEEPS_RESULT.store(false, std::sync::atomic::Ordering::Relaxed);
-    let mut run = first?;
+    let mut run = if matches!(args.prior, Prior::Auto) {
+        crate::stoppable(|cancel| calibrate_on(&data.samples, &data.rows, cancel))?
+    } else {
+        calibrate_on(&data.samples, &data.rows, &Cancel::default())?
+    };
     let outlier_rows: Vec<usize> = run
         .calibration
         .report
@@ -164,7 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .collect();
         data.samples = keep.iter().map(|&i| data.samples[i].clone()).collect();
         data.rows = keep.iter().map(|&i| data.rows[i]).collect();
-        run = calibrate_on(&data.samples, &data.rows)?;
+        run = calibrate_on(&data.samples, &data.rows, &Cancel::default())?;
     }
     bar.finish_and_clear();
     let (calibration, choice) = (&run.calibration, &run.prior_choice);

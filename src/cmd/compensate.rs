@@ -75,7 +75,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let (lines, targets): (Vec<usize>, Vec<ops::Target>) = targets.into_iter().unzip();
     let describe = |i: usize| format!("{}:{}", args.targets.display(), lines[i]);
-    let run = ops::run(&robot, &targets, &joints, mode, frame, &describe)?;
+    // Ctrl-C ends the process: no result is kept from a batch cut short.
+    let never = armcomp_core::support::cancel::Cancel::default();
+    let run = ops::run(&robot, &targets, &joints, mode, frame, &describe, &never)?;
     write_atomic(&args.out, run.to_csv(&robot).as_bytes())?;
     eprintln!(
         "wrote {} joint commands to {} ({} mode, targets in the {} frame{})",

@@ -4,7 +4,6 @@ use std::process::ExitCode;
 use anyhow::Context;
 use armcomp::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
-use std::sync::atomic::Ordering;
 
 use armcomp_core::algorithms::evaluate::ErrorStats;
 use armcomp_core::algorithms::residuals::ResidualDescription;
@@ -127,21 +126,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         )
         .expect("the template is valid"),
     );
-    crate::STOP_KEEPS_RESULT.store(true, Ordering::Relaxed);
-    let result = armcomp::ops::diagnose::run(&robot, &data.samples, &params, learnable_by, &|p| {
-        // A new stage restarts the bar, so that its estimate is the stage's own.
-        if bar.length() != Some(p.total as u64) || p.done == 0 {
-            bar.reset();
-            bar.set_length(p.total as u64);
-            bar.set_message(match p.stage {
-                DiagnoseStage::Baseline => "model as given:".to_string(),
-                DiagnoseStage::Round(n) => format!("effect {n}, candidates that can win:"),
-                DiagnoseStage::Learnable => "learnable residual:".to_string(),
-            });
-        }
-        bar.set_position(p.done as u64);
+    let result = crate::stoppable(|cancel| {
+        let mut params = params.clone();
+        params.calibration.cancel = cancel.clone();
+        armcomp::ops::diagnose::run(&robot, &data.samples, &params, learnable_by, &|p| {
+            // A new stage restarts the bar, so that its estimate is the stage's own.
+            if bar.length() != Some(p.total as u64) || p.done == 0 {
+                bar.reset();
+                bar.set_length(p.total as u64);
+                bar.set_message(match p.stage {
+                    DiagnoseStage::Baseline => "model as given:".to_string(),
+                    DiagnoseStage::Round(n) => format!("effect {n}, candidates that can win:"),
+                    DiagnoseStage::Learnable => "learnable residual:".to_string(),
+                });
+            }
+            bar.set_position(p.done as u64);
+        })
     });
-    crate::STOP_KEEPS_RESULT.store(false, Ordering::Relaxed);
     bar.finish_and_clear();
     let diagnosis = result?;
     let report = &diagnosis.report;

@@ -1,7 +1,6 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Mutex;
-use std::sync::atomic::Ordering;
 
 use armcomp_core::support::io::write_atomic;
 
@@ -46,13 +45,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let fold_groups = args.group.groups(&[&args.data], &data.rows)?.map(|(_, g)| g);
-    let params = armcomp::ops::fit::FitParams {
-        noise_mm: args.noise_mm,
-        folds: args.folds,
-        seed: args.seed,
-        fold_groups,
-        predictor: (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string()),
-    };
+    let predictor = (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string());
     let bar = Mutex::new(indicatif::ProgressBar::new(0));
     if let Ok(b) = bar.lock() {
         b.set_style(
@@ -64,14 +57,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     // Ctrl-C ends the cross-validation with the rungs fitted so far, the choice among them
     // fitted on all rows.
-    crate::STOP_KEEPS_RESULT.store(true, Ordering::Relaxed);
-    let ladder = armcomp::ops::fit::run(&robot, &data.samples, params, &|p| {
-        if let Ok(b) = bar.lock() {
-            b.set_length(p.total as u64);
-            b.set_position(p.done as u64);
-        }
+    let ladder = crate::stoppable(|cancel| {
+        let params = armcomp::ops::fit::FitParams {
+            noise_mm: args.noise_mm,
+            folds: args.folds,
+            seed: args.seed,
+            fold_groups,
+            predictor,
+            cancel: cancel.clone(),
+        };
+        armcomp::ops::fit::run(&robot, &data.samples, params, &|p| {
+            if let Ok(b) = bar.lock() {
+                b.set_length(p.total as u64);
+                b.set_position(p.done as u64);
+            }
+        })
     });
-    crate::STOP_KEEPS_RESULT.store(false, Ordering::Relaxed);
     if let Ok(b) = bar.lock() {
         b.finish_and_clear();
     }

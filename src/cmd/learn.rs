@@ -2,8 +2,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, bail};
-use armcomp_core::RobotFile;
 use armcomp_core::support::io::write_atomic;
+use armcomp_core::{FitControl, RobotFile, TrainingProgress};
 
 use super::{check_output, read_measurements};
 
@@ -47,7 +47,26 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     // The written file is the model's own text re-read, so everything in it is kept.
     let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
     let groups = args.group.groups(&[&args.data], &data.rows)?;
-    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor, groups)?;
+    let bar = indicatif::ProgressBar::new(0);
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{msg:>12} [{bar:30}] {pos}/{len} {elapsed_precise}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    // Each optimiser, then the cross-validation's folds, restarts the bar.
+    let progress = |p: TrainingProgress| {
+        if bar.message() != p.stage || bar.length() != Some(p.total as u64) {
+            bar.reset();
+            bar.set_message(p.stage);
+            bar.set_length(p.total as u64);
+        }
+        bar.set_position(p.done as u64);
+    };
+    let control = FitControl {
+        progress: Some(&progress),
+        ..FitControl::default()
+    };
+    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor, groups, &control);
+    bar.finish_and_clear();
+    let run = run?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);
     write_atomic(&args.out, run.robot.to_text_for(&args.out)?.as_bytes())?;
     println!(

@@ -118,8 +118,8 @@ pub fn run(
             };
             let choice = choose_prior_scale(robot, samples, &params, &DEFAULT_GRID, &plan, fits)?;
             if choice.interrupted {
-                // The final fit at the best scale scored: the stop request would end it at once.
-                armcomp_core::support::interrupt::clear();
+                // The final fit at the best scale scored, which only a further request stops.
+                params.cancel = params.cancel.renewed();
             }
             params.prior_scale = choice.scale;
             Some(choice)

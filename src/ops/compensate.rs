@@ -11,6 +11,7 @@ use armcomp_core::data::measurement::{
 };
 use armcomp_core::model::tree::Coordinate;
 use armcomp_core::model::units::LengthUnit;
+use armcomp_core::support::cancel::Cancel;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 
@@ -130,7 +131,7 @@ pub fn options() -> CompensationParams {
 
 /// Compensates `targets` in order, each from its start in `joints` (else [`default_start`]),
 /// changing only the joints that move the tool and are not locked; an error names the target
-/// through `describe(index)`. Stops between targets on an interrupt request.
+/// through `describe(index)`. Stops between targets once `cancel` is cancelled.
 pub fn run(
     robot: &Robot,
     targets: &[Target],
@@ -138,6 +139,7 @@ pub fn run(
     mode: CompensationMode,
     frame: Frame,
     describe: &dyn Fn(usize) -> String,
+    cancel: &Cancel,
 ) -> anyhow::Result<CompensationRun> {
     let options = options();
     let mut comp = Compensator::for_model(robot, options)?;
@@ -167,7 +169,7 @@ pub fn run(
         locked: comp.locked().to_vec(),
     };
     for (i, t) in targets.iter().enumerate() {
-        armcomp_core::support::interrupt::check()?;
+        cancel.check()?;
         let position = to_base.transform_point(&Point3::from(t.position)).coords;
         let target = match t.orientation {
             Some(r) => IkTarget::Pose(Isometry3::from_parts(position.into(), to_base.rotation * r)),

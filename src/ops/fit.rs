@@ -6,6 +6,7 @@ use armcomp_core::analysis::ladder::{Ladder, LadderParams, climb};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::FitsProgress;
 use armcomp_core::data::measurement::Sample;
+use armcomp_core::support::cancel::Cancel;
 
 /// How `fit` is asked to choose.
 #[derive(Debug, Clone, PartialEq)]
@@ -20,6 +21,9 @@ pub struct FitParams {
     pub fold_groups: Option<Vec<usize>>,
     /// The residual predictor to try (`gp`, `mlp`, ...; `None` for none).
     pub predictor: Option<String>,
+    /// Ends the cross-validation with the rungs fitted so far, the choice among them fitted on
+    /// all rows (a further request stops that too).
+    pub cancel: Cancel,
 }
 
 /// Climbs the ladder for `robot` on `samples`; `progress` sees every fit done.
@@ -38,6 +42,7 @@ pub fn run(
         calibration: CalibrationParams {
             measurement_std: params.noise_mm.unwrap_or(0.1) * 1e-3,
             seed: params.seed,
+            cancel: params.cancel,
             ..CalibrationParams::default()
         },
         noise_declared: params.noise_mm.is_some(),

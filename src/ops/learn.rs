@@ -6,7 +6,7 @@ use armcomp_core::algorithms::evaluate::{
     ErrorStats, cross_validated_predictor_errors, fit_residual_predictor, model_errors, position_errors,
 };
 use armcomp_core::data::measurement::Sample;
-use armcomp_core::{Error, PredictorSpec, Robot, RobotFile, Role};
+use armcomp_core::{Error, FitControl, PredictorSpec, Robot, RobotFile, Role};
 
 /// A model with its fitted predictor and how much the predictor removes on the training data.
 #[derive(Debug)]
@@ -85,13 +85,15 @@ pub fn default_predictor(type_name: &str) -> armcomp_core::Result<Box<dyn Predic
 /// Fits `predictor`, or else the predictor `robot`'s `[predictor]` table describes, on
 /// `samples` and stores it in `file`, the model's own description (re-read from its file by
 /// the command line, so that everything in it is kept); a given `predictor` becomes the
-/// model's `[predictor]` table.
+/// model's `[predictor]` table. `control` sees the training and then the cross-validation's
+/// folds, and can stop them.
 pub fn run(
     robot: &Robot,
     mut file: RobotFile,
     samples: &[Sample],
     predictor: Option<Box<dyn PredictorSpec>>,
     fold_groups: Option<(String, Vec<usize>)>,
+    control: &FitControl<'_>,
 ) -> armcomp_core::Result<LearnRun> {
     // The model's own spec as built: a run-time library found beside the model file.
     let Some(spec) = predictor.as_deref().or(robot.predictor_spec()) else {
@@ -102,14 +104,14 @@ pub fn run(
         });
     };
     let start = Instant::now();
-    let fitted = fit_residual_predictor(robot, spec, samples)?;
+    let fitted = fit_residual_predictor(robot, spec, samples, control)?;
     let seconds = start.elapsed().as_secs_f64();
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let poses = armcomp_core::data::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {
         let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups);
         Some(cross_validated_predictor_errors(
-            robot, spec, samples, CV_FOLDS, 0, &by,
+            robot, spec, samples, CV_FOLDS, 0, &by, control,
         )?)
     } else {
         None

@@ -7,7 +7,7 @@ use serde::Serialize;
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
 use crate::kinematics::point_kinematics::PointKinematics;
-use crate::plugin::{FittedPredictor, PredictorSpec, TrainingSet};
+use crate::plugin::{FitControl, FittedPredictor, PredictorSpec, TrainingSet};
 use crate::robot::robot_file::PredictorFrame;
 use crate::robot::{Conditions, Robot};
 
@@ -187,7 +187,8 @@ fn subtract_predictions(
 /// fitted on: every sample held out once in `folds`-fold cross-validation, folded as `by`
 /// says (by pose, by station, by a column; shuffled by `seed`), the errors after the held-out
 /// predictions pooled. A predictor whose training error is far below this has memorised its
-/// rows. Returns the statistics and how the folds were drawn.
+/// rows. Returns the statistics and how the folds were drawn. `control` sees the folds done
+/// (stage `"folds"`) and stops every fold's training.
 pub fn cross_validated_predictor_errors(
     robot: &Robot,
     spec: &dyn PredictorSpec,
@@ -195,14 +196,23 @@ pub fn cross_validated_predictor_errors(
     folds: usize,
     seed: u64,
     by: &crate::data::split::FoldBy,
+    control: &FitControl<'_>,
 ) -> Result<(ErrorStats, crate::data::split::Folding)> {
     let (splits, folding) = crate::data::split::folds(samples, folds, seed, by)?;
+    // The folds train at once: each stops with the others, the count of folds done is the progress.
+    let fold_control = FitControl {
+        progress: None,
+        cancel: control.cancel.clone(),
+    };
+    let done = std::sync::atomic::AtomicUsize::new(0);
     let parts: Vec<Vec<Vector3<f64>>> = splits
         .par_iter()
         .map(|split| {
             let train = crate::data::split::subset(samples, &split.train);
             let test = crate::data::split::subset(samples, &split.test);
-            let fitted = fit_residual_predictor(robot, spec, &train)?;
+            let fitted = fit_residual_predictor(robot, spec, &train, &fold_control)?;
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            control.report("folds", d, splits.len());
             let mut errors = model_errors(robot, &test);
             subtract_predictions(robot, fitted.as_ref(), PredictorFrame::Base, &test, &mut errors);
             Ok(errors)
@@ -280,11 +290,13 @@ fn rigid_model_errors(robot: &Robot, samples: &[Sample]) -> Vec<Vector3<f64>> {
 /// the position residual (m, rotated from the measurement frame of its station into the base
 /// frame: [`PredictorFrame::Base`]) out. When the samples measure several points,
 /// each point's position in its body's frame (m) is three more inputs, so one predictor
-/// learns how the residual varies across the points (see [`predictor_input_into`]).
+/// learns how the residual varies across the points (see [`predictor_input_into`]). `control`
+/// sees the training's progress and can stop it.
 pub fn fit_residual_predictor(
     robot: &Robot,
     spec: &dyn PredictorSpec,
     samples: &[Sample],
+    control: &FitControl<'_>,
 ) -> Result<Box<dyn FittedPredictor>> {
     let Some(first) = samples.first() else {
         return Err(Error::InvalidArgument {
@@ -312,13 +324,16 @@ pub fn fit_residual_predictor(
         .zip(samples)
         .flat_map(|(e, s)| (robot.station_frame(s.station).rotation.inverse() * e).data.0[0])
         .collect();
-    spec.fit(&TrainingSet {
-        inputs: &inputs,
-        targets: &targets,
-        n_inputs,
-        n_outputs: 3,
-        input_ranges: &ranges,
-    })
+    spec.fit_with(
+        &TrainingSet {
+            inputs: &inputs,
+            targets: &targets,
+            n_inputs,
+            n_outputs: 3,
+            input_ranges: &ranges,
+        },
+        control,
+    )
 }
 
 /// How tightly a model puts the samples of one fixed point together.

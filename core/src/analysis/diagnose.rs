@@ -70,7 +70,7 @@ use crate::data::measurement::Sample;
 use crate::data::split::{FoldBy, Split, subset};
 use crate::error::{Error, Result};
 use crate::model::param::Quantity;
-use crate::plugin::{ErrorModelSpec, PredictorSpec, TrainingSet};
+use crate::plugin::{ErrorModelSpec, FitControl, PredictorSpec, TrainingSet};
 use crate::robot::Robot;
 use crate::robot::candidate::Candidate;
 use crate::robot::registry::PluginInfo;
@@ -286,7 +286,7 @@ pub struct DiagnosisReport {
     /// Held-out error norms (mm) per sample used of the initial model and after each step.
     #[serde(skip)]
     pub heldout_norms_mm: Vec<Vec<f64>>,
-    /// Whether a stop request ([`crate::support::interrupt`]) ended the search early: the steps are
+    /// Whether a stop request ([`CalibrationParams::cancel`]) ended the search early: the steps are
     /// those accepted before it, the round it interrupted is dropped.
     pub interrupted: bool,
 }
@@ -331,7 +331,7 @@ struct Offer {
 
 /// Finds, one by one, the effects of `plugins` (the registry) that `robot` misses according to
 /// `samples`; `predictor` (its type name and spec) learns what remains. `progress` hears of
-/// every fold calibration. A stop request ([`crate::support::interrupt`]) after the model as given is
+/// every fold calibration. A stop request ([`CalibrationParams::cancel`]) after the model as given is
 /// scored ends the search with the effects found so far (the report says it was interrupted).
 pub fn diagnose(
     robot: &Robot,
@@ -472,7 +472,7 @@ fn search(
             })
             .collect();
         // A stopped calibration fails its candidate; the round is not worth ranking.
-        if crate::support::interrupt::requested() {
+        if params.calibration.cancel.is_cancelled() {
             interrupted = true;
             break;
         }
@@ -956,13 +956,20 @@ fn learnable(
         let residuals = position_errors(&fit.robot, &train);
         let inputs: Vec<f64> = train.iter().flat_map(|s| s.q.iter().copied()).collect();
         let targets: Vec<f64> = residuals.iter().flat_map(|r| r.iter().copied()).collect();
-        let predictor = spec.fit(&TrainingSet {
-            inputs: &inputs,
-            targets: &targets,
-            n_inputs: nq,
-            n_outputs: 3,
-            input_ranges: model.tree().coordinate_limits(),
-        })?;
+        let control = FitControl {
+            progress: None,
+            cancel: calibration.cancel.clone(),
+        };
+        let predictor = spec.fit_with(
+            &TrainingSet {
+                inputs: &inputs,
+                targets: &targets,
+                n_inputs: nq,
+                n_outputs: 3,
+                input_ranges: model.tree().coordinate_limits(),
+            },
+            &control,
+        )?;
         let (mut out, mut scratch) = ([0.0; 3], Vec::new());
         for &i in &split.test {
             predictor.predict_into(&samples[i].q, &mut out, &mut scratch);

@@ -21,8 +21,9 @@ use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, register_he
 use crate::data::measurement::Sample;
 use crate::data::split::{FoldBy, Split, subset};
 use crate::error::{Error, Result};
-use crate::plugin::PredictorSpec;
+use crate::plugin::{FitControl, PredictorSpec};
 use crate::robot::Robot;
+use crate::support::cancel::Cancel;
 
 /// A rung of the ladder.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -122,7 +123,7 @@ pub struct LadderReport {
     pub folds_by: String,
     /// The noise and priors the evidence chose for the chosen rung on all rows.
     pub evidence: EvidenceReport,
-    /// Whether a stop request ([`crate::support::interrupt`]) ended the cross-validation: the rungs
+    /// Whether a stop request ([`CalibrationParams::cancel`]) ended the cross-validation: the rungs
     /// are those whose every fold was fitted before it (the predictor's is not tried), and the
     /// choice among them was fitted on all rows after it.
     pub interrupted: bool,
@@ -166,14 +167,20 @@ fn fit_rung(
     samples: &[Sample],
     params: &LadderParams,
     rung: Rung,
+    cancel: &Cancel,
 ) -> Result<(Calibration, EvidenceReport)> {
-    let (calibration, evidence) = calibration_params(params, rung);
+    let (mut calibration, evidence) = calibration_params(params, rung);
+    calibration.cancel = cancel.clone();
     calibrate_with_evidence(robot, samples, &calibration, &evidence, &mut |_| {})
 }
 
 /// `robot` with `spec` fitted on what it leaves on `samples`.
-fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample]) -> Result<Robot> {
-    let fitted = fit_residual_predictor(robot, spec, samples)?;
+fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], cancel: &Cancel) -> Result<Robot> {
+    let control = FitControl {
+        progress: None,
+        cancel: cancel.clone(),
+    };
+    let fitted = fit_residual_predictor(robot, spec, samples, &control)?;
     let mut file = robot.to_file();
     file.predictor = Some(serde_json::from_value(serde_json::to_value(spec).map_err(json_error)?).map_err(json_error)?);
     file.fitted_predictor = Some(fitted);
@@ -228,6 +235,7 @@ pub fn climb(
         }
     };
     let folds_by = folding.grouped_by;
+    let cancel = &params.calibration.cancel;
     let rungs = physical_rungs(robot);
     // Every rung on every fold, the choice on all rows, the predictor on every fold and on all rows.
     let total = rungs.len() * splits.len() + 1 + params.predictor.as_ref().map_or(0, |_| splits.len() + 1);
@@ -243,12 +251,13 @@ pub fn climb(
     let timed: Vec<Option<(Robot, f64)>> = jobs
         .par_iter()
         .map(|&(r, f)| {
-            if crate::support::interrupt::requested() {
+            if cancel.is_cancelled() {
                 return Ok(None);
             }
             let start = Instant::now();
             let train = subset(samples, &splits[f].train);
-            let Some((cal, _)) = crate::support::interrupt::finished(fit_rung(robot, &train, params, rungs[r]))? else {
+            let Some((cal, _)) = crate::support::cancel::finished(fit_rung(robot, &train, params, rungs[r], cancel))?
+            else {
                 return Ok(None);
             };
             let mut model = cal.robot;
@@ -288,16 +297,15 @@ pub fn climb(
     }
     let mut chosen_rung = rungs[chosen];
     let mut predictor_models = None;
-    if interrupted {
-        // The choice is fitted on all rows, which the stop request would end at once.
-        crate::support::interrupt::clear();
-    } else if let Some(spec) = &params.predictor {
+    // The choice is still fitted on all rows after a stop request; only a further one stops it.
+    let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
+    if let Some(spec) = params.predictor.as_ref().filter(|_| !interrupted) {
         let start = Instant::now();
         let models: Vec<Robot> = splits
             .par_iter()
             .zip(&fold_models[chosen])
             .map(|(split, model)| {
-                let m = with_predictor(model, spec.as_ref(), &subset(samples, &split.train));
+                let m = with_predictor(model, spec.as_ref(), &subset(samples, &split.train), cancel);
                 tick();
                 m
             })
@@ -319,11 +327,11 @@ pub fn climb(
     }
     let expected_rms_mm = scores.iter().rev().find(|s| s.kept).map_or(f64::NAN, |s| s.rms_mm);
     // The choice fitted on all rows.
-    let (calibration, evidence) = fit_rung(robot, samples, params, rungs[chosen])?;
+    let (calibration, evidence) = fit_rung(robot, samples, params, rungs[chosen], &final_cancel)?;
     tick();
     let model = match (&params.predictor, predictor_models) {
         (Some(spec), Some(_)) => {
-            let m = with_predictor(&calibration.robot, spec.as_ref(), samples)?;
+            let m = with_predictor(&calibration.robot, spec.as_ref(), samples, &final_cancel)?;
             tick();
             m
         }

@@ -46,7 +46,7 @@ pub struct PriorChoice {
     pub seed: u64,
     /// Every candidate scored, in the order tried.
     pub scores: Vec<PriorScaleScore>,
-    /// Whether a stop request ([`crate::support::interrupt`]) ended the cross-validation: the choice is
+    /// Whether a stop request ([`CalibrationParams::cancel`]) ended the cross-validation: the choice is
     /// the best of the candidates whose every fold was scored before it.
     pub interrupted: bool,
 }
@@ -82,7 +82,7 @@ pub fn choose_prior_scale(
     let sums: Vec<Option<(f64, usize)>> = jobs
         .par_iter()
         .map(|&(g, f)| {
-            if crate::support::interrupt::requested() {
+            if params.cancel.is_cancelled() {
                 return Ok(None);
             }
             let p = CalibrationParams {
@@ -91,7 +91,7 @@ pub fn choose_prior_scale(
             };
             let train = subset(samples, &splits[f].train);
             let test = subset(samples, &splits[f].test);
-            let Some(fit) = crate::support::interrupt::finished(calibrate(robot, &train, &p, &mut |_| {}))? else {
+            let Some(fit) = crate::support::cancel::finished(calibrate(robot, &train, &p, &mut |_| {}))? else {
                 return Ok(None);
             };
             let mut fitted = fit.robot;

@@ -31,6 +31,7 @@ use crate::error::Result;
 use crate::model::param::{ParamInfo, Quantity};
 use crate::model::tree::KinematicTree;
 use crate::robot::{PlaneConstraints, Robot};
+use crate::support::cancel::Cancel;
 
 mod driver;
 pub mod evidence;
@@ -242,6 +243,9 @@ pub struct CalibrationParams {
     /// How each sample's residual enters the cost: least squares, or Huber's loss, which
     /// gross errors cannot pull far (plane contacts are always fitted by least squares).
     pub loss: Loss,
+    /// Stops the fit (and its restarts) with [`Interrupted`](crate::Error::Interrupted) once
+    /// cancelled.
+    pub cancel: Cancel,
 }
 
 /// Which free parameters a restart of [`calibrate`] moves from where the fit ended.
@@ -287,6 +291,7 @@ impl Default for CalibrationParams {
             group_prior_scales: Vec::new(),
             start: None,
             loss: Loss::Squared,
+            cancel: Cancel::default(),
         }
     }
 }

@@ -151,6 +151,7 @@ impl Problem<'_> {
                 gain: STALL_GAIN,
                 above_cost: 0.5 * STALL_ABOVE_NOISE.powi(2) * self.n_residuals() as f64,
             }),
+            cancel: params.cancel.clone(),
             ..LmParams::default()
         };
         let mut fit = StageFit {

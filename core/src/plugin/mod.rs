@@ -20,6 +20,7 @@ use crate::model::perturbation::Perturbation;
 use crate::model::shape::Shape;
 use crate::model::tree::{KinematicTree, Limits};
 use crate::model::units::Units;
+use crate::support::cancel::Cancel;
 
 /// What a spec needs to know about the file it came from.
 #[derive(Debug, Clone, Copy)]
@@ -178,11 +179,56 @@ pub struct TrainingSet<'a> {
     pub input_ranges: &'a [Option<Limits>],
 }
 
+/// How far a predictor's training has come, for a progress display.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TrainingProgress {
+    /// What is being run: an optimiser (`"gp"`, `"adam"`, `"lm"`, `"sparrows"`) or the
+    /// cross-validation's `"folds"`.
+    pub stage: &'static str,
+    /// Steps done.
+    pub done: usize,
+    /// Steps in all (an optimiser may end before).
+    pub total: usize,
+}
+
+/// How one training runs: where it reports its progress and what stops it. The default
+/// reports nothing and is never stopped.
+#[derive(Clone, Default)]
+pub struct FitControl<'a> {
+    /// Called after every step of the training.
+    pub progress: Option<&'a (dyn Fn(TrainingProgress) + Sync)>,
+    /// Stops the training with [`Interrupted`](crate::Error::Interrupted) once cancelled.
+    pub cancel: Cancel,
+}
+
+impl FitControl<'_> {
+    /// Passes a step to [`progress`](Self::progress), if any.
+    pub fn report(&self, stage: &'static str, done: usize, total: usize) {
+        if let Some(progress) = self.progress {
+            progress(TrainingProgress { stage, done, total });
+        }
+    }
+}
+
+impl Debug for FitControl<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FitControl")
+            .field("progress", &self.progress.map(|_| "callback"))
+            .field("cancel", &self.cancel)
+            .finish()
+    }
+}
+
 /// A residual predictor's hyper-parameters as written in a robot file.
 #[typetag::serde(tag = "type")]
 pub trait PredictorSpec: Debug + Send + Sync {
     /// Fits the predictor; deterministic for the spec's seed.
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>>;
+    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+        self.fit_with(data, &FitControl::default())
+    }
+    /// [`fit`](Self::fit), reporting to and stopped by `control`; the same result for the same
+    /// spec and data whatever the control.
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>>;
     /// Checks the spec against the file that names it, when the robot is built, and returns
     /// the spec to fit in its place if its meaning depends on where that file lies (a run-time
     /// library's path); `None`, the default, keeps the spec as written.

@@ -15,6 +15,7 @@ use std::ops::ControlFlow;
 use nalgebra::{DMatrix, DVector};
 
 use crate::error::Result;
+use crate::support::cancel::Cancel;
 
 /// A nonlinear least-squares problem: residuals, their Jacobian, and optional constraints and
 /// hooks for [`levenberg_marquardt`].
@@ -108,7 +109,7 @@ pub struct StallParams {
 }
 
 /// Settings of [`levenberg_marquardt`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct LmParams {
     /// Most iterations (each one Jacobian and the damped solves until a step is accepted).
     pub max_iterations: usize,
@@ -131,6 +132,9 @@ pub struct LmParams {
     pub convergence: Option<ConvergenceParams>,
     /// Ends the loop early when the fit stalls far above the noise ([`LmStop::Stalled`]).
     pub stall: Option<StallParams>,
+    /// Ends the loop with [`Error::Interrupted`](crate::Error::Interrupted) once cancelled
+    /// (checked before every iteration).
+    pub cancel: Cancel,
 }
 
 impl Default for LmParams {
@@ -150,6 +154,7 @@ impl Default for LmParams {
                 min_step: 1e-2,
             }),
             stall: None,
+            cancel: Cancel::default(),
         }
     }
 }
@@ -218,8 +223,8 @@ pub struct LmReport {
 const MIN_DAMPING: f64 = 1e-12;
 
 /// Minimises `problem`'s cost from `x`, leaving in `x` the best point found (the loop only
-/// moves to points of lower cost, so that is where it ends). The process-wide stop request
-/// ([`crate::support::interrupt`]) is checked before every iteration.
+/// moves to points of lower cost, so that is where it ends). [`LmParams::cancel`] is checked
+/// before every iteration.
 pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     problem: &mut P,
     x: &mut [f64],
@@ -260,7 +265,7 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     // Consecutive slow accepted steps (see `StallParams`).
     let mut slow = 0;
     let stop = loop {
-        crate::support::interrupt::check()?;
+        params.cancel.check()?;
         if params.convergence.is_none() && iterations >= params.max_iterations {
             // Without the tests the Jacobian at the last point serves nothing.
             break LmStop::IterationLimit;

@@ -1,7 +1,6 @@
 //! What every predictor does with its training set: check it, standardise it, split it.
 
-use armcomp_core::{Error, Limits, Result, TrainingSet};
-use indicatif::{ProgressBar, ProgressStyle};
+use armcomp_core::{Error, FitControl, Limits, Result, TrainingSet};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use serde::{Deserialize, Serialize};
@@ -271,13 +270,27 @@ pub(crate) fn check_positive(field: &str, value: f64) -> Result<()> {
     }
 }
 
-/// A progress bar on stderr for a training loop of `len` steps; indicatif hides it when stderr
-/// is not a terminal, so logs and tests stay clean.
-pub(crate) fn progress(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    if let Ok(style) = ProgressStyle::with_template("{msg:>12} [{bar:30}] {pos}/{len} {elapsed_precise}") {
-        bar.set_style(style.progress_chars("=> "));
+/// Counts the steps of one training loop of `total` steps and reports each to its control.
+pub(crate) struct Steps<'c, 'a> {
+    control: &'c FitControl<'a>,
+    stage: &'static str,
+    done: usize,
+    total: usize,
+}
+
+impl<'c, 'a> Steps<'c, 'a> {
+    pub(crate) fn new(control: &'c FitControl<'a>, stage: &'static str, total: usize) -> Self {
+        Steps {
+            control,
+            stage,
+            done: 0,
+            total,
+        }
     }
-    bar.set_message(what.to_string());
-    bar
+
+    /// One more step done.
+    pub(crate) fn step(&mut self) {
+        self.done += 1;
+        self.control.report(self.stage, self.done, self.total);
+    }
 }

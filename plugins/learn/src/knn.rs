@@ -4,7 +4,7 @@
 //! thousand rows, a handful of inputs) one pass is a few microseconds, needs no index structure
 //! and allocates nothing.
 
-use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
+use armcomp_core::{Error, FitControl, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -154,7 +154,8 @@ impl FittedPredictor for FittedKnn {
 
 #[typetag::serde(name = "knn")]
 impl PredictorSpec for KnnSpec {
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
+        control.cancel.check()?;
         check_count("k", self.k, 1)?;
         let s = Samples::check(data, self.k)?;
         let inputs = Standardizer::fit_inputs(s.inputs, s.n_inputs, s.input_ranges);

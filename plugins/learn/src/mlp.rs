@@ -1,7 +1,7 @@
 //! `mlp`: the plain back-propagation network (the ANN paper's compensation network), trained by
 //! gradient from a seeded Glorot initialisation.
 
-use armcomp_core::{FittedPredictor, PredictorSpec, Result, TrainingSet};
+use armcomp_core::{FitControl, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use schemars::JsonSchema;
@@ -43,14 +43,14 @@ impl Default for MlpSpec {
 
 #[typetag::serde(name = "mlp")]
 impl PredictorSpec for MlpSpec {
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
         let samples = Samples::check(data, 2)?;
         let net = Network::new(samples.n_inputs, &self.hidden, samples.n_outputs)?;
         self.training.check(net.n_params())?;
         let mut rng = StdRng::seed_from_u64(self.seed);
         let data = NetData::new(&samples, self.training.validation_fraction, &mut rng);
         let mut params = net.init(&mut rng);
-        train(&net, &mut params, &data, &self.training, &mut rng)?;
+        train(&net, &mut params, &data, &self.training, &mut rng, control)?;
         Ok(Box::new(data.fitted(net, params)?))
     }
 }

@@ -1,7 +1,7 @@
 //! `ridge`: ridge regression on standardised features of the inputs (linear, optionally their
 //! pairwise products and squares, and sines and cosines of the raw inputs), a baseline.
 
-use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
+use armcomp_core::{Error, FitControl, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use nalgebra::DMatrix;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
@@ -156,7 +156,8 @@ impl FittedPredictor for FittedRidge {
 
 #[typetag::serde(name = "ridge")]
 impl PredictorSpec for RidgeSpec {
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
+        control.cancel.check()?;
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
             return Err(invalid(
                 "lambda",

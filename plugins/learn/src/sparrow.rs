@@ -1,7 +1,7 @@
 //! The sparrow search algorithm (SSA) of Xue & Shen (2020), a population-based minimiser used
 //! by `ssa_bp` to find starting weights for back-propagation.
 
-use armcomp_core::Result;
+use armcomp_core::{FitControl, Result};
 use rand::Rng;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -9,7 +9,7 @@ use rand_distr::StandardNormal;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{check_count, check_fraction, check_positive, invalid, progress};
+use crate::data::{Steps, check_count, check_fraction, check_positive, invalid};
 
 /// Sparrow search settings.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -112,6 +112,7 @@ pub fn sparrow_search(
     dim: usize,
     params: &SparrowParams,
     rng: &mut StdRng,
+    control: &FitControl<'_>,
     mut fitness: impl FnMut(&[f64]) -> f64,
 ) -> Result<SparrowReport> {
     params.check()?;
@@ -148,9 +149,9 @@ pub fn sparrow_search(
         (f, improved)
     };
 
-    let bar = progress(params.iterations as u64, "sparrows");
+    let mut steps = Steps::new(control, "sparrows", params.iterations);
     for _ in 0..params.iterations {
-        armcomp_core::support::interrupt::check()?;
+        control.cancel.check()?;
         order.sort_by(|&a, &c| best_f[a].total_cmp(&best_f[c]));
         let (g, w) = (order[0], order[n - 1]);
         let (f_g, f_w) = (best_f[g], best_f[w]);
@@ -227,9 +228,8 @@ pub fn sparrow_search(
             try_move(s, &mut x, &mut best_x, &mut best_f);
         }
         evaluations += n + scouts;
-        bar.inc(1);
+        steps.step();
     }
-    bar.finish_and_clear();
     let g = (0..n).min_by(|&a, &c| best_f[a].total_cmp(&best_f[c])).unwrap_or(0);
     Ok(SparrowReport {
         best: best_x[g * dim..(g + 1) * dim].to_vec(),

@@ -2,7 +2,7 @@
 //! sparrow search looks for the weights and biases with the least mean squared error, then
 //! gradient training refines the best sparrow.
 
-use armcomp_core::{FittedPredictor, PredictorSpec, Result, TrainingSet};
+use armcomp_core::{FitControl, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use schemars::JsonSchema;
@@ -52,7 +52,7 @@ impl Default for SsaBpSpec {
 
 #[typetag::serde(name = "ssa_bp")]
 impl PredictorSpec for SsaBpSpec {
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
         let samples = Samples::check(data, 2)?;
         let net = Network::new(samples.n_inputs, &self.hidden, samples.n_outputs)?;
         self.refine.check(net.n_params())?;
@@ -71,11 +71,11 @@ impl PredictorSpec for SsaBpSpec {
             &data.train
         };
         let mut acts = vec![0.0; net.n_activations()];
-        let report = sparrow_search(net.n_params(), &self.search, &mut rng, |w| {
+        let report = sparrow_search(net.n_params(), &self.search, &mut rng, control, |w| {
             data.mse(&net, w, rows, &mut acts)
         })?;
         let mut params = report.best;
-        train(&net, &mut params, &data, &self.refine, &mut rng)?;
+        train(&net, &mut params, &data, &self.refine, &mut rng, control)?;
         Ok(Box::new(data.fitted(net, params)?))
     }
 }

@@ -5,15 +5,14 @@
 use std::ops::ControlFlow;
 
 use armcomp_core::support::least_squares::{self, Damping, LeastSquares, LmIteration, LmParams};
-use armcomp_core::{Error, Result};
-use indicatif::ProgressBar;
+use armcomp_core::{Error, FitControl, Result};
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Samples, Standardizer, check_count, check_fraction, check_positive, progress, split_indices};
+use crate::data::{Samples, Standardizer, Steps, check_count, check_fraction, check_positive, split_indices};
 use crate::network::{FittedMlp, MlpModel, Network};
 
 /// How the weights are refined by gradient.
@@ -179,19 +178,21 @@ impl EarlyStopping {
 
 /// Refines `params` in place by the configured gradient method; the best weights by the
 /// monitored error (held-out rows, or training rows when none are held out) are kept.
-/// A stop request ([`armcomp_core::support::interrupt`]) ends training early with [`Error::Interrupted`].
+/// Every epoch is reported to `control`, whose stop request ends training early with
+/// [`Error::Interrupted`].
 pub(crate) fn train(
     net: &Network,
     params: &mut [f64],
     data: &NetData,
     tp: &TrainingParams,
     rng: &mut StdRng,
+    control: &FitControl<'_>,
 ) -> Result<()> {
     match tp.method {
-        GradientMethod::Adam => adam(net, params, data, tp, rng),
-        GradientMethod::LevenbergMarquardt => levenberg_marquardt(net, params, data, tp)?,
+        GradientMethod::Adam => adam(net, params, data, tp, rng, control),
+        GradientMethod::LevenbergMarquardt => levenberg_marquardt(net, params, data, tp, control)?,
     }
-    armcomp_core::support::interrupt::check()
+    control.cancel.check()
 }
 
 fn monitored(data: &NetData) -> &[usize] {
@@ -202,7 +203,14 @@ fn monitored(data: &NetData) -> &[usize] {
     }
 }
 
-fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, rng: &mut StdRng) {
+fn adam(
+    net: &Network,
+    params: &mut [f64],
+    data: &NetData,
+    tp: &TrainingParams,
+    rng: &mut StdRng,
+    control: &FitControl<'_>,
+) {
     const BETA1: f64 = 0.9;
     const BETA2: f64 = 0.999;
     const EPS: f64 = 1e-8;
@@ -213,11 +221,11 @@ fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, 
     let mut dout = vec![0.0; data.k];
     let mut order = data.train.clone();
     let mut stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
-    let bar = progress(tp.max_epochs as u64, "adam");
+    let mut steps = Steps::new(control, "adam", tp.max_epochs);
     let mut step = 0;
     for _ in 0..tp.max_epochs {
         // A stopped run ends here; the fit that called it returns the interruption.
-        if armcomp_core::support::interrupt::requested() {
+        if control.cancel.is_cancelled() {
             break;
         }
         order.shuffle(rng);
@@ -242,19 +250,18 @@ fn adam(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams, 
                 *p -= tp.learning_rate * (*m / c1) / ((*v / c2).sqrt() + EPS);
             }
         }
-        bar.inc(1);
+        steps.step();
         if stop.update(params, data.mse(net, params, monitored(data), &mut acts)) {
             break;
         }
     }
-    bar.finish_and_clear();
     params.copy_from_slice(&stop.best);
 }
 
 /// Training on all rows as least squares: the residuals `output − target` of the training
 /// rows, the Jacobian by one back-propagation per output, the held-out error checked after
 /// every iteration.
-struct NetFit<'a> {
+struct NetFit<'a, 'c> {
     net: &'a Network,
     data: &'a NetData,
     acts: Vec<f64>,
@@ -262,10 +269,10 @@ struct NetFit<'a> {
     grad_row: Vec<f64>,
     unit: Vec<f64>,
     stop: EarlyStopping,
-    bar: ProgressBar,
+    steps: Steps<'c, 'a>,
 }
 
-impl LeastSquares for NetFit<'_> {
+impl LeastSquares for NetFit<'_, '_> {
     fn n_params(&self) -> usize {
         self.net.n_params()
     }
@@ -307,7 +314,7 @@ impl LeastSquares for NetFit<'_> {
     }
 
     fn iteration(&mut self, it: &LmIteration<'_>) -> ControlFlow<()> {
-        self.bar.inc(1);
+        self.steps.step();
         let error = self.data.mse(self.net, it.x, monitored(self.data), &mut self.acts);
         if self.stop.update(it.x, error) {
             ControlFlow::Break(())
@@ -317,7 +324,13 @@ impl LeastSquares for NetFit<'_> {
     }
 }
 
-fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &TrainingParams) -> Result<()> {
+fn levenberg_marquardt(
+    net: &Network,
+    params: &mut [f64],
+    data: &NetData,
+    tp: &TrainingParams,
+    control: &FitControl<'_>,
+) -> Result<()> {
     let mut acts = vec![0.0; net.n_activations()];
     let stop = EarlyStopping::new(params, data.mse(net, params, monitored(data), &mut acts), tp.patience);
     let mut fit = NetFit {
@@ -328,7 +341,7 @@ fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &T
         grad_row: vec![0.0; params.len()],
         unit: vec![0.0; data.k],
         stop,
-        bar: progress(tp.max_epochs as u64, "lm"),
+        steps: Steps::new(control, "lm", tp.max_epochs),
     };
     let lm = LmParams {
         max_iterations: tp.max_epochs,
@@ -342,9 +355,9 @@ fn levenberg_marquardt(net: &Network, params: &mut [f64], data: &NetData, tp: &T
         // Early stopping on the held-out rows decides the end.
         convergence: None,
         stall: None,
+        cancel: control.cancel.clone(),
     };
     let outcome = least_squares::levenberg_marquardt(&mut fit, params, &lm);
-    fit.bar.finish_and_clear();
     params.copy_from_slice(&fit.stop.best);
     outcome.map(|_| ())
 }

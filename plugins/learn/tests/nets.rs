@@ -1,6 +1,6 @@
 //! The networks on the synthetic boom residual, and the sparrow search against random search.
 
-use armcomp_core::PredictorSpec;
+use armcomp_core::{FitControl, PredictorSpec};
 use armcomp_learn::{GradientMethod, MlpSpec, Network, SparrowParams, SsaBpSpec, TrainingParams, sparrow_search};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -155,7 +155,7 @@ fn sparrow_search_beats_random_search() {
         for seed in 0..5 {
             let mut rng = StdRng::seed_from_u64(seed);
             let mut count = 0;
-            let report = sparrow_search(10, &params, &mut rng, |x| {
+            let report = sparrow_search(10, &params, &mut rng, &FitControl::default(), |x| {
                 count += 1;
                 f(x)
             })

@@ -255,13 +255,20 @@ def fit(
     return model, from_json(FitReport, text)
 
 
-def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, LearnReport]:
+def learn(
+    model: Robot,
+    data: Measurements,
+    predictor: Optional[str] = None,
+    progress: Optional[Callable[[str, int, int], None]] = None,
+) -> Tuple[Robot, LearnReport]:
     """Fits ``predictor`` (gp, mlp, ssa_bp, ridge or knn with default settings), or else the
     residual predictor ``model``'s ``[predictor]`` table describes, on ``data``, as
     ``armcomp learn`` does; returns the model with it, the training errors and the
     cross-validated ones. A predictor that memorises its rows, or does not help on rows it was
-    not fitted on, is warned about (``CalibrationWarning``)."""
-    fitted, text = _native.learn(model, data, predictor=predictor)
+    not fitted on, is warned about (``CalibrationWarning``). ``progress(stage, done, total)``
+    is called after every step of the training (stage ``gp``, ``adam``, ``lm`` or
+    ``sparrows``) and every fold of the cross-validation (``folds``)."""
+    fitted, text = _native.learn(model, data, predictor=predictor, progress=progress)
     report = from_json(LearnReport, text)
     for w in report.warnings:
         warnings.warn(w, CalibrationWarning, stacklevel=2)

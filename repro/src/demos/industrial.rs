@@ -15,7 +15,7 @@ use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::model::sampling::{Sampler, unit_points};
-use armcomp_core::{Result, Robot};
+use armcomp_core::{FitControl, Result, Robot};
 use armcomp_learn::MlpSpec;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::rngs::StdRng;
@@ -284,7 +284,7 @@ pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
             })
             .collect();
         let data: Vec<Sample> = simulate(truth, &q, noise(rng.random()))?.samples;
-        let (fitted, s) = timed(|| fit_residual_predictor(model, &spec, &data));
+        let (fitted, s) = timed(|| fit_residual_predictor(model, &spec, &data, &FitControl::default()));
         bench.row(
             name,
             model,

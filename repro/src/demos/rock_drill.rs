@@ -8,7 +8,7 @@ use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::plugin::PredictorSpec;
 use armcomp_core::robot::robot_file::{Format, SourceFile};
-use armcomp_core::{Result, Robot};
+use armcomp_core::{FitControl, Result, Robot};
 use armcomp_learn::{GpSpec, SparrowParams, SsaBpSpec};
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -282,7 +282,7 @@ pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
         (5, "deflection + SSA-BP", &deflection, &small),
     ] {
         let spec = ssa_bp(config, seed_ssa);
-        let (fitted, s) = timed(|| fit_residual_predictor(model, &spec, data));
+        let (fitted, s) = timed(|| fit_residual_predictor(model, &spec, data, &FitControl::default()));
         rows.push(bench.row(
             &format!("{label}, {} poses", data.len()),
             model,
@@ -321,7 +321,7 @@ pub fn run_on(truth: &Robot, config: &Config) -> Result<Table> {
         let ssa = ssa_bp(config, seed_ssa);
         let predictors: [(&str, &dyn PredictorSpec); 2] = [("GP", &gp), ("SSA-BP", &ssa)];
         for (label, spec) in predictors {
-            let (fitted, s) = timed(|| fit_residual_predictor(&model, spec, data));
+            let (fitted, s) = timed(|| fit_residual_predictor(&model, spec, data, &FitControl::default()));
             let fitted = fitted?;
             rows.push(bench.row(
                 &format!("calibrated elastic + {label}, {n} poses"),

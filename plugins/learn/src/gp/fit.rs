@@ -1,7 +1,7 @@
 //! The spec (hyper-parameters of the search) and the fit: standardise, optimise the
 //! likelihood on a subset, factorise the full set.
 
-use armcomp_core::{Error, FittedPredictor, PredictorSpec, Result, TrainingSet};
+use armcomp_core::{Error, FitControl, FittedPredictor, PredictorSpec, Result, TrainingSet};
 use nalgebra::DMatrix;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -9,7 +9,7 @@ use rand::{Rng, SeedableRng};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-use crate::data::{Samples, Standardizer, check_count, invalid, progress};
+use crate::data::{Samples, Standardizer, Steps, check_count, invalid};
 use crate::lbfgs;
 
 use super::*;
@@ -72,7 +72,14 @@ impl GpSpec {
     }
 
     /// The hyper-parameters maximising the log marginal likelihood of `y` (columns `outputs`).
-    pub(super) fn optimise(&self, x: &[f64], y: &[f64], d: usize, rng: &mut StdRng) -> Result<GpHyperParams> {
+    pub(super) fn optimise(
+        &self,
+        x: &[f64],
+        y: &[f64],
+        d: usize,
+        rng: &mut StdRng,
+        control: &FitControl<'_>,
+    ) -> Result<GpHyperParams> {
         let k = y.len() * d / x.len();
         let lik = GpLikelihood::new(x, d, y, k, self.noise_floor)?;
         let mut starts = vec![{
@@ -86,11 +93,11 @@ impl GpSpec {
             t.push(rng.random_range(0.01f64.ln()..0.5f64.ln()));
             starts.push(t);
         }
-        let bar = progress((starts.len() * self.max_iterations) as u64, "gp");
+        let mut steps = Steps::new(control, "gp", starts.len() * self.max_iterations);
         let mut best: Option<(Vec<f64>, f64)> = None;
         let mut iterations = 0;
         for start in &starts {
-            armcomp_core::support::interrupt::check()?;
+            control.cancel.check()?;
             let (theta, value) = lbfgs::minimize(
                 start,
                 self.max_iterations,
@@ -103,7 +110,7 @@ impl GpSpec {
                     Err(_) => f64::INFINITY,
                 },
                 || {
-                    bar.inc(1);
+                    steps.step();
                     iterations += 1;
                 },
             );
@@ -111,7 +118,6 @@ impl GpSpec {
                 best = Some((theta, value));
             }
         }
-        bar.finish_and_clear();
         let (theta, _) = best.ok_or_else(|| Error::NotConverged {
             what: "gp hyper-parameter fit".into(),
             iterations,
@@ -126,7 +132,7 @@ impl GpSpec {
 
 #[typetag::serde(name = "gp")]
 impl PredictorSpec for GpSpec {
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
         self.check()?;
         let s = Samples::check(data, 2)?;
         let (d, k) = (s.n_inputs, s.n_outputs);
@@ -157,7 +163,7 @@ impl PredictorSpec for GpSpec {
                     h.check(d)?;
                     h.clone()
                 }
-                None => self.optimise(&sub_x, &columns(&y, k, &rows, &group), d, &mut rng)?,
+                None => self.optimise(&sub_x, &columns(&y, k, &rows, &group), d, &mut rng, control)?,
             };
             let scaled = scale_inputs(&x, &hyper.length_scales);
             // Jitter only when the factorisation fails (near-duplicate rows with tiny noise).

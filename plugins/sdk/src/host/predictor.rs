@@ -4,7 +4,9 @@
 use std::os::raw::c_void;
 use std::path::{Path, PathBuf};
 
-use armcomp_core::{BuildContext, Error, FittedPredictor, Issues, PredictorSpec, Result, Role, TrainingSet};
+use armcomp_core::{
+    BuildContext, Error, FitControl, FittedPredictor, Issues, PredictorSpec, Result, Role, TrainingSet,
+};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -36,7 +38,9 @@ pub struct PluginPredictorSpec {
 
 #[typetag::serde(name = "plugin")]
 impl PredictorSpec for PluginPredictorSpec {
-    fn fit(&self, data: &TrainingSet<'_>) -> Result<Box<dyn FittedPredictor>> {
+    fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
+        // A library's fit is one call that cannot be stopped part-way.
+        control.cancel.check()?;
         let (lib, ty) = PluginLibrary::resolve(
             self.folder.as_deref().unwrap_or(Path::new("")),
             &self.library,
