@@ -28,6 +28,22 @@ pub fn plugins() -> Vec<PluginInfo> {
     all
 }
 
+/// [`plugins`] as `armcomp plugins --json` lists them: each one's `type`, `role`, `doc` and
+/// whether the diagnosis tries it (`diagnosis_candidate`).
+pub fn plugins_json() -> serde_json::Value {
+    plugins()
+        .iter()
+        .map(|p| {
+            serde_json::json!({
+                "type": p.type_name,
+                "role": p.role,
+                "doc": p.doc,
+                "diagnosis_candidate": p.diagnosis_candidate,
+            })
+        })
+        .collect()
+}
+
 /// Definition names of the placeholders in [`RobotFile`]'s schema, one per role.
 fn placeholder(role: Role) -> &'static str {
     match role {

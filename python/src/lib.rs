@@ -41,5 +41,6 @@ fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
     m.add_function(wrap_pyfunction!(validate::check_pose, m)?)?;
     m.add_function(wrap_pyfunction!(validate::schema, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::plugins, m)?)?;
     Ok(())
 }

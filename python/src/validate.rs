@@ -1,4 +1,4 @@
-//! `armcomp validate`, `armcomp schema` and `armcomp check-pose` from Python.
+//! `armcomp validate`, `armcomp schema`, `armcomp plugins` and `armcomp check-pose` from Python.
 
 use std::path::PathBuf;
 
@@ -21,6 +21,13 @@ pub fn validate(py: Python<'_>, path: PathBuf) -> String {
 #[pyfunction]
 pub fn schema() -> String {
     armcomp::schema_text()
+}
+
+/// The built-in plugins and those of libraries loaded so far, as `armcomp plugins --json`
+/// lists them (JSON text).
+#[pyfunction]
+pub fn plugins() -> String {
+    armcomp::registry::plugins_json().to_string()
 }
 
 /// Collisions at configuration `q` as `armcomp check-pose --json` lists its `contacts` (JSON

@@ -5,7 +5,7 @@ import json
 import math
 
 import armcomp
-from conftest import ROOT
+from conftest import ROOT, cli_json
 
 # The two-link arm the Rust check-pose test uses (box base, capsule forearm of radius 40 mm).
 ARM = ROOT / "tests" / "data" / "robots" / "two-link-collision.urdf"
@@ -40,3 +40,12 @@ def test_check_pose_finds_the_contact_the_geometry_gives():
 def test_schema_is_the_committed_one():
     committed = json.loads((ROOT / "schemas" / "robot.schema.json").read_text())
     assert json.loads(armcomp.schema()) == committed
+
+
+def test_plugins_are_the_command_lines_list():
+    listed = armcomp.plugins()
+    assert listed == cli_json("plugins")
+    # Every role is there, and the diagnosis' candidates are physical effects.
+    assert {p["role"] for p in listed} == {"kinematics", "error_model", "predictor"}
+    assert any(p["type"] == "gp" and p["role"] == "predictor" for p in listed)
+    assert all(p["role"] == "error_model" for p in listed if p["diagnosis_candidate"])

@@ -20,18 +20,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let plugins = armcomp::plugins();
     if args.json {
-        let list: Vec<_> = plugins
-            .iter()
-            .map(|p| {
-                serde_json::json!({
-                    "type": p.type_name,
-                    "role": p.role,
-                    "doc": p.doc,
-                    "diagnosis_candidate": p.diagnosis_candidate,
-                })
-            })
-            .collect();
-        println!("{}", serde_json::to_string_pretty(&list)?);
+        println!("{}", serde_json::to_string_pretty(&armcomp::registry::plugins_json())?);
     } else {
         let width = plugins.iter().map(|p| p.type_name.len()).max().unwrap_or(0);
         for p in &plugins {

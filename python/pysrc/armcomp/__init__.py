@@ -91,6 +91,7 @@ __all__ = [
     "validate",
     "check_pose",
     "schema",
+    "plugins",
 ]
 
 
@@ -369,3 +370,9 @@ def check_pose(robot: Robot, q) -> list:
 def schema() -> str:
     """The JSON Schema of robot files (JSON text), as ``armcomp schema`` prints it."""
     return _native.schema()
+
+
+def plugins() -> list:
+    """The plugin types robot files can name, as ``armcomp plugins --json`` lists them: one
+    dict per type with its ``type``, ``role``, ``doc`` and ``diagnosis_candidate``."""
+    return json.loads(_native.plugins())
