@@ -363,6 +363,42 @@ pub(crate) fn solve_from(
     opts: &IkParams,
     ws: &mut IkWorkspace,
 ) -> Result<IkReport, IkError> {
+    take_start(robot, start_at, ws)?;
+    check_target(robot, point, target, offset)?;
+    let solve = Solve {
+        robot,
+        point,
+        target,
+        offset,
+        opts,
+        pose_target: matches!(target, IkTarget::Pose(_)),
+    };
+    let mut iterations = 0;
+    let mut best_cost = f64::INFINITY;
+    for start in 0..=opts.restarts {
+        let previous = start == 0 && matches!(start_at, Start::Previous);
+        solve.seed(start, previous, ws);
+        let mut at = solve.iterate_at(ws);
+        solve.iterate(&mut at, &mut iterations, ws);
+        if solve.converged(&at) {
+            return Ok(IkReport {
+                iterations,
+                starts: start + 1,
+                position_error: at.pe,
+                orientation_error: at.oe,
+            });
+        }
+        if at.cost < best_cost {
+            best_cost = at.cost;
+            ws.best.copy_from_slice(&ws.q);
+        }
+    }
+    Err(solve.closest(iterations, ws))
+}
+
+/// Checks that `ws` fits `robot` and copies the start into it; a locked coordinate is kept
+/// exactly, so a start outside its limits cannot be projected onto them and is refused.
+fn take_start(robot: &Robot, start_at: Start<'_>, ws: &mut IkWorkspace) -> Result<(), IkError> {
     let tree = robot.tree();
     let n = tree.nq();
     if ws.q.len() != n {
@@ -379,7 +415,6 @@ pub(crate) fn solve_from(
         }
         Start::Previous => ws.start.copy_from_slice(&ws.q),
     }
-    // A locked coordinate is kept exactly, so projecting it onto its limits is no option.
     for (k, l) in tree.coordinate_limits().iter().enumerate() {
         if let Some(l) = l
             && ws.locked[k]
@@ -398,6 +433,13 @@ pub(crate) fn solve_from(
             .into());
         }
     }
+    Ok(())
+}
+
+/// Checks that the point exists, the target is finite and the offset fits the robot.
+fn check_target(robot: &Robot, point: usize, target: &IkTarget, offset: Option<&LinearOffset>) -> Result<(), IkError> {
+    let tree = robot.tree();
+    let n = tree.nq();
     if point >= tree.points().len() {
         return Err(Error::InvalidArgument {
             what: format!("point {point}"),
@@ -429,16 +471,51 @@ pub(crate) fn solve_from(
         }
         .into());
     }
-    let pose_target = matches!(target, IkTarget::Pose(_));
-    let w = opts.orientation_weight;
-    let converged = |pe: f64, oe: f64| pe <= opts.position_tolerance && oe <= opts.orientation_tolerance;
+    Ok(())
+}
 
-    let mut iterations = 0;
-    let mut best_cost = f64::INFINITY;
-    let limits = tree.coordinate_limits();
-    for start in 0..=opts.restarts {
-        // Start: the given one, then Sobol points within the limits.
-        let previous = start == 0 && matches!(start_at, Start::Previous);
+/// One checked request: what every start and iteration of the solve reads.
+struct Solve<'a> {
+    robot: &'a Robot,
+    point: usize,
+    target: &'a IkTarget,
+    offset: Option<&'a LinearOffset>,
+    opts: &'a IkParams,
+    pose_target: bool,
+}
+
+/// Where one start's iteration stands: the error at [`IkWorkspace::q`], its norms, its cost
+/// and the adaptive damping.
+struct Iterate {
+    e: Vector6<f64>,
+    pe: f64,
+    oe: f64,
+    cost: f64,
+    mu: f64,
+}
+
+impl Solve<'_> {
+    fn converged(&self, at: &Iterate) -> bool {
+        at.pe <= self.opts.position_tolerance && at.oe <= self.opts.orientation_tolerance
+    }
+
+    /// The task error at `q`, whose full model `ws.robot` holds.
+    fn error(&self, ws: &RobotWorkspace, q: &[f64]) -> (Vector6<f64>, f64, f64) {
+        task_error(
+            ws,
+            self.point,
+            self.target,
+            self.opts.orientation_weight,
+            self.offset,
+            q,
+        )
+    }
+
+    /// Start `start` into `ws.q` with its full model: the given one, then Sobol points within
+    /// the limits. The `previous` solve's end already has its frames in the workspace.
+    fn seed(&self, start: usize, previous: bool, ws: &mut IkWorkspace) {
+        let tree = self.robot.tree();
+        let limits = tree.coordinate_limits();
         if start == 0 {
             ws.q.copy_from_slice(&ws.start);
         } else {
@@ -453,127 +530,153 @@ pub(crate) fn solve_from(
             }
         }
         if !previous {
-            project(robot, &mut ws.q);
-            robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
+            project(self.robot, &mut ws.q);
+            self.robot.forward_into(&ws.q, self.opts.temperature, &mut ws.robot);
         }
-        let (mut e, mut pe, mut oe) = task_error(&ws.robot, point, target, w, offset, &ws.q);
-        let mut cost = e.norm_squared();
-        let mut mu = opts.damping.max(0.0);
-        let mut checkpoint = cost;
-        for it in 0..opts.max_iterations {
-            if converged(pe, oe) {
+    }
+
+    /// The iteration's state at the seeded start.
+    fn iterate_at(&self, ws: &IkWorkspace) -> Iterate {
+        let (e, pe, oe) = self.error(&ws.robot, &ws.q);
+        Iterate {
+            e,
+            pe,
+            oe,
+            cost: e.norm_squared(),
+            mu: self.opts.damping.max(0.0),
+        }
+    }
+
+    /// Iterates from the seeded start until it converges, no step lowers the error, the error
+    /// stalls or the iterations run out; `iterations` counts them over all starts.
+    fn iterate(&self, at: &mut Iterate, iterations: &mut usize, ws: &mut IkWorkspace) {
+        let mut checkpoint = at.cost;
+        for it in 0..self.opts.max_iterations {
+            if self.converged(at) {
                 break;
             }
-            iterations += 1;
-            // Task Jacobian of the deformed arm, orientation rows weighted.
-            tree.pose_jacobian_into(&ws.robot.frames, point, &mut ws.jac);
-            for c in 0..n {
-                if ws.locked[c] {
-                    ws.jac.column_mut(c).fill(0.0);
-                    continue;
-                }
-                if let Some(o) = offset {
-                    for r in 0..3 {
-                        ws.jac[(r, c)] += o.jacobian[(r, c)];
-                    }
-                }
-                for r in 3..6 {
-                    ws.jac[(r, c)] = if pose_target { ws.jac[(r, c)] * w } else { 0.0 };
-                }
-            }
-            let mut jjt = gram(&ws.jac, pose_target);
-            let scale = 1.0 + jjt.trace();
-            let mut accepted = false;
-            for _attempt in 0..(12 + n) {
-                // Damping grows with the error (Sugihara 2011, λ = ½|e|² + μ): large steps
-                // are damped far from the target and near singular configurations, where
-                // a fixed small μ lets a step overshoot into another branch or a limit, and
-                // the damping vanishes as the error does, so the end is Gauss–Newton's.
-                let reg = match opts.method {
-                    IkMethod::NewtonRaphson => 1e-14 * scale,
-                    IkMethod::DampedLeastSquares => mu + 0.5 * cost + 1e-14 * scale,
-                };
-                let Some(y) = solve_normal(&jjt, reg, &e, pose_target) else {
-                    mu = (mu * 10.0).max(1e-12 * scale);
-                    continue;
-                };
-                for (c, d) in ws.dq.iter_mut().enumerate() {
-                    *d = ws.jac.column(c).dot(&y);
-                }
-                // Joints at a limit that the step pushes outwards leave the problem (active
-                // set); the step is solved again without them.
-                if free_blocked(robot, &ws.q, &ws.dq, &mut ws.jac) {
-                    jjt = gram(&ws.jac, pose_target);
-                    continue;
-                }
-                let largest = ws.dq.iter().fold(0.0f64, |m, d| m.max(d.abs()));
-                let mut alpha = if largest > opts.max_step {
-                    opts.max_step / largest
-                } else {
-                    1.0
-                };
-                // Newton–Raphson halves its step; damped least squares raises the damping.
-                let tries = if opts.method == IkMethod::NewtonRaphson { 12 } else { 1 };
-                for _ in 0..tries {
-                    for k in 0..n {
-                        ws.trial[k] = ws.q[k] + alpha * ws.dq[k];
-                    }
-                    project(robot, &mut ws.trial);
-                    robot.forward_into(&ws.trial, opts.temperature, &mut ws.robot);
-                    let (e2, pe2, oe2) = task_error(&ws.robot, point, target, w, offset, &ws.trial);
-                    let c2 = e2.norm_squared();
-                    if c2 < cost {
-                        ws.q.copy_from_slice(&ws.trial);
-                        (e, pe, oe, cost) = (e2, pe2, oe2, c2);
-                        accepted = true;
-                        break;
-                    }
-                    alpha *= 0.5;
-                }
-                if accepted {
-                    mu = (mu / 3.0).max(0.0);
-                    break;
-                }
-                if opts.method == IkMethod::NewtonRaphson {
-                    break;
-                }
-                mu = (mu * 8.0).max(1e-9 * scale);
-            }
-            if !accepted {
+            *iterations += 1;
+            self.task_jacobian(ws);
+            if !self.step(at, ws) {
                 // Restore the frames of the current iterate and give up on this start.
-                robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
+                self.robot.forward_into(&ws.q, self.opts.temperature, &mut ws.robot);
                 break;
             }
             // Stall detection: the error must keep shrinking.
             if it % 20 == 19 {
-                if cost > 0.9 * checkpoint {
+                if at.cost > 0.9 * checkpoint {
                     break;
                 }
-                checkpoint = cost;
+                checkpoint = at.cost;
             }
         }
-        if converged(pe, oe) {
-            return Ok(IkReport {
-                iterations,
-                starts: start + 1,
-                position_error: pe,
-                orientation_error: oe,
-            });
-        }
-        if cost < best_cost {
-            best_cost = cost;
-            ws.best.copy_from_slice(&ws.q);
+    }
+
+    /// Task Jacobian of the deformed arm into `ws.jac`: locked columns zero, the offset's
+    /// Jacobian added to the position rows, orientation rows weighted (zero for positions).
+    fn task_jacobian(&self, ws: &mut IkWorkspace) {
+        let w = self.opts.orientation_weight;
+        self.robot
+            .tree()
+            .pose_jacobian_into(&ws.robot.frames, self.point, &mut ws.jac);
+        for c in 0..ws.q.len() {
+            if ws.locked[c] {
+                ws.jac.column_mut(c).fill(0.0);
+                continue;
+            }
+            if let Some(o) = self.offset {
+                for r in 0..3 {
+                    ws.jac[(r, c)] += o.jacobian[(r, c)];
+                }
+            }
+            for r in 3..6 {
+                ws.jac[(r, c)] = if self.pose_target { ws.jac[(r, c)] * w } else { 0.0 };
+            }
         }
     }
-    ws.q.copy_from_slice(&ws.best);
-    robot.forward_into(&ws.q, opts.temperature, &mut ws.robot);
-    let (_, pe, oe) = task_error(&ws.robot, point, target, w, offset, &ws.q);
-    Err(IkError::Unreachable {
-        closest_q: ws.best.clone(),
-        closest_point: ws.robot.frames.point[point].translation.vector
-            + offset.map_or_else(Vector3::zeros, |o| o.at(&ws.q)),
-        distance: pe,
-        orientation_error: oe,
-        iterations,
-    })
+
+    /// One iteration's step from `ws.q` with the task Jacobian in `ws.jac`, the damping raised
+    /// (or the step halved) until one lowers the error: true when one did, `ws.q` moved there.
+    fn step(&self, at: &mut Iterate, ws: &mut IkWorkspace) -> bool {
+        let opts = self.opts;
+        let mut jjt = gram(&ws.jac, self.pose_target);
+        let scale = 1.0 + jjt.trace();
+        for _attempt in 0..(12 + ws.q.len()) {
+            // Damping grows with the error (Sugihara 2011, λ = ½|e|² + μ): large steps
+            // are damped far from the target and near singular configurations, where
+            // a fixed small μ lets a step overshoot into another branch or a limit, and
+            // the damping vanishes as the error does, so the end is Gauss–Newton's.
+            let reg = match opts.method {
+                IkMethod::NewtonRaphson => 1e-14 * scale,
+                IkMethod::DampedLeastSquares => at.mu + 0.5 * at.cost + 1e-14 * scale,
+            };
+            let Some(y) = solve_normal(&jjt, reg, &at.e, self.pose_target) else {
+                at.mu = (at.mu * 10.0).max(1e-12 * scale);
+                continue;
+            };
+            for (c, d) in ws.dq.iter_mut().enumerate() {
+                *d = ws.jac.column(c).dot(&y);
+            }
+            // Joints at a limit that the step pushes outwards leave the problem (active
+            // set); the step is solved again without them.
+            if free_blocked(self.robot, &ws.q, &ws.dq, &mut ws.jac) {
+                jjt = gram(&ws.jac, self.pose_target);
+                continue;
+            }
+            if self.line_search(at, ws) {
+                at.mu = (at.mu / 3.0).max(0.0);
+                return true;
+            }
+            if opts.method == IkMethod::NewtonRaphson {
+                return false;
+            }
+            at.mu = (at.mu * 8.0).max(1e-9 * scale);
+        }
+        false
+    }
+
+    /// Tries the step `ws.dq`, shortened to the largest joint step: Newton–Raphson halves it
+    /// until the error drops, damped least squares tries it once (its damping is raised
+    /// instead). True when the error dropped, `ws.q` and `at` moved there.
+    fn line_search(&self, at: &mut Iterate, ws: &mut IkWorkspace) -> bool {
+        let opts = self.opts;
+        let largest = ws.dq.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        let mut alpha = if largest > opts.max_step {
+            opts.max_step / largest
+        } else {
+            1.0
+        };
+        let tries = if opts.method == IkMethod::NewtonRaphson { 12 } else { 1 };
+        for _ in 0..tries {
+            for k in 0..ws.q.len() {
+                ws.trial[k] = ws.q[k] + alpha * ws.dq[k];
+            }
+            project(self.robot, &mut ws.trial);
+            self.robot.forward_into(&ws.trial, opts.temperature, &mut ws.robot);
+            let (e2, pe2, oe2) = self.error(&ws.robot, &ws.trial);
+            let c2 = e2.norm_squared();
+            if c2 < at.cost {
+                ws.q.copy_from_slice(&ws.trial);
+                (at.e, at.pe, at.oe, at.cost) = (e2, pe2, oe2, c2);
+                return true;
+            }
+            alpha *= 0.5;
+        }
+        false
+    }
+
+    /// The failure: the closest configuration over all starts, left in `ws` with its frames.
+    fn closest(&self, iterations: usize, ws: &mut IkWorkspace) -> IkError {
+        ws.q.copy_from_slice(&ws.best);
+        self.robot.forward_into(&ws.q, self.opts.temperature, &mut ws.robot);
+        let (_, pe, oe) = self.error(&ws.robot, &ws.q);
+        IkError::Unreachable {
+            closest_q: ws.best.clone(),
+            closest_point: ws.robot.frames.point[self.point].translation.vector
+                + self.offset.map_or_else(Vector3::zeros, |o| o.at(&ws.q)),
+            distance: pe,
+            orientation_error: oe,
+            iterations,
+        }
+    }
 }

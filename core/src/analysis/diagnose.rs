@@ -406,182 +406,49 @@ fn search(
     params: &DiagnoseParams,
     progress: &(dyn Fn(DiagnoseProgress) + Sync),
 ) -> Result<Searched> {
-    let given = robot.error_models().len();
-    // The robot as given plus the accepted effects at their neutral values.
-    let mut model = robot.rebuild(robot.to_file())?;
+    let model = robot.rebuild(robot.to_file())?;
     let (splits, folding) = crate::data::split::folds(
         samples,
         params.folds,
         params.seed,
         &FoldBy::choose(samples, fold_groups),
     )?;
-    // A counter of the stage's fold calibrations that reports each.
-    let stage_counter = |stage: DiagnoseStage, total: usize| {
-        progress(DiagnoseProgress { stage, done: 0, total });
-        let done = AtomicUsize::new(0);
-        move || {
-            let done = done.fetch_add(1, Ordering::Relaxed) + 1;
-            progress(DiagnoseProgress { stage, done, total });
-        }
-    };
-    let mut current = heldout(
-        &model,
+    let s = Search {
         samples,
-        &splits,
-        &params.calibration,
-        &stage_counter(DiagnoseStage::Baseline, splits.len()),
-    )?;
-    let initial = ErrorStats::from_errors(&current.errors);
-    let initial_residuals = describe_residuals(robot, samples, &current.errors);
-    let mut heldout_norms_mm = vec![norms_mm(&current.errors)];
-    let first = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
-    let drift = first.report.drift;
-    let mut gross_errors = first.report.outliers;
-    let mut fitted = first.robot;
-    let mut steps: Vec<DiagnosisStep> = Vec::new();
+        splits,
+        given: robot.error_models().len(),
+        params,
+        progress,
+    };
+    let (mut found, drift) = Found::start(&s, model)?;
+    let initial = ErrorStats::from_errors(&found.current.errors);
+    let initial_residuals = describe_residuals(robot, samples, &found.current.errors);
     let mut last_ranking = Vec::new();
     let mut interrupted = false;
-    while steps.len() < params.max_steps {
-        let offers: Vec<Offer> = offers(&fitted, plugins)
-            .into_iter()
-            .filter(|o| {
-                !steps
-                    .iter()
-                    .any(|s| s.effect == o.effect && s.location == o.candidate.location)
-            })
-            .collect();
-        let predicted: Vec<Option<f64>> = offers
-            .par_iter()
-            .map(|o| predicted_share(&fitted, given, o, samples, params))
-            .collect();
-        let refit = to_refit(&predicted, params);
-        let tick = stage_counter(
-            DiagnoseStage::Round(steps.len() + 1),
-            refit.iter().filter(|&&r| r).count() * splits.len(),
-        );
-        let mut ranking: Vec<RankedCandidate> = offers
-            .par_iter()
-            .zip(&predicted)
-            .zip(&refit)
-            .map(|((o, &p), &r)| {
-                if r {
-                    score(&model, given, o, p, samples, &splits, &current, params, &tick)
-                } else {
-                    screened_out(o, p, params)
-                }
-            })
-            .collect();
+    while found.steps.len() < params.max_steps {
+        let (offers, mut ranking) = s.round(&found, plugins);
         // A stopped calibration fails its candidate; the round is not worth ranking.
         if params.calibration.cancel.is_cancelled() {
             interrupted = true;
             break;
         }
-        // Those that earn their parameters first: one that does not (implausible values, at
-        // its neutral value) is no explanation, however well it scores.
-        ranking.sort_by(|a, b| {
-            b.earns_parameters
-                .cmp(&a.earns_parameters)
-                .then_with(|| a.heldout_bic.total_cmp(&b.heldout_bic))
-                .then_with(|| rank_key(b).total_cmp(&rank_key(a)))
-                .then_with(|| a.label.cmp(&b.label))
-        });
-        mark_ties(&mut ranking);
+        rank(&mut ranking);
         let Some(best) = ranking.first().filter(|c| c.earns_parameters).cloned() else {
             last_ranking = ranking;
             break;
         };
-        let equivalent: Vec<String> = ranking
-            .iter()
-            .filter(|c| c.indistinguishable_from_best)
-            .map(|c| c.label.clone())
-            .collect();
-        let offer = offers
-            .iter()
-            .find(|o| o.effect == best.effect && o.candidate.location == best.location)
-            .expect("the ranking is made of the offers");
-        model = with_effect(&model, offer)?;
-        let fit = calibrate(&model, samples, &selection(&model, given, params), &mut |_| {})?;
-        (fitted, gross_errors) = (fit.robot, fit.report.outliers);
-        let before = ErrorStats::from_errors(&current.errors);
-        let after = best.heldout.expect("an accepted candidate was evaluated");
-        let values = new_model_values(&fitted);
-        let implausible: Vec<String> = match (fitted.error_models().last(), fitted.error_values().last()) {
-            (Some(m), Some(v)) => m
-                .params()
-                .iter()
-                .zip(v)
-                .filter_map(|(p, &v)| p.implausibility(v))
-                .collect(),
-            _ => Vec::new(),
-        };
-        let alternatives = if equivalent.is_empty() {
-            String::new()
-        } else {
-            format!("; the data cannot tell it from: {}", equivalent.join(", "))
-        };
-        let flagged = if implausible.is_empty() {
-            String::new()
-        } else {
-            format!("; implausible: {}", implausible.join("; "))
-        };
-        steps.push(DiagnosisStep {
-            effect: best.effect.clone(),
-            location: best.location.clone(),
-            label: best.label.clone(),
-            summary: format!(
-                "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm){alternatives}{flagged}",
-                best.label,
-                values
-                    .iter()
-                    .map(|(_, q, v)| q.readable(*v))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                100.0 * best.share_removed,
-                before.rms_mm,
-                after.rms_mm
-            ),
-            params: values
-                .iter()
-                .map(|(name, q, v)| {
-                    (
-                        name.clone(),
-                        IdentifiedValue {
-                            value: *v,
-                            unit: q.si_unit(),
-                        },
-                    )
-                })
-                .collect(),
-            heldout_before: before,
-            heldout_after: after,
-            share_removed: best.share_removed,
-            equivalent,
-            ranking,
-            implausible,
-        });
-        current = best.evaluation.expect("an accepted candidate was evaluated");
-        heldout_norms_mm.push(norms_mm(&current.errors));
+        found.accept(&s, best, ranking, &offers)?;
     }
+    let Found {
+        model,
+        fitted,
+        gross_errors,
+        current,
+        heldout_norms_mm,
+        steps,
+    } = found;
     let current = current.errors;
-    let learnable_residual = match predictor.filter(|_| !interrupted) {
-        Some((name, spec)) => match learnable(
-            &model,
-            samples,
-            &splits,
-            &current,
-            name,
-            spec,
-            &selection(&model, given, params),
-            &stage_counter(DiagnoseStage::Learnable, splits.len()),
-        ) {
-            Err(Error::Interrupted) => {
-                interrupted = true;
-                None
-            }
-            other => Some(other?),
-        },
-        None => None,
-    };
+    let learnable_residual = s.learnable_residual(&model, &current, predictor, &mut interrupted)?;
     let report = DiagnosisReport {
         n_samples: samples.len(),
         gross_errors: Vec::new(),
@@ -609,6 +476,370 @@ fn search(
     })
 }
 
+/// Where a search stands after the effects it accepted so far.
+struct Found {
+    /// The robot as given plus the accepted effects at their neutral values (where every fold
+    /// calibration starts).
+    model: Robot,
+    /// `model` fitted to all the samples.
+    fitted: Robot,
+    /// The samples `fitted` leaves far beyond the noise.
+    gross_errors: Vec<Outlier>,
+    /// `model`'s held-out evaluation.
+    current: Heldout,
+    /// Held-out error norms (mm) per sample of the model as given and after each step.
+    heldout_norms_mm: Vec<Vec<f64>>,
+    steps: Vec<DiagnosisStep>,
+}
+
+impl Found {
+    /// The start: `model`, the robot as given, scored on the folds and fitted to all the
+    /// samples; and the drift of its residuals.
+    fn start(s: &Search<'_>, model: Robot) -> Result<(Found, Option<Drift>)> {
+        let current = s.heldout(
+            &model,
+            &s.params.calibration,
+            &s.counter(DiagnoseStage::Baseline, s.splits.len()),
+        )?;
+        let first = calibrate(&model, s.samples, &s.selection(&model), &mut |_| {})?;
+        let found = Found {
+            heldout_norms_mm: vec![norms_mm(&current.errors)],
+            fitted: first.robot,
+            gross_errors: first.report.outliers,
+            model,
+            current,
+            steps: Vec::new(),
+        };
+        Ok((found, first.report.drift))
+    }
+
+    /// Accepts `best`, the first of the round's `ranking` of `offers`: the effect joins the
+    /// model, which is fitted again to all the samples, and the step is recorded.
+    fn accept(
+        &mut self,
+        s: &Search<'_>,
+        best: RankedCandidate,
+        ranking: Vec<RankedCandidate>,
+        offers: &[Offer],
+    ) -> Result<()> {
+        let offer = offers
+            .iter()
+            .find(|o| o.effect == best.effect && o.candidate.location == best.location)
+            .expect("the ranking is made of the offers");
+        self.model = with_effect(&self.model, offer)?;
+        let fit = calibrate(&self.model, s.samples, &s.selection(&self.model), &mut |_| {})?;
+        (self.fitted, self.gross_errors) = (fit.robot, fit.report.outliers);
+        self.steps
+            .push(accepted_step(&best, ranking, &self.fitted, &self.current));
+        self.current = best.evaluation.expect("an accepted candidate was evaluated");
+        self.heldout_norms_mm.push(norms_mm(&self.current.errors));
+        Ok(())
+    }
+}
+
+/// What every calibration of one search shares: the samples and their folds, how many error
+/// models the robot file gives (the search adds its effects after them), the settings, and
+/// where progress goes.
+struct Search<'a> {
+    samples: &'a [Sample],
+    splits: Vec<Split>,
+    given: usize,
+    params: &'a DiagnoseParams,
+    progress: &'a (dyn Fn(DiagnoseProgress) + Sync),
+}
+
+impl Search<'_> {
+    /// A counter of the stage's `total` fold calibrations that reports each.
+    fn counter(&self, stage: DiagnoseStage, total: usize) -> impl Fn() + Sync + '_ {
+        let progress = self.progress;
+        progress(DiagnoseProgress { stage, done: 0, total });
+        let done = AtomicUsize::new(0);
+        move || {
+            let done = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(DiagnoseProgress { stage, done, total });
+        }
+    }
+
+    /// One round's candidates: every effect not accepted yet offered for the current fit,
+    /// those the score test keeps refitted on the folds and scored against the current
+    /// held-out evaluation, the others screened out. Unranked.
+    fn round(&self, found: &Found, plugins: &[PluginInfo]) -> (Vec<Offer>, Vec<RankedCandidate>) {
+        let Found {
+            model,
+            fitted,
+            current,
+            steps,
+            ..
+        } = found;
+        let offers: Vec<Offer> = offers(fitted, plugins)
+            .into_iter()
+            .filter(|o| {
+                !steps
+                    .iter()
+                    .any(|s| s.effect == o.effect && s.location == o.candidate.location)
+            })
+            .collect();
+        let predicted: Vec<Option<f64>> = offers.par_iter().map(|o| self.predicted_share(fitted, o)).collect();
+        let refit = to_refit(&predicted, self.params);
+        let tick = self.counter(
+            DiagnoseStage::Round(steps.len() + 1),
+            refit.iter().filter(|&&r| r).count() * self.splits.len(),
+        );
+        let ranking = offers
+            .par_iter()
+            .zip(&predicted)
+            .zip(&refit)
+            .map(|((o, &p), &r)| {
+                if r {
+                    self.score(model, o, p, current, &tick)
+                } else {
+                    screened_out(o, p, self.params)
+                }
+            })
+            .collect();
+        (offers, ranking)
+    }
+
+    /// The calibration settings for `model`: the caller's selection plus, when the caller names
+    /// one, the parameters of the effects the diagnosis added after the models of the robot
+    /// file (those are always identified; an empty selection already includes them).
+    fn selection(&self, model: &Robot) -> CalibrationParams {
+        let mut out = self.params.calibration.clone();
+        // A candidate with a multimodal parameter is restarted from other values of it, converged
+        // or not; the geometry stays where the fit ended, so a candidate gains from the minima of
+        // its own parameters only, and fits without such a parameter need no restart.
+        out.restart_moves = crate::calibrate::RestartMoves::Multimodal;
+        if !out.identify.is_empty() {
+            let added = model.error_models().iter().skip(self.given);
+            out.identify
+                .extend(added.flat_map(|m| m.params().iter().map(|p| p.name.clone())));
+        }
+        out
+    }
+
+    /// Calibrates `model` on each fold's training poses and scores it on the poses held out.
+    /// `tick` hears of each fold's calibration.
+    fn heldout(&self, model: &Robot, calibration: &CalibrationParams, tick: &(dyn Fn() + Sync)) -> Result<Heldout> {
+        let samples = self.samples;
+        let mut errors = vec![Vector3::zeros(); samples.len()];
+        let mut fixed = Vec::with_capacity(self.splits.len());
+        let mut params = Vec::with_capacity(self.splits.len());
+        for split in &self.splits {
+            let train = subset(samples, &split.train);
+            let test = subset(samples, &split.test);
+            let mut fit = calibrate(model, &train, calibration, &mut |_| {})?;
+            register_held_out_stations(&mut fit.robot, &train, &test)?;
+            tick();
+            fixed.push(
+                fit.report
+                    .params
+                    .iter()
+                    .filter(|p| p.fixed)
+                    .map(|p| p.name.clone())
+                    .collect(),
+            );
+            for (&i, e) in split.test.iter().zip(position_errors(&fit.robot, &test)) {
+                errors[i] = e;
+            }
+            params.push(fit.report.params);
+        }
+        Ok(Heldout { errors, fixed, params })
+    }
+
+    /// The share of the training RMS that the offered effect, added to `fitted` (the current
+    /// model fitted to all the samples) at its starting value, is predicted to remove by the
+    /// score test.
+    fn predicted_share(&self, fitted: &Robot, offer: &Offer) -> Option<f64> {
+        let model = with_effect(fitted, offer).ok()?;
+        let added = added_params(&model);
+        score_test(&model, self.samples, &self.selection(&model), &added)
+            .ok()
+            .map(|t| t.predicted_share())
+    }
+
+    /// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
+    /// against the held-out evaluation `current` of the model without it.
+    fn score(
+        &self,
+        model: &Robot,
+        offer: &Offer,
+        predicted_share: Option<f64>,
+        current: &Heldout,
+        tick: &(dyn Fn() + Sync),
+    ) -> RankedCandidate {
+        let mut out = unscored(offer, predicted_share);
+        out.refitted = true;
+        let evaluated = (|| {
+            let candidate = with_effect(model, offer)?;
+            let names = added_params(&candidate);
+            Ok::<_, Error>((names, self.heldout(&candidate, &self.selection(&candidate), tick)?))
+        })();
+        match evaluated {
+            Err(e) => out.error = Some(e.to_string()),
+            Ok((names, evaluation)) => judge(&mut out, &names, evaluation, current, self.samples.len(), self.params),
+        }
+        out
+    }
+
+    /// What `predictor` learns of the final residuals `current` of `model`; none without a
+    /// predictor or after a stop request, which `interrupted` records when it comes during
+    /// the predictor's fits.
+    fn learnable_residual(
+        &self,
+        model: &Robot,
+        current: &[Vector3<f64>],
+        predictor: Option<(&str, &dyn PredictorSpec)>,
+        interrupted: &mut bool,
+    ) -> Result<Option<LearnableResidual>> {
+        Ok(match predictor.filter(|_| !*interrupted) {
+            Some((name, spec)) => match self.learnable(model, current, name, spec) {
+                Err(Error::Interrupted) => {
+                    *interrupted = true;
+                    None
+                }
+                other => Some(other?),
+            },
+            None => None,
+        })
+    }
+
+    /// Fits `spec` (named `name`) to each fold's training residuals of `model` (joint values
+    /// in, residual position out) and scores the corrected held-out errors against `current`.
+    fn learnable(
+        &self,
+        model: &Robot,
+        current: &[Vector3<f64>],
+        name: &str,
+        spec: &dyn PredictorSpec,
+    ) -> Result<LearnableResidual> {
+        let (samples, calibration) = (self.samples, self.selection(model));
+        let tick = self.counter(DiagnoseStage::Learnable, self.splits.len());
+        let nq = model.tree().nq();
+        let mut corrected = current.to_vec();
+        for split in &self.splits {
+            let train = subset(samples, &split.train);
+            let fit = calibrate(model, &train, &calibration, &mut |_| {})?;
+            tick();
+            let residuals = position_errors(&fit.robot, &train);
+            let inputs: Vec<f64> = train.iter().flat_map(|s| s.q.iter().copied()).collect();
+            let targets: Vec<f64> = residuals.iter().flat_map(|r| r.iter().copied()).collect();
+            let control = FitControl {
+                progress: None,
+                cancel: calibration.cancel.clone(),
+            };
+            let predictor = spec.fit_with(
+                &TrainingSet {
+                    inputs: &inputs,
+                    targets: &targets,
+                    n_inputs: nq,
+                    n_outputs: 3,
+                    input_ranges: model.tree().coordinate_limits(),
+                },
+                &control,
+            )?;
+            let (mut out, mut scratch) = ([0.0; 3], Vec::new());
+            for &i in &split.test {
+                predictor.predict_into(&samples[i].q, &mut out, &mut scratch);
+                corrected[i] -= Vector3::from(out);
+            }
+        }
+        let before = ErrorStats::from_errors(current);
+        let after = ErrorStats::from_errors(&corrected);
+        Ok(LearnableResidual {
+            predictor: name.to_string(),
+            heldout_before: before,
+            heldout_after: after,
+            share_learnable: 1.0 - after.rms_mm / before.rms_mm,
+        })
+    }
+}
+
+/// Orders a round's candidates: those that earn their parameters first (one that does not,
+/// with implausible values or at its neutral value, is no explanation, however well it
+/// scores), then by held-out BIC; and marks those the data cannot tell from the first.
+fn rank(ranking: &mut [RankedCandidate]) {
+    ranking.sort_by(|a, b| {
+        b.earns_parameters
+            .cmp(&a.earns_parameters)
+            .then_with(|| a.heldout_bic.total_cmp(&b.heldout_bic))
+            .then_with(|| rank_key(b).total_cmp(&rank_key(a)))
+            .then_with(|| a.label.cmp(&b.label))
+    });
+    mark_ties(ranking);
+}
+
+/// The step that accepts `best`, the first of the round's `ranking`, into the model now
+/// fitted to all the samples as `fitted`; `current` is the held-out evaluation before it.
+fn accepted_step(
+    best: &RankedCandidate,
+    ranking: Vec<RankedCandidate>,
+    fitted: &Robot,
+    current: &Heldout,
+) -> DiagnosisStep {
+    let equivalent: Vec<String> = ranking
+        .iter()
+        .filter(|c| c.indistinguishable_from_best)
+        .map(|c| c.label.clone())
+        .collect();
+    let before = ErrorStats::from_errors(&current.errors);
+    let after = best.heldout.expect("an accepted candidate was evaluated");
+    let values = new_model_values(fitted);
+    let implausible: Vec<String> = match (fitted.error_models().last(), fitted.error_values().last()) {
+        (Some(m), Some(v)) => m
+            .params()
+            .iter()
+            .zip(v)
+            .filter_map(|(p, &v)| p.implausibility(v))
+            .collect(),
+        _ => Vec::new(),
+    };
+    let alternatives = if equivalent.is_empty() {
+        String::new()
+    } else {
+        format!("; the data cannot tell it from: {}", equivalent.join(", "))
+    };
+    let flagged = if implausible.is_empty() {
+        String::new()
+    } else {
+        format!("; implausible: {}", implausible.join("; "))
+    };
+    DiagnosisStep {
+        effect: best.effect.clone(),
+        location: best.location.clone(),
+        label: best.label.clone(),
+        summary: format!(
+            "{}, {}: removes {:.0}% of the remaining held-out RMS ({:.3} → {:.3} mm){alternatives}{flagged}",
+            best.label,
+            values
+                .iter()
+                .map(|(_, q, v)| q.readable(*v))
+                .collect::<Vec<_>>()
+                .join(", "),
+            100.0 * best.share_removed,
+            before.rms_mm,
+            after.rms_mm
+        ),
+        params: values
+            .iter()
+            .map(|(name, q, v)| {
+                (
+                    name.clone(),
+                    IdentifiedValue {
+                        value: *v,
+                        unit: q.si_unit(),
+                    },
+                )
+            })
+            .collect(),
+        heldout_before: before,
+        heldout_after: after,
+        share_removed: best.share_removed,
+        equivalent,
+        ranking,
+        implausible,
+    }
+}
+
 /// Every candidate the error-model plugins offer for `robot`, in registry order.
 fn offers(robot: &Robot, plugins: &[PluginInfo]) -> Vec<Offer> {
     plugins
@@ -632,23 +863,6 @@ fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
     let mut file = model.to_file();
     file.error_models.push(spec);
     model.rebuild(file)
-}
-
-/// The calibration settings for `model`: the caller's selection plus, when the caller names
-/// one, the parameters of the effects the diagnosis added after the `given` models of the
-/// robot file (those are always identified; an empty selection already includes them).
-fn selection(model: &Robot, given: usize, params: &DiagnoseParams) -> CalibrationParams {
-    let mut out = params.calibration.clone();
-    // A candidate with a multimodal parameter is restarted from other values of it, converged
-    // or not; the geometry stays where the fit ended, so a candidate gains from the minima of
-    // its own parameters only, and fits without such a parameter need no restart.
-    out.restart_moves = crate::calibrate::RestartMoves::Multimodal;
-    if !out.identify.is_empty() {
-        let added = model.error_models().iter().skip(given);
-        out.identify
-            .extend(added.flat_map(|m| m.params().iter().map(|p| p.name.clone())));
-    }
-    out
 }
 
 /// Marks the candidates whose held-out squared errors do not differ significantly from those
@@ -696,40 +910,6 @@ struct Heldout {
     params: Vec<Vec<ParamResult>>,
 }
 
-/// Calibrates `model` on each fold's training poses and scores it on the poses held out.
-/// `tick` hears of each fold's calibration.
-fn heldout(
-    model: &Robot,
-    samples: &[Sample],
-    splits: &[Split],
-    calibration: &CalibrationParams,
-    tick: &(dyn Fn() + Sync),
-) -> Result<Heldout> {
-    let mut errors = vec![Vector3::zeros(); samples.len()];
-    let mut fixed = Vec::with_capacity(splits.len());
-    let mut params = Vec::with_capacity(splits.len());
-    for split in splits {
-        let train = subset(samples, &split.train);
-        let test = subset(samples, &split.test);
-        let mut fit = calibrate(model, &train, calibration, &mut |_| {})?;
-        register_held_out_stations(&mut fit.robot, &train, &test)?;
-        tick();
-        fixed.push(
-            fit.report
-                .params
-                .iter()
-                .filter(|p| p.fixed)
-                .map(|p| p.name.clone())
-                .collect(),
-        );
-        for (&i, e) in split.test.iter().zip(position_errors(&fit.robot, &test)) {
-            errors[i] = e;
-        }
-        params.push(fit.report.params);
-    }
-    Ok(Heldout { errors, fixed, params })
-}
-
 /// Held-out BIC of `k` determined parameters over the scalar residuals of `errors` (in mm).
 fn bic(errors: &[Vector3<f64>], k: usize) -> f64 {
     let n = 3.0 * errors.len() as f64;
@@ -742,25 +922,6 @@ fn sse(errors: &[Vector3<f64>]) -> f64 {
 
 fn norms_mm(errors: &[Vector3<f64>]) -> Vec<f64> {
     errors.iter().map(|e| e.norm() * 1e3).collect()
-}
-
-/// The share of the training RMS that the offered effect, added to `fitted` (the current model
-/// fitted to all `samples`) at its starting value, is predicted to remove by the score test.
-fn predicted_share(
-    fitted: &Robot,
-    given: usize,
-    offer: &Offer,
-    samples: &[Sample],
-    params: &DiagnoseParams,
-) -> Option<f64> {
-    let model = with_effect(fitted, offer).ok()?;
-    let added: Vec<String> = model
-        .error_models()
-        .last()
-        .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
-    score_test(&model, samples, &selection(&model, given, params), &added)
-        .ok()
-        .map(|t| t.predicted_share())
 }
 
 /// Which candidates to refit: those the score test gives at least [`SCREEN_SHARE`] of the
@@ -822,102 +983,91 @@ fn screened_out(offer: &Offer, predicted_share: Option<f64>, params: &DiagnosePa
     out
 }
 
-/// Adds the offered effect to `model`, scores it by k-fold and applies the acceptance rule
-/// against the held-out evaluation `current` of the model without it.
-#[allow(clippy::too_many_arguments)]
-fn score(
-    model: &Robot,
-    given: usize,
-    offer: &Offer,
-    predicted_share: Option<f64>,
-    samples: &[Sample],
-    splits: &[Split],
+/// Names of the parameters of `model`'s last error model: the effect just added.
+fn added_params(model: &Robot) -> Vec<String> {
+    model
+        .error_models()
+        .last()
+        .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect())
+}
+
+/// Applies the acceptance rule to `out`, a candidate whose parameters `names` were refitted
+/// to `evaluation`, against the held-out evaluation `current` of the model without it over
+/// `n_samples` samples.
+fn judge(
+    out: &mut RankedCandidate,
+    names: &[String],
+    evaluation: Heldout,
     current: &Heldout,
+    n_samples: usize,
     params: &DiagnoseParams,
-    tick: &(dyn Fn() + Sync),
-) -> RankedCandidate {
-    let mut out = unscored(offer, predicted_share);
-    out.refitted = true;
-    let evaluated = (|| {
-        let candidate = with_effect(model, offer)?;
-        let names: Vec<String> = candidate
-            .error_models()
-            .last()
-            .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect());
-        Ok::<_, Error>((
-            names,
-            heldout(&candidate, samples, splits, &selection(&candidate, given, params), tick)?,
-        ))
-    })();
-    match evaluated {
-        Err(e) => out.error = Some(e.to_string()),
-        Ok((names, evaluation)) => {
-            let n_params = names.len();
-            let k = evaluation
-                .fixed
-                .iter()
-                .map(|fixed| names.iter().filter(|n| !fixed.contains(n)).count())
-                .max()
-                .unwrap_or(n_params);
-            let (sse0, sse1) = (sse(&current.errors), sse(&evaluation.errors));
-            let n = 3.0 * samples.len() as f64;
-            out.n_params = n_params;
-            out.identified_params = k;
-            out.share_removed = 1.0 - (sse1 / sse0).sqrt();
-            let neutral_folds = evaluation
-                .params
-                .iter()
-                .filter(|fold| {
-                    fold.iter()
-                        .filter(|p| names.contains(&p.name))
-                        .all(|p| p.fixed || p.at_bound || (p.value - p.initial).abs() <= NEUTRAL_Z * p.std)
-                })
-                .count();
-            out.at_neutral = 2 * neutral_folds > evaluation.params.len();
-            let implausible_folds = evaluation
-                .params
-                .iter()
-                .filter(|fold| fold.iter().any(|p| names.contains(&p.name) && !p.fixed && !p.plausible))
-                .count();
-            out.implausible_values = 2 * implausible_folds > evaluation.params.len();
-            let (gain, penalty) = (n * (sse0 / sse1).ln(), k as f64 * n.ln());
-            out.verdict = if out.at_neutral {
-                format!(
-                    "its calibrations left it at its neutral value (within {NEUTRAL_Z} standard deviations, on a bound \
-                     or fixed) in most folds: what its fit gained ({:.0}%) came from the other parameters",
-                    100.0 * out.share_removed
-                )
-            } else if out.implausible_values {
-                format!(
-                    "removes {:.0}%, but only with values its model calls physically implausible in most folds",
-                    100.0 * out.share_removed
-                )
-            } else if out.share_removed < params.min_rms_reduction {
-                format!(
-                    "removes {:.1}% of the held-out RMS, less than the {:.0}% that folds alone can move a score by",
-                    100.0 * out.share_removed,
-                    100.0 * params.min_rms_reduction
-                )
-            } else if gain <= penalty {
-                format!(
-                    "its held-out likelihood gain {gain:.1} does not pay its {k} parameter(s) (BIC penalty {penalty:.1})"
-                )
-            } else {
-                format!(
-                    "earns its parameters: removes {:.0}% of the held-out RMS",
-                    100.0 * out.share_removed
-                )
-            };
-            out.earns_parameters = !out.at_neutral
-                && !out.implausible_values
-                && out.share_removed >= params.min_rms_reduction
-                && gain > penalty;
-            out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
-            out.heldout_bic = bic(&evaluation.errors, k);
-            out.evaluation = Some(evaluation);
-        }
+) {
+    let n_params = names.len();
+    let k = evaluation
+        .fixed
+        .iter()
+        .map(|fixed| names.iter().filter(|n| !fixed.contains(n)).count())
+        .max()
+        .unwrap_or(n_params);
+    let (sse0, sse1) = (sse(&current.errors), sse(&evaluation.errors));
+    let n = 3.0 * n_samples as f64;
+    out.n_params = n_params;
+    out.identified_params = k;
+    out.share_removed = 1.0 - (sse1 / sse0).sqrt();
+    let neutral_folds = evaluation
+        .params
+        .iter()
+        .filter(|fold| {
+            fold.iter()
+                .filter(|p| names.contains(&p.name))
+                .all(|p| p.fixed || p.at_bound || (p.value - p.initial).abs() <= NEUTRAL_Z * p.std)
+        })
+        .count();
+    out.at_neutral = 2 * neutral_folds > evaluation.params.len();
+    let implausible_folds = evaluation
+        .params
+        .iter()
+        .filter(|fold| fold.iter().any(|p| names.contains(&p.name) && !p.fixed && !p.plausible))
+        .count();
+    out.implausible_values = 2 * implausible_folds > evaluation.params.len();
+    let (gain, penalty) = (n * (sse0 / sse1).ln(), k as f64 * n.ln());
+    out.verdict = verdict(out, gain, penalty, params);
+    out.earns_parameters =
+        !out.at_neutral && !out.implausible_values && out.share_removed >= params.min_rms_reduction && gain > penalty;
+    out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
+    out.heldout_bic = bic(&evaluation.errors, k);
+    out.evaluation = Some(evaluation);
+}
+
+/// Why the judged candidate `c` does or does not earn its parameters, the first reason that
+/// applies; `gain` is its held-out likelihood gain and `penalty` its BIC penalty.
+fn verdict(c: &RankedCandidate, gain: f64, penalty: f64, params: &DiagnoseParams) -> String {
+    let k = c.identified_params;
+    if c.at_neutral {
+        format!(
+            "its calibrations left it at its neutral value (within {NEUTRAL_Z} standard deviations, on a bound \
+             or fixed) in most folds: what its fit gained ({:.0}%) came from the other parameters",
+            100.0 * c.share_removed
+        )
+    } else if c.implausible_values {
+        format!(
+            "removes {:.0}%, but only with values its model calls physically implausible in most folds",
+            100.0 * c.share_removed
+        )
+    } else if c.share_removed < params.min_rms_reduction {
+        format!(
+            "removes {:.1}% of the held-out RMS, less than the {:.0}% that folds alone can move a score by",
+            100.0 * c.share_removed,
+            100.0 * params.min_rms_reduction
+        )
+    } else if gain <= penalty {
+        format!("its held-out likelihood gain {gain:.1} does not pay its {k} parameter(s) (BIC penalty {penalty:.1})")
+    } else {
+        format!(
+            "earns its parameters: removes {:.0}% of the held-out RMS",
+            100.0 * c.share_removed
+        )
     }
-    out
 }
 
 /// Name, quantity and identified value (SI) of each parameter of the last error model.
@@ -931,57 +1081,4 @@ fn new_model_values(robot: &Robot) -> Vec<(String, Quantity, f64)> {
             .collect(),
         _ => Vec::new(),
     }
-}
-
-/// Fits `spec` to each fold's training residuals of `model` (joint values in, residual
-/// position out) and scores the corrected held-out errors against `current`; `tick` hears of
-/// each fold's calibration.
-#[allow(clippy::too_many_arguments)]
-fn learnable(
-    model: &Robot,
-    samples: &[Sample],
-    splits: &[Split],
-    current: &[Vector3<f64>],
-    name: &str,
-    spec: &dyn PredictorSpec,
-    calibration: &CalibrationParams,
-    tick: &(dyn Fn() + Sync),
-) -> Result<LearnableResidual> {
-    let nq = model.tree().nq();
-    let mut corrected = current.to_vec();
-    for split in splits {
-        let train = subset(samples, &split.train);
-        let fit = calibrate(model, &train, calibration, &mut |_| {})?;
-        tick();
-        let residuals = position_errors(&fit.robot, &train);
-        let inputs: Vec<f64> = train.iter().flat_map(|s| s.q.iter().copied()).collect();
-        let targets: Vec<f64> = residuals.iter().flat_map(|r| r.iter().copied()).collect();
-        let control = FitControl {
-            progress: None,
-            cancel: calibration.cancel.clone(),
-        };
-        let predictor = spec.fit_with(
-            &TrainingSet {
-                inputs: &inputs,
-                targets: &targets,
-                n_inputs: nq,
-                n_outputs: 3,
-                input_ranges: model.tree().coordinate_limits(),
-            },
-            &control,
-        )?;
-        let (mut out, mut scratch) = ([0.0; 3], Vec::new());
-        for &i in &split.test {
-            predictor.predict_into(&samples[i].q, &mut out, &mut scratch);
-            corrected[i] -= Vector3::from(out);
-        }
-    }
-    let before = ErrorStats::from_errors(current);
-    let after = ErrorStats::from_errors(&corrected);
-    Ok(LearnableResidual {
-        predictor: name.to_string(),
-        heldout_before: before,
-        heldout_after: after,
-        share_learnable: 1.0 - after.rms_mm / before.rms_mm,
-    })
 }

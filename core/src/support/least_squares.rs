@@ -237,217 +237,338 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
         "levenberg_marquardt: {} parameters for a problem of {n}",
         x.len()
     );
-    let bounds = problem.bounds().map(|(lo, hi)| (lo.to_vec(), hi.to_vec()));
-    let prior = problem.prior().map(|(c, s)| (c.to_vec(), s.to_vec()));
-    let prior_w: Vec<f64> = prior.iter().flat_map(|(_, s)| s.iter().map(|s| 1.0 / s)).collect();
-    let cost_of = |x: &[f64], r: &DVector<f64>| {
-        let prior: f64 = prior
-            .iter()
-            .flat_map(|(c, s)| (0..n).map(move |i| ((x[i] - c[i]) / s[i]).powi(2)))
-            .sum();
-        0.5 * (r.norm_squared() + prior)
-    };
-    let mut r = DVector::zeros(problem.n_residuals());
-    let mut r_trial = r.clone();
-    let mut j = DMatrix::zeros(r.len(), n);
-    let mut trial = x.to_vec();
-    problem.residuals_into(x, &mut r)?;
-    problem.accept(x);
-    let mut cost = cost_of(x, &r);
-    let mut lambda = params.initial_damping;
-    let mut approximate = problem.has_approximate_jacobian();
-    let mut iterations = 0;
+    let constraints = Constraints::of(problem);
+    let mut lm = LmState::start(problem, x, params, &constraints)?;
     let mut converged = false;
-    let mut newton_step = None;
-    // Why the last accepted step was small, when it was: the step test. Convergence needs it
-    // and the Newton-step test at the point the step reached.
-    let mut small_step: Option<SmallStep> = None;
-    // Consecutive slow accepted steps (see `StallParams`).
-    let mut slow = 0;
     let stop = loop {
         params.cancel.check()?;
-        if params.convergence.is_none() && iterations >= params.max_iterations {
+        if params.convergence.is_none() && lm.iterations >= params.max_iterations {
             // Without the tests the Jacobian at the last point serves nothing.
             break LmStop::IterationLimit;
         }
-        problem.jacobian_into(x, approximate, &mut j)?;
-        let mut a = j.transpose() * &j;
-        let mut g = j.transpose() * &r;
-        if let Some((centre, _)) = &prior {
-            for (c, w) in prior_w.iter().enumerate() {
-                a[(c, c)] += w * w;
-                g[c] += w * w * (x[c] - centre[c]);
-            }
-        }
-        let floor = 1e-12 * a.diagonal().max().max(1e-300);
-        let blocked = |c: usize, step: f64| {
-            bounds
-                .as_ref()
-                .is_some_and(|(lo, hi)| (x[c] <= lo[c] && step < 0.0) || (x[c] >= hi[c] && step > 0.0))
-        };
-        // Standard deviations (in units of the residuals' scale) from the undamped normal
-        // matrix, to judge whether a step still moves anything that matters.
-        let std: Vec<f64> = match params.convergence {
-            Some(_) => match a.clone().cholesky() {
-                Some(c) => {
-                    let inv = c.inverse();
-                    (0..n).map(|i| inv[(i, i)].max(0.0).sqrt()).collect()
-                }
-                None => vec![f64::INFINITY; n],
-            },
-            None => Vec::new(),
-        };
-        // The Newton-step test, independent of scale and correlation: how far the full Newton
-        // step from here (the bounds respected) would move each parameter, in its standard
-        // deviations. At a minimum it moves nothing that matters; a damped crawl far from one
-        // leaves a large step. Correlated parameters whose gradients cancel in combination
-        // pass, and a parameter held at its bound by the data passes. Where the matrix is
-        // singular, each parameter's gradient over its own curvature.
+        problem.jacobian_into(x, lm.approximate, &mut lm.j)?;
+        let normal = NormalEquations::build(&lm.j, &lm.r, &constraints, x);
+        let std = normal.standard_deviations(params.convergence.is_some());
         let gradient_ok = match params.convergence {
             Some(conv) => {
-                let newton = bounded_step(&a, &g, blocked)
-                    .unwrap_or_else(|| DVector::from_iterator(n, (0..n).map(|c| g[c] / a[(c, c)].max(floor))));
-                let gradient = newton
-                    .iter()
-                    .enumerate()
-                    .map(|(c, dc)| {
-                        let sd = if std[c].is_finite() {
-                            std[c]
-                        } else {
-                            1.0 / a[(c, c)].max(floor).sqrt()
-                        };
-                        (dc / sd).abs()
-                    })
-                    .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) });
-                newton_step = Some(gradient);
+                let gradient = normal.newton_step(&std, |c, step| constraints.blocked(x, c, step));
+                lm.newton_step = Some(gradient);
                 gradient <= conv.min_step
             }
             None => true,
         };
-        if let Some(step) = small_step.filter(|_| gradient_ok) {
+        if let Some(step) = lm.small_step.filter(|_| gradient_ok) {
             converged = true;
             break LmStop::Converged(step);
         }
-        if params.stall.is_some_and(|st| slow >= st.iterations) {
+        if params.stall.is_some_and(|st| lm.slow >= st.iterations) {
             break LmStop::Stalled;
         }
-        if iterations >= params.max_iterations {
+        if lm.iterations >= params.max_iterations {
             break LmStop::IterationLimit;
         }
-        iterations += 1;
-        let mut accepted = false;
-        loop {
-            let mut m = a.clone();
-            for c in 0..n {
-                m[(c, c)] += match params.damping {
-                    Damping::Scaled => lambda * a[(c, c)].max(floor),
-                    Damping::Identity => lambda,
-                };
-            }
-            match bounded_step(&m, &g, blocked) {
-                // A singular damped matrix: more damping makes it definite.
-                None => lambda *= 10.0,
-                Some(delta) => {
-                    // Stop at the first bound the step meets: a scaled damped step still lowers
-                    // the linear model, where clipping each parameter to its bound distorts the
-                    // step (rejected, the damping grows, the solver crawls). The parameter that
-                    // landed on its bound is held there by the next step if it pushes outward.
-                    match &bounds {
-                        Some((lo, hi)) => {
-                            let alpha = (0..n).fold(1.0f64, |alpha, c| {
-                                let to = x[c] + delta[c];
-                                if to < lo[c] {
-                                    alpha.min((lo[c] - x[c]) / delta[c])
-                                } else if to > hi[c] {
-                                    alpha.min((hi[c] - x[c]) / delta[c])
-                                } else {
-                                    alpha
-                                }
-                            });
-                            for c in 0..n {
-                                trial[c] = (x[c] + alpha * delta[c]).clamp(lo[c], hi[c]);
-                            }
-                        }
-                        None => {
-                            for c in 0..n {
-                                trial[c] = x[c] + delta[c];
-                            }
-                        }
-                    }
-                    // A point where the model cannot be evaluated is rejected like a worse one.
-                    let cost1 = match problem.residuals_into(&trial, &mut r_trial) {
-                        Ok(()) => cost_of(&trial, &r_trial),
-                        Err(_) => f64::NAN,
-                    };
-                    if cost1.is_finite() && cost1 < cost {
-                        let improvement = cost - cost1;
-                        let relative = improvement / cost.max(1e-300);
-                        let moved = (0..n)
-                            .map(|c| (trial[c] - x[c]).abs() / std.get(c).copied().unwrap_or(f64::INFINITY))
-                            .fold(0.0, f64::max);
-                        x.copy_from_slice(&trial);
-                        std::mem::swap(&mut r, &mut r_trial);
-                        cost = cost1;
-                        problem.accept(x);
-                        lambda = (lambda / params.damping_decrease).max(MIN_DAMPING);
-                        accepted = true;
-                        if improvement < params.exact_jacobian_below {
-                            approximate = false;
-                        }
-                        slow = match params.stall {
-                            Some(st) if cost > st.above_cost && relative < st.gain => slow + 1,
-                            _ => 0,
-                        };
-                        small_step = params.convergence.and_then(|conv| {
-                            if relative < conv.tolerance || improvement < conv.min_improvement {
-                                Some(SmallStep::Improvement(improvement))
-                            } else if moved < conv.min_step {
-                                Some(SmallStep::Moved(moved))
-                            } else {
-                                None
-                            }
-                        });
-                        break;
-                    }
-                    lambda *= params.damping_increase;
-                }
-            }
-            if lambda > params.max_damping {
-                break;
-            }
-        }
+        lm.iterations += 1;
+        let accepted = lm.damped_step(problem, x, &normal, &std, &constraints, params);
         let it = LmIteration {
-            iteration: iterations,
+            iteration: lm.iterations,
             x,
-            residuals: &r,
-            cost,
-            damping: lambda,
+            residuals: &lm.r,
+            cost: lm.cost,
+            damping: lm.lambda,
             accepted,
         };
         if problem.iteration(&it).is_break() {
             break LmStop::Stopped;
         }
-        if !accepted && approximate {
+        if !accepted && lm.approximate {
             // The approximation may be what hides the descent: look again with the exact form.
-            approximate = false;
-            small_step = None;
-            lambda = params.initial_damping;
+            lm.approximate = false;
+            lm.small_step = None;
+            lm.lambda = params.initial_damping;
             continue;
         }
         if !accepted {
             // No step lowers the cost: a minimum if the Newton step vanishes there, otherwise
             // the model cannot be evaluated or differentiated near here.
-            converged = gradient_ok && cost.is_finite();
+            converged = gradient_ok && lm.cost.is_finite();
             break LmStop::NoDescent;
         }
     };
     Ok(LmReport {
-        iterations,
+        iterations: lm.iterations,
         converged,
         stop,
-        cost,
-        newton_step,
+        cost: lm.cost,
+        newton_step: lm.newton_step,
     })
+}
+
+/// A problem's bounds and priors, copied once so that the loop can borrow the problem
+/// mutably while it uses them.
+struct Constraints {
+    bounds: Option<(Vec<f64>, Vec<f64>)>,
+    prior: Option<(Vec<f64>, Vec<f64>)>,
+    /// `1 / σᵢ` of every prior (empty without priors).
+    prior_w: Vec<f64>,
+}
+
+impl Constraints {
+    fn of<P: LeastSquares + ?Sized>(problem: &P) -> Self {
+        let bounds = problem.bounds().map(|(lo, hi)| (lo.to_vec(), hi.to_vec()));
+        let prior = problem.prior().map(|(c, s)| (c.to_vec(), s.to_vec()));
+        let prior_w: Vec<f64> = prior.iter().flat_map(|(_, s)| s.iter().map(|s| 1.0 / s)).collect();
+        Constraints { bounds, prior, prior_w }
+    }
+
+    /// The cost at `x` with residuals `r`, priors included.
+    fn cost(&self, x: &[f64], r: &DVector<f64>) -> f64 {
+        let n = x.len();
+        let prior: f64 = self
+            .prior
+            .iter()
+            .flat_map(|(c, s)| (0..n).map(move |i| ((x[i] - c[i]) / s[i]).powi(2)))
+            .sum();
+        0.5 * (r.norm_squared() + prior)
+    }
+
+    /// Whether parameter `c`, at `x`, sits at a bound that a step of `step` would leave.
+    fn blocked(&self, x: &[f64], c: usize, step: f64) -> bool {
+        self.bounds
+            .as_ref()
+            .is_some_and(|(lo, hi)| (x[c] <= lo[c] && step < 0.0) || (x[c] >= hi[c] && step > 0.0))
+    }
+
+    /// `x + delta` into `trial`, stopped at the first bound the step meets: a scaled damped
+    /// step still lowers the linear model, where clipping each parameter to its bound distorts
+    /// the step (rejected, the damping grows, the solver crawls). The parameter that landed on
+    /// its bound is held there by the next step if it pushes outward.
+    fn step_into(&self, x: &[f64], delta: &DVector<f64>, trial: &mut [f64]) {
+        let n = x.len();
+        match &self.bounds {
+            Some((lo, hi)) => {
+                let alpha = (0..n).fold(1.0f64, |alpha, c| {
+                    let to = x[c] + delta[c];
+                    if to < lo[c] {
+                        alpha.min((lo[c] - x[c]) / delta[c])
+                    } else if to > hi[c] {
+                        alpha.min((hi[c] - x[c]) / delta[c])
+                    } else {
+                        alpha
+                    }
+                });
+                for c in 0..n {
+                    trial[c] = (x[c] + alpha * delta[c]).clamp(lo[c], hi[c]);
+                }
+            }
+            None => {
+                for c in 0..n {
+                    trial[c] = x[c] + delta[c];
+                }
+            }
+        }
+    }
+}
+
+/// The normal equations `a δ = −g` at the current point (priors included), with the floor
+/// under their diagonal that keeps the scaled damping and the per-parameter fallbacks finite.
+struct NormalEquations {
+    a: DMatrix<f64>,
+    g: DVector<f64>,
+    floor: f64,
+}
+
+impl NormalEquations {
+    fn build(j: &DMatrix<f64>, r: &DVector<f64>, constraints: &Constraints, x: &[f64]) -> Self {
+        let mut a = j.transpose() * j;
+        let mut g = j.transpose() * r;
+        if let Some((centre, _)) = &constraints.prior {
+            for (c, w) in constraints.prior_w.iter().enumerate() {
+                a[(c, c)] += w * w;
+                g[c] += w * w * (x[c] - centre[c]);
+            }
+        }
+        let floor = 1e-12 * a.diagonal().max().max(1e-300);
+        NormalEquations { a, g, floor }
+    }
+
+    /// Standard deviations (in units of the residuals' scale) from the undamped matrix, to
+    /// judge whether a step still moves anything that matters; none when `wanted` is false
+    /// (no convergence tests), infinite where the matrix is singular.
+    fn standard_deviations(&self, wanted: bool) -> Vec<f64> {
+        let n = self.g.len();
+        if !wanted {
+            return Vec::new();
+        }
+        match self.a.clone().cholesky() {
+            Some(c) => {
+                let inv = c.inverse();
+                (0..n).map(|i| inv[(i, i)].max(0.0).sqrt()).collect()
+            }
+            None => vec![f64::INFINITY; n],
+        }
+    }
+
+    /// The Newton-step test, independent of scale and correlation: how far the full Newton
+    /// step from here (the bounds respected) would move each parameter, in its standard
+    /// deviations `std` (the largest over the parameters). At a minimum it moves nothing that
+    /// matters; a damped crawl far from one leaves a large step. Correlated parameters whose
+    /// gradients cancel in combination pass, and a parameter held at its bound by the data
+    /// passes. Where the matrix is singular, each parameter's gradient over its own curvature.
+    fn newton_step(&self, std: &[f64], blocked: impl Fn(usize, f64) -> bool) -> f64 {
+        let (a, g, floor) = (&self.a, &self.g, self.floor);
+        let n = g.len();
+        let newton = bounded_step(a, g, blocked)
+            .unwrap_or_else(|| DVector::from_iterator(n, (0..n).map(|c| g[c] / a[(c, c)].max(floor))));
+        newton
+            .iter()
+            .enumerate()
+            .map(|(c, dc)| {
+                let sd = if std[c].is_finite() {
+                    std[c]
+                } else {
+                    1.0 / a[(c, c)].max(floor).sqrt()
+                };
+                (dc / sd).abs()
+            })
+            .fold(0.0, |m: f64, v| if v.is_nan() { f64::NAN } else { m.max(v) })
+    }
+
+    /// The matrix damped by `lambda` the way `damping` says.
+    fn damped(&self, lambda: f64, damping: Damping) -> DMatrix<f64> {
+        let a = &self.a;
+        let mut m = a.clone();
+        for c in 0..self.g.len() {
+            m[(c, c)] += match damping {
+                Damping::Scaled => lambda * a[(c, c)].max(self.floor),
+                Damping::Identity => lambda,
+            };
+        }
+        m
+    }
+}
+
+/// What the loop carries from one iteration to the next: buffers, the current cost and
+/// damping, and what the convergence and stall tests remember.
+struct LmState {
+    r: DVector<f64>,
+    r_trial: DVector<f64>,
+    j: DMatrix<f64>,
+    trial: Vec<f64>,
+    cost: f64,
+    lambda: f64,
+    approximate: bool,
+    iterations: usize,
+    newton_step: Option<f64>,
+    /// Why the last accepted step was small, when it was: the step test. Convergence needs it
+    /// and the Newton-step test at the point the step reached.
+    small_step: Option<SmallStep>,
+    /// Consecutive slow accepted steps (see `StallParams`).
+    slow: usize,
+}
+
+impl LmState {
+    /// The state at the start `x`, which the problem evaluates and accepts.
+    fn start<P: LeastSquares + ?Sized>(
+        problem: &mut P,
+        x: &[f64],
+        params: &LmParams,
+        constraints: &Constraints,
+    ) -> Result<Self> {
+        let mut r = DVector::zeros(problem.n_residuals());
+        let r_trial = r.clone();
+        let j = DMatrix::zeros(r.len(), x.len());
+        let trial = x.to_vec();
+        problem.residuals_into(x, &mut r)?;
+        problem.accept(x);
+        let cost = constraints.cost(x, &r);
+        Ok(LmState {
+            r,
+            r_trial,
+            j,
+            trial,
+            cost,
+            lambda: params.initial_damping,
+            approximate: problem.has_approximate_jacobian(),
+            iterations: 0,
+            newton_step: None,
+            small_step: None,
+            slow: 0,
+        })
+    }
+
+    /// Tries damped steps from `x`, the damping growing, until one lowers the cost (accepted:
+    /// true) or the damping exceeds its limit (false).
+    fn damped_step<P: LeastSquares + ?Sized>(
+        &mut self,
+        problem: &mut P,
+        x: &mut [f64],
+        normal: &NormalEquations,
+        std: &[f64],
+        constraints: &Constraints,
+        params: &LmParams,
+    ) -> bool {
+        loop {
+            let m = normal.damped(self.lambda, params.damping);
+            match bounded_step(&m, &normal.g, |c, step| constraints.blocked(x, c, step)) {
+                // A singular damped matrix: more damping makes it definite.
+                None => self.lambda *= 10.0,
+                Some(delta) => {
+                    constraints.step_into(x, &delta, &mut self.trial);
+                    // A point where the model cannot be evaluated is rejected like a worse one.
+                    let cost1 = match problem.residuals_into(&self.trial, &mut self.r_trial) {
+                        Ok(()) => constraints.cost(&self.trial, &self.r_trial),
+                        Err(_) => f64::NAN,
+                    };
+                    if cost1.is_finite() && cost1 < self.cost {
+                        self.accept(problem, x, cost1, std, params);
+                        return true;
+                    }
+                    self.lambda *= params.damping_increase;
+                }
+            }
+            if self.lambda > params.max_damping {
+                return false;
+            }
+        }
+    }
+
+    /// Moves `x` to the trial point of cost `cost1`, lowers the damping and updates what the
+    /// Jacobian choice, the stall test and the convergence tests remember of the step.
+    fn accept<P: LeastSquares + ?Sized>(
+        &mut self,
+        problem: &mut P,
+        x: &mut [f64],
+        cost1: f64,
+        std: &[f64],
+        params: &LmParams,
+    ) {
+        let improvement = self.cost - cost1;
+        let relative = improvement / self.cost.max(1e-300);
+        let moved = (0..x.len())
+            .map(|c| (self.trial[c] - x[c]).abs() / std.get(c).copied().unwrap_or(f64::INFINITY))
+            .fold(0.0, f64::max);
+        x.copy_from_slice(&self.trial);
+        std::mem::swap(&mut self.r, &mut self.r_trial);
+        self.cost = cost1;
+        problem.accept(x);
+        self.lambda = (self.lambda / params.damping_decrease).max(MIN_DAMPING);
+        if improvement < params.exact_jacobian_below {
+            self.approximate = false;
+        }
+        self.slow = match params.stall {
+            Some(st) if self.cost > st.above_cost && relative < st.gain => self.slow + 1,
+            _ => 0,
+        };
+        self.small_step = params.convergence.and_then(|conv| {
+            if relative < conv.tolerance || improvement < conv.min_improvement {
+                Some(SmallStep::Improvement(improvement))
+            } else if moved < conv.min_step {
+                Some(SmallStep::Moved(moved))
+            } else {
+                None
+            }
+        });
+    }
 }
 
 /// The damped step `−m⁻¹g` with the parameters that sit at a bound and would step out of it

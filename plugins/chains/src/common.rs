@@ -197,186 +197,25 @@ impl ChainCore {
         prior: &PriorSpec,
         ctx: &BuildContext<'_>,
     ) -> Result<ChainCore, Issues> {
-        let mut issues = Issues::default();
-        let units = ctx.units;
-        let mut bodies: Vec<String> = vec![base.to_string()];
-        let mut coord_of: Vec<(String, Option<usize>)> = Vec::new();
-        let mut ncoord = 0;
-        let mut topo = Vec::new();
-        let mut params = Vec::new();
+        let mut resolver = Resolver {
+            issues: Issues::default(),
+            units: ctx.units,
+            prior,
+            bodies: vec![base.to_string()],
+            coord_of: Vec::new(),
+            ncoord: 0,
+            params: Vec::new(),
+        };
         if joints.is_empty() {
-            issues.push(format!("{}.joints", ctx.path), "expected at least one joint");
+            resolver
+                .issues
+                .push(format!("{}.joints", ctx.path), "expected at least one joint");
         }
+        let mut topo = Vec::new();
         for (i, (j, geo)) in joints.iter().zip(per_joint).enumerate() {
-            let path = format!("{}.joints[{i}]", ctx.path);
-            if coord_of.iter().any(|(n, _)| n == j.name) {
-                issues.push(format!("{path}.name"), format!("joint `{}` is defined twice", j.name));
-            }
-            let child = j.link.unwrap_or(j.name).to_string();
-            if bodies.contains(&child) {
-                issues.push(format!("{path}.link"), format!("link `{child}` is defined twice"));
-            }
-            let parent = match j.parent {
-                None => bodies.len() - 1,
-                Some(p) => match bodies.iter().position(|b| b == p) {
-                    Some(k) => k,
-                    None => {
-                        issues.push(
-                            format!("{path}.parent"),
-                            format!(
-                                "link `{p}` is not defined before this joint; defined so far: {}",
-                                bodies.join(", ")
-                            ),
-                        );
-                        0
-                    }
-                },
-            };
-            let scale = |v: f64| {
-                if j.kind == JointKind::Prismatic {
-                    units.len(v)
-                } else {
-                    units.ang(v)
-                }
-            };
-            let limits = match j.limits {
-                Some([lo, hi]) if !(lo.is_finite() && hi.is_finite()) => {
-                    issues.push(format!("{path}.limits"), "expected two finite numbers [lower, upper]");
-                    None
-                }
-                Some([lo, hi]) if lo > hi => {
-                    issues.push(
-                        format!("{path}.limits"),
-                        format!("lower limit {lo} is above upper limit {hi}"),
-                    );
-                    None
-                }
-                Some([lo, hi]) if lo == hi => {
-                    issues.push(
-                        format!("{path}.limits"),
-                        format!(
-                            "equal limits [{lo}, {hi}] leave the joint no travel; make it `fixed`, or hold it with `[measurement] hold`"
-                        ),
-                    );
-                    None
-                }
-                Some([lo, hi]) if scale(lo).abs().max(scale(hi).abs()) > ABSURD_TRAVEL => {
-                    issues.push(
-                        format!("{path}.limits"),
-                        format!(
-                            "limits [{lo:e}, {hi:e}] are physically absurd; expected at most {ABSURD_TRAVEL} {} either way",
-                            if j.kind == JointKind::Prismatic { "m" } else { "rad" }
-                        ),
-                    );
-                    None
-                }
-                Some(_) if j.kind == JointKind::Fixed => {
-                    issues.push(format!("{path}.limits"), "a fixed joint has no limits");
-                    None
-                }
-                Some([lo, hi]) => Some(Limits {
-                    lower: scale(lo),
-                    upper: scale(hi),
-                }),
-                None => None,
-            };
-            let mimic = j.mimic.map(|m| {
-                if j.kind == JointKind::Fixed {
-                    issues.push(format!("{path}.mimic"), "a fixed joint cannot follow other joints");
-                }
-                if j.limits.is_some() {
-                    issues.push(
-                        format!("{path}.limits"),
-                        "a mimic joint takes its range from the joints it follows; remove `limits`",
-                    );
-                }
-                if !m.multipliers.is_empty() && m.multipliers.len() != m.joints.len() {
-                    issues.push(
-                        format!("{path}.mimic.multipliers"),
-                        format!(
-                            "expected one multiplier per followed joint ({}), got {}",
-                            m.joints.len(),
-                            m.multipliers.len()
-                        ),
-                    );
-                }
-                if let Some(k) = m.multipliers.iter().position(|v| !v.is_finite()) {
-                    issues.push(
-                        format!("{path}.mimic.multipliers[{k}]"),
-                        format!("expected a finite number, got {}", m.multipliers[k]),
-                    );
-                }
-                if m.joints.is_empty() {
-                    issues.push(format!("{path}.mimic.joints"), "expected at least one joint to follow");
-                }
-                let terms = m
-                    .joints
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(k, name)| {
-                        let mult = m.multipliers.get(k).copied().unwrap_or(1.0);
-                        match coord_of.iter().find(|(n, _)| n == name) {
-                            Some((_, Some(c))) => Some((*c, mult)),
-                            Some((_, None)) => {
-                                issues.push(
-                                    format!("{path}.mimic.joints[{k}]"),
-                                    format!("joint `{name}` is fixed or itself a mimic joint"),
-                                );
-                                None
-                            }
-                            None => {
-                                issues.push(
-                                    format!("{path}.mimic.joints[{k}]"),
-                                    format!("joint `{name}` is not defined before this joint"),
-                                );
-                                None
-                            }
-                        }
-                    })
-                    .collect();
-                Coupling {
-                    terms,
-                    offset: scale(m.offset),
-                }
-            });
-            let own_coord = if j.kind != JointKind::Fixed && mimic.is_none() {
-                ncoord += 1;
-                Some(ncoord - 1)
-            } else {
-                None
-            };
-            coord_of.push((j.name.to_string(), own_coord));
-            let origin = j.origin.unwrap_or_default();
-            if origin.xyz.iter().chain(&origin.rpy).any(|v| !v.is_finite()) {
-                issues.push(format!("{path}.origin"), "expected finite numbers");
-            }
-            let first_param = params.len();
-            for (suffix, quantity, nominal) in geo {
-                let param = ParamInfo::new(
-                    format!("{}.{suffix}", j.name),
-                    quantity,
-                    nominal,
-                    prior.sigma(quantity, &units),
-                );
-                if !nominal.is_finite() {
-                    issues.push(format!("{path}.{suffix}"), "expected a finite number");
-                } else if let Some(why) = param.absurdity(nominal) {
-                    issues.push(format!("{path}.{suffix}"), why);
-                }
-                params.push(param);
-            }
-            topo.push(JointTopo {
-                name: j.name.to_string(),
-                kind: j.kind,
-                parent,
-                child: child.clone(),
-                limits,
-                mimic,
-                origin: xyz_rpy(units.len3(origin.xyz), units.ang3(origin.rpy)),
-                first_param,
-            });
-            bodies.push(child);
+            topo.push(resolver.joint(j, geo, &format!("{}.joints[{i}]", ctx.path)));
         }
+        let Resolver { mut issues, params, .. } = resolver;
         prior.check(&format!("{}.prior", ctx.path), &mut issues);
         if !issues.is_empty() {
             return Err(issues);
@@ -450,5 +289,221 @@ impl ChainCore {
             tree.set_convention_frame(body, g.post);
         }
         Ok(tree)
+    }
+}
+
+/// What [`ChainCore::resolve`] knows of the joints before the next: the links and joint
+/// names defined so far, the coordinates handed out and the parameters laid out, and the
+/// issues found.
+struct Resolver<'p> {
+    issues: Issues,
+    units: Units,
+    prior: &'p PriorSpec,
+    /// Link names, the base first.
+    bodies: Vec<String>,
+    /// Every joint's name and its own coordinate (none for fixed and mimic joints).
+    coord_of: Vec<(String, Option<usize>)>,
+    ncoord: usize,
+    params: Vec<ParamInfo>,
+}
+
+impl Resolver<'_> {
+    /// Resolves joint `j` with its parameters `geo`; `path` is its field in the file.
+    fn joint(&mut self, j: &JointCommon<'_>, geo: Vec<(&'static str, Quantity, f64)>, path: &str) -> JointTopo {
+        let units = self.units;
+        if self.coord_of.iter().any(|(n, _)| n == j.name) {
+            self.issues
+                .push(format!("{path}.name"), format!("joint `{}` is defined twice", j.name));
+        }
+        let child = j.link.unwrap_or(j.name).to_string();
+        if self.bodies.contains(&child) {
+            self.issues
+                .push(format!("{path}.link"), format!("link `{child}` is defined twice"));
+        }
+        let parent = self.parent(j, path);
+        let limits = self.limits(j, path);
+        let mimic = j.mimic.map(|m| self.coupling(j, m, path));
+        let own_coord = if j.kind != JointKind::Fixed && mimic.is_none() {
+            self.ncoord += 1;
+            Some(self.ncoord - 1)
+        } else {
+            None
+        };
+        self.coord_of.push((j.name.to_string(), own_coord));
+        let origin = j.origin.unwrap_or_default();
+        if origin.xyz.iter().chain(&origin.rpy).any(|v| !v.is_finite()) {
+            self.issues.push(format!("{path}.origin"), "expected finite numbers");
+        }
+        let first_param = self.params.len();
+        self.lay_out(j, geo, path);
+        self.bodies.push(child.clone());
+        JointTopo {
+            name: j.name.to_string(),
+            kind: j.kind,
+            parent,
+            child,
+            limits,
+            mimic,
+            origin: xyz_rpy(units.len3(origin.xyz), units.ang3(origin.rpy)),
+            first_param,
+        }
+    }
+
+    /// A value of joint `j` in the file's unit, SI.
+    fn scale(&self, j: &JointCommon<'_>, v: f64) -> f64 {
+        if j.kind == JointKind::Prismatic {
+            self.units.len(v)
+        } else {
+            self.units.ang(v)
+        }
+    }
+
+    /// The index of the link joint `j` hangs from: the named one, or the last defined.
+    fn parent(&mut self, j: &JointCommon<'_>, path: &str) -> usize {
+        match j.parent {
+            None => self.bodies.len() - 1,
+            Some(p) => match self.bodies.iter().position(|b| b == p) {
+                Some(k) => k,
+                None => {
+                    self.issues.push(
+                        format!("{path}.parent"),
+                        format!(
+                            "link `{p}` is not defined before this joint; defined so far: {}",
+                            self.bodies.join(", ")
+                        ),
+                    );
+                    0
+                }
+            },
+        }
+    }
+
+    /// Joint `j`'s limits, SI, when it has usable ones.
+    fn limits(&mut self, j: &JointCommon<'_>, path: &str) -> Option<Limits> {
+        match j.limits {
+            Some([lo, hi]) if !(lo.is_finite() && hi.is_finite()) => {
+                self.issues
+                    .push(format!("{path}.limits"), "expected two finite numbers [lower, upper]");
+                None
+            }
+            Some([lo, hi]) if lo > hi => {
+                self.issues.push(
+                    format!("{path}.limits"),
+                    format!("lower limit {lo} is above upper limit {hi}"),
+                );
+                None
+            }
+            Some([lo, hi]) if lo == hi => {
+                self.issues.push(
+                    format!("{path}.limits"),
+                    format!(
+                        "equal limits [{lo}, {hi}] leave the joint no travel; make it `fixed`, or hold it with `[measurement] hold`"
+                    ),
+                );
+                None
+            }
+            Some([lo, hi]) if self.scale(j, lo).abs().max(self.scale(j, hi).abs()) > ABSURD_TRAVEL => {
+                self.issues.push(
+                    format!("{path}.limits"),
+                    format!(
+                        "limits [{lo:e}, {hi:e}] are physically absurd; expected at most {ABSURD_TRAVEL} {} either way",
+                        if j.kind == JointKind::Prismatic { "m" } else { "rad" }
+                    ),
+                );
+                None
+            }
+            Some(_) if j.kind == JointKind::Fixed => {
+                self.issues
+                    .push(format!("{path}.limits"), "a fixed joint has no limits");
+                None
+            }
+            Some([lo, hi]) => Some(Limits {
+                lower: self.scale(j, lo),
+                upper: self.scale(j, hi),
+            }),
+            None => None,
+        }
+    }
+
+    /// The coupling of the mimic joint `j` to the earlier joints `m` names.
+    fn coupling(&mut self, j: &JointCommon<'_>, m: &MimicSpec, path: &str) -> Coupling {
+        if j.kind == JointKind::Fixed {
+            self.issues
+                .push(format!("{path}.mimic"), "a fixed joint cannot follow other joints");
+        }
+        if j.limits.is_some() {
+            self.issues.push(
+                format!("{path}.limits"),
+                "a mimic joint takes its range from the joints it follows; remove `limits`",
+            );
+        }
+        if !m.multipliers.is_empty() && m.multipliers.len() != m.joints.len() {
+            self.issues.push(
+                format!("{path}.mimic.multipliers"),
+                format!(
+                    "expected one multiplier per followed joint ({}), got {}",
+                    m.joints.len(),
+                    m.multipliers.len()
+                ),
+            );
+        }
+        if let Some(k) = m.multipliers.iter().position(|v| !v.is_finite()) {
+            self.issues.push(
+                format!("{path}.mimic.multipliers[{k}]"),
+                format!("expected a finite number, got {}", m.multipliers[k]),
+            );
+        }
+        if m.joints.is_empty() {
+            self.issues
+                .push(format!("{path}.mimic.joints"), "expected at least one joint to follow");
+        }
+        let terms = m
+            .joints
+            .iter()
+            .enumerate()
+            .filter_map(|(k, name)| {
+                let mult = m.multipliers.get(k).copied().unwrap_or(1.0);
+                match self.coord_of.iter().find(|(n, _)| n == name) {
+                    Some((_, Some(c))) => Some((*c, mult)),
+                    Some((_, None)) => {
+                        self.issues.push(
+                            format!("{path}.mimic.joints[{k}]"),
+                            format!("joint `{name}` is fixed or itself a mimic joint"),
+                        );
+                        None
+                    }
+                    None => {
+                        self.issues.push(
+                            format!("{path}.mimic.joints[{k}]"),
+                            format!("joint `{name}` is not defined before this joint"),
+                        );
+                        None
+                    }
+                }
+            })
+            .collect();
+        Coupling {
+            terms,
+            offset: self.scale(j, m.offset),
+        }
+    }
+
+    /// Lays out joint `j`'s parameters `geo` after those of the joints before it, named
+    /// `<joint>.<suffix>`, each with its prior.
+    fn lay_out(&mut self, j: &JointCommon<'_>, geo: Vec<(&'static str, Quantity, f64)>, path: &str) {
+        for (suffix, quantity, nominal) in geo {
+            let param = ParamInfo::new(
+                format!("{}.{suffix}", j.name),
+                quantity,
+                nominal,
+                self.prior.sigma(quantity, &self.units),
+            );
+            if !nominal.is_finite() {
+                self.issues.push(format!("{path}.{suffix}"), "expected a finite number");
+            } else if let Some(why) = param.absurdity(nominal) {
+                self.issues.push(format!("{path}.{suffix}"), why);
+            }
+            self.params.push(param);
+        }
     }
 }

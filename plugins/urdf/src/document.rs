@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use armcomp_core::Issue;
 use armcomp_core::model::shape::Shape;
 use nalgebra::Isometry3;
+use roxmltree::Node;
 
 use crate::mesh::{MeshOutcome, mesh_bounding_box};
 
@@ -122,236 +123,34 @@ impl UrdfDocument {
         let file = path.display().to_string();
         let xml = roxmltree::Document::parse(&text)
             .map_err(|e| vec![at_line(e.pos().row as usize, format!("malformed XML: {e}"))])?;
-        let mut errors = Vec::new();
-        let line_of = |n: roxmltree::Node<'_, '_>| xml.text_pos_at(n.range().start).row as usize;
-        let robot_el = xml.root_element();
-        if !robot_el.has_tag_name("robot") {
-            return Err(vec![at_line(
-                line_of(robot_el),
-                format!(
-                    "expected a <robot> element at the top, found <{}>",
-                    robot_el.tag_name().name()
-                ),
-            )]);
+        let mut reading = Reading {
+            xml: &xml,
+            errors: Vec::new(),
+            warnings: Tally::default(),
+        };
+        let robot_el = reading.robot_element()?;
+        let (joint_nodes, link_nodes) = reading.check_elements(robot_el);
+        if !reading.errors.is_empty() {
+            return Err(reading.errors);
         }
-        // Element-level checks with lines; urdf-rs reports neither line nor element.
-        let mut joint_nodes = Vec::new();
-        let mut link_nodes = Vec::new();
-        for el in robot_el.children().filter(|n| n.is_element()) {
-            let what = el.tag_name().name();
-            if what != "joint" && what != "link" {
-                continue;
-            }
-            let line = line_of(el);
-            let Some(name) = el.attribute("name").filter(|n| !n.trim().is_empty()) else {
-                errors.push(at_line(line, format!("<{what}> without a `name`")));
-                continue;
-            };
-            let at = format!("{what} `{name}`");
-            let mut found = Vec::new();
-            if what == "joint" {
-                check_joint(el, &at, &mut found);
-                joint_nodes.push(el);
-            } else {
-                for sub in el.children().filter(|n| n.is_element()) {
-                    let tag = sub.tag_name().name();
-                    for o in sub.children().filter(|n| n.has_tag_name("origin")) {
-                        check_origin(o, &format!("{at}: <{tag}>"), &mut found);
-                    }
-                    if tag == "inertial" {
-                        check_numbers(sub, "mass", "value", 1, &format!("{at}: <inertial>"), &mut found);
-                    }
-                    // urdf-rs names an unknown shape without its line or link.
-                    for shape in sub
-                        .children()
-                        .filter(|n| n.has_tag_name("geometry"))
-                        .flat_map(|g| g.children().filter(|n| n.is_element()))
-                        .filter(|n| !SHAPES.contains(&n.tag_name().name()))
-                    {
-                        errors.push(at_line(
-                            line_of(shape),
-                            format!(
-                                "{at}: <{tag}> <geometry>: unknown shape <{}>; expected one of <{}>",
-                                shape.tag_name().name(),
-                                SHAPES.join(">, <")
-                            ),
-                        ));
-                    }
-                }
-                link_nodes.push(el);
-            }
-            errors.extend(found.into_iter().map(|m| at_line(line, m)));
-        }
-        if !errors.is_empty() {
-            return Err(errors);
-        }
-        let robot = urdf_rs::read_from_string(&for_urdf_rs(&text, robot_el))
-            .map_err(|e| vec![Issue::new("", format!("not a valid URDF: {e}"))])?;
-        if robot.links.len() != link_nodes.len() || robot.joints.len() != joint_nodes.len() {
-            return Err(vec![Issue::new(
-                "",
-                format!(
-                    "the URDF reader saw {} links and {} joints where the XML has {} and {}",
-                    robot.links.len(),
-                    robot.joints.len(),
-                    link_nodes.len(),
-                    joint_nodes.len()
-                ),
-            )]);
-        }
-
+        let robot = read_values(&text, robot_el, link_nodes.len(), joint_nodes.len())?;
         let dir = path.parent().unwrap_or(Path::new("."));
-        let mut warnings = Tally::default();
         let mut links = Vec::new();
         for (l, node) in robot.links.iter().zip(&link_nodes) {
-            let line = line_of(*node);
-            let at = format!("link `{}`", l.name);
-            if links.iter().any(|k: &UrdfLink| k.name == l.name) {
-                errors.push(at_line(line, format!("{at}: a link of this name is defined twice")));
-            }
-            let inertial = node.children().any(|n| n.has_tag_name("inertial")).then(|| {
-                let m = l.inertial.mass.value;
-                if !(m.is_finite() && m >= 0.0) {
-                    errors.push(at_line(
-                        line,
-                        format!("{at}: <inertial>: expected a mass of zero or more kg, got {m}"),
-                    ));
-                }
-                (m, l.inertial.origin.xyz.0)
-            });
-            let mut collisions = Vec::new();
-            for c in &l.collision {
-                let origin = armcomp_core::model::geom::xyz_rpy(c.origin.xyz.0, c.origin.rpy.0);
-                match collision_shape(&c.geometry, dir) {
-                    Ok(MeshOutcome::Shape(pose, shape)) => {
-                        if matches!(c.geometry, urdf_rs::Geometry::Mesh { .. }) {
-                            warnings.add(MESH_BOXED, String::new(), line, &at);
-                        }
-                        collisions.push((origin * pose, shape));
-                    }
-                    Ok(MeshOutcome::Skipped(why)) => warnings.add(MESH_SKIPPED, why, line, &at),
-                    Err(e) => errors.push(at_line(line, format!("{at}: <collision>: {e}"))),
-                }
-            }
-            links.push(UrdfLink {
-                name: l.name.clone(),
-                line,
-                inertial,
-                collisions,
-            });
+            let link = reading.link(l, *node, &links, dir);
+            links.push(link);
         }
-
         let mut joints = Vec::new();
         for (j, node) in robot.joints.iter().zip(&joint_nodes) {
-            let line = line_of(*node);
-            let at = format!("joint `{}`", j.name);
-            if joints.iter().any(|k: &UrdfJoint| k.name == j.name) {
-                errors.push(at_line(line, format!("{at}: a joint of this name is defined twice")));
-            }
-            let kind = match j.joint_type {
-                urdf_rs::JointType::Revolute => UrdfJointType::Revolute,
-                urdf_rs::JointType::Continuous => UrdfJointType::Continuous,
-                urdf_rs::JointType::Prismatic => UrdfJointType::Prismatic,
-                urdf_rs::JointType::Fixed => UrdfJointType::Fixed,
-                urdf_rs::JointType::Floating | urdf_rs::JointType::Planar => {
-                    let why = "type `floating` or `planar`, read as fixed: only revolute, continuous and prismatic joints move";
-                    warnings.add(HELD_AT_ORIGIN, why.into(), line, &at);
-                    UrdfJointType::Fixed
-                }
-                // Refused by `check_joint` before urdf-rs read the file.
-                urdf_rs::JointType::Spherical => continue,
-            };
-            for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
-                if !links.iter().any(|l| &l.name == link) {
-                    errors.push(at_line(
-                        line,
-                        format!("{at}: its {role} link `{link}` is not defined in the file"),
-                    ));
-                }
-            }
-            let moving = kind != UrdfJointType::Fixed;
-            let axis = j.axis.xyz.0;
-            if moving && axis.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-12 {
-                errors.push(at_line(
-                    line,
-                    format!("{at}: <axis xyz>: expected a non-zero direction"),
-                ));
-            }
-            let has_limit = node.children().any(|n| n.has_tag_name("limit"));
-            let limits = (has_limit && matches!(kind, UrdfJointType::Revolute | UrdfJointType::Prismatic))
-                .then_some([j.limit.lower, j.limit.upper])
-                .filter(|l| l.iter().all(|v| v.is_finite()));
-            if let Some([lo, hi]) = limits
-                && lo > hi
-            {
-                errors.push(at_line(line, format!("{at}: <limit>: lower {lo} is above upper {hi}")));
-            }
-            // ROS (urdfdom, pinocchio) ignores `<mimic>` on a fixed joint: it has nothing to move.
-            let mimic = j
-                .mimic
-                .as_ref()
-                .filter(|_| moving)
-                .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0)));
-            let child_range = |tag: &str| node.children().find(|n| n.has_tag_name(tag)).map(|n| n.range());
-            joints.push(UrdfJoint {
-                name: j.name.clone(),
-                line,
-                kind,
-                parent: j.parent.link.clone(),
-                child: j.child.link.clone(),
-                xyz: j.origin.xyz.0,
-                rpy: j.origin.rpy.0,
-                axis,
-                limits,
-                mimic,
-                range: node.range(),
-                origin_range: child_range("origin"),
-                axis_range: child_range("axis"),
-            });
-        }
-        resolve_mimics(&mut joints, &mut warnings, &mut errors);
-        for j in &joints {
-            if let Some(other) = joints.iter().find(|o| o.child == j.child && o.name != j.name) {
-                errors.push(at_line(
-                    j.line,
-                    format!(
-                        "joint `{}`: link `{}` is also the child of joint `{}` (line {}): a closed kinematic loop, which URDF cannot describe",
-                        j.name, j.child, other.name, other.line
-                    ),
-                ));
+            if let Some(joint) = reading.joint(j, *node, &links, &joints) {
+                joints.push(joint);
             }
         }
-        let roots: Vec<&str> = links
-            .iter()
-            .filter(|l| !joints.iter().any(|j| j.child == l.name))
-            .map(|l| l.name.as_str())
-            .collect();
-        let root = match roots.as_slice() {
-            [one] => one.to_string(),
-            [] if links.is_empty() => {
-                errors.push(Issue::new("", "the robot has no <link>"));
-                String::new()
-            }
-            [] => {
-                errors.push(Issue::new(
-                    "",
-                    "every link is the child of a joint, so the joints form a closed loop; a URDF robot is a tree with one root link",
-                ));
-                String::new()
-            }
-            many => {
-                errors.push(Issue::new(
-                    "",
-                    format!(
-                        "several links are the child of no joint ({}); a URDF robot is a tree with one root link",
-                        many.join(", ")
-                    ),
-                ));
-                String::new()
-            }
-        };
-        if !errors.is_empty() {
-            return Err(errors);
+        resolve_mimics(&mut joints, &mut reading.warnings, &mut reading.errors);
+        reading.check_loops(&joints);
+        let root = reading.root(&links, &joints);
+        if !reading.errors.is_empty() {
+            return Err(reading.errors);
         }
         let doc = UrdfDocument {
             path: path.to_path_buf(),
@@ -359,7 +158,7 @@ impl UrdfDocument {
             root,
             links,
             joints,
-            warnings: warnings.lines(&file),
+            warnings: reading.warnings.lines(&file),
             text,
         };
         doc.placement()?;
@@ -408,6 +207,289 @@ impl UrdfDocument {
         }
         Ok(order)
     }
+}
+
+/// What [`UrdfDocument::parse`] carries from one element to the next: the XML (for lines), the
+/// problems found so far and the warnings.
+struct Reading<'x, 'input> {
+    xml: &'x roxmltree::Document<'input>,
+    errors: Vec<Issue>,
+    warnings: Tally,
+}
+
+impl<'x, 'input> Reading<'x, 'input> {
+    /// 1-based line where `n` starts.
+    fn line_of(&self, n: roxmltree::Node<'_, '_>) -> usize {
+        self.xml.text_pos_at(n.range().start).row as usize
+    }
+
+    /// The `<robot>` element at the top.
+    fn robot_element(&self) -> Result<Node<'x, 'input>, Vec<Issue>> {
+        let robot_el = self.xml.root_element();
+        if !robot_el.has_tag_name("robot") {
+            return Err(vec![at_line(
+                self.line_of(robot_el),
+                format!(
+                    "expected a <robot> element at the top, found <{}>",
+                    robot_el.tag_name().name()
+                ),
+            )]);
+        }
+        Ok(robot_el)
+    }
+
+    /// Element-level checks with lines (urdf-rs reports neither line nor element); the
+    /// `<joint>` and `<link>` elements, in file order.
+    fn check_elements(&mut self, robot_el: Node<'x, 'input>) -> (Vec<Node<'x, 'input>>, Vec<Node<'x, 'input>>) {
+        let mut joint_nodes = Vec::new();
+        let mut link_nodes = Vec::new();
+        for el in robot_el.children().filter(|n| n.is_element()) {
+            let what = el.tag_name().name();
+            if what != "joint" && what != "link" {
+                continue;
+            }
+            let line = self.line_of(el);
+            let Some(name) = el.attribute("name").filter(|n| !n.trim().is_empty()) else {
+                self.errors.push(at_line(line, format!("<{what}> without a `name`")));
+                continue;
+            };
+            let at = format!("{what} `{name}`");
+            let mut found = Vec::new();
+            if what == "joint" {
+                check_joint(el, &at, &mut found);
+                joint_nodes.push(el);
+            } else {
+                self.check_link(el, &at, &mut found);
+                link_nodes.push(el);
+            }
+            self.errors.extend(found.into_iter().map(|m| at_line(line, m)));
+        }
+        (joint_nodes, link_nodes)
+    }
+
+    /// Checks the children of the `<link>` element `el` (named `at` in messages): problems
+    /// on the link's line into `found`, unknown shapes on their own lines.
+    fn check_link(&mut self, el: roxmltree::Node<'_, '_>, at: &str, found: &mut Vec<String>) {
+        for sub in el.children().filter(|n| n.is_element()) {
+            let tag = sub.tag_name().name();
+            for o in sub.children().filter(|n| n.has_tag_name("origin")) {
+                check_origin(o, &format!("{at}: <{tag}>"), found);
+            }
+            if tag == "inertial" {
+                check_numbers(sub, "mass", "value", 1, &format!("{at}: <inertial>"), found);
+            }
+            // urdf-rs names an unknown shape without its line or link.
+            for shape in sub
+                .children()
+                .filter(|n| n.has_tag_name("geometry"))
+                .flat_map(|g| g.children().filter(|n| n.is_element()))
+                .filter(|n| !SHAPES.contains(&n.tag_name().name()))
+            {
+                self.errors.push(at_line(
+                    self.line_of(shape),
+                    format!(
+                        "{at}: <{tag}> <geometry>: unknown shape <{}>; expected one of <{}>",
+                        shape.tag_name().name(),
+                        SHAPES.join(">, <")
+                    ),
+                ));
+            }
+        }
+    }
+
+    /// The link `l` as urdf-rs read it from `node`, after the links read before it (`links`);
+    /// mesh files are found from `dir`.
+    fn link(&mut self, l: &urdf_rs::Link, node: roxmltree::Node<'_, '_>, links: &[UrdfLink], dir: &Path) -> UrdfLink {
+        let line = self.line_of(node);
+        let at = format!("link `{}`", l.name);
+        if links.iter().any(|k: &UrdfLink| k.name == l.name) {
+            self.errors
+                .push(at_line(line, format!("{at}: a link of this name is defined twice")));
+        }
+        let inertial = node.children().any(|n| n.has_tag_name("inertial")).then(|| {
+            let m = l.inertial.mass.value;
+            if !(m.is_finite() && m >= 0.0) {
+                self.errors.push(at_line(
+                    line,
+                    format!("{at}: <inertial>: expected a mass of zero or more kg, got {m}"),
+                ));
+            }
+            (m, l.inertial.origin.xyz.0)
+        });
+        let mut collisions = Vec::new();
+        for c in &l.collision {
+            let origin = armcomp_core::model::geom::xyz_rpy(c.origin.xyz.0, c.origin.rpy.0);
+            match collision_shape(&c.geometry, dir) {
+                Ok(MeshOutcome::Shape(pose, shape)) => {
+                    if matches!(c.geometry, urdf_rs::Geometry::Mesh { .. }) {
+                        self.warnings.add(MESH_BOXED, String::new(), line, &at);
+                    }
+                    collisions.push((origin * pose, shape));
+                }
+                Ok(MeshOutcome::Skipped(why)) => self.warnings.add(MESH_SKIPPED, why, line, &at),
+                Err(e) => self.errors.push(at_line(line, format!("{at}: <collision>: {e}"))),
+            }
+        }
+        UrdfLink {
+            name: l.name.clone(),
+            line,
+            inertial,
+            collisions,
+        }
+    }
+
+    /// The joint `j` as urdf-rs read it from `node`, after the joints read before it
+    /// (`joints`), its links among `links`; none for a type refused before.
+    fn joint(
+        &mut self,
+        j: &urdf_rs::Joint,
+        node: roxmltree::Node<'_, '_>,
+        links: &[UrdfLink],
+        joints: &[UrdfJoint],
+    ) -> Option<UrdfJoint> {
+        let line = self.line_of(node);
+        let at = format!("joint `{}`", j.name);
+        if joints.iter().any(|k: &UrdfJoint| k.name == j.name) {
+            self.errors
+                .push(at_line(line, format!("{at}: a joint of this name is defined twice")));
+        }
+        let kind = match j.joint_type {
+            urdf_rs::JointType::Revolute => UrdfJointType::Revolute,
+            urdf_rs::JointType::Continuous => UrdfJointType::Continuous,
+            urdf_rs::JointType::Prismatic => UrdfJointType::Prismatic,
+            urdf_rs::JointType::Fixed => UrdfJointType::Fixed,
+            urdf_rs::JointType::Floating | urdf_rs::JointType::Planar => {
+                let why =
+                    "type `floating` or `planar`, read as fixed: only revolute, continuous and prismatic joints move";
+                self.warnings.add(HELD_AT_ORIGIN, why.into(), line, &at);
+                UrdfJointType::Fixed
+            }
+            // Refused by `check_joint` before urdf-rs read the file.
+            urdf_rs::JointType::Spherical => return None,
+        };
+        for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
+            if !links.iter().any(|l| &l.name == link) {
+                self.errors.push(at_line(
+                    line,
+                    format!("{at}: its {role} link `{link}` is not defined in the file"),
+                ));
+            }
+        }
+        let moving = kind != UrdfJointType::Fixed;
+        let axis = j.axis.xyz.0;
+        if moving && axis.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-12 {
+            self.errors.push(at_line(
+                line,
+                format!("{at}: <axis xyz>: expected a non-zero direction"),
+            ));
+        }
+        let has_limit = node.children().any(|n| n.has_tag_name("limit"));
+        let limits = (has_limit && matches!(kind, UrdfJointType::Revolute | UrdfJointType::Prismatic))
+            .then_some([j.limit.lower, j.limit.upper])
+            .filter(|l| l.iter().all(|v| v.is_finite()));
+        if let Some([lo, hi]) = limits
+            && lo > hi
+        {
+            self.errors
+                .push(at_line(line, format!("{at}: <limit>: lower {lo} is above upper {hi}")));
+        }
+        // ROS (urdfdom, pinocchio) ignores `<mimic>` on a fixed joint: it has nothing to move.
+        let mimic = j
+            .mimic
+            .as_ref()
+            .filter(|_| moving)
+            .map(|m| (m.joint.clone(), m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0)));
+        let child_range = |tag: &str| node.children().find(|n| n.has_tag_name(tag)).map(|n| n.range());
+        Some(UrdfJoint {
+            name: j.name.clone(),
+            line,
+            kind,
+            parent: j.parent.link.clone(),
+            child: j.child.link.clone(),
+            xyz: j.origin.xyz.0,
+            rpy: j.origin.rpy.0,
+            axis,
+            limits,
+            mimic,
+            range: node.range(),
+            origin_range: child_range("origin"),
+            axis_range: child_range("axis"),
+        })
+    }
+
+    /// Refuses a link that is the child of two joints: a closed loop.
+    fn check_loops(&mut self, joints: &[UrdfJoint]) {
+        for j in joints {
+            if let Some(other) = joints.iter().find(|o| o.child == j.child && o.name != j.name) {
+                self.errors.push(at_line(
+                    j.line,
+                    format!(
+                        "joint `{}`: link `{}` is also the child of joint `{}` (line {}): a closed kinematic loop, which URDF cannot describe",
+                        j.name, j.child, other.name, other.line
+                    ),
+                ));
+            }
+        }
+    }
+
+    /// The one link that is the child of no joint (empty, with the problem recorded, when
+    /// there is none or more than one).
+    fn root(&mut self, links: &[UrdfLink], joints: &[UrdfJoint]) -> String {
+        let roots: Vec<&str> = links
+            .iter()
+            .filter(|l| !joints.iter().any(|j| j.child == l.name))
+            .map(|l| l.name.as_str())
+            .collect();
+        match roots.as_slice() {
+            [one] => one.to_string(),
+            [] if links.is_empty() => {
+                self.errors.push(Issue::new("", "the robot has no <link>"));
+                String::new()
+            }
+            [] => {
+                self.errors.push(Issue::new(
+                    "",
+                    "every link is the child of a joint, so the joints form a closed loop; a URDF robot is a tree with one root link",
+                ));
+                String::new()
+            }
+            many => {
+                self.errors.push(Issue::new(
+                    "",
+                    format!(
+                        "several links are the child of no joint ({}); a URDF robot is a tree with one root link",
+                        many.join(", ")
+                    ),
+                ));
+                String::new()
+            }
+        }
+    }
+}
+
+/// The values of the checked XML as urdf-rs reads them; it must see the `n_links` links and
+/// `n_joints` joints the XML has, or the elements and their values would not pair up.
+fn read_values(
+    text: &str,
+    robot_el: roxmltree::Node<'_, '_>,
+    n_links: usize,
+    n_joints: usize,
+) -> Result<urdf_rs::Robot, Vec<Issue>> {
+    let robot = urdf_rs::read_from_string(&for_urdf_rs(text, robot_el))
+        .map_err(|e| vec![Issue::new("", format!("not a valid URDF: {e}"))])?;
+    if robot.links.len() != n_links || robot.joints.len() != n_joints {
+        return Err(vec![Issue::new(
+            "",
+            format!(
+                "the URDF reader saw {} links and {} joints where the XML has {} and {}",
+                robot.links.len(),
+                robot.joints.len(),
+                n_links,
+                n_joints
+            ),
+        )]);
+    }
+    Ok(robot)
 }
 
 /// Points every `<mimic>` at the joint that moves on its own at the end of its chain, composing
