@@ -1,6 +1,6 @@
 //! `calibrate`: identification from measurements, as `armcomp calibrate` does it.
 
-use armcomp::ops::calibrate::Prior;
+use armcomp_api::ops::calibrate::Prior;
 use armcomp_core::calibrate::{CalibrationParams, Loss};
 use pyo3::prelude::*;
 
@@ -68,11 +68,11 @@ pub fn calibrate(
         ..CalibrationParams::default()
     };
     let run = crate::interrupt::run(py, || {
-        armcomp::ops::calibrate::run(
+        armcomp_api::ops::calibrate::run(
             &robot,
             &set.samples,
             params,
-            armcomp::ops::calibrate::Choices {
+            armcomp_api::ops::calibrate::Choices {
                 prior,
                 noise_declared: noise_mm.is_some(),
                 fold_groups: None,

@@ -20,7 +20,7 @@ pub fn learn(
     predictor: Option<&str>,
 ) -> PyResult<(PyRobot, String)> {
     let predictor = predictor
-        .map(armcomp::ops::learn::default_predictor)
+        .map(armcomp_api::ops::learn::default_predictor)
         .transpose()
         .map_err(|e| crate::errors::input_error(&e.to_string(), None, None, Some("predictor")))?;
     let robot = model.robot.clone();
@@ -34,7 +34,7 @@ pub fn learn(
         })
         .py()?;
     let run = crate::interrupt::run(py, || {
-        armcomp::ops::learn::run(&robot, file, &set.samples, predictor, None)
+        armcomp_api::ops::learn::run(&robot, file, &set.samples, predictor, None)
     })?
     .py()?;
     let json = serde_json::json!({

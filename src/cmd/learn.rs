@@ -30,11 +30,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.model)?;
+    let robot = super::load_robot(&args.model)?;
     let predictor = args
         .predictor
         .as_deref()
-        .map(armcomp::ops::learn::default_predictor)
+        .map(armcomp_api::ops::learn::default_predictor)
         .transpose()?;
     if predictor.is_none() && robot.predictor_spec().is_none() {
         bail!(
@@ -47,7 +47,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     // The written file is the model's own text re-read, so everything in it is kept.
     let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
     let groups = args.group.groups(&[&args.data], &data.rows)?;
-    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor, groups)?;
+    let run = armcomp_api::ops::learn::run(&robot, file, &data.samples, predictor, groups)?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);
     write_atomic(&args.out, run.robot.to_text_for(&args.out)?.as_bytes())?;
     println!(

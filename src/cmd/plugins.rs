@@ -18,7 +18,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for lib in &args.library {
         armcomp_sdk::load_library(lib).with_context(|| format!("--library {}", lib.display()))?;
     }
-    let plugins = armcomp::plugins();
+    let plugins = armcomp_api::plugins();
     if args.json {
         let list: Vec<_> = plugins
             .iter()
