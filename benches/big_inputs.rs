@@ -29,10 +29,10 @@ fn big_inputs(c: &mut Criterion) {
     }
     let big_robot = dir.path().join("points.toml");
     std::fs::write(&big_robot, text).unwrap();
-    let schema = armcomp::robot_schema();
-    assert_eq!(armcomp::validate_file(&big_robot, &schema), vec![]);
+    let schema = armcomp_api::robot_schema();
+    assert_eq!(armcomp_api::validate_file(&big_robot, &schema), vec![]);
     c.bench_function("validate, 200 000 points", |b| {
-        b.iter(|| armcomp::validate_file(&big_robot, &schema))
+        b.iter(|| armcomp_api::validate_file(&big_robot, &schema))
     });
 
     let robot = Robot::from_path(&root().join("robots/rock-drill.toml")).unwrap();

@@ -25,7 +25,7 @@ compliance = { j2 = [1e-6, 1e-6], j4 = [1e-6, 1e-6], j5 = [1e-6, 1e-6] }
 "#;
 
 fn nominal() -> Robot {
-    armcomp::registry::plugins();
+    armcomp_api::registry::plugins();
     let text = format!("{}\n{MODELS}", include_str!("../robots/rock-drill.toml"));
     let src = SourceFile {
         path: "rock-drill.toml".into(),

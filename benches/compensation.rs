@@ -15,7 +15,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 
 fn bench(c: &mut Criterion) {
     // Links the built-in plugins, whose registrations the twins' robot files name.
-    armcomp::registry::plugins();
+    armcomp_api::registry::plugins();
     let robot = |name: &str| Twin::get(name).expect("built in").robot().expect("twin builds");
     let truth = robot("rock-drill-truth");
     let model = robot("rock-drill-deflection");

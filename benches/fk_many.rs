@@ -41,7 +41,7 @@ fn bench(c: &mut Criterion) {
     group.sample_size(20).measurement_time(Duration::from_secs(5));
     group.throughput(Throughput::Elements(N as u64));
     for name in ["talos-left-arm", "industrial-6dof-truth"] {
-        let robot = armcomp::read_robot(&root.join("robots").join(format!("{name}.toml"))).expect("robot builds");
+        let robot = armcomp_api::read_robot(&root.join("robots").join(format!("{name}.toml"))).expect("robot builds");
         let nq = robot.tree().nq();
         let width = robot.tree().points().len() * 3;
         let qs = configurations(&robot);
@@ -82,7 +82,7 @@ fn point(c: &mut Criterion) {
         ("ur5", "tests/data/urdf/ur5_robot.urdf"),
         ("talos-left-arm", "robots/talos-left-arm.toml"),
     ] {
-        let robot = armcomp::read_robot(&root.join(path)).expect("robot builds");
+        let robot = armcomp_api::read_robot(&root.join(path)).expect("robot builds");
         let tree = robot.tree();
         let (nq, tool) = (tree.nq(), robot.tool());
         let qs = configurations(&robot);

@@ -43,7 +43,7 @@ fn built_library() -> PathBuf {
 /// The example robot with the hose loaded from the library (`runtime`) and linked in.
 fn robots(folder: &Path) -> (Robot, Robot) {
     // Registers the built-in kinematic conventions.
-    armcomp::registry::plugins();
+    armcomp_api::registry::plugins();
     let text = include_str!("../plugins/examples/cable_sag/robot.toml");
     let library = built_library();
     std::fs::copy(&library, folder.join(library.file_name().expect("file name"))).expect("library copied");

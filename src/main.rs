@@ -86,7 +86,7 @@ fn main() -> ExitCode {
         armcomp_core::support::io::remove_pending_temporaries();
         std::process::exit(130);
     });
-    if let Err(e) = armcomp::config::apply(cli.allow_plugins) {
+    if let Err(e) = armcomp_api::config::apply(cli.allow_plugins) {
         eprintln!("error: {e:#}");
         return ExitCode::FAILURE;
     }

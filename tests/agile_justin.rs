@@ -185,7 +185,7 @@ fn diagnosis_from_frames_identifies_what_it_adds() {
     let samples = parse_measurements(MEASUREMENTS, Path::new("m.csv"), &r).unwrap();
     let first: Vec<usize> = (0..200).collect();
     let few = subset(&samples, &first);
-    let plugins: Vec<_> = armcomp::plugins()
+    let plugins: Vec<_> = armcomp_api::plugins()
         .into_iter()
         .filter(|p| p.type_name == "joint_compliance")
         .collect();

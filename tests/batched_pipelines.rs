@@ -3,7 +3,7 @@
 //! against the full model's single call per configuration (`Robot::forward_into`, checked
 //! against hand calculations in `fk.rs`), to 1e-12 m on rigid robots, to the bit otherwise.
 
-use armcomp::read_robot;
+use armcomp_api::read_robot;
 use armcomp_core::algorithms::evaluate::model_errors;
 use armcomp_core::algorithms::plan::{Space, spread, trajectory_similar};
 use armcomp_core::algorithms::simulate::{SimulateParams, simulate};

@@ -83,7 +83,7 @@ fn schema_out_plugins_and_demo() {
     let out_path = s.0.join("schema.json");
     let (code, _, err) = armcomp(&["schema", "--out", out_path.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
-    assert_eq!(std::fs::read_to_string(&out_path).unwrap(), armcomp::schema_text());
+    assert_eq!(std::fs::read_to_string(&out_path).unwrap(), armcomp_api::schema_text());
     let (code, out, _) = armcomp(&["plugins", "--json"]);
     assert_eq!(code, 0);
     let list: serde_json::Value = serde_json::from_str(&out).unwrap();

@@ -369,6 +369,13 @@ fn compensate_reports_bad_targets_with_line_and_column() {
     assert_ne!(code, 0);
     assert!(err.contains("t.csv:3: column 2: `abc` is not a finite number"), "{err}");
     assert!(!out.exists());
+    // The library's error is the same input error, with the column's header as data.
+    match armcomp_api::ops::compensate::read_targets(&bad, robot("rock-drill.toml").units()) {
+        Err(armcomp_core::Error::InputAt { location, column, .. }) => {
+            assert_eq!((location.line, column.as_deref()), (Some(3), Some("y[mm]")));
+        }
+        other => panic!("expected an input error, got {other:?}"),
+    }
     let (code, _, err) = compensate_cli("robots/rock-drill.toml", &bad, &bad, &[]);
     assert_ne!(code, 0);
     assert!(err.contains("refusing to overwrite an input"), "{err}");
@@ -635,4 +642,46 @@ fn compensate_cli_keeps_the_start_outside_the_measured_chain() {
         assert_ne!(code, 0);
         assert!(err.contains(expected), "{err}");
     }
+}
+
+/// What compensation refuses comes back typed, each message naming what to change.
+#[test]
+fn compensation_refusals_are_typed() {
+    use armcomp_api::ops::compensate::{Frame, Joints, Target, locked_by_name, run};
+    use armcomp_api::{Error, LockReason};
+    let justin = robot("agile-justin.toml");
+    let err = locked_by_name(&justin, &["t4".into()]).unwrap_err();
+    assert!(
+        matches!(&err, Error::LockedJoint { name, reason: LockReason::Mimic { follows } } if name == "t4" && follows == &["t2", "t3"]),
+        "{err:?}"
+    );
+    assert_eq!(
+        err.to_string(),
+        "locked joint `t4` is a mimic joint; lock the joint it follows: `t2`, `t3`"
+    );
+    let drill = robot("rock-drill.toml");
+    let err = Joints::new(&drill, vec![vec![0.0]], Vec::new()).unwrap_err();
+    assert!(matches!(err, Error::StartConfiguration { index: 1, .. }), "{err:?}");
+    let source = std::error::Error::source(&err).expect("the core error is the source");
+    assert!(source.downcast_ref::<armcomp_core::Error>().is_some(), "{source}");
+    let start = armcomp_core::algorithms::compensate::default_start(&drill);
+    let joints = Joints::new(&drill, vec![start; 2], Vec::new()).unwrap();
+    let target = Target {
+        position: Vector3::new(1.0, 0.0, 0.4),
+        orientation: None,
+    };
+    let err = run(
+        &drill,
+        &[target.clone(), target.clone(), target],
+        &joints,
+        CompensationMode::Exact,
+        Frame::Measurement,
+        &|i| format!("target {i}"),
+        &armcomp_core::support::cancel::Cancel::default(),
+    )
+    .unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "2 start configurations for 3 targets; give one for all or one per target"
+    );
 }

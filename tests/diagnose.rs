@@ -77,7 +77,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
 /// The built-in plugins: the registry would also hold the types of plugin libraries another
 /// test of this process has loaded.
 fn builtin() -> Vec<armcomp_core::PluginInfo> {
-    armcomp::registry::builtin_plugins()
+    armcomp_api::registry::builtin_plugins()
 }
 
 fn params(noise: f64, max_steps: usize) -> DiagnoseParams {
@@ -799,7 +799,7 @@ fn candidates_stay_on_the_measured_chain() {
     let chain = talos.measured_joint_names();
     assert!(chain.iter().any(|j| j == "arm_left_4_joint") && !chain.iter().any(|j| j.starts_with("arm_right")));
     let mut per_joint = 0;
-    for plugin in armcomp::registry::builtin_plugins() {
+    for plugin in armcomp_api::registry::builtin_plugins() {
         let Some(candidates) = plugin.candidates else { continue };
         for c in candidates(&talos) {
             if c.location != "global" {

@@ -664,11 +664,11 @@ fn panda_sockets_held_out_places_are_consistent_to_a_third_of_a_millimetre() {
     let mut spreads = Vec::new();
     for test in ["right", "back-high"] {
         let samples = place(&robot, &dir, "panda_1", test);
-        let before = armcomp::ops::evaluate::run(&robot, &samples)
+        let before = armcomp_api::ops::evaluate::run(&robot, &samples)
             .unwrap()
             .fixed_points
             .unwrap();
-        let after = armcomp::ops::evaluate::run(&cal.robot, &samples)
+        let after = armcomp_api::ops::evaluate::run(&cal.robot, &samples)
             .unwrap()
             .fixed_points
             .unwrap();

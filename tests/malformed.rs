@@ -32,11 +32,11 @@ xyz = [200.0, 0.0, 0.0]
 "#;
 
 /// Validates `text` (after replacing `from` with `to` in the good file) and returns the problems.
-fn problems(tag: &str, from: &str, to: &str) -> Vec<armcomp::Diagnostic> {
+fn problems(tag: &str, from: &str, to: &str) -> Vec<armcomp_api::Diagnostic> {
     assert!(GOOD.contains(from), "test setup: `{from}` not in the good file");
     let s = Scratch::new(tag);
     let p = s.file("robot.toml", &GOOD.replacen(from, to, 1));
-    armcomp::validate_file(&p, &armcomp::robot_schema())
+    armcomp_api::validate_file(&p, &armcomp_api::robot_schema())
 }
 
 fn assert_one(tag: &str, from: &str, to: &str, path: &str, line: usize, words: &[&str]) {
@@ -56,7 +56,7 @@ fn assert_one(tag: &str, from: &str, to: &str, path: &str, line: usize, words: &
 fn good_file_is_valid() {
     let s = Scratch::new("good");
     let p = s.file("robot.toml", GOOD);
-    assert_eq!(armcomp::validate_file(&p, &armcomp::robot_schema()), vec![]);
+    assert_eq!(armcomp_api::validate_file(&p, &armcomp_api::robot_schema()), vec![]);
 }
 
 #[test]
@@ -145,9 +145,9 @@ fn unknown_unit() {
 
 #[test]
 fn missing_file_and_unreadable_input_are_errors_not_panics() {
-    let ps = armcomp::validate_file(
+    let ps = armcomp_api::validate_file(
         std::path::Path::new("/nonexistent/robot.toml"),
-        &armcomp::robot_schema(),
+        &armcomp_api::robot_schema(),
     );
     assert_eq!(ps.len(), 1);
     assert_eq!(ps[0].to_string(), "/nonexistent/robot.toml: does not exist");
@@ -162,7 +162,7 @@ fn several_problems_are_all_reported() {
         .replace("ei_y = 100.0", "ei_y = -100.0")
         .replace("link = \"j2\"\nxyz", "link = \"j9\"\nxyz");
     let p = s.file("robot.toml", &text);
-    let ps = armcomp::validate_file(&p, &armcomp::robot_schema());
+    let ps = armcomp_api::validate_file(&p, &armcomp_api::robot_schema());
     assert!(ps.len() >= 2, "{ps:?}");
 }
 

@@ -127,6 +127,30 @@ fn bad_inputs_name_line_and_column() {
     assert_err(&HEADER.replace("j1[deg]", "j1[mm]"), &["revolute", "`mm`"]);
 }
 
+/// The column an error is in comes as data beside the message (Python's `InputError.field`).
+#[test]
+fn bad_inputs_carry_their_column() {
+    let column = |text: &str| {
+        let r = drill();
+        match parse_csv(
+            text,
+            Path::new("m.csv"),
+            &CsvLayout::strict(r.tree(), r.units(), r.tool()),
+        ) {
+            Err(armcomp_core::Error::InputAt { column, .. }) => column,
+            other => panic!("expected an input error, got {other:?}"),
+        }
+    };
+    let row = |cells: &str| format!("{HEADER}\n{cells}\n");
+    assert_eq!(
+        column(&row("10,20,50,0,-10,5,30,1000,abc,300")).as_deref(),
+        Some("y[mm]")
+    );
+    assert_eq!(column(&HEADER.replace(",z[mm]", "")).as_deref(), Some("z"));
+    assert_eq!(column(&HEADER.replace("j3[mm]", "j3[deg]")).as_deref(), Some("j3[deg]"));
+    assert_eq!(column(&row("10,20,50,0,-10,5,30,1000,300")), None);
+}
+
 #[test]
 fn unit_mistakes_are_detected_by_magnitude() {
     let m = HEADER

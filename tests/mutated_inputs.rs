@@ -134,8 +134,8 @@ fn check_file(name: &'static str, bytes: Vec<u8>) -> Result<(), String> {
         std::fs::write(dir.path().join("arm.urdf"), base("arm.urdf")).unwrap();
         let path = dir.path().join(name);
         std::fs::write(&path, bytes).unwrap();
-        let _ = armcomp::validate_file(&path, &armcomp::robot_schema());
-        let _ = armcomp::load_robot(&path);
+        let _ = armcomp_api::validate_file(&path, &armcomp_api::robot_schema());
+        let _ = armcomp_api::read_robot(&path);
     })
 }
 

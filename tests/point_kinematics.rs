@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use armcomp::read_robot;
+use armcomp_api::read_robot;
 use armcomp_core::{Error, KinematicTree, Motion, PointKinematics, Robot, TreeWorkspace};
 use nalgebra::{Isometry3, IsometryMatrix3, Matrix6xX, Quaternion, UnitQuaternion, Vector3};
 

@@ -18,9 +18,9 @@ fn robot_files() -> Vec<std::path::PathBuf> {
 
 #[test]
 fn every_robot_file_validates() {
-    let schema = armcomp::robot_schema();
+    let schema = armcomp_api::robot_schema();
     for f in robot_files() {
-        let problems = armcomp::validate_file(&f, &schema);
+        let problems = armcomp_api::validate_file(&f, &schema);
         assert!(problems.is_empty(), "{}: {problems:?}", f.display());
     }
 }
@@ -56,14 +56,14 @@ fn every_robot_file_round_trips_through_toml_and_json() {
 fn committed_schema_is_up_to_date() {
     let committed = std::fs::read_to_string(root().join("schemas/robot.schema.json")).unwrap();
     assert!(
-        committed == armcomp::schema_text(),
+        committed == armcomp_api::schema_text(),
         "schemas/robot.schema.json is stale: run `cargo run -- schema --out schemas/robot.schema.json`"
     );
 }
 
 #[test]
 fn schema_lists_every_registered_plugin() {
-    let schema = armcomp::robot_schema();
+    let schema = armcomp_api::robot_schema();
     let kin = &schema["$defs"]["KinematicsPlugin"]["oneOf"];
     let names: Vec<_> = kin
         .as_array()
@@ -71,7 +71,7 @@ fn schema_lists_every_registered_plugin() {
         .iter()
         .map(|s| s["properties"]["type"]["const"].clone())
         .collect();
-    for p in armcomp::plugins()
+    for p in armcomp_api::plugins()
         .iter()
         .filter(|p| p.role == armcomp_core::Role::Kinematics)
     {
@@ -97,7 +97,7 @@ fn registry_names_are_the_names_robot_files_deserialise() {
         }
         .map(|e| e.to_string())
     }
-    let plugins = armcomp::registry::builtin_plugins();
+    let plugins = armcomp_api::registry::builtin_plugins();
     for role in [Role::Kinematics, Role::ErrorModel, Role::Predictor] {
         let mut registered: Vec<&str> = plugins.iter().filter(|p| p.role == role).map(|p| p.type_name).collect();
         registered.sort_unstable();

@@ -365,7 +365,7 @@ fn identified_values_are_written_back_and_the_model_file_reloads() {
 fn loaded_plugin_types_are_listed_with_their_role() {
     let (_scratch, path) = example_folder("rt-list");
     Robot::from_path(&path).unwrap();
-    let entry = armcomp::plugins()
+    let entry = armcomp_api::plugins()
         .into_iter()
         .find(|p| p.type_name == "cable_sag")
         .expect("the loaded type is in the registry");
@@ -626,7 +626,7 @@ fn diagnose_names_a_hose_hidden_in_the_data_from_the_library_candidates() {
     // The library's error model joins the built-in ones with a per-link template. (Other tests
     // load copies of the library from folders they remove; the registry lists those too.)
     allow_plugins();
-    let mut plugins = armcomp::registry::builtin_plugins();
+    let mut plugins = armcomp_api::registry::builtin_plugins();
     plugins.extend(armcomp_sdk::load_library(&built_plugins().join(library_file("cable_sag"))).unwrap());
     let entry = plugins.iter().find(|p| p.type_name == "cable_sag").unwrap();
     // The truth carries a bundle of hoses, 5 kg/m (the linked model); the model as given knows

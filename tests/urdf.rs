@@ -480,6 +480,6 @@ fn ros_package_meshes_are_skipped_with_a_warning_and_stl_boxes_read() {
     let c = shapes[0].local.translation.vector;
     assert!((c - Vector3::new(1.2, 0.0, 0.05)).norm() < 1e-7, "{c:?}");
     // The bare URDF still validates; the warning does not stop it.
-    let problems = armcomp::validate_file(&s.0.join("m.urdf"), &armcomp::robot_schema());
+    let problems = armcomp_api::validate_file(&s.0.join("m.urdf"), &armcomp_api::robot_schema());
     assert!(problems.is_empty(), "{problems:?}");
 }

@@ -295,6 +295,6 @@ fn urdf_errors_name_file_line_and_element_once() {
         path.display()
     );
     assert_eq!(robot_from_urdf(&path).unwrap_err().to_string(), want);
-    let problems = armcomp::validate_file(&path, &armcomp::robot_schema());
+    let problems = armcomp_api::validate_file(&path, &armcomp_api::robot_schema());
     assert_eq!(problems.iter().map(ToString::to_string).collect::<Vec<_>>(), [want]);
 }

@@ -137,6 +137,8 @@ pub enum Error {
     InputAt {
         /// Where.
         location: Location,
+        /// The column the problem is in, by its name or header cell (`x[mm]`), when it is one.
+        column: Option<String>,
         /// What is wrong there and what was expected (naming the column or field).
         message: String,
     },
@@ -304,6 +306,7 @@ mod tests {
                         column: Some(3),
                         ..Location::file("poses.csv")
                     },
+                    column: Some("x[mm]".into()),
                     message: "column `x[mm]`: `abc` is not a number".into(),
                 },
                 "poses.csv:12:3: column `x[mm]`: `abc` is not a number",
@@ -311,6 +314,7 @@ mod tests {
             (
                 Error::InputAt {
                     location: Location::file("missing.csv"),
+                    column: None,
                     message: "does not exist".into(),
                 },
                 "missing.csv: does not exist",

@@ -1,6 +1,6 @@
 //! `calibrate`: identification from measurements, as `armcomp calibrate` does it.
 
-use armcomp::ops::calibrate::Prior;
+use armcomp_api::ops::calibrate::Prior;
 use armcomp_core::calibrate::{CalibrationParams, Loss};
 use pyo3::prelude::*;
 
@@ -68,14 +68,14 @@ pub fn calibrate(
         ..CalibrationParams::default()
     };
     let run = crate::interrupt::run(py, |cancel| {
-        armcomp::ops::calibrate::run(
+        armcomp_api::ops::calibrate::run(
             &robot,
             &set.samples,
             CalibrationParams {
                 cancel: cancel.clone(),
                 ..params
             },
-            armcomp::ops::calibrate::Choices {
+            armcomp_api::ops::calibrate::Choices {
                 prior,
                 noise_declared: noise_mm.is_some(),
                 fold_groups: None,

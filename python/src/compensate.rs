@@ -1,6 +1,6 @@
 //! `compensate`: joint commands for a batch of targets, as `armcomp compensate` computes them.
 
-use armcomp::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run};
+use armcomp_api::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run};
 use armcomp_core::algorithms::compensate::CompensationMode;
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
@@ -75,8 +75,8 @@ pub fn compensate<'py>(
         Some(s) => crate::arrays::rows(s, "start", Some(robot.tree().nq()))?,
         None => Vec::new(),
     };
-    let locked = locked_by_name(&robot, &lock).map_err(|e| bad("lock", format!("{e:#}")))?;
-    let joints = Joints::new(&robot, starts, locked).map_err(|e| bad("start", format!("{e:#}")))?;
+    let locked = locked_by_name(&robot, &lock).py()?;
+    let joints = Joints::new(&robot, starts, locked).py()?;
     let describe = |i: usize| format!("target {i}");
     let out = crate::interrupt::run(py, |cancel| {
         run(&robot, &targets, &joints, mode, frame, &describe, cancel)

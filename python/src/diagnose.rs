@@ -1,6 +1,6 @@
 //! `diagnose`: finds the effects a model misses, as `armcomp diagnose` does.
 
-use armcomp::ops::diagnose::LearnableBy;
+use armcomp_api::ops::diagnose::LearnableBy;
 use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseStage};
 use armcomp_core::calibrate::CalibrationParams;
 use pyo3::prelude::*;
@@ -63,7 +63,7 @@ pub fn diagnose(
     let diagnosis = crate::interrupt::run(py, |cancel| {
         let mut params = params.clone();
         params.calibration.cancel = cancel.clone();
-        armcomp::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
+        armcomp_api::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
             let stage = match p.stage {
                 DiagnoseStage::Baseline => "model as given".to_string(),
                 DiagnoseStage::Round(n) => format!("effect {n}"),
@@ -73,6 +73,6 @@ pub fn diagnose(
         })
     })?
     .py()?;
-    let json = armcomp::ops::diagnose::to_json(&diagnosis.report, &set.rows).to_string();
+    let json = armcomp_api::ops::diagnose::to_json(&diagnosis.report, &set.rows).to_string();
     Ok((PyRobot::wrap(diagnosis.robot), json))
 }

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use armcomp_core::Error;
+use armcomp_core::{Error, IkError};
 use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -47,12 +47,6 @@ fn armcomp_error(message: &str) -> PyErr {
     })
 }
 
-/// The column a reader's message names (`column \`x[mm]\``), as the field.
-fn column(message: &str) -> Option<&str> {
-    let rest = &message[message.find("column `")? + "column `".len()..];
-    Some(&rest[..rest.find('`')?])
-}
-
 /// The errno of an operating system's message (`... (os error 2)`), or for armcomp's own
 /// refusals the nearest one: a missing file or folder `ENOENT`, a permission `EACCES`, any
 /// other refusal (an input, a link, a special file as output) `EINVAL`.
@@ -73,7 +67,8 @@ fn os_errno(message: &str) -> i32 {
     })
 }
 
-/// The Python exception for a core error; `context` (e.g. an anyhow chain) replaces the message.
+/// The Python exception for a core error; `context` (the message of an error wrapping it)
+/// replaces the message.
 pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
     let message = context.map_or_else(|| e.to_string(), str::to_string);
     match e {
@@ -92,8 +87,8 @@ pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
             let field = issues.first().map(|i| i.path.as_str()).filter(|p| !p.is_empty());
             input_error(&message, None, None, field)
         }
-        Error::InputAt { location, message: m } => {
-            input_error(&message, Some(&location.file), location.line, column(m))
+        Error::InputAt { location, column, .. } => {
+            input_error(&message, Some(&location.file), location.line, column.as_deref())
         }
         Error::Dimension { what, .. } | Error::InvalidArgument { what, .. } | Error::TooLarge { what, .. } => {
             input_error(&message, None, None, Some(what))
@@ -107,14 +102,32 @@ pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
     }
 }
 
-/// The Python exception for an error of the command-line operations (an anyhow chain): its
-/// core error, if any, with the whole chain as the message.
-pub fn any_error(e: &anyhow::Error) -> PyErr {
-    let message = format!("{e:#}");
-    match e.chain().find_map(|c| c.downcast_ref::<Error>()) {
-        Some(core) => core_error(core, Some(&message)),
-        // armcomp's own refusals without a core error (an unreachable target): its own type.
-        None => armcomp_error(&message),
+/// An error's message with those of its sources, `: `-separated (as the command line prints it).
+fn chain(e: &dyn std::error::Error) -> String {
+    let mut message = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        message = format!("{message}: {s}");
+        source = s.source();
+    }
+    message
+}
+
+/// The Python exception for an error of the operations, with the whole chain as the message:
+/// bad start configurations and locked joints are input errors of the arguments `start` and
+/// `lock`, a target the solver could not reach is armcomp's own error.
+pub fn api_error(e: &armcomp_api::Error) -> PyErr {
+    use armcomp_api::Error as Api;
+    let message = chain(e);
+    match e {
+        Api::Core(core) => core_error(core, None),
+        Api::StartConfiguration { .. } | Api::StartCount { .. } => input_error(&message, None, None, Some("start")),
+        Api::LockedJoint { .. } => input_error(&message, None, None, Some("lock")),
+        Api::Target { source, .. } => match source.as_ref() {
+            IkError::Input(core) => core_error(core, Some(&message)),
+            _ => armcomp_error(&message),
+        },
+        _ => armcomp_error(&message),
     }
 }
 
@@ -144,8 +157,8 @@ impl<T> IntoPy<T> for armcomp_core::Result<T> {
     }
 }
 
-impl<T> IntoPy<T> for anyhow::Result<T> {
+impl<T> IntoPy<T> for armcomp_api::Result<T> {
     fn py(self) -> PyResult<T> {
-        self.map_err(|e| any_error(&e))
+        self.map_err(|e| api_error(&e))
     }
 }

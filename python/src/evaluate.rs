@@ -17,7 +17,7 @@ pub fn evaluate<'py>(
 ) -> PyResult<(String, Bound<'py, PyArray2<f64>>)> {
     let robot = model.robot.clone();
     let set = data.resolve(&robot)?;
-    let report = crate::interrupt::run(py, |_| armcomp::ops::evaluate::run(&robot, &set.samples))?.py()?;
+    let report = crate::interrupt::run(py, |_| armcomp_api::ops::evaluate::run(&robot, &set.samples))?.py()?;
     let json = serde_json::to_string(&report.to_json()).expect("JSON values print");
     Ok((json, crate::arrays::points(py, &report.errors)))
 }

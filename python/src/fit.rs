@@ -37,13 +37,13 @@ pub fn fit(
                     Some("groups"),
                 ));
             }
-            Some(armcomp::ops::fit::groups_of(&labels, &set.rows))
+            Some(armcomp_api::ops::fit::groups_of(&labels, &set.rows))
         }
         None => None,
     };
     let predictor = predictor.filter(|p| *p != "none").map(str::to_string);
     let ladder = crate::interrupt::run(py, |cancel| {
-        let params = armcomp::ops::fit::FitParams {
+        let params = armcomp_api::ops::fit::FitParams {
             noise_mm,
             folds,
             seed,
@@ -51,11 +51,11 @@ pub fn fit(
             predictor,
             cancel: cancel.clone(),
         };
-        armcomp::ops::fit::run(&robot, &set.samples, params, &|p| {
+        armcomp_api::ops::fit::run(&robot, &set.samples, params, &|p| {
             crate::progress::report(progress.as_ref(), "model choice", p.done, p.total)
         })
     })?
     .py()?;
-    let json = serde_json::to_string(&armcomp::ops::fit::to_json(&ladder)).expect("JSON values print");
+    let json = serde_json::to_string(&armcomp_api::ops::fit::to_json(&ladder)).expect("JSON values print");
     Ok((PyRobot::wrap(ladder.robot), json))
 }

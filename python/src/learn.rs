@@ -21,7 +21,7 @@ pub fn learn(
     progress: Option<Py<PyAny>>,
 ) -> PyResult<(PyRobot, String)> {
     let predictor = predictor
-        .map(armcomp::ops::learn::default_predictor)
+        .map(armcomp_api::ops::learn::default_predictor)
         .transpose()
         .map_err(|e| crate::errors::input_error(&e.to_string(), None, None, Some("predictor")))?;
     let robot = model.robot.clone();
@@ -40,7 +40,7 @@ pub fn learn(
             progress: Some(&report),
             cancel: cancel.clone(),
         };
-        armcomp::ops::learn::run(&robot, file, &set.samples, predictor, None, &control)
+        armcomp_api::ops::learn::run(&robot, file, &set.samples, predictor, None, &control)
     })?
     .py()?;
     let json = serde_json::json!({

@@ -26,7 +26,7 @@ use pyo3::prelude::*;
 fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The user config applies as for the command line; run-time plugin libraries load only
     // from the folders it trusts.
-    armcomp::config::apply(false).map_err(|e| errors::core_error(&e, None))?;
+    armcomp_api::config::apply(false).map_err(|e| errors::core_error(&e, None))?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<measurements::PyMeasurements>()?;

@@ -1,6 +1,6 @@
 //! `plan`: measurement poses, as `armcomp plan` plans them.
 
-use armcomp::ops::plan::{PlanParams, PlanPool, run};
+use armcomp_api::ops::plan::{PlanParams, PlanPool, run};
 use numpy::{AllowTypeChange, PyArrayLike2};
 use pyo3::prelude::*;
 

@@ -143,7 +143,7 @@ impl PyRobot {
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let robot = py
-            .detach(|| armcomp::read_robot(&path))
+            .detach(|| armcomp_api::read_robot(&path))
             .map_err(|e| file_error(&e, &path))?;
         PyRobot::new(py, robot)
     }
@@ -381,7 +381,7 @@ impl PyRobot {
         data: Option<PyRef<'_, PyMeasurements>>,
     ) -> PyResult<Option<f64>> {
         let robot = &self.robot;
-        let dropped = armcomp::ops::export_urdf::inexpressible(robot);
+        let dropped = armcomp_api::ops::export_urdf::inexpressible(robot);
         if !dropped.is_empty() && !rigid_only {
             return Err(input_error(
                 &format!(
@@ -400,7 +400,7 @@ impl PyRobot {
         let deviation = match (&data, dropped.is_empty()) {
             (Some(d), false) => {
                 let set = d.resolve(robot)?;
-                Some(armcomp::ops::export_urdf::rigid_deviation(robot, &set.samples).py()?)
+                Some(armcomp_api::ops::export_urdf::rigid_deviation(robot, &set.samples).py()?)
             }
             _ => None,
         };

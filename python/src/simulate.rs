@@ -22,8 +22,8 @@ pub fn simulate(
     let robot = &truth.robot;
     let poses = match poses {
         Some(p) => crate::arrays::rows(&p, "poses", Some(robot.tree().nq()))?,
-        None => armcomp::ops::simulate::draw_poses(robot, sampler, n, seed).py()?,
+        None => armcomp_api::ops::simulate::draw_poses(robot, sampler, n, seed).py()?,
     };
-    let set = armcomp::ops::simulate::run(robot, &poses, noise_mm, seed).py()?;
+    let set = armcomp_api::ops::simulate::run(robot, &poses, noise_mm, seed).py()?;
     Ok(PyMeasurements::from_set(robot, set))
 }

@@ -11,8 +11,8 @@ use crate::robot::PyRobot;
 /// Schema): its problems as `armcomp validate --json` prints them (JSON text).
 #[pyfunction]
 pub fn validate(py: Python<'_>, path: PathBuf) -> String {
-    let schema = armcomp::robot_schema();
-    let found = py.detach(|| armcomp::validate_file(&path, &schema));
+    let schema = armcomp_api::robot_schema();
+    let found = py.detach(|| armcomp_api::validate_file(&path, &schema));
     serde_json::to_string(&found).expect("diagnostics serialise")
 }
 
@@ -20,14 +20,14 @@ pub fn validate(py: Python<'_>, path: PathBuf) -> String {
 /// checkers.
 #[pyfunction]
 pub fn schema() -> String {
-    armcomp::schema_text()
+    armcomp_api::schema_text()
 }
 
 /// The built-in plugins and those of libraries loaded so far, as `armcomp plugins --json`
 /// lists them (JSON text).
 #[pyfunction]
 pub fn plugins() -> String {
-    armcomp::registry::plugins_json().to_string()
+    armcomp_api::registry::plugins_json().to_string()
 }
 
 /// Collisions at configuration `q` as `armcomp check-pose --json` lists its `contacts` (JSON

@@ -80,6 +80,26 @@ def test_bad_arguments_name_the_argument(talos):
     assert e.value.field == "targets"
 
 
+def test_a_measurement_error_names_its_column(tmp_path):
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    path = tmp_path / "bad.csv"
+    path.write_text("j1[deg],j2[deg],x[mm],y[mm],z[mm]\n10,20,1,abc,0\n")
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.Measurements.read(path, robot)
+    assert (e.value.file, e.value.line, e.value.field) == (str(path), 2, "y[mm]")
+
+
+def test_bad_starts_and_locks_name_the_argument():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    targets = robot.fk_many(np.array([[0.3, -0.2]] * 3))[:, robot.points.index("tool"), :]
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.compensate(robot, targets, start=np.zeros((2, 2)))
+    assert e.value.field == "start" and "2 start configurations for 3 targets" in str(e.value)
+    with pytest.raises(armcomp.InputError) as e:
+        armcomp.compensate(robot, targets, lock=["elbow"])
+    assert e.value.field == "lock" and "locked joint `elbow`" in str(e.value)
+
+
 def test_measurements_from_arrays_follow_joint_and_point_names():
     robot = armcomp.Robot.from_toml(PLANAR_2R)
     q = np.array([[0.3, -0.2], [1.0, 0.5], [-0.7, 1.2]])

@@ -60,6 +60,7 @@ fn numpy_numbers(text: &str) -> std::result::Result<Vec<f64>, String> {
 pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<Sample>> {
     let err = |line: u64, message: String| Error::InputAt {
         location: Location::line(path, line as usize),
+        column: None,
         message,
     };
     let tree = robot.tree();

@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp::ops::calibrate::Prior;
+use armcomp_api::ops::calibrate::Prior;
 use armcomp_core::calibrate::{CalibrationParams, CalibrationReport, Loss};
 use armcomp_core::model::param::Quantity;
 use armcomp_core::support::cancel::Cancel;
@@ -81,7 +81,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let mut robot = armcomp::load_robot(&args.robot)?;
+    let mut robot = super::load_robot(&args.robot)?;
     let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
     check_output(&args.out, &robot, &data_files)?;
     let (mut data, _) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
@@ -134,12 +134,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let mut calibrate_on =
         |samples: &[armcomp_core::data::measurement::Sample], rows: &[usize], cancel: &Cancel| -> anyhow::Result<_> {
-            let choices = armcomp::ops::calibrate::Choices {
+            let choices = armcomp_api::ops::calibrate::Choices {
                 prior: args.prior,
                 noise_declared: declared,
                 fold_groups: groups(rows)?,
             };
-            Ok(armcomp::ops::calibrate::run(
+            Ok(armcomp_api::ops::calibrate::run(
                 &robot,
                 samples,
                 CalibrationParams {

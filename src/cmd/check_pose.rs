@@ -23,7 +23,7 @@ pub struct Args {
 
 /// Exit code 0: no collision; 2: collisions found; 1: error.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot)?;
     let q = super::fk::parse_q(&robot, &args.q, args.deg)?;
     let model = CollisionModel::new(robot.tree(), robot.collision());
     let mut ws = model.workspace();

@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp::ops::compensate as ops;
+use armcomp_api::ops::compensate as ops;
 use armcomp_core::algorithms::compensate::CompensationMode;
 use armcomp_core::support::io::write_atomic;
 
@@ -53,7 +53,7 @@ enum Frame {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.model)?;
+    let robot = super::load_robot(&args.model)?;
     let units = robot.units();
     let inputs: Vec<&std::path::Path> = std::iter::once(args.targets.as_path())
         .chain(args.start.as_deref())

@@ -121,7 +121,7 @@ fn beats_median(c: &LearningCurveReport, stat: fn(&ErrorStats) -> f64) {
 /// from the given paths, by default from the repository root's).
 pub fn talos(opts: &CurveParams, robot_path: Option<&Path>, data_path: Option<&Path>) -> anyhow::Result<ExitCode> {
     let robot = default_hint(
-        armcomp::load_robot(robot_path.unwrap_or(Path::new(TALOS_ROBOT))).map_err(anyhow::Error::from),
+        super::load_robot(robot_path.unwrap_or(Path::new(TALOS_ROBOT))).map_err(anyhow::Error::from),
         robot_path.is_none(),
         TALOS_ROBOT,
         "--robot",

@@ -103,7 +103,7 @@ pub fn run(opts: &JustinParams) -> anyhow::Result<ExitCode> {
         Some(diagnose_from_frames(
             &robot,
             &samples,
-            &armcomp::plugins(),
+            &armcomp_api::plugins(),
             DIAGNOSE_FOLDS,
             opts.seed,
             opts.diagnose_steps,

@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use armcomp::ops::diagnose::LearnableBy;
+use armcomp_api::ops::diagnose::LearnableBy;
 use armcomp_core::calibrate::CalibrationParams;
 
 use armcomp_core::algorithms::evaluate::ErrorStats;
@@ -84,7 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for lib in &args.libraries {
         armcomp_sdk::load_library(lib).with_context(|| format!("--library {}", lib.display()))?;
     }
-    let robot = armcomp::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot)?;
     let libraries: Vec<PathBuf> = args
         .libraries
         .iter()
@@ -97,7 +97,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         check_output(out, &robot, &read)?;
     }
     if let Some(dir) = &args.report {
-        armcomp::diagnosis_report::check(dir, &inputs(&robot, &read))?;
+        armcomp_api::diagnosis_report::check(dir, &inputs(&robot, &read))?;
     }
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let params = DiagnoseParams {
@@ -129,7 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let result = crate::stoppable(|cancel| {
         let mut params = params.clone();
         params.calibration.cancel = cancel.clone();
-        armcomp::ops::diagnose::run(&robot, &data.samples, &params, learnable_by, &|p| {
+        armcomp_api::ops::diagnose::run(&robot, &data.samples, &params, learnable_by, &|p| {
             // A new stage restarts the bar, so that its estimate is the stage's own.
             if bar.length() != Some(p.total as u64) || p.done == 0 {
                 bar.reset();
@@ -151,12 +151,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         write_atomic(out, text.as_bytes())?;
     }
     if let Some(dir) = &args.report {
-        armcomp::diagnosis_report::write(dir, report)?;
+        armcomp_api::diagnosis_report::write(dir, report)?;
     }
     // The gross errors as data rows (0-based, as --rows counts them).
-    let gross_rows = armcomp::ops::diagnose::gross_error_rows(report, &data.rows);
+    let gross_rows = armcomp_api::ops::diagnose::gross_error_rows(report, &data.rows);
     if args.json {
-        let value = armcomp::ops::diagnose::to_json(report, &data.rows);
+        let value = armcomp_api::ops::diagnose::to_json(report, &data.rows);
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
         print_report(report, &gross_rows);

@@ -44,7 +44,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let mut robot = armcomp::load_robot(&args.model)?;
+    let mut robot = super::load_robot(&args.model)?;
     if let Some(out) = &args.residuals {
         let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
         check_output(out, &robot, &data_files)?;
@@ -63,7 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             robot.stations().get(k).map_or("of the data", |s| s.name.as_str())
         );
     }
-    let mut report = armcomp::ops::evaluate::run(&robot, &data.samples)?;
+    let mut report = armcomp_api::ops::evaluate::run(&robot, &data.samples)?;
     report.registered = register
         .iter()
         .map(|&k| robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()))

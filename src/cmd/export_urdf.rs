@@ -26,8 +26,8 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.model)?;
-    let dropped = armcomp::ops::export_urdf::inexpressible(&robot);
+    let robot = super::load_robot(&args.model)?;
+    let dropped = armcomp_api::ops::export_urdf::inexpressible(&robot);
     if !dropped.is_empty() && !args.rigid_only {
         bail!(
             "{}: URDF cannot express {}; the exported URDF would not be this model. Pass --rigid-only --data <measurements.csv> to export the rigid geometry anyway and see how far the dropped models move the measured points",
@@ -41,7 +41,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let deviation = match (&args.data, dropped.is_empty()) {
         (Some(data), false) => {
             let set = read_measurements(&robot, data, None)?;
-            let max = armcomp::ops::export_urdf::rigid_deviation(&robot, &set.samples)?;
+            let max = armcomp_api::ops::export_urdf::rigid_deviation(&robot, &set.samples)?;
             Some((max, set.samples.len()))
         }
         _ => None,
@@ -52,7 +52,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         args.out.display(),
         urdf.source.display()
     );
-    let rows = armcomp::ops::export_urdf::summary(&robot, &urdf, &dropped);
+    let rows = armcomp_api::ops::export_urdf::summary(&robot, &urdf, &dropped);
     let width = |k: usize| rows.iter().map(|r| r[k].chars().count()).max().unwrap_or(0);
     let (w0, w1) = (width(0), width(1));
     for [status, item, details] in &rows {

@@ -41,7 +41,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let fold_groups = args.group.groups(&[&args.data], &data.rows)?.map(|(_, g)| g);
@@ -58,7 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     // Ctrl-C ends the cross-validation with the rungs fitted so far, the choice among them
     // fitted on all rows.
     let ladder = crate::stoppable(|cancel| {
-        let params = armcomp::ops::fit::FitParams {
+        let params = armcomp_api::ops::fit::FitParams {
             noise_mm: args.noise_mm,
             folds: args.folds,
             seed: args.seed,
@@ -66,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             predictor,
             cancel: cancel.clone(),
         };
-        armcomp::ops::fit::run(&robot, &data.samples, params, &|p| {
+        armcomp_api::ops::fit::run(&robot, &data.samples, params, &|p| {
             if let Ok(b) = bar.lock() {
                 b.set_length(p.total as u64);
                 b.set_position(p.done as u64);
@@ -83,7 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if args.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&armcomp::ops::fit::to_json(&ladder))?
+            serde_json::to_string_pretty(&armcomp_api::ops::fit::to_json(&ladder))?
         );
     } else {
         println!(

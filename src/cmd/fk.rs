@@ -92,7 +92,7 @@ pub fn parse_q(robot: &Robot, text: &str, deg: bool) -> anyhow::Result<Vec<f64>>
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot)?;
     let q = parse_q(&robot, &args.q, args.deg)?;
     let frames = robot.forward(&q)?;
     let tree = robot.tree();

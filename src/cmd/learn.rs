@@ -30,11 +30,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.model)?;
+    let robot = super::load_robot(&args.model)?;
     let predictor = args
         .predictor
         .as_deref()
-        .map(armcomp::ops::learn::default_predictor)
+        .map(armcomp_api::ops::learn::default_predictor)
         .transpose()?;
     if predictor.is_none() && robot.predictor_spec().is_none() {
         bail!(
@@ -64,7 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         progress: Some(&progress),
         ..FitControl::default()
     };
-    let run = armcomp::ops::learn::run(&robot, file, &data.samples, predictor, groups, &control);
+    let run = armcomp_api::ops::learn::run(&robot, file, &data.samples, predictor, groups, &control);
     bar.finish_and_clear();
     let run = run?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);

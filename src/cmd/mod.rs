@@ -24,6 +24,15 @@ use std::path::{Path, PathBuf};
 use armcomp_core::Robot;
 use armcomp_core::data::measurement::{MeasurementSet, RowSelection, read_csv};
 
+/// Reads and builds the robot at `path` ([`armcomp_api::read_robot`]), printing its warnings.
+pub fn load_robot(path: &Path) -> armcomp_core::Result<Robot> {
+    let robot = armcomp_api::read_robot(path)?;
+    for w in robot.warnings() {
+        eprintln!("warning: {w}");
+    }
+    Ok(robot)
+}
+
 /// Checks, before the computation, that `out` may be written and replaces none of the files
 /// the run reads: `robot`'s (its file, URDF, meshes, libraries) and `others`.
 pub fn check_output(out: &Path, robot: &Robot, others: &[&Path]) -> anyhow::Result<()> {
@@ -69,7 +78,7 @@ impl GroupBy {
             let text = armcomp_core::support::io::read_text(file)?;
             values.extend(armcomp_core::data::measurement::column_values(&text, file, column)?);
         }
-        Ok(Some((column.clone(), armcomp::ops::fit::groups_of(&values, rows))))
+        Ok(Some((column.clone(), armcomp_api::ops::fit::groups_of(&values, rows))))
     }
 }
 

@@ -2,7 +2,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::bail;
-use armcomp::ops::plan::{PlanParams, PlanPool};
+use armcomp_api::ops::plan::{PlanParams, PlanPool};
 use armcomp_core::analysis::design::{Criterion, SelectionReport};
 use armcomp_core::data::measurement::{MeasurementSet, has_positions, parse_poses, write_csv, write_poses};
 use armcomp_core::support::io::write_atomic;
@@ -94,7 +94,7 @@ fn read_pool(robot: &armcomp_core::Robot, text: Option<&str>) -> anyhow::Result<
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = armcomp::load_robot(&args.robot)?;
+    let robot = super::load_robot(&args.robot)?;
     let mut read: Vec<&Path> = args.trajectory.iter().map(|p| p.as_path()).collect();
     read.extend(args.measured.as_deref());
     let pool_file = args.pool.as_deref().filter(|t| t.trim().parse::<usize>().is_err());
@@ -136,7 +136,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         per_point: args.per_point,
         seed: args.seed,
     };
-    let run = armcomp::ops::plan::run(&robot, &params)?;
+    let run = armcomp_api::ops::plan::run(&robot, &params)?;
     for w in &run.warnings {
         eprintln!("warning: {w}");
     }

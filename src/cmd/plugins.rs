@@ -18,9 +18,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for lib in &args.library {
         armcomp_sdk::load_library(lib).with_context(|| format!("--library {}", lib.display()))?;
     }
-    let plugins = armcomp::plugins();
+    let plugins = armcomp_api::plugins();
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&armcomp::registry::plugins_json())?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&armcomp_api::registry::plugins_json())?
+        );
     } else {
         let width = plugins.iter().map(|p| p.type_name.len()).max().unwrap_or(0);
         for p in &plugins {

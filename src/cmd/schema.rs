@@ -11,7 +11,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let text = armcomp::schema_text();
+    let text = armcomp_api::schema_text();
     match args.out {
         Some(p) => {
             check_output(&p, &[])?;

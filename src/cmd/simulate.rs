@@ -99,7 +99,7 @@ fn plane(text: &str, spread_mm: f64) -> anyhow::Result<(String, Contact)> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let mut truth = armcomp::load_robot(&args.robot)?;
+    let mut truth = super::load_robot(&args.robot)?;
     let planar = truth.measures_planes();
     if truth.measures_fixed_points() || planar {
         let (flag, given) = if planar {
@@ -162,13 +162,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let text = armcomp_core::support::io::read_text(p)?;
             parse_poses(&text, p, &truth.csv_layout())?
         }
-        None => armcomp::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
+        None => armcomp_api::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
     let draw = match args.tilt_per.as_str() {
         "station" => armcomp_core::algorithms::simulate::TiltDraw::PerStation,
         _ => armcomp_core::algorithms::simulate::TiltDraw::PerRow,
     };
-    let mut set = armcomp::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
+    let mut set =
+        armcomp_api::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
     // Fixed points named for a truth that measures positions: mixed data, the tracker's rows
     // then the fixed points'.
     let contacts = (args.fixed_points.iter())

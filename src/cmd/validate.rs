@@ -12,15 +12,15 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let schema = armcomp::robot_schema();
+    let schema = armcomp_api::robot_schema();
     let mut all = Vec::new();
     for f in &args.files {
-        let armcomp::Validation {
+        let armcomp_api::Validation {
             problems,
             not_loaded,
             loaded,
             warnings,
-        } = armcomp::check_file(f, &schema);
+        } = armcomp_api::check_file(f, &schema);
         for w in &warnings {
             eprintln!("warning: {w}");
         }

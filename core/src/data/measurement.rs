@@ -354,13 +354,19 @@ impl<'a> LineCounter<'a> {
     }
 }
 
-/// An error in measurement file `path` at `line`.
+/// An error in measurement file `path` at `line`, in no one column.
 fn input_error(path: &Path, line: Option<usize>, message: String) -> Error {
+    column_error(path, line, None, message)
+}
+
+/// An error in measurement file `path` at `line`, in `column` when it is in one.
+fn column_error(path: &Path, line: Option<usize>, column: Option<&str>, message: String) -> Error {
     Error::InputAt {
         location: Location {
             line,
             ..Location::file(path)
         },
+        column: column.map(str::to_string),
         message,
     }
 }
@@ -390,7 +396,7 @@ fn open_table<'t>(text: &'t str, path: &Path) -> Result<(csv::Reader<&'t [u8]>, 
 /// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
 /// into sessions or stations. `path` is used in messages.
 pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
-    let err = |line: Option<usize>, message: String| input_error(path, line, message);
+    let err = |line: Option<usize>, message: String| column_error(path, line, Some(name), message);
     let (mut reader, headers) = open_table(text, path)?;
     let Some(col) = headers.iter().position(|h| split_header(h).0 == name) else {
         return Err(err(
@@ -405,7 +411,13 @@ pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>>
     reader
         .records()
         .map(|r| {
-            let r = r.map_err(|e| err(Some(line_at(text, e.position())), format!("cannot read the row: {e}")))?;
+            let r = r.map_err(|e| {
+                input_error(
+                    path,
+                    Some(line_at(text, e.position())),
+                    format!("cannot read the row: {e}"),
+                )
+            })?;
             match r.get(col) {
                 Some(v) if !v.is_empty() => Ok(v.to_string()),
                 _ => Err(err(
@@ -655,6 +667,7 @@ fn check_magnitudes(
     if pos_scale == Some(1.0) && median > 50.0 {
         return Err(Error::InputAt {
             location: Location::file(path),
+            column: None,
             message: format!(
                 "positions are declared in metres but their median distance is {median:.0} m; they look like millimetres (write `x[mm]`)"
             ),
@@ -667,6 +680,7 @@ fn check_magnitudes(
             if !prismatic && scale == 1.0 && max > 4.0 * std::f64::consts::PI {
                 return Err(Error::InputAt {
                     location: Location::file(path),
+                    column: Some(head.to_string()),
                     message: format!(
                         "column `{head}` is in radians but reaches {max:.1}; it looks like degrees (write `[deg]`)"
                     ),
@@ -675,6 +689,7 @@ fn check_magnitudes(
             if prismatic && scale == 1.0 && max > 50.0 {
                 return Err(Error::InputAt {
                     location: Location::file(path),
+                    column: Some(head.to_string()),
                     message: format!(
                         "column `{head}` is in metres but reaches {max:.1}; it looks like millimetres (write `[mm]`)"
                     ),

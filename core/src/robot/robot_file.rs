@@ -514,6 +514,11 @@ impl SourceFile {
         })
     }
 
+    /// The issue of a TOML error. Some of it is read from the message text because there is
+    /// nowhere else to read it from: serde builds a deserializer's errors through
+    /// `de::Error::custom(text)`, so what kind of error it is (an invalid type and what was
+    /// found, an unknown field and its name) and the inner path [`tracked`] adds arrive as
+    /// text, and `toml::de::Error` exposes only that text, a span and no kind.
     fn toml_error(&self, e: &toml::de::Error, path: String) -> Error {
         if let Some((path, message)) = deeper(&path, e.message().trim()) {
             let line = self
@@ -601,7 +606,10 @@ where
     })
 }
 
-/// The path and message of an error [`tracked`] inside the plugin table at `path`.
+/// The path and message of an error [`tracked`] inside the plugin table at `path`. The path
+/// travels in the text because serde's error trait carries nothing else; a side channel
+/// (a thread-local set by `tracked`) would outlive errors that typetag or an untagged enum
+/// catch and discard, and name the wrong field.
 fn deeper(path: &str, message: &str) -> Option<(String, String)> {
     let rest = message.strip_prefix("at `")?;
     let (inner, message) = rest.split_once("`: ")?;
@@ -625,6 +633,8 @@ fn clean_path(p: &str) -> String {
     }
 }
 
+/// serde_json's message without the ` at line L column C` its `Display` appends: the error
+/// gives the line and column as numbers but not the message without them.
 fn strip_json_position(msg: &str) -> String {
     match msg.rfind(" at line ") {
         Some(i) => msg[..i].to_string(),

@@ -124,6 +124,7 @@ pub fn check_input_file(path: &Path) -> std::result::Result<(), String> {
 pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
     let input = |message: String| Error::InputAt {
         location: Location::file(path),
+        column: None,
         message,
     };
     check_input_file(path).map_err(input)?;
@@ -153,6 +154,7 @@ pub fn read_text(path: &Path) -> Result<String> {
         let line = e.as_bytes()[..at].iter().filter(|b| **b == b'\n').count() + 1;
         Error::InputAt {
             location: Location::line(path, line),
+            column: None,
             message: format!("not UTF-8 text (byte {at} cannot be decoded)"),
         }
     })?;

@@ -108,7 +108,7 @@ impl UrdfDocument {
         let text = armcomp_core::support::io::read_text(path).map_err(|e| {
             // The issue is reported within the file, which it need not name again.
             vec![match e {
-                armcomp_core::Error::InputAt { location, message } => Issue {
+                armcomp_core::Error::InputAt { location, message, .. } => Issue {
                     line: location.line,
                     ..Issue::new("", message)
                 },

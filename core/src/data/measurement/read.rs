@@ -7,8 +7,8 @@ use std::path::Path;
 use nalgebra::{Vector3, Vector4};
 
 use super::{
-    Column, CsvLayout, LineCounter, MeasurementSet, Sample, Spelling, check_kind_cell, check_magnitudes, input_error,
-    line_at, listed, numbered_position, open_table, split_header,
+    Column, CsvLayout, LineCounter, MeasurementSet, Sample, Spelling, check_kind_cell, check_magnitudes, column_error,
+    input_error, line_at, listed, numbered_position, open_table, split_header,
 };
 use crate::error::{Error, Result};
 use crate::kinematics::sensor::{GravityReading, GravitySensor};
@@ -108,6 +108,11 @@ impl<'t> Table<'t, '_> {
         input_error(self.path, line, message)
     }
 
+    /// An error in column `column` (its name or header cell) at `line`.
+    fn err_in(&self, line: usize, column: &str, message: String) -> Error {
+        column_error(self.path, Some(line), Some(column), message)
+    }
+
     /// Refuses, before any row is parsed, a table too large to work on, and one whose
     /// separator is not a comma.
     fn check_size(&self, record: &csv::StringRecord, line: usize) -> Result<()> {
@@ -152,7 +157,7 @@ impl<'t> Table<'t, '_> {
         for h in record.iter() {
             let name = split_header(h).0;
             if !seen.insert(name) {
-                return Err(self.err(Some(line), format!("column `{name}` appears twice")));
+                return Err(self.err_in(line, name, format!("column `{name}` appears twice")));
             }
             let column = self.column(h, line)?;
             if column == Column::Ignored {
@@ -190,8 +195,9 @@ impl<'t> Table<'t, '_> {
             match u {
                 None => Ok(units.length.to_si()),
                 Some(u) => LengthUnit::parse(u).map(LengthUnit::to_si).ok_or_else(|| {
-                    self.err(
-                        Some(line),
+                    self.err_in(
+                        line,
+                        h,
                         format!("column `{h}`: unknown length unit `{u}` (expected m, cm, mm or in)"),
                     )
                 }),
@@ -200,7 +206,7 @@ impl<'t> Table<'t, '_> {
         let angle = |u: &str, expected: &str| {
             AngleUnit::parse(u)
                 .map(AngleUnit::to_si)
-                .ok_or_else(|| self.err(Some(line), format!("column `{h}`: {expected}, got `{u}`")))
+                .ok_or_else(|| self.err_in(line, h, format!("column `{h}`: {expected}, got `{u}`")))
         };
         if let Some(c) = layout.tree.coordinate_names().iter().position(|n| n == name) {
             let scale = match unit {
@@ -222,7 +228,7 @@ impl<'t> Table<'t, '_> {
             let scale = sensor
                 .kind
                 .column_scale(unit, units.angle)
-                .map_err(|m| self.err(Some(line), format!("column `{h}` of sensor `{}`: {m}", sensor.name)))?;
+                .map_err(|m| self.err_in(line, h, format!("column `{h}` of sensor `{}`: {m}", sensor.name)))?;
             return Ok(Column::Sensor(cell, scale));
         }
         if let Some((axis, slot)) = numbered_position(name) {
@@ -230,8 +236,9 @@ impl<'t> Table<'t, '_> {
                 let measured: Vec<&str> = (layout.points.iter())
                     .map(|&p| layout.tree.points()[p].name.as_str())
                     .collect();
-                return Err(self.err(
-                    Some(line),
+                return Err(self.err_in(
+                    line,
+                    h,
                     format!(
                         "column `{h}`: the robot measures {} point(s) ({}); numbered columns x1, x2, ... are the robot file's `[measurement] markers` in order",
                         measured.len(),
@@ -249,7 +256,7 @@ impl<'t> Table<'t, '_> {
             let scale = match (spelling, unit) {
                 (Spelling::Quaternion, None) => 1.0,
                 (Spelling::Quaternion, Some(u)) => {
-                    return Err(self.err(Some(line), format!("column `{h}`: a quaternion has no unit, got `{u}`")));
+                    return Err(self.err_in(line, h, format!("column `{h}`: a quaternion has no unit, got `{u}`")));
                 }
                 (_, None) => units.angle.to_si(),
                 (_, Some(u)) => angle(u, "expected an angle unit (rad or deg)")?,
@@ -264,7 +271,7 @@ impl<'t> Table<'t, '_> {
     fn named_column(&self, h: &str, line: usize, length: impl Fn(Option<&str>) -> Result<f64>) -> Result<Column> {
         let (name, unit) = split_header(h);
         let wrong_unit =
-            |expected: &str, u: &str| self.err(Some(line), format!("column `{h}`: expected {expected}, got `{u}`"));
+            |expected: &str, u: &str| self.err_in(line, h, format!("column `{h}`: expected {expected}, got `{u}`"));
         Ok(match name {
             "point" => Column::Point,
             "kind" => Column::Kind,
@@ -273,8 +280,9 @@ impl<'t> Table<'t, '_> {
             "fixed_point" if !self.layout.planes => Column::Group,
             g @ ("fixed_point" | "plane") => {
                 let what = if g == "plane" { "plane contacts" } else { "fixed points" };
-                return Err(self.err(
-                    Some(line),
+                return Err(self.err_in(
+                    line,
+                    g,
                     format!(
                         "column `{g}`: the robot file does not measure {what}; a file of {what} needs `kind = \
                          \"{g}\"` in the robot file's [measurement]"
@@ -300,7 +308,7 @@ impl<'t> Table<'t, '_> {
             n if n.starts_with("tau_") => match self.layout.tree.coordinate_names().iter().position(|j| j == &n[4..]) {
                 Some(c) => Column::Torque(c),
                 None => {
-                    return Err(self.err(Some(line), format!("column `{h}`: `{}` is not a joint", &n[4..])));
+                    return Err(self.err_in(line, h, format!("column `{h}`: `{}` is not a joint", &n[4..])));
                 }
             },
             _ => Column::Ignored,
@@ -347,9 +355,13 @@ impl<'t> Table<'t, '_> {
         }
         if let Some((column, what)) = self.layout.group_column() {
             if !header.has(|k| matches!(k, Column::Group)) {
-                return err(format!(
-                    "missing column `{column}` (the name of the {what} each row's marker was measured at); the robot \
-                     file measures {what}s"
+                return Err(self.err_in(
+                    header.line,
+                    column,
+                    format!(
+                        "missing column `{column}` (the name of the {what} each row's marker was measured at); the robot \
+                         file measures {what}s"
+                    ),
                 ));
             }
             if !slots.is_empty() || header.has(|k| matches!(k, Column::Orientation(..))) {
@@ -375,8 +387,10 @@ impl<'t> Table<'t, '_> {
             let suffix = slot.map(|s| (s + 1).to_string()).unwrap_or_default();
             for (axis, a) in ["x", "y", "z"].iter().enumerate() {
                 if !header.has(|k| matches!(k, Column::Position { slot: s, axis: x, .. } if s == slot && *x == axis)) {
-                    return err(format!(
-                        "missing column `{a}{suffix}` (measured position, e.g. `{a}{suffix}[mm]`)"
+                    return Err(self.err_in(
+                        header.line,
+                        &format!("{a}{suffix}"),
+                        format!("missing column `{a}{suffix}` (measured position, e.g. `{a}{suffix}[mm]`)"),
                     ));
                 }
             }
@@ -549,15 +563,16 @@ impl<'t> Table<'t, '_> {
             }
             let v: f64 = field
                 .parse()
-                .map_err(|_| self.err(Some(line), format!("column `{head}`: `{field}` is not a number")))?;
+                .map_err(|_| self.err_in(line, head, format!("column `{head}`: `{field}` is not a number")))?;
             if !v.is_finite() {
-                return Err(self.err(Some(line), format!("column `{head}`: {field} is not a finite number")));
+                return Err(self.err_in(line, head, format!("column `{head}`: {field} is not a finite number")));
             }
             if let Some((si, bound, words)) = col.si_and_bound(v)
                 && si.abs() > bound
             {
-                return Err(self.err(
-                    Some(line),
+                return Err(self.err_in(
+                    line,
+                    head,
                     format!("column `{head}`: {field} is not a measurement; expected a magnitude of at most {words}"),
                 ));
             }
@@ -576,13 +591,14 @@ impl<'t> Table<'t, '_> {
         stations: &mut Vec<String>,
     ) -> Result<bool> {
         let Cell { field, col, head, line } = *cell;
-        let err = |message: String| Err(self.err(Some(line), message));
+        let err = |column: &str, message: String| Err(self.err_in(line, column, message));
         match col {
             Column::Ignored => {}
             Column::Point => {
                 row.sample.point = self.layout.tree.point_index(field).ok_or_else(|| {
-                    self.err(
-                        Some(line),
+                    self.err_in(
+                        line,
+                        "point",
                         format!("column `point`: `{field}` is not a point of the robot"),
                     )
                 })?;
@@ -592,9 +608,10 @@ impl<'t> Table<'t, '_> {
             Column::Group => {
                 let (column, what) = self.layout.group_column().unwrap_or(("fixed_point", "fixed point"));
                 if field.is_empty() {
-                    return err(format!(
-                        "column `{column}` is empty; every row names the {what} it was measured at"
-                    ));
+                    return err(
+                        column,
+                        format!("column `{column}` is empty; every row names the {what} it was measured at"),
+                    );
                 }
                 if self.layout.planes {
                     row.sample.plane = Some(field.to_string());
@@ -603,7 +620,10 @@ impl<'t> Table<'t, '_> {
                 }
             }
             Column::Station if field.is_empty() => {
-                return err("column `station` is empty in this row; every row needs its station's name".into());
+                return err(
+                    "station",
+                    "column `station` is empty in this row; every row needs its station's name".into(),
+                );
             }
             Column::Station => {
                 row.sample.station = match stations.iter().position(|n| n == field) {
@@ -616,17 +636,23 @@ impl<'t> Table<'t, '_> {
             }
             Column::Position { .. } | Column::Orientation(..) if row.fixed_row => {
                 if !field.is_empty() {
-                    return err(format!(
-                        "column `{head}`: a row naming a fixed point gives no measured position or orientation; \
-                         empty this cell or the row's `fixed_point`"
-                    ));
+                    return err(
+                        head,
+                        format!(
+                            "column `{head}`: a row naming a fixed point gives no measured position or orientation; \
+                             empty this cell or the row's `fixed_point`"
+                        ),
+                    );
                 }
             }
             Column::Position { slot: None, .. } if field.is_empty() && header.mixed_group.is_some() => {
-                return err(format!(
-                    "column `{head}` is empty; a row gives its measured position or names the fixed point it was \
-                     measured at in `fixed_point`"
-                ));
+                return err(
+                    head,
+                    format!(
+                        "column `{head}` is empty; a row gives its measured position or names the fixed point it was \
+                         measured at in `fixed_point`"
+                    ),
+                );
             }
             Column::Position {
                 slot: slot @ Some(_), ..
@@ -635,9 +661,10 @@ impl<'t> Table<'t, '_> {
                 row.positions[k].1 += 1;
             }
             Column::Sensor(..) if field.trim().is_empty() => {
-                return err(format!(
-                    "column `{head}`: empty; the sensor's reading is needed on every row"
-                ));
+                return err(
+                    head,
+                    format!("column `{head}`: empty; the sensor's reading is needed on every row"),
+                );
             }
             _ => return Ok(false),
         }
@@ -656,8 +683,9 @@ impl<'t> Table<'t, '_> {
             }
             Column::Orientation(_, k, scale) => row.angles[k] = v * scale,
             Column::Payload(_) if v < 0.0 => {
-                return Err(self.err(
-                    Some(line),
+                return Err(self.err_in(
+                    line,
+                    head,
                     format!("column `{head}`: expected a mass of zero or more, got {field}"),
                 ));
             }
@@ -680,7 +708,7 @@ impl<'t> Table<'t, '_> {
             row.sample.orientation = Some(spelling.rotation(row.angles).map_err(|m| self.err(Some(line), m))?);
         }
         if let Some(kind) = row.kind_cell {
-            check_kind_cell(kind, &row.sample).map_err(|m| self.err(Some(line), m))?;
+            check_kind_cell(kind, &row.sample).map_err(|m| self.err_in(line, "kind", m))?;
         }
         if let Some(g) = header.sensor {
             let direction = g.kind.gravity_direction(&row.sensor_reading).map_err(|m| {

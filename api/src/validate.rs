@@ -43,7 +43,7 @@ fn from_error(file: &Path, e: Error) -> Vec<Diagnostic> {
                 message: i.message,
             })
             .collect(),
-        Error::InputAt { location, message } => vec![Diagnostic {
+        Error::InputAt { location, message, .. } => vec![Diagnostic {
             file: location.file,
             line: location.line,
             path: String::new(),

@@ -3,17 +3,17 @@
 
 use std::path::Path;
 
-use anyhow::{Context, bail};
 use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
 use armcomp_core::algorithms::ik::IkTarget;
-use armcomp_core::data::measurement::{
-    CsvLayout, csv_text, joint_header, joint_row, listed, parse_poses, split_header,
-};
+use armcomp_core::data::measurement::{CsvLayout, csv_text, joint_header, joint_row, parse_poses, split_header};
+use armcomp_core::error::Location;
 use armcomp_core::model::tree::Coordinate;
 use armcomp_core::model::units::LengthUnit;
 use armcomp_core::support::cancel::Cancel;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
+
+use crate::error::{Error, LockReason, Result};
 
 /// The frame targets are given in and corrected targets are returned in.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -64,12 +64,12 @@ pub struct Joints {
 impl Joints {
     /// `starts`, each checked to be a configuration of `robot`, and the `locked` coordinates
     /// ([`locked_by_name`]).
-    pub fn new(robot: &Robot, starts: Vec<Vec<f64>>, locked: Vec<bool>) -> anyhow::Result<Self> {
+    pub fn new(robot: &Robot, starts: Vec<Vec<f64>>, locked: Vec<bool>) -> Result<Self> {
         for (k, q) in starts.iter().enumerate() {
             robot
                 .tree()
                 .check_q(q)
-                .with_context(|| format!("start configuration {}", k + 1))?;
+                .map_err(|source| Error::StartConfiguration { index: k + 1, source })?;
         }
         Ok(Joints { starts, locked })
     }
@@ -77,7 +77,7 @@ impl Joints {
 
 /// Per coordinate, whether `names` (coordinate names) lock it; a mimic joint is refused with
 /// the joint that drives it, an unknown name with the robot's joints.
-pub fn locked_by_name(robot: &Robot, names: &[String]) -> anyhow::Result<Vec<bool>> {
+pub fn locked_by_name(robot: &Robot, names: &[String]) -> Result<Vec<bool>> {
     let tree = robot.tree();
     let coordinates = tree.coordinate_names();
     let mut locked = vec![false; tree.nq()];
@@ -87,23 +87,19 @@ pub fn locked_by_name(robot: &Robot, names: &[String]) -> anyhow::Result<Vec<boo
             continue;
         }
         let reason = match tree.joint_index(name).map(|j| &tree.joints()[j].coordinate) {
-            Some(Coordinate::Mimic(c)) => format!(
-                "is a mimic joint; lock the joint it follows: {}",
-                listed(
-                    &c.terms
-                        .iter()
-                        .map(|(i, _)| coordinates[*i].as_str())
-                        .collect::<Vec<_>>()
-                )
-            ),
-            Some(_) => "is a fixed joint, which never moves".into(),
-            None => format!(
-                "is not a joint of `{}`; its joints are {}",
-                robot.name(),
-                listed(&coordinates.iter().map(String::as_str).collect::<Vec<_>>())
-            ),
+            Some(Coordinate::Mimic(c)) => LockReason::Mimic {
+                follows: c.terms.iter().map(|(i, _)| coordinates[*i].clone()).collect(),
+            },
+            Some(_) => LockReason::Fixed,
+            None => LockReason::Unknown {
+                robot: robot.name().to_string(),
+                joints: coordinates.to_vec(),
+            },
         };
-        bail!("locked joint `{name}` {reason}");
+        return Err(Error::LockedJoint {
+            name: name.clone(),
+            reason,
+        });
     }
     Ok(locked)
 }
@@ -111,7 +107,7 @@ pub fn locked_by_name(robot: &Robot, names: &[String]) -> anyhow::Result<Vec<boo
 /// Start configurations from a CSV of joint columns (the rules of measurement files; a joint
 /// without a column starts where [`default_start`] puts it), one row per target or one row
 /// for all.
-pub fn read_starts(path: &Path, robot: &Robot) -> anyhow::Result<Vec<Vec<f64>>> {
+pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f64>>> {
     let text = armcomp_core::support::io::read_text(path)?;
     let layout = CsvLayout {
         hold: default_start(robot).into_iter().map(Some).collect(),
@@ -119,7 +115,7 @@ pub fn read_starts(path: &Path, robot: &Robot) -> anyhow::Result<Vec<Vec<f64>>> 
     };
     let starts = parse_poses(&text, path, &layout)?;
     if starts.is_empty() {
-        bail!("{}: no start configurations", path.display());
+        return Err(in_file(path, None, None, "no start configurations".into()));
     }
     Ok(starts)
 }
@@ -140,7 +136,7 @@ pub fn run(
     frame: Frame,
     describe: &dyn Fn(usize) -> String,
     cancel: &Cancel,
-) -> anyhow::Result<CompensationRun> {
+) -> Result<CompensationRun> {
     let options = options();
     let mut comp = Compensator::for_model(robot, options)?;
     if !joints.locked.is_empty() {
@@ -150,10 +146,12 @@ pub fn run(
     let starts = match joints.starts.len() {
         0 => &default[..],
         n if n == 1 || n == targets.len() => &joints.starts[..],
-        n => bail!(
-            "{n} start configurations for {} targets; give one for all or one per target",
-            targets.len()
-        ),
+        n => {
+            return Err(Error::StartCount {
+                starts: n,
+                targets: targets.len(),
+            });
+        }
     };
     let t_meas_base = robot.t_meas_base();
     let to_base = match frame {
@@ -177,7 +175,10 @@ pub fn run(
         };
         let c = comp
             .compensate_target(&target, &starts[i.min(starts.len() - 1)], mode)
-            .with_context(|| describe(i))?;
+            .map_err(|source| Error::Target {
+                target: describe(i),
+                source: Box::new(source),
+            })?;
         if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
             run.unconverged.push((i, c.mismatch));
         }
@@ -230,9 +231,21 @@ pub fn orientation(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
     Ok(UnitQuaternion::from_quaternion(q))
 }
 
+/// An error in the input file `path`, at `line` and in the column headed `column` when known.
+fn in_file(path: &Path, line: Option<usize>, column: Option<&str>, message: String) -> armcomp_core::Error {
+    armcomp_core::Error::InputAt {
+        location: Location {
+            line,
+            ..Location::file(path)
+        },
+        column: column.map(str::to_string),
+        message,
+    }
+}
+
 /// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
 /// numbers, erroring with file, line and column.
-pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Target)>> {
+pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usize, Target)>> {
     let text = armcomp_core::support::io::read_text(path)?;
     // The same reading rules as measurement files: `#` comments, blank lines skipped, cells
     // trimmed, quoted cells allowed.
@@ -244,12 +257,18 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
     let mut lines = armcomp_core::data::measurement::LineCounter::new(&text);
     let header = reader
         .headers()
-        .with_context(|| format!("{}: the header is not readable CSV", path.display()))?
+        .map_err(|e| in_file(path, None, None, format!("the header is not readable CSV: {e}")))?
         .clone();
     if header.iter().all(str::is_empty) {
-        bail!("{}: empty; expected a header `x[mm],y[mm],z[mm]`", path.display());
+        return Err(in_file(
+            path,
+            None,
+            None,
+            "empty; expected a header `x[mm],y[mm],z[mm]`".into(),
+        ));
     }
     let header_line = lines.line_at(header.position());
+    let at_header = |column: &str, message: String| in_file(path, Some(header_line), Some(column), message);
     // Columns 0..3 are x, y, z (with their scale to m), 3..7 are qw, qx, qy, qz (scale 1).
     let mut columns: [Option<(usize, f64)>; 7] = [None; 7];
     let mut n_columns = 0;
@@ -257,54 +276,66 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
         n_columns += 1;
         let (name, unit) = split_header(h);
         let Some(slot) = ["x", "y", "z", "qw", "qx", "qy", "qz"].iter().position(|n| *n == name) else {
-            bail!(
-                "{}:{header_line}: column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`, and optionally qw, qx, qy, qz",
-                path.display(),
-                c + 1
-            );
+            return Err(at_header(
+                h,
+                format!(
+                    "column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`, and optionally qw, qx, qy, qz",
+                    c + 1
+                ),
+            ));
         };
         let scale = match (slot, unit) {
             (0..3, None) => units.length.to_si(),
-            (0..3, Some(u)) => LengthUnit::parse(u).map(LengthUnit::to_si).with_context(|| {
-                format!(
-                    "{}:{header_line}: column {}: unknown length unit `{u}` (expected m, cm, mm or in)",
-                    path.display(),
-                    c + 1
+            (0..3, Some(u)) => LengthUnit::parse(u).map(LengthUnit::to_si).ok_or_else(|| {
+                at_header(
+                    h,
+                    format!("column {}: unknown length unit `{u}` (expected m, cm, mm or in)", c + 1),
                 )
             })?,
             (_, None) => 1.0,
-            (_, Some(u)) => bail!(
-                "{}:{header_line}: column {}: a quaternion component has no unit, found `[{u}]`",
-                path.display(),
-                c + 1
-            ),
+            (_, Some(u)) => {
+                return Err(at_header(
+                    h,
+                    format!("column {}: a quaternion component has no unit, found `[{u}]`", c + 1),
+                ));
+            }
         };
         if columns[slot].replace((c, scale)).is_some() {
-            bail!("{}:{header_line}: column `{name}` appears twice", path.display());
+            return Err(at_header(name, format!("column `{name}` appears twice")));
         }
     }
     if columns[..3].iter().any(Option::is_none) {
-        bail!("{}:{header_line}: expected the columns x, y and z", path.display());
+        return Err(in_file(
+            path,
+            Some(header_line),
+            None,
+            "expected the columns x, y and z".into(),
+        ));
     }
     let with_orientation = match columns[3..].iter().filter(|c| c.is_some()).count() {
         0 => false,
         4 => true,
-        _ => bail!(
-            "{}:{header_line}: an orientation needs all four columns qw, qx, qy, qz",
-            path.display()
-        ),
+        _ => {
+            return Err(in_file(
+                path,
+                Some(header_line),
+                None,
+                "an orientation needs all four columns qw, qx, qy, qz".into(),
+            ));
+        }
     };
     let mut targets = Vec::new();
     for record in reader.records() {
-        let row = record.with_context(|| format!("{}: a row is not readable CSV", path.display()))?;
+        let row = record.map_err(|e| in_file(path, None, None, format!("a row is not readable CSV: {e}")))?;
         let line = lines.line_at(row.position());
         let cells: Vec<&str> = row.iter().collect();
         if cells.len() != n_columns {
-            bail!(
-                "{}:{line}: {} values, the header has {n_columns}",
-                path.display(),
-                cells.len()
-            );
+            return Err(in_file(
+                path,
+                Some(line),
+                None,
+                format!("{} values, the header has {n_columns}", cells.len()),
+            ));
         }
         let mut values = [0.0; 7];
         for (value, &(c, scale)) in values
@@ -312,19 +343,19 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
             .zip(&columns)
             .filter_map(|(v, c)| c.as_ref().map(|c| (v, c)))
         {
-            let v: f64 = cells[c].parse().ok().filter(|v: &f64| v.is_finite()).with_context(|| {
-                format!(
-                    "{}:{line}: column {}: `{}` is not a finite number",
-                    path.display(),
-                    c + 1,
-                    cells[c]
+            let v: f64 = cells[c].parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(|| {
+                in_file(
+                    path,
+                    Some(line),
+                    Some(&header[c]),
+                    format!("column {}: `{}` is not a finite number", c + 1, cells[c]),
                 )
             })?;
             *value = v * scale;
         }
         let orientation = if with_orientation {
             let q = orientation([values[3], values[4], values[5], values[6]])
-                .map_err(|m| anyhow::anyhow!("{}:{line}: {m}", path.display()))?;
+                .map_err(|m| in_file(path, Some(line), None, m))?;
             Some(q)
         } else {
             None
@@ -338,7 +369,7 @@ pub fn read_targets(path: &Path, units: Units) -> anyhow::Result<Vec<(usize, Tar
         ));
     }
     if targets.is_empty() {
-        bail!("{}: no targets", path.display());
+        return Err(in_file(path, None, None, "no targets".into()));
     }
     Ok(targets)
 }

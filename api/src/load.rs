@@ -21,12 +21,3 @@ pub fn read_robot(path: &Path) -> Result<Robot> {
         Robot::from_path(path)
     }
 }
-
-/// [`read_robot`], printing its warnings to stderr.
-pub fn load_robot(path: &Path) -> Result<Robot> {
-    let robot = read_robot(path)?;
-    for w in robot.warnings() {
-        eprintln!("warning: {w}");
-    }
-    Ok(robot)
-}

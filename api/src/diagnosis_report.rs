@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use armcomp_core::Result;
 use armcomp_core::algorithms::evaluate::ErrorStats;
 use armcomp_core::analysis::diagnose::DiagnosisReport;
 use armcomp_core::support::io::{check_report_folder, write_folder_atomic};
@@ -18,29 +19,42 @@ fn is_report_file(name: &str) -> bool {
 
 /// Checks, before the diagnosis runs, that `dir` may receive the report (see
 /// [`check_report_folder`]): absent, or an earlier report holding none of `inputs`.
-pub fn check(dir: &Path, inputs: &[std::path::PathBuf]) -> anyhow::Result<()> {
-    Ok(check_report_folder(dir, &is_report_file, inputs)?)
+pub fn check(dir: &Path, inputs: &[std::path::PathBuf]) -> Result<()> {
+    check_report_folder(dir, &is_report_file, inputs)
 }
 
 /// Writes the folder `dir` with `index.html`, `report.json`, `heldout_rms.svg` and
 /// `residuals.svg`, whole: into a temporary folder, then moved into place.
-pub fn write(dir: &Path, report: &DiagnosisReport) -> anyhow::Result<()> {
+/// A plot that could not be drawn is an error writing its file, as in the demo's report.
+pub fn write(dir: &Path, report: &DiagnosisReport) -> Result<()> {
+    let plot = |name: &str, svg: Svg| {
+        svg.map_err(|e| armcomp_core::Error::Io {
+            path: dir.join(name),
+            message: e.to_string(),
+        })
+    };
     let files = [
-        ("heldout_rms.svg", rms_plot(report)?),
-        ("residuals.svg", histogram(report)?),
-        ("report.json", serde_json::to_string_pretty(report)?),
+        ("heldout_rms.svg", plot("heldout_rms.svg", rms_plot(report))?),
+        ("residuals.svg", plot("residuals.svg", histogram(report))?),
+        // Plain numbers, strings and lists: serialising cannot fail.
+        (
+            "report.json",
+            serde_json::to_string_pretty(report).expect("the report serialises"),
+        ),
         ("index.html", html(report)),
     ];
     let files: Vec<(String, Vec<u8>)> = files
         .into_iter()
         .map(|(n, t)| (n.to_string(), t.into_bytes()))
         .collect();
-    write_folder_atomic(dir, &files)?;
-    Ok(())
+    write_folder_atomic(dir, &files)
 }
 
+/// An SVG document, or plotters' drawing error.
+type Svg = std::result::Result<String, DrawingAreaErrorKind<std::io::Error>>;
+
 /// Held-out RMS after each step (step 0 is the model as given).
-fn rms_plot(r: &DiagnosisReport) -> anyhow::Result<String> {
+fn rms_plot(r: &DiagnosisReport) -> Svg {
     let rms: Vec<f64> = std::iter::once(r.initial.rms_mm)
         .chain(r.steps.iter().map(|s| s.heldout_after.rms_mm))
         .collect();
@@ -72,7 +86,7 @@ fn rms_plot(r: &DiagnosisReport) -> anyhow::Result<String> {
 }
 
 /// Histograms of the held-out error norms of the model as given and of the final model.
-fn histogram(r: &DiagnosisReport) -> anyhow::Result<String> {
+fn histogram(r: &DiagnosisReport) -> Svg {
     let first = r.heldout_norms_mm.first().cloned().unwrap_or_default();
     let last = r.heldout_norms_mm.last().cloned().unwrap_or_default();
     let max = first.iter().chain(&last).copied().fold(0.0, f64::max) + 1e-9;
