@@ -247,6 +247,21 @@ pub enum Error {
     Interrupted,
 }
 
+impl Error {
+    /// An [`InputAt`](Error::InputAt) error in the input file `path`, at `line` and in the
+    /// column headed `column` when known.
+    pub fn input_at(path: &std::path::Path, line: Option<usize>, column: Option<&str>, message: String) -> Self {
+        Error::InputAt {
+            location: Location {
+                line,
+                ..Location::file(path)
+            },
+            column: column.map(str::to_string),
+            message,
+        }
+    }
+}
+
 /// `` `a`, `b` `` or `none`.
 fn backticked(names: &[String]) -> String {
     if names.is_empty() {

@@ -6,7 +6,6 @@ use std::path::Path;
 use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
 use armcomp_core::algorithms::ik::IkTarget;
 use armcomp_core::data::measurement::{CsvLayout, csv_text, joint_header, joint_row, parse_poses, split_header};
-use armcomp_core::error::Location;
 use armcomp_core::model::tree::Coordinate;
 use armcomp_core::model::units::LengthUnit;
 use armcomp_core::support::cancel::Cancel;
@@ -115,7 +114,12 @@ pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f
     };
     let starts = parse_poses(&text, path, &layout)?;
     if starts.is_empty() {
-        return Err(in_file(path, None, None, "no start configurations".into()));
+        return Err(armcomp_core::Error::input_at(
+            path,
+            None,
+            None,
+            "no start configurations".into(),
+        ));
     }
     Ok(starts)
 }
@@ -231,18 +235,6 @@ pub fn orientation(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
     Ok(UnitQuaternion::from_quaternion(q))
 }
 
-/// An error in the input file `path`, at `line` and in the column headed `column` when known.
-fn in_file(path: &Path, line: Option<usize>, column: Option<&str>, message: String) -> armcomp_core::Error {
-    armcomp_core::Error::InputAt {
-        location: Location {
-            line,
-            ..Location::file(path)
-        },
-        column: column.map(str::to_string),
-        message,
-    }
-}
-
 /// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
 /// numbers, erroring with file, line and column.
 pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usize, Target)>> {
@@ -257,10 +249,10 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
     let mut lines = armcomp_core::data::measurement::LineCounter::new(&text);
     let header = reader
         .headers()
-        .map_err(|e| in_file(path, None, None, format!("the header is not readable CSV: {e}")))?
+        .map_err(|e| armcomp_core::Error::input_at(path, None, None, format!("the header is not readable CSV: {e}")))?
         .clone();
     if header.iter().all(str::is_empty) {
-        return Err(in_file(
+        return Err(armcomp_core::Error::input_at(
             path,
             None,
             None,
@@ -268,7 +260,8 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
         ));
     }
     let header_line = lines.line_at(header.position());
-    let at_header = |column: &str, message: String| in_file(path, Some(header_line), Some(column), message);
+    let at_header =
+        |column: &str, message: String| armcomp_core::Error::input_at(path, Some(header_line), Some(column), message);
     // Columns 0..3 are x, y, z (with their scale to m), 3..7 are qw, qx, qy, qz (scale 1).
     let mut columns: [Option<(usize, f64)>; 7] = [None; 7];
     let mut n_columns = 0;
@@ -305,7 +298,7 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
         }
     }
     if columns[..3].iter().any(Option::is_none) {
-        return Err(in_file(
+        return Err(armcomp_core::Error::input_at(
             path,
             Some(header_line),
             None,
@@ -316,7 +309,7 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
         0 => false,
         4 => true,
         _ => {
-            return Err(in_file(
+            return Err(armcomp_core::Error::input_at(
                 path,
                 Some(header_line),
                 None,
@@ -326,11 +319,12 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
     };
     let mut targets = Vec::new();
     for record in reader.records() {
-        let row = record.map_err(|e| in_file(path, None, None, format!("a row is not readable CSV: {e}")))?;
+        let row = record
+            .map_err(|e| armcomp_core::Error::input_at(path, None, None, format!("a row is not readable CSV: {e}")))?;
         let line = lines.line_at(row.position());
         let cells: Vec<&str> = row.iter().collect();
         if cells.len() != n_columns {
-            return Err(in_file(
+            return Err(armcomp_core::Error::input_at(
                 path,
                 Some(line),
                 None,
@@ -344,7 +338,7 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
             .filter_map(|(v, c)| c.as_ref().map(|c| (v, c)))
         {
             let v: f64 = cells[c].parse().ok().filter(|v: &f64| v.is_finite()).ok_or_else(|| {
-                in_file(
+                armcomp_core::Error::input_at(
                     path,
                     Some(line),
                     Some(&header[c]),
@@ -355,7 +349,7 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
         }
         let orientation = if with_orientation {
             let q = orientation([values[3], values[4], values[5], values[6]])
-                .map_err(|m| in_file(path, Some(line), None, m))?;
+                .map_err(|m| armcomp_core::Error::input_at(path, Some(line), None, m))?;
             Some(q)
         } else {
             None
@@ -369,7 +363,7 @@ pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usiz
         ));
     }
     if targets.is_empty() {
-        return Err(in_file(path, None, None, "no targets".into()));
+        return Err(armcomp_core::Error::input_at(path, None, None, "no targets".into()));
     }
     Ok(targets)
 }

@@ -356,19 +356,7 @@ impl<'a> LineCounter<'a> {
 
 /// An error in measurement file `path` at `line`, in no one column.
 fn input_error(path: &Path, line: Option<usize>, message: String) -> Error {
-    column_error(path, line, None, message)
-}
-
-/// An error in measurement file `path` at `line`, in `column` when it is in one.
-fn column_error(path: &Path, line: Option<usize>, column: Option<&str>, message: String) -> Error {
-    Error::InputAt {
-        location: Location {
-            line,
-            ..Location::file(path)
-        },
-        column: column.map(str::to_string),
-        message,
-    }
+    Error::input_at(path, line, None, message)
 }
 
 /// A reader of measurement CSV `text` (comments `#`, cells trimmed, rows of any length) and its
@@ -396,7 +384,7 @@ fn open_table<'t>(text: &'t str, path: &Path) -> Result<(csv::Reader<&'t [u8]>, 
 /// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
 /// into sessions or stations. `path` is used in messages.
 pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
-    let err = |line: Option<usize>, message: String| column_error(path, line, Some(name), message);
+    let err = |line: Option<usize>, message: String| Error::input_at(path, line, Some(name), message);
     let (mut reader, headers) = open_table(text, path)?;
     let Some(col) = headers.iter().position(|h| split_header(h).0 == name) else {
         return Err(err(

@@ -7,8 +7,8 @@ use std::path::Path;
 use nalgebra::{Vector3, Vector4};
 
 use super::{
-    Column, CsvLayout, LineCounter, MeasurementSet, Sample, Spelling, check_kind_cell, check_magnitudes, column_error,
-    input_error, line_at, listed, numbered_position, open_table, split_header,
+    Column, CsvLayout, LineCounter, MeasurementSet, Sample, Spelling, check_kind_cell, check_magnitudes, input_error,
+    line_at, listed, numbered_position, open_table, split_header,
 };
 use crate::error::{Error, Result};
 use crate::kinematics::sensor::{GravityReading, GravitySensor};
@@ -110,7 +110,7 @@ impl<'t> Table<'t, '_> {
 
     /// An error in column `column` (its name or header cell) at `line`.
     fn err_in(&self, line: usize, column: &str, message: String) -> Error {
-        column_error(self.path, Some(line), Some(column), message)
+        Error::input_at(self.path, Some(line), Some(column), message)
     }
 
     /// Refuses, before any row is parsed, a table too large to work on, and one whose
