@@ -10,6 +10,7 @@ use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
 use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::data::measurement::{read_csv, write_csv};
 use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::support::io::InputLimits;
 use criterion::{Criterion, criterion_group, criterion_main};
 
 fn root() -> &'static Path {
@@ -30,9 +31,12 @@ fn big_inputs(c: &mut Criterion) {
     let big_robot = dir.path().join("points.toml");
     std::fs::write(&big_robot, text).unwrap();
     let schema = armcomp_api::robot_schema();
-    assert_eq!(armcomp_api::validate_file(&big_robot, &schema), vec![]);
+    assert_eq!(
+        armcomp_api::validate_file(&big_robot, &schema, InputLimits::default()),
+        vec![]
+    );
     c.bench_function("validate, 200 000 points", |b| {
-        b.iter(|| armcomp_api::validate_file(&big_robot, &schema))
+        b.iter(|| armcomp_api::validate_file(&big_robot, &schema, InputLimits::default()))
     });
 
     let robot = Robot::from_path(&root().join("robots/rock-drill.toml")).unwrap();
@@ -51,7 +55,7 @@ fn big_inputs(c: &mut Criterion) {
     let layout = robot.csv_layout();
     c.bench_function("evaluate, 100 000 rows", |b| {
         b.iter(|| {
-            let set = read_csv(&data, &layout).unwrap();
+            let set = read_csv(&data, &layout, InputLimits::default()).unwrap();
             ErrorStats::from_errors(&position_errors(&robot, &set.samples))
         })
     });

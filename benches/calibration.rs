@@ -8,6 +8,7 @@ use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
 use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, RobotFile};
 use criterion::{Criterion, criterion_group, criterion_main};
 
@@ -33,7 +34,7 @@ fn nominal() -> Robot {
         format: Format::Toml,
     };
     let file: RobotFile = src.parse().expect("bench robot parses");
-    Robot::from_source(file, &src).expect("bench robot builds")
+    Robot::from_source(file, &src, InputLimits::default()).expect("bench robot builds")
 }
 
 fn bench(c: &mut Criterion) {

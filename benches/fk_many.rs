@@ -10,6 +10,7 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{PointKinematics, Robot, TreeWorkspace};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::{IsometryMatrix3, Matrix6xX};
@@ -41,7 +42,11 @@ fn bench(c: &mut Criterion) {
     group.sample_size(20).measurement_time(Duration::from_secs(5));
     group.throughput(Throughput::Elements(N as u64));
     for name in ["talos-left-arm", "industrial-6dof-truth"] {
-        let robot = armcomp_api::read_robot(&root.join("robots").join(format!("{name}.toml"))).expect("robot builds");
+        let robot = armcomp_api::read_robot(
+            &root.join("robots").join(format!("{name}.toml")),
+            InputLimits::default(),
+        )
+        .expect("robot builds");
         let nq = robot.tree().nq();
         let width = robot.tree().points().len() * 3;
         let qs = configurations(&robot);
@@ -82,7 +87,7 @@ fn point(c: &mut Criterion) {
         ("ur5", "tests/data/urdf/ur5_robot.urdf"),
         ("talos-left-arm", "robots/talos-left-arm.toml"),
     ] {
-        let robot = armcomp_api::read_robot(&root.join(path)).expect("robot builds");
+        let robot = armcomp_api::read_robot(&root.join(path), InputLimits::default()).expect("robot builds");
         let tree = robot.tree();
         let (nq, tool) = (tree.nq(), robot.tool());
         let qs = configurations(&robot);

@@ -12,6 +12,7 @@ use armcomp_core::calibrate::samples_jacobian;
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, RobotFile};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use nalgebra::Vector3;
@@ -66,7 +67,7 @@ fn robots(folder: &Path) -> (Robot, Robot) {
         length: Some(1500.0),
         mass_per_length: 2.5,
     }));
-    let linked = Robot::from_source(file, &src).expect("linked robot builds");
+    let linked = Robot::from_source(file, &src, InputLimits::default()).expect("linked robot builds");
     (runtime, linked)
 }
 

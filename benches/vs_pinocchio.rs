@@ -15,6 +15,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use armcomp_core::robot::robot_file::PointSpec;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{KinematicTree, PointKinematics, PointKinematicsWorkspace, Robot, TreeWorkspace};
 use libloading::Library;
 use nalgebra::{IsometryMatrix3, Matrix6xX};
@@ -107,8 +108,8 @@ impl<'s> Bench<'s> {
     /// `<mimic>` joints following the joint they name, as armcomp's do.
     fn new(shim: &'s Shim, urdf: &Path, tool_link: &str) -> Result<Self, String> {
         let _ = armcomp_urdf::plugins();
-        let links = armcomp_urdf::robot_from_urdf(urdf).map_err(|e| e.to_string())?;
-        let mut file = armcomp_urdf::robot_file_for_urdf(urdf).map_err(|e| e.to_string())?;
+        let links = armcomp_urdf::robot_from_urdf(urdf, InputLimits::default()).map_err(|e| e.to_string())?;
+        let mut file = armcomp_urdf::robot_file_for_urdf(urdf, InputLimits::default()).map_err(|e| e.to_string())?;
         file.points = vec![PointSpec {
             name: "tool".into(),
             link: tool_link.into(),
@@ -117,7 +118,7 @@ impl<'s> Bench<'s> {
         }];
         file.tool = "tool".into();
         let dir = urdf.parent().unwrap_or(Path::new("."));
-        let tool = Robot::build(file, dir)
+        let tool = Robot::build(file, dir, InputLimits::default())
             .map_err(|issues| issues.iter().map(|i| i.in_file(urdf)).collect::<Vec<_>>().join("\n"))?;
         let pin = PinModel::load(shim, urdf)?;
 

@@ -86,9 +86,14 @@ fn main() -> ExitCode {
         armcomp_core::support::io::remove_pending_temporaries();
         std::process::exit(130);
     });
-    if let Err(e) = armcomp_api::config::apply(cli.allow_plugins) {
-        eprintln!("error: {e:#}");
-        return ExitCode::FAILURE;
+    match armcomp_api::config::apply(cli.allow_plugins) {
+        Ok(limits) => {
+            let _ = cmd::LIMITS.set(limits);
+        }
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            return ExitCode::FAILURE;
+        }
     }
     let result = match cli.command {
         Command::Demo(a) => cmd::demo::run(a),

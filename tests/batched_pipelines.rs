@@ -9,6 +9,7 @@ use armcomp_core::algorithms::plan::{Space, spread, trajectory_similar};
 use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::model::sampling::Sampler;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Conditions, Error, Robot};
 use nalgebra::{IsometryMatrix3, Matrix6xX, Vector3};
 
@@ -29,7 +30,7 @@ fn robots() -> Vec<(&'static str, Robot, bool)> {
         ("rigid agile-justin", rigid_justin(), true),
         (
             "ur5 (bare URDF)",
-            read_robot(&root().join("tests/data/urdf/ur5_robot.urdf")).unwrap(),
+            read_robot(&root().join("tests/data/urdf/ur5_robot.urdf"), InputLimits::default()).unwrap(),
             true,
         ),
         ("rock-drill", robot("rock-drill.toml"), true),

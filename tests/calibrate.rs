@@ -9,6 +9,7 @@ use armcomp_core::data::measurement::Sample;
 use armcomp_core::data::split::{holdout, kfold, pose_groups};
 use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::support::cancel::Cancel;
+use armcomp_core::support::io::InputLimits;
 
 use crate::common::robot;
 
@@ -425,7 +426,7 @@ fn calibrate_and_evaluate_on_the_command_line() {
     assert!(before["mean_mm"].as_f64().unwrap() > 100.0);
     // Independent check of the statistics: recompute from the errors of the written model.
     let reloaded = Robot::from_path(&model).unwrap();
-    let samples = armcomp_core::data::measurement::read_csv(&test, &reloaded.csv_layout())
+    let samples = armcomp_core::data::measurement::read_csv(&test, &reloaded.csv_layout(), InputLimits::default())
         .unwrap()
         .samples;
     let errors = position_errors(&reloaded, &samples);

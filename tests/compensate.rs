@@ -5,6 +5,7 @@ use armcomp_core::algorithms::evaluate::{ErrorStats, fit_residual_predictor, pos
 use armcomp_core::algorithms::ik::{IkParams, IkTarget, IkWorkspace, LinearOffset, solve_ik_with_offset};
 use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
 use armcomp_core::data::measurement::{read_csv, write_csv};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{FitControl, PredictorSpec};
 use armcomp_learn::{GpSpec, KnnSpec, RidgeSpec};
 use nalgebra::Matrix3xX;
@@ -219,6 +220,7 @@ fn learn_then_compensate_lands_the_truth_near_its_targets() {
         let commands = read_csv(
             &out,
             &armcomp_core::data::measurement::CsvLayout::strict(truth.tree(), truth.units(), truth.tool()),
+            InputLimits::default(),
         );
         assert!(commands.is_err(), "commands carry no measured x, y, z");
         let poses = armcomp_core::data::measurement::parse_poses(
@@ -370,7 +372,7 @@ fn compensate_reports_bad_targets_with_line_and_column() {
     assert!(err.contains("t.csv:3: column 2: `abc` is not a finite number"), "{err}");
     assert!(!out.exists());
     // The library's error is the same input error, with the column's header as data.
-    match armcomp_api::ops::compensate::read_targets(&bad, robot("rock-drill.toml").units()) {
+    match armcomp_api::ops::compensate::read_targets(&bad, robot("rock-drill.toml").units(), InputLimits::default()) {
         Err(armcomp_core::Error::InputAt { location, column, .. }) => {
             assert_eq!((location.line, column.as_deref()), (Some(3), Some("y[mm]")));
         }

@@ -1,6 +1,7 @@
 //! The same arm in MDH, classic DH and POE gives the same tool pose; a parameter of a URDF or
 //! MDH chain moves its own joint's placement alone.
 
+use armcomp_core::support::io::InputLimits;
 use armcomp_urdf::robot_from_urdf;
 use proptest::prelude::*;
 use rand::rngs::StdRng;
@@ -82,7 +83,7 @@ fn hayati_beta_tilts_the_parallel_axis() {
 fn each_urdf_and_mdh_parameter_moves_the_one_placement_it_names() {
     let mut rng = StdRng::seed_from_u64(5);
     for robot in [
-        robot_from_urdf(&root().join("robots/ur5.urdf")).unwrap(),
+        robot_from_urdf(&root().join("robots/ur5.urdf"), InputLimits::default()).unwrap(),
         robot("talos-left-arm.toml"),
         robot("rock-drill.toml"),
         robot("industrial-6dof.toml"),

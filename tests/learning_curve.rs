@@ -10,6 +10,7 @@ use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
 use armcomp_core::analysis::design::{Criterion, SelectionParams, select_poses};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::data::measurement::{RowSelection, Sample, read_csv};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Result, Robot};
 use armcomp_repro::agile_justin::{MEASUREMENTS, STEPS, half_split, parse_measurements, step_table};
 use armcomp_repro::demos::report::{Curve, write_page};
@@ -19,7 +20,12 @@ use crate::common::{Scratch, robot, root};
 
 fn talos() -> (Robot, Vec<Sample>, Vec<Sample>) {
     let r = robot("talos-left-arm.toml");
-    let set = read_csv(&root().join("data/talos-left-arm/measurements.csv"), &r.csv_layout()).unwrap();
+    let set = read_csv(
+        &root().join("data/talos-left-arm/measurements.csv"),
+        &r.csv_layout(),
+        InputLimits::default(),
+    )
+    .unwrap();
     let rows = |spec: &str| set.select_rows(&spec.parse::<RowSelection>().unwrap()).samples;
     (r, rows("even"), rows("odd"))
 }
@@ -125,7 +131,12 @@ fn agile_justin_choice_beats_the_median_random_subset_at_every_size() {
 #[ignore]
 fn talos_half_the_rows_reach_figaroh_joint_offset_figure() {
     let (r, _, _) = talos();
-    let set = read_csv(&root().join("data/talos-left-arm/measurements.csv"), &r.csv_layout()).unwrap();
+    let set = read_csv(
+        &root().join("data/talos-left-arm/measurements.csv"),
+        &r.csv_layout(),
+        InputLimits::default(),
+    )
+    .unwrap();
     let curves = talos_curves(&r, &set, 1, Criterion::Uncertainty, 10, &|| {}).unwrap();
     assert_eq!(curves.len(), 4);
     for (k, c) in curves.iter().enumerate() {

@@ -1,6 +1,7 @@
 //! Malformed robot files: each gives its own clear message naming the field, and none panics.
 
 use crate::common::Scratch;
+use armcomp_core::support::io::InputLimits;
 
 const GOOD: &str = r#"name = "ok"
 
@@ -36,7 +37,7 @@ fn problems(tag: &str, from: &str, to: &str) -> Vec<armcomp_api::Diagnostic> {
     assert!(GOOD.contains(from), "test setup: `{from}` not in the good file");
     let s = Scratch::new(tag);
     let p = s.file("robot.toml", &GOOD.replacen(from, to, 1));
-    armcomp_api::validate_file(&p, &armcomp_api::robot_schema())
+    armcomp_api::validate_file(&p, &armcomp_api::robot_schema(), InputLimits::default())
 }
 
 fn assert_one(tag: &str, from: &str, to: &str, path: &str, line: usize, words: &[&str]) {
@@ -56,7 +57,10 @@ fn assert_one(tag: &str, from: &str, to: &str, path: &str, line: usize, words: &
 fn good_file_is_valid() {
     let s = Scratch::new("good");
     let p = s.file("robot.toml", GOOD);
-    assert_eq!(armcomp_api::validate_file(&p, &armcomp_api::robot_schema()), vec![]);
+    assert_eq!(
+        armcomp_api::validate_file(&p, &armcomp_api::robot_schema(), InputLimits::default()),
+        vec![]
+    );
 }
 
 #[test]
@@ -148,6 +152,7 @@ fn missing_file_and_unreadable_input_are_errors_not_panics() {
     let ps = armcomp_api::validate_file(
         std::path::Path::new("/nonexistent/robot.toml"),
         &armcomp_api::robot_schema(),
+        InputLimits::default(),
     );
     assert_eq!(ps.len(), 1);
     assert_eq!(ps[0].to_string(), "/nonexistent/robot.toml: does not exist");
@@ -162,7 +167,7 @@ fn several_problems_are_all_reported() {
         .replace("ei_y = 100.0", "ei_y = -100.0")
         .replace("link = \"j2\"\nxyz", "link = \"j9\"\nxyz");
     let p = s.file("robot.toml", &text);
-    let ps = armcomp_api::validate_file(&p, &armcomp_api::robot_schema());
+    let ps = armcomp_api::validate_file(&p, &armcomp_api::robot_schema(), InputLimits::default());
     assert!(ps.len() >= 2, "{ps:?}");
 }
 

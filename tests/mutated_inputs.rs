@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use armcomp_core::Robot;
 use armcomp_core::data::measurement::{parse_csv, parse_poses};
+use armcomp_core::support::io::InputLimits;
 use proptest::prelude::*;
 
 use crate::common::root;
@@ -134,8 +135,8 @@ fn check_file(name: &'static str, bytes: Vec<u8>) -> Result<(), String> {
         std::fs::write(dir.path().join("arm.urdf"), base("arm.urdf")).unwrap();
         let path = dir.path().join(name);
         std::fs::write(&path, bytes).unwrap();
-        let _ = armcomp_api::validate_file(&path, &armcomp_api::robot_schema());
-        let _ = armcomp_api::read_robot(&path);
+        let _ = armcomp_api::validate_file(&path, &armcomp_api::robot_schema(), InputLimits::default());
+        let _ = armcomp_api::read_robot(&path, InputLimits::default());
     })
 }
 

@@ -10,6 +10,7 @@ use armcomp_core::analysis::design::{
 };
 use armcomp_core::calibrate::{ParameterSpace, identification_jacobian};
 use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::support::io::InputLimits;
 use nalgebra::{DMatrix, Vector3};
 
 use crate::common::robots::PENDULUM;
@@ -334,7 +335,7 @@ fn retrospective_selection_names_rows_that_calibrate_reads() {
     let bin = env!("CARGO_BIN_EXE_armcomp");
     let r = robot("talos-left-arm.toml");
     let data = root().join("data/talos-left-arm/measurements.csv");
-    let all = armcomp_core::data::measurement::read_csv(&data, &r.csv_layout()).unwrap();
+    let all = armcomp_core::data::measurement::read_csv(&data, &r.csv_layout(), InputLimits::default()).unwrap();
     let train = all.select_rows(&"even".parse().unwrap());
     let pool = dir.file(
         "train.csv",
@@ -365,13 +366,13 @@ fn retrospective_selection_names_rows_that_calibrate_reads() {
     assert_eq!(rows.len(), 15);
     assert!(report["identifiability"]["n_params"].as_u64().unwrap() == 18);
     // The pool file's row k is the data file's row 2k.
-    let written = armcomp_core::data::measurement::read_csv(&out, &r.csv_layout()).unwrap();
+    let written = armcomp_core::data::measurement::read_csv(&out, &r.csv_layout(), InputLimits::default()).unwrap();
     for (k, &row) in rows.iter().enumerate() {
         assert_eq!(written.samples[k], all.samples[2 * row], "row {row}");
     }
     // The row list is a valid `--rows` argument selecting the same samples of the pool.
     let list: Vec<String> = rows.iter().map(|r| r.to_string()).collect();
-    let pool_set = armcomp_core::data::measurement::read_csv(&pool, &r.csv_layout()).unwrap();
+    let pool_set = armcomp_core::data::measurement::read_csv(&pool, &r.csv_layout(), InputLimits::default()).unwrap();
     let again = pool_set.select_rows(&list.join(",").parse().unwrap());
     assert_eq!(again.samples.len(), 15);
     assert!(again.samples.iter().all(|s| written.samples.contains(s)));

@@ -9,6 +9,7 @@ use armcomp_core::data::measurement::{CsvLayout, Sample, parse_csv};
 use armcomp_core::model::geom::xyz_rpy;
 use armcomp_core::robot::Conditions;
 use armcomp_core::robot::robot_file::{Format, RobotFile, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use nalgebra::{Isometry3, Vector3};
 
 use crate::common::{robot_from_toml, root};
@@ -329,7 +330,7 @@ fn robot_error(text: &str) -> String {
     };
     match src.parse::<RobotFile>() {
         Err(e) => e.to_string(),
-        Ok(file) => match Robot::from_source(file, &src) {
+        Ok(file) => match Robot::from_source(file, &src, InputLimits::default()) {
             Err(e) => e.to_string(),
             Ok(_) => panic!("the file is refused"),
         },

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use armcomp_api::read_robot;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Error, KinematicTree, Motion, PointKinematics, Robot, TreeWorkspace};
 use nalgebra::{Isometry3, IsometryMatrix3, Matrix6xX, Quaternion, UnitQuaternion, Vector3};
 
@@ -25,14 +26,14 @@ fn every_robot() -> Vec<(PathBuf, Robot)> {
     files
         .into_iter()
         .map(|p| {
-            let robot = read_robot(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+            let robot = read_robot(&p, InputLimits::default()).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
             (p, robot)
         })
         .collect()
 }
 
 fn robot_at(path: &str) -> Robot {
-    read_robot(&root().join(path)).unwrap()
+    read_robot(&root().join(path), InputLimits::default()).unwrap()
 }
 
 /// Position (m) and largest rotation-matrix entry difference between two poses.
@@ -156,7 +157,7 @@ fn path_fk_matches_pinocchio_on_the_urdf_corpus() {
     let reference: serde_json::Value = serde_json::from_str(&text).unwrap();
     for (file, expected) in reference["robots"].as_object().unwrap() {
         // A bare URDF has a point at every link's origin, named as the link.
-        let robot = read_robot(&corpus.join(file)).unwrap();
+        let robot = read_robot(&corpus.join(file), InputLimits::default()).unwrap();
         let tree = robot.tree();
         let plan = robot.kinematics();
         let mut ws = plan.workspace();

@@ -1,6 +1,7 @@
 //! The shipped robot files: valid, round-trip, and the committed schema is current.
 
 use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, RobotFile};
 
 use crate::common::{random_configurations, root};
@@ -20,7 +21,7 @@ fn robot_files() -> Vec<std::path::PathBuf> {
 fn every_robot_file_validates() {
     let schema = armcomp_api::robot_schema();
     for f in robot_files() {
-        let problems = armcomp_api::validate_file(&f, &schema);
+        let problems = armcomp_api::validate_file(&f, &schema, InputLimits::default());
         assert!(problems.is_empty(), "{}: {problems:?}", f.display());
     }
 }
@@ -39,7 +40,7 @@ fn every_robot_file_round_trips_through_toml_and_json() {
                 format,
             };
             let file: RobotFile = src.parse().unwrap_or_else(|e| panic!("{}: {e}", f.display()));
-            let again = Robot::from_source(file, &src).unwrap();
+            let again = Robot::from_source(file, &src, InputLimits::default()).unwrap();
             assert_eq!(again.chain_values(), robot.chain_values(), "{}", f.display());
             for q in &qs {
                 let a = robot.forward(q).unwrap();

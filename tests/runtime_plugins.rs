@@ -11,6 +11,7 @@ use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
 use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::robot::robot_file::SourceFile;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{
     Error, FittedPredictor, Perturbation, PredictorSpec, Robot, RobotFile, StaticState, TrainingSet, TreeWorkspace,
 };
@@ -94,7 +95,7 @@ fn linked_robot(mass_per_length: f64) -> Robot {
         length: Some(1500.0),
         mass_per_length,
     }));
-    Robot::from_source(file, &src).unwrap()
+    Robot::from_source(file, &src, InputLimits::default()).unwrap()
 }
 
 fn robot_from_text(text: &str, path: &Path) -> armcomp_core::Result<Robot> {
@@ -104,7 +105,7 @@ fn robot_from_text(text: &str, path: &Path) -> armcomp_core::Result<Robot> {
         format: armcomp_core::robot::robot_file::Format::Toml,
     };
     let file: RobotFile = src.parse()?;
-    Robot::from_source(file, &src)
+    Robot::from_source(file, &src, InputLimits::default())
 }
 
 #[test]

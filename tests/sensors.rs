@@ -10,6 +10,7 @@ use armcomp_core::algorithms::simulate::{SimulateParams, TiltDraw, random_statio
 use armcomp_core::calibrate::{CalibrationParams, ParameterSpace, calibrate};
 use armcomp_core::data::measurement::{Sample, parse_csv};
 use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::support::io::InputLimits;
 
 use crate::common::{robot, robot_from_toml};
 
@@ -261,7 +262,9 @@ fn sensor_declarations_are_checked() {
             format: armcomp_core::robot::robot_file::Format::Toml,
         };
         match src.parse::<armcomp_core::RobotFile>() {
-            Ok(file) => Robot::from_source(file, &src).unwrap_err().to_string(),
+            Ok(file) => Robot::from_source(file, &src, InputLimits::default())
+                .unwrap_err()
+                .to_string(),
             Err(e) => e.to_string(),
         }
     };

@@ -9,12 +9,18 @@ use armcomp_core::analysis::prior_choice::{DEFAULT_GRID, choose_prior_scale};
 use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::data::measurement::{MeasurementSet, RowSelection, parse_csv, read_csv};
 use armcomp_core::data::split::{FoldBy, FoldPlan};
+use armcomp_core::support::io::InputLimits;
 
 use crate::common::{Scratch, random_configurations, robot, root};
 
 fn data() -> (armcomp_core::Robot, MeasurementSet) {
     let r = robot("talos-left-arm.toml");
-    let set = read_csv(&root().join("data/talos-left-arm/measurements.csv"), &r.csv_layout()).unwrap();
+    let set = read_csv(
+        &root().join("data/talos-left-arm/measurements.csv"),
+        &r.csv_layout(),
+        InputLimits::default(),
+    )
+    .unwrap();
     (r, set)
 }
 
@@ -241,7 +247,7 @@ fn export_urdf_rewrites_only_identified_joints_and_matches_the_model() {
     // Byte-identical outside the identified joints' elements.
     let original = std::fs::read_to_string(root().join("data/talos-left-arm/talos_full_v2.urdf")).unwrap();
     let exported = std::fs::read_to_string(&out).unwrap();
-    let doc = armcomp_urdf::UrdfDocument::parse("x.urdf".as_ref(), original.clone()).unwrap();
+    let doc = armcomp_urdf::UrdfDocument::parse("x.urdf".as_ref(), original.clone(), InputLimits::default()).unwrap();
     let identified: Vec<&armcomp_urdf::UrdfJoint> = doc
         .joints
         .iter()
@@ -260,7 +266,7 @@ fn export_urdf_rewrites_only_identified_joints_and_matches_the_model() {
     assert_eq!(original[last..], without[without.len() - tail..]);
     // The exported URDF, read as any URDF, puts the marker's link and the marker where the
     // model does.
-    let bare = armcomp_urdf::robot_from_urdf(&out).unwrap();
+    let bare = armcomp_urdf::robot_from_urdf(&out, InputLimits::default()).unwrap();
     let link = bare.tree().body_index("gripper_left_base_link").unwrap();
     let marker = bare.tree().point_index("marker").unwrap();
     let model = &fitted.robot;
@@ -324,7 +330,7 @@ markers = ["marker"]
         "{exported}"
     );
     let r = armcomp_core::Robot::from_path(&model).unwrap();
-    let bare = armcomp_urdf::robot_from_urdf(&out).unwrap();
+    let bare = armcomp_urdf::robot_from_urdf(&out, InputLimits::default()).unwrap();
     let marker = bare.tree().point_index("marker").unwrap();
     for q in random_configurations(&r, 5, 12) {
         let a = r.forward(&q).unwrap().point[r.tool()].translation.vector;

@@ -4,6 +4,7 @@
 use std::f64::consts::FRAC_PI_2;
 
 use armcomp_core::model::geom::{rx, rz, tx, tz};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, RobotFile};
 use armcomp_urdf::robot_from_urdf;
 use nalgebra::{Isometry3, Vector3};
@@ -13,11 +14,11 @@ use rand::{Rng, SeedableRng};
 use crate::common::{Scratch, random_configurations, robot, root};
 
 fn urdf(name: &str) -> Robot {
-    robot_from_urdf(&root().join("robots").join(name)).expect("shipped URDFs are valid")
+    robot_from_urdf(&root().join("robots").join(name), InputLimits::default()).expect("shipped URDFs are valid")
 }
 
 fn urdf_text(scratch: &Scratch, name: &str, text: &str) -> Result<Robot, String> {
-    robot_from_urdf(&scratch.file(name, text)).map_err(|e| e.to_string())
+    robot_from_urdf(&scratch.file(name, text), InputLimits::default()).map_err(|e| e.to_string())
 }
 
 /// World position of a body by name.
@@ -294,7 +295,7 @@ fn calibrated_values_survive_the_model_file_and_export_urdf() {
             out.to_str().unwrap(),
         ]);
         assert_eq!(code, 0, "{err}");
-        let exported = robot_from_urdf(&out).unwrap();
+        let exported = robot_from_urdf(&out, InputLimits::default()).unwrap();
         assert_same_fk(&r, &exported, &qs, 1e-12);
         assert_eq!(exported.mass(), r.mass());
         let text = std::fs::read_to_string(&out).unwrap();
@@ -480,6 +481,10 @@ fn ros_package_meshes_are_skipped_with_a_warning_and_stl_boxes_read() {
     let c = shapes[0].local.translation.vector;
     assert!((c - Vector3::new(1.2, 0.0, 0.05)).norm() < 1e-7, "{c:?}");
     // The bare URDF still validates; the warning does not stop it.
-    let problems = armcomp_api::validate_file(&s.0.join("m.urdf"), &armcomp_api::robot_schema());
+    let problems = armcomp_api::validate_file(
+        &s.0.join("m.urdf"),
+        &armcomp_api::robot_schema(),
+        InputLimits::default(),
+    );
     assert!(problems.is_empty(), "{problems:?}");
 }

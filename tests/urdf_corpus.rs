@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use armcomp_core::Robot;
 use armcomp_core::model::geom::{rx, rz, tx, tz};
+use armcomp_core::support::io::InputLimits;
 use armcomp_urdf::robot_from_urdf;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde_json::Value;
@@ -58,7 +59,8 @@ fn corpus_link_poses_equal_pinocchio() {
     let robots = reference["robots"].as_object().unwrap();
     assert_eq!(robots.len(), 7);
     for (file, expected) in robots {
-        let robot = robot_from_urdf(&corpus().join(file)).unwrap_or_else(|e| panic!("{file}: {e}"));
+        let robot =
+            robot_from_urdf(&corpus().join(file), InputLimits::default()).unwrap_or_else(|e| panic!("{file}: {e}"));
         let configurations = expected["configurations"].as_array().unwrap();
         // The independent joints are pinocchio's moving joints less the mimic ones.
         let mimic: Vec<&str> = expected["mimic_joints"]
@@ -111,12 +113,12 @@ fn corpus_warnings_are_one_line_per_kind() {
         ("tiago.urdf", 1),
         ("talos_full_v2.urdf", 1),
     ] {
-        let robot = robot_from_urdf(&corpus().join(file)).unwrap();
+        let robot = robot_from_urdf(&corpus().join(file), InputLimits::default()).unwrap();
         assert_eq!(robot.warnings().len(), lines, "{file}: {:#?}", robot.warnings());
     }
     // TALOS: 47 of its 52 collision elements are meshes, all in `talos_description`.
     let path = corpus().join("talos_full_v2.urdf");
-    let talos = robot_from_urdf(&path).unwrap();
+    let talos = robot_from_urdf(&path, InputLimits::default()).unwrap();
     assert_eq!(
         talos.warnings()[0],
         format!(
@@ -134,7 +136,7 @@ fn panda_flange_follows_frankas_modified_dh_table() {
     let alpha = [
         0.0, -FRAC_PI_2, FRAC_PI_2, FRAC_PI_2, -FRAC_PI_2, FRAC_PI_2, FRAC_PI_2, 0.0,
     ];
-    let robot = robot_from_urdf(&corpus().join("panda.urdf")).unwrap();
+    let robot = robot_from_urdf(&corpus().join("panda.urdf"), InputLimits::default()).unwrap();
     let flange = robot.tree().body_index("panda_link8").unwrap();
     let names: Vec<String> = (1..=7).map(|i| format!("panda_joint{i}")).collect();
     let arm: Vec<usize> = names
@@ -229,7 +231,7 @@ fn line_of(text: &str, needle: &str) -> usize {
 fn what_ros_tolerates_loads_with_hand_computed_frames() {
     let s = Scratch::new("urdf-lenient");
     let path = s.file("lenient.urdf", LENIENT);
-    let robot = robot_from_urdf(&path).unwrap_or_else(|e| panic!("{e}"));
+    let robot = robot_from_urdf(&path, InputLimits::default()).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(
         robot.tree().coordinate_names(),
         ["shoulder", "finger_a", "thumb", "pinky"]
@@ -270,7 +272,7 @@ fn what_ros_tolerates_loads_with_hand_computed_frames() {
         ]
     );
     // The calibrated copy keeps every ignored element as written.
-    let doc = armcomp_urdf::UrdfDocument::read(&path).unwrap();
+    let doc = armcomp_urdf::UrdfDocument::read(&path, InputLimits::default()).unwrap();
     let every_joint: Vec<&str> = doc.joints.iter().map(|j| j.name.as_str()).collect();
     let text = armcomp_urdf::rewrite(&doc, robot.tree(), &every_joint);
     for kept in [
@@ -294,7 +296,10 @@ fn urdf_errors_name_file_line_and_element_once() {
         "{}:4: joint `j`: type `spherical` is not supported; expected revolute, continuous, prismatic, fixed, floating or planar",
         path.display()
     );
-    assert_eq!(robot_from_urdf(&path).unwrap_err().to_string(), want);
-    let problems = armcomp_api::validate_file(&path, &armcomp_api::robot_schema());
+    assert_eq!(
+        robot_from_urdf(&path, InputLimits::default()).unwrap_err().to_string(),
+        want
+    );
+    let problems = armcomp_api::validate_file(&path, &armcomp_api::robot_schema(), InputLimits::default());
     assert_eq!(problems.iter().map(ToString::to_string).collect::<Vec<_>>(), [want]);
 }

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 use armcomp_core::Result;
 use armcomp_core::robot::robot_file::SourceFile;
+use armcomp_core::support::io::InputLimits;
 use serde::Deserialize;
 
 /// What the user config says.
@@ -26,18 +27,25 @@ pub struct UserConfig {
     pub max_input_mb: Option<u64>,
 }
 
-/// Applies the user config to this process (input size cap, trusted plugin folders) with
-/// `allow_plugins` as the user's permission to load the libraries robot files name.
-pub fn apply(allow_plugins: bool) -> Result<()> {
-    let config = load()?;
-    if let Some(mb) = config.max_input_mb {
-        armcomp_core::support::io::set_max_input_bytes(mb.saturating_mul(1 << 20));
+impl UserConfig {
+    /// The input limits it sets, for the readers of the run.
+    pub fn input_limits(&self) -> InputLimits {
+        self.max_input_mb
+            .map_or_else(InputLimits::default, InputLimits::from_mib)
     }
+}
+
+/// Reads the user config, makes its trusted plugin folders the process's plugin policy with
+/// `allow_plugins` as the user's permission to load the libraries robot files name, and
+/// returns the input limits the caller passes to its readers.
+pub fn apply(allow_plugins: bool) -> Result<InputLimits> {
+    let config = load()?;
+    let limits = config.input_limits();
     armcomp_sdk::set_policy(armcomp_sdk::PluginPolicy {
         allow: allow_plugins,
         trusted_dirs: config.plugin_dirs,
     });
-    Ok(())
+    Ok(limits)
 }
 
 /// Where the user config is looked for, if anywhere.
@@ -58,7 +66,7 @@ pub fn read(path: &Path, required: bool) -> Result<UserConfig> {
     if !required && std::fs::symlink_metadata(path).is_err() {
         return Ok(UserConfig::default());
     }
-    let src = SourceFile::read(path)?;
+    let src = SourceFile::read(path, InputLimits::default())?;
     let mut config: UserConfig = src.parse()?;
     let dir = path.parent().unwrap_or(Path::new("."));
     for d in &mut config.plugin_dirs {

@@ -27,12 +27,7 @@ pub fn check(dir: &Path, inputs: &[std::path::PathBuf]) -> Result<()> {
 /// `residuals.svg`, whole: into a temporary folder, then moved into place.
 /// A plot that could not be drawn is an error writing its file, as in the demo's report.
 pub fn write(dir: &Path, report: &DiagnosisReport) -> Result<()> {
-    let plot = |name: &str, svg: Svg| {
-        svg.map_err(|e| armcomp_core::Error::Io {
-            path: dir.join(name),
-            message: e.to_string(),
-        })
-    };
+    let plot = |name: &str, svg: Svg| svg.map_err(|e| armcomp_core::Error::not_written(&dir.join(name), e.to_string()));
     let files = [
         ("heldout_rms.svg", plot("heldout_rms.svg", rms_plot(report))?),
         ("residuals.svg", plot("residuals.svg", histogram(report))?),

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use armcomp_core::robot::robot_file::SourceFile;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Error, Robot, RobotFile};
 use serde_json::Value;
 
@@ -97,16 +98,17 @@ pub struct Validation {
 /// Checks one robot file (a bare URDF is read and built): syntax and types, then semantics
 /// (limits ordered, positive lengths and stiffnesses, links and points that exist, known
 /// units), then the JSON Schema.
-/// Returns every problem found; an empty list means the file is valid.
-pub fn validate_file(path: &Path, schema: &Value) -> Vec<Diagnostic> {
-    check_file(path, schema).problems
+/// Returns every problem found; an empty list means the file is valid. Every file is read
+/// within `limits`.
+pub fn validate_file(path: &Path, schema: &Value, limits: InputLimits) -> Vec<Diagnostic> {
+    check_file(path, schema, limits).problems
 }
 
 /// [`validate_file`], with the plugin libraries that were not loaded apart from the problems.
-pub fn check_file(path: &Path, schema: &Value) -> Validation {
+pub fn check_file(path: &Path, schema: &Value, limits: InputLimits) -> Validation {
     let mut warnings = Vec::new();
     let (diagnostics, inputs) =
-        armcomp_core::support::io::recording_reads(|| diagnose_file(path, schema, &mut warnings));
+        armcomp_core::support::io::recording_reads(|| diagnose_file(path, schema, limits, &mut warnings));
     let (not_loaded, problems) = diagnostics
         .into_iter()
         .partition(|d| d.message.starts_with(armcomp_sdk::NOT_ALLOWED));
@@ -121,9 +123,9 @@ pub fn check_file(path: &Path, schema: &Value) -> Validation {
 }
 
 /// The problems of the file at `path`; a robot that builds adds its warnings to `warnings`.
-fn diagnose_file(path: &Path, schema: &Value, warnings: &mut Vec<String>) -> Vec<Diagnostic> {
+fn diagnose_file(path: &Path, schema: &Value, limits: InputLimits, warnings: &mut Vec<String>) -> Vec<Diagnostic> {
     if crate::load::is_urdf(path) {
-        return match armcomp_urdf::robot_from_urdf(path) {
+        return match armcomp_urdf::robot_from_urdf(path, limits) {
             Ok(r) => {
                 warnings.extend_from_slice(r.warnings());
                 Vec::new()
@@ -131,7 +133,7 @@ fn diagnose_file(path: &Path, schema: &Value, warnings: &mut Vec<String>) -> Vec
             Err(e) => from_error(path, e),
         };
     }
-    let src = match SourceFile::read(path) {
+    let src = match SourceFile::read(path, limits) {
         Ok(s) => s,
         Err(e) => return from_error(path, e),
     };
@@ -148,7 +150,7 @@ fn diagnose_file(path: &Path, schema: &Value, warnings: &mut Vec<String>) -> Vec
     };
     // Semantic checks first: they name non-finite numbers plainly, where the schema (which
     // sees them as null) would print the whole plugin table.
-    let built = match Robot::from_source(file, &src) {
+    let built = match Robot::from_source(file, &src, limits) {
         Ok(r) => {
             warnings.extend_from_slice(r.warnings());
             Vec::new()

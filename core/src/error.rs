@@ -117,6 +117,12 @@ pub enum Error {
     Io {
         /// The file.
         path: PathBuf,
+        /// What kind of failure: the operating system's, or the nearest one for a refusal
+        /// (a missing folder `NotFound`, a read-only file `PermissionDenied`, an output that
+        /// would replace an input `InvalidInput`).
+        kind: std::io::ErrorKind,
+        /// The operating system's error code (errno on Unix) when it said no.
+        os_code: Option<i32>,
         /// What the operating system said, or why the file is refused.
         message: String,
     },
@@ -257,6 +263,17 @@ impl Error {
                 ..Location::file(path)
             },
             column: column.map(str::to_string),
+            message,
+        }
+    }
+
+    /// An [`Io`](Error::Io) error for an output `path` whose content could not be produced
+    /// (a plot that could not be drawn, a description that could not be serialised).
+    pub fn not_written(path: &std::path::Path, message: String) -> Self {
+        Error::Io {
+            path: path.to_path_buf(),
+            kind: std::io::ErrorKind::Other,
+            os_code: None,
             message,
         }
     }

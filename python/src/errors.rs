@@ -47,23 +47,20 @@ fn armcomp_error(message: &str) -> PyErr {
     })
 }
 
-/// The errno of an operating system's message (`... (os error 2)`), or for armcomp's own
-/// refusals the nearest one: a missing file or folder `ENOENT`, a permission `EACCES`, any
-/// other refusal (an input, a link, a special file as output) `EINVAL`.
-fn os_errno(message: &str) -> i32 {
+/// The operating system's errno, or for armcomp's own refusals the nearest one by their kind:
+/// a missing folder `ENOENT`, a read-only or foreign file `EACCES`, a file where a folder was
+/// meant `ENOTDIR`, any other refusal (an input, a link, a special file as output) `EINVAL`.
+fn os_errno(kind: std::io::ErrorKind, os_code: Option<i32>) -> i32 {
+    use std::io::ErrorKind;
     const ENOENT: i32 = 2;
     const EACCES: i32 = 13;
+    const ENOTDIR: i32 = 20;
     const EINVAL: i32 = 22;
-    let os = message
-        .rsplit_once("(os error ")
-        .and_then(|(_, rest)| rest.strip_suffix(')'))
-        .and_then(|n| n.parse().ok());
-    os.unwrap_or(if message.contains("does not exist") || message.contains("no such") {
-        ENOENT
-    } else if message.contains("read-only") || message.contains("ermission") {
-        EACCES
-    } else {
-        EINVAL
+    os_code.unwrap_or(match kind {
+        ErrorKind::NotFound => ENOENT,
+        ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem => EACCES,
+        ErrorKind::NotADirectory => ENOTDIR,
+        _ => EINVAL,
     })
 }
 
@@ -73,10 +70,15 @@ pub fn core_error(e: &Error, context: Option<&str>) -> PyErr {
     let message = context.map_or_else(|| e.to_string(), str::to_string);
     match e {
         Error::Interrupted => PyKeyboardInterrupt::new_err(message),
-        Error::Io { path, message: reason } => {
+        Error::Io {
+            path,
+            kind,
+            os_code,
+            message: reason,
+        } => {
             // As Python's own file errors: `errno`, the reason as `strerror`, and `filename`,
             // which `str()` shows as `[Errno N] reason: 'path'`.
-            PyOSError::new_err((os_errno(reason), reason.clone(), path.display().to_string()))
+            PyOSError::new_err((os_errno(*kind, *os_code), reason.clone(), path.display().to_string()))
         }
         Error::InvalidFile { file, issues } => {
             let first = issues.first();

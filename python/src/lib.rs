@@ -20,13 +20,25 @@ mod robot;
 mod simulate;
 mod validate;
 
+use std::sync::OnceLock;
+
+use armcomp_core::support::io::InputLimits;
 use pyo3::prelude::*;
+
+/// The user config's input limits, read when the module is imported.
+static LIMITS: OnceLock<InputLimits> = OnceLock::new();
+
+/// The limits every file this module reads is held to.
+fn input_limits() -> InputLimits {
+    LIMITS.get().copied().unwrap_or_default()
+}
 
 #[pymodule]
 fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The user config applies as for the command line; run-time plugin libraries load only
     // from the folders it trusts.
-    armcomp_api::config::apply(false).map_err(|e| errors::core_error(&e, None))?;
+    let limits = armcomp_api::config::apply(false).map_err(|e| errors::core_error(&e, None))?;
+    let _ = LIMITS.set(limits);
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<robot::PyRobot>()?;
     m.add_class::<measurements::PyMeasurements>()?;

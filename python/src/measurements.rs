@@ -307,7 +307,8 @@ impl PyMeasurements {
         robot: Option<PyRef<'_, PyRobot>>,
         rows: Option<&str>,
     ) -> PyResult<Self> {
-        let text = armcomp_core::support::io::read_text(&path).map_err(|e| file_error(&e, &path))?;
+        let text =
+            armcomp_core::support::io::read_text(&path, crate::input_limits()).map_err(|e| file_error(&e, &path))?;
         let rows = rows
             .map(|r| r.parse::<RowSelection>())
             .transpose()

@@ -143,7 +143,7 @@ impl PyRobot {
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let robot = py
-            .detach(|| armcomp_api::read_robot(&path))
+            .detach(|| armcomp_api::read_robot(&path, crate::input_limits()))
             .map_err(|e| file_error(&e, &path))?;
         PyRobot::new(py, robot)
     }
@@ -161,7 +161,7 @@ impl PyRobot {
         let robot = py
             .detach(|| {
                 let file: RobotFile = src.parse()?;
-                Robot::from_source(file, &src)
+                Robot::from_source(file, &src, crate::input_limits())
             })
             .py()?;
         PyRobot::new(py, robot)

@@ -12,7 +12,7 @@ use crate::robot::PyRobot;
 #[pyfunction]
 pub fn validate(py: Python<'_>, path: PathBuf) -> String {
     let schema = armcomp_api::robot_schema();
-    let found = py.detach(|| armcomp_api::validate_file(&path, &schema));
+    let found = py.detach(|| armcomp_api::validate_file(&path, &schema, crate::input_limits()));
     serde_json::to_string(&found).expect("diagnostics serialise")
 }
 

@@ -1,6 +1,7 @@
 """Errors are Python exceptions naming where the input is wrong; long calls release the GIL
 and stop on Ctrl-C; measurements from arrays match a robot by joint and point names."""
 
+import errno
 import os
 import signal
 import threading
@@ -203,8 +204,17 @@ def test_an_output_that_cannot_be_written_says_why(tmp_path):
     with pytest.raises(OSError) as e:
         robot.save(target)
     assert e.value.filename == str(target)
-    assert isinstance(e.value.errno, int) and e.value.strerror
+    # The kind of refusal, not its wording, gives the errno: Python picks the subclass from it.
+    assert e.value.errno == errno.ENOENT and isinstance(e.value, FileNotFoundError)
+    assert e.value.strerror
     assert "None" not in str(e.value), str(e.value)
+    read_only = tmp_path / "kept.toml"
+    read_only.write_text("kept")
+    read_only.chmod(0o444)
+    with pytest.raises(PermissionError) as e:
+        robot.save(read_only)
+    assert e.value.errno == errno.EACCES and "read-only" in e.value.strerror
+    assert read_only.read_text() == "kept"
 
 
 def test_fk_of_a_two_dimensional_array_names_the_argument_and_fk_many():

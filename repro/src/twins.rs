@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Error, Result, Robot};
 
 /// A built-in robot file: its name, its path in the repository and its text.
@@ -85,6 +86,6 @@ impl Twin {
             format: Format::Toml,
         };
         let file = src.parse()?;
-        Robot::from_source(file, &src)
+        Robot::from_source(file, &src, InputLimits::default())
     }
 }

@@ -59,7 +59,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .chain(args.start.as_deref())
         .collect();
     super::check_output(&args.out, &robot, &inputs)?;
-    let targets = ops::read_targets(&args.targets, units)?;
+    let targets = ops::read_targets(&args.targets, units, super::input_limits())?;
     let starts = match &args.start {
         Some(path) => ops::read_starts(path, &robot)?,
         None => Vec::new(),

@@ -127,7 +127,12 @@ pub fn talos(opts: &CurveParams, robot_path: Option<&Path>, data_path: Option<&P
         "--robot",
     )?;
     let set = default_hint(
-        read_csv(data_path.unwrap_or(Path::new(TALOS_DATA)), &robot.csv_layout()).map_err(anyhow::Error::from),
+        read_csv(
+            data_path.unwrap_or(Path::new(TALOS_DATA)),
+            &robot.csv_layout(),
+            super::input_limits(),
+        )
+        .map_err(anyhow::Error::from),
         data_path.is_none(),
         TALOS_DATA,
         "--data",

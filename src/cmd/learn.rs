@@ -45,7 +45,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     // The written file is the model's own text re-read, so everything in it is kept.
-    let (file, _) = RobotFile::read(&args.model).with_context(|| format!("{}", args.model.display()))?;
+    let (file, _) =
+        RobotFile::read(&args.model, super::input_limits()).with_context(|| format!("{}", args.model.display()))?;
     let groups = args.group.groups(&[&args.data], &data.rows)?;
     let bar = indicatif::ProgressBar::new(0);
     if let Ok(style) = indicatif::ProgressStyle::with_template("{msg:>12} [{bar:30}] {pos}/{len} {elapsed_precise}") {

@@ -21,12 +21,23 @@ pub mod validate;
 
 use std::path::{Path, PathBuf};
 
+use std::sync::OnceLock;
+
 use armcomp_core::Robot;
 use armcomp_core::data::measurement::{MeasurementSet, RowSelection, read_csv};
+use armcomp_core::support::io::InputLimits;
+
+/// The user config's input limits, set once at start.
+pub static LIMITS: OnceLock<InputLimits> = OnceLock::new();
+
+/// The limits every file the command reads is held to.
+pub fn input_limits() -> InputLimits {
+    LIMITS.get().copied().unwrap_or_default()
+}
 
 /// Reads and builds the robot at `path` ([`armcomp_api::read_robot`]), printing its warnings.
 pub fn load_robot(path: &Path) -> armcomp_core::Result<Robot> {
-    let robot = armcomp_api::read_robot(path)?;
+    let robot = armcomp_api::read_robot(path, input_limits())?;
     for w in robot.warnings() {
         eprintln!("warning: {w}");
     }
@@ -75,7 +86,7 @@ impl GroupBy {
         };
         let mut values = Vec::new();
         for file in files {
-            let text = armcomp_core::support::io::read_text(file)?;
+            let text = armcomp_core::support::io::read_text(file, input_limits())?;
             values.extend(armcomp_core::data::measurement::column_values(&text, file, column)?);
         }
         Ok(Some((column.clone(), armcomp_api::ops::fit::groups_of(&values, rows))))
@@ -94,7 +105,7 @@ pub fn at_least_one(text: &str) -> Result<usize, String> {
 /// Reads a measurement CSV for `robot` (its markers, hold values and measured chain), keeps
 /// the selected rows, and prints the reader's warnings.
 pub fn read_measurements(robot: &Robot, path: &Path, rows: Option<&RowSelection>) -> anyhow::Result<MeasurementSet> {
-    let mut set = read_csv(path, &robot.csv_layout())?;
+    let mut set = read_csv(path, &robot.csv_layout(), input_limits())?;
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }

@@ -83,7 +83,7 @@ fn read_pool(robot: &armcomp_core::Robot, text: Option<&str>) -> anyhow::Result<
         Ok(n) => Ok(PlanPool::Sampled(n)),
         Err(_) => {
             let path = Path::new(t);
-            let text = armcomp_core::support::io::read_text(path)?;
+            let text = armcomp_core::support::io::read_text(path, super::input_limits())?;
             Ok(if has_positions(&text) {
                 PlanPool::Measured(super::read_measurements(robot, path, None)?)
             } else {
@@ -108,7 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     let trajectory = match &args.trajectory {
         Some(path) => Some(parse_poses(
-            &armcomp_core::support::io::read_text(path)?,
+            &armcomp_core::support::io::read_text(path, super::input_limits())?,
             path,
             &robot.csv_layout(),
         )?),

@@ -159,7 +159,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     super::check_output(&args.out, &truth, &poses_file)?;
     let poses = match &args.poses {
         Some(p) => {
-            let text = armcomp_core::support::io::read_text(p)?;
+            let text = armcomp_core::support::io::read_text(p, super::input_limits())?;
             parse_poses(&text, p, &truth.csv_layout())?
         }
         None => armcomp_api::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,

@@ -20,7 +20,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             not_loaded,
             loaded,
             warnings,
-        } = armcomp_api::check_file(f, &schema);
+        } = armcomp_api::check_file(f, &schema, super::input_limits());
         for w in &warnings {
             eprintln!("warning: {w}");
         }

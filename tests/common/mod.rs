@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, RobotFile};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
@@ -25,7 +26,7 @@ pub fn robot_from_toml(text: &str) -> Robot {
         format: Format::Toml,
     };
     let file: RobotFile = src.parse().expect("test robot parses");
-    Robot::from_source(file, &src).expect("test robot builds")
+    Robot::from_source(file, &src, InputLimits::default()).expect("test robot builds")
 }
 
 /// Random joint vectors inside the limits (±π for unlimited revolute joints), seeded.

@@ -9,6 +9,7 @@ use armcomp_core::data::measurement::{CsvLayout, csv_text, joint_header, joint_r
 use armcomp_core::model::tree::Coordinate;
 use armcomp_core::model::units::LengthUnit;
 use armcomp_core::support::cancel::Cancel;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 
@@ -105,9 +106,9 @@ pub fn locked_by_name(robot: &Robot, names: &[String]) -> Result<Vec<bool>> {
 
 /// Start configurations from a CSV of joint columns (the rules of measurement files; a joint
 /// without a column starts where [`default_start`] puts it), one row per target or one row
-/// for all.
+/// for all. The file is read within the robot's [input limits](Robot::input_limits).
 pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f64>>> {
-    let text = armcomp_core::support::io::read_text(path)?;
+    let text = armcomp_core::support::io::read_text(path, robot.input_limits())?;
     let layout = CsvLayout {
         hold: default_start(robot).into_iter().map(Some).collect(),
         ..robot.csv_layout()
@@ -236,9 +237,9 @@ pub fn orientation(wxyz: [f64; 4]) -> Result<UnitQuaternion<f64>, String> {
 }
 
 /// Reads `x, y, z` targets (m) and optional `qw, qx, qy, qz` orientations with their line
-/// numbers, erroring with file, line and column.
-pub fn read_targets(path: &Path, units: Units) -> armcomp_core::Result<Vec<(usize, Target)>> {
-    let text = armcomp_core::support::io::read_text(path)?;
+/// numbers, erroring with file, line and column; the file is read within `limits`.
+pub fn read_targets(path: &Path, units: Units, limits: InputLimits) -> armcomp_core::Result<Vec<(usize, Target)>> {
+    let text = armcomp_core::support::io::read_text(path, limits)?;
     // The same reading rules as measurement files: `#` comments, blank lines skipped, cells
     // trimmed, quoted cells allowed.
     let mut reader = csv::ReaderBuilder::new()

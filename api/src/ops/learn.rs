@@ -121,7 +121,7 @@ pub fn run(
     }
     file.fitted_predictor = Some(fitted);
     file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
-    let written = Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)?;
+    let written = Robot::build(file, &robot.base_dir(), robot.input_limits()).map_err(Error::InvalidModel)?;
     let after = ErrorStats::from_errors(&position_errors(&written, samples));
     Ok(LearnRun {
         robot: written,

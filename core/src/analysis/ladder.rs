@@ -185,7 +185,7 @@ fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], c
     file.predictor = Some(serde_json::from_value(serde_json::to_value(spec).map_err(json_error)?).map_err(json_error)?);
     file.fitted_predictor = Some(fitted);
     file.predictor_frame = Some(crate::robot::robot_file::PredictorFrame::Base);
-    Robot::build(file, &robot.base_dir()).map_err(Error::InvalidModel)
+    robot.rebuild(file)
 }
 
 fn json_error(e: serde_json::Error) -> Error {

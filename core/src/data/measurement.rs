@@ -32,6 +32,7 @@ use crate::error::{Error, Location, Result};
 use crate::kinematics::sensor::{GravityReading, GravitySensor, SensorKind};
 use crate::model::tree::KinematicTree;
 use crate::model::units::Units;
+use crate::support::io::InputLimits;
 
 /// One measured pose.
 #[derive(Debug, Clone, PartialEq)]
@@ -279,9 +280,9 @@ impl<'a> CsvLayout<'a> {
     }
 }
 
-/// Reads measurements (see the module documentation) against `layout`.
-pub fn read_csv(path: &Path, layout: &CsvLayout<'_>) -> Result<MeasurementSet> {
-    let text = crate::support::io::read_text(path)?;
+/// Reads measurements (see the module documentation) against `layout`, within `limits`.
+pub fn read_csv(path: &Path, layout: &CsvLayout<'_>, limits: InputLimits) -> Result<MeasurementSet> {
+    let text = crate::support::io::read_text(path, limits)?;
     parse_csv(&text, path, layout)
 }
 

@@ -21,6 +21,7 @@ use crate::model::shape::Shape;
 use crate::model::tree::{KinematicTree, Limits};
 use crate::model::units::Units;
 use crate::support::cancel::Cancel;
+use crate::support::io::InputLimits;
 
 /// What a spec needs to know about the file it came from.
 #[derive(Debug, Clone, Copy)]
@@ -31,6 +32,8 @@ pub struct BuildContext<'a> {
     pub base_dir: &'a Path,
     /// Field path of the spec in the file, for issues (e.g. `kinematics`, `error_models[1]`).
     pub path: &'a str,
+    /// How large the files the spec reads (URDF, meshes) may be.
+    pub limits: InputLimits,
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ use crate::model::units::Units;
 use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext};
 use crate::robot::robot_file::{BeamSpec, RobotFile, SourceFile};
 use crate::robot::{ResolvedPoint, Robot, Station};
+use crate::support::io::InputLimits;
 
 /// Gravity (m/s²) no robot works in: a hundred times Earth's.
 const ABSURD_GRAVITY: f64 = 1e3;
@@ -26,45 +27,66 @@ const ABSURD_GRAVITY: f64 = 1e3;
 const PLAUSIBLE_GRAVITY: f64 = 20.0;
 
 impl Robot {
-    /// Reads, checks and builds a robot file; every problem names the file, line and field.
+    /// Reads, checks and builds a robot file within the default [`InputLimits`]; every problem
+    /// names the file, line and field.
     pub fn from_path(path: &Path) -> Result<Robot> {
+        Robot::from_path_with(path, InputLimits::default())
+    }
+
+    /// [`from_path`](Robot::from_path) with every file it reads (the robot file, URDF, meshes)
+    /// within `limits`.
+    pub fn from_path_with(path: &Path, limits: InputLimits) -> Result<Robot> {
         // Parsing may load libraries too (a fitted run-time predictor).
-        let (read, files) = crate::support::io::recording_reads(|| RobotFile::read(path));
+        let (read, files) = crate::support::io::recording_reads(|| RobotFile::read(path, limits));
         let (file, src) = read?;
-        let mut robot = Robot::from_source(file, &src)?;
+        let mut robot = Robot::from_source(file, &src, limits)?;
         robot.reads.extend(files);
         Ok(robot)
     }
 
-    /// Checks and builds a parsed robot file, mapping problems to lines of `src`.
-    pub fn from_source(file: RobotFile, src: &SourceFile) -> Result<Robot> {
+    /// Checks and builds a parsed robot file, mapping problems to lines of `src`; the files it
+    /// names are read within `limits`.
+    pub fn from_source(file: RobotFile, src: &SourceFile, limits: InputLimits) -> Result<Robot> {
         let dir = src.path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut robot = Robot::build_from(file, &dir, Some(src)).map_err(|issues| src.invalid(issues))?;
+        let mut robot = Robot::build_from(file, &dir, limits, Some(src)).map_err(|issues| src.invalid(issues))?;
         robot.source = Some(src.path.clone());
         Ok(robot)
     }
 
-    /// Checks and builds a robot description; `base_dir` resolves relative paths in it. The
-    /// files read meanwhile on this thread are the robot's [`inputs`](Robot::inputs).
-    pub fn build(file: RobotFile, base_dir: &Path) -> Result<Robot, Vec<Issue>> {
-        Robot::build_from(file, base_dir, None)
+    /// Checks and builds a robot description; `base_dir` resolves relative paths in it, and the
+    /// files it names are read within `limits`. The files read meanwhile on this thread are the
+    /// robot's [`inputs`](Robot::inputs).
+    pub fn build(file: RobotFile, base_dir: &Path, limits: InputLimits) -> Result<Robot, Vec<Issue>> {
+        Robot::build_from(file, base_dir, limits, None)
     }
 
     /// [`build`](Robot::build); warnings name their line in `src`, when given.
-    fn build_from(file: RobotFile, base_dir: &Path, src: Option<&SourceFile>) -> Result<Robot, Vec<Issue>> {
-        let (built, files) = crate::support::io::recording_reads(|| Robot::build_unrecorded(file, base_dir, src));
+    fn build_from(
+        file: RobotFile,
+        base_dir: &Path,
+        limits: InputLimits,
+        src: Option<&SourceFile>,
+    ) -> Result<Robot, Vec<Issue>> {
+        let (built, files) =
+            crate::support::io::recording_reads(|| Robot::build_unrecorded(file, base_dir, limits, src));
         let mut robot = built?;
         robot.reads = files;
         Ok(robot)
     }
 
-    fn build_unrecorded(mut file: RobotFile, base_dir: &Path, src: Option<&SourceFile>) -> Result<Robot, Vec<Issue>> {
+    fn build_unrecorded(
+        mut file: RobotFile,
+        base_dir: &Path,
+        limits: InputLimits,
+        src: Option<&SourceFile>,
+    ) -> Result<Robot, Vec<Issue>> {
         let mut issues = Issues::default();
         let units = file.units;
         let ctx = BuildContext {
             units,
             base_dir,
             path: "kinematics",
+            limits,
         };
         let chain = file.kinematics.build(&ctx).map_err(|i| i.0)?;
         let chain_values: Vec<f64> = chain.params().iter().map(|p| p.nominal).collect();
@@ -108,6 +130,7 @@ impl Robot {
             units,
             base_dir,
             path: "predictor",
+            limits,
         };
         match file.predictor.as_deref().map(|p| p.resolve(&pctx)) {
             Some(Ok(Some(resolved))) => file.predictor = Some(resolved),
@@ -142,6 +165,7 @@ impl Robot {
             collision,
             warnings,
             reads: Vec::new(),
+            limits,
         };
         let tree = robot
             .tree_for(&robot.chain_values)
@@ -154,7 +178,7 @@ impl Robot {
             p.com = site.1;
         }
 
-        let models = build_error_models(&robot, base_dir, &mut issues);
+        let models = build_error_models(&robot, base_dir, limits, &mut issues);
         if !issues.is_empty() {
             return Err(issues.0);
         }
@@ -743,7 +767,12 @@ fn implausible_values(robot: &Robot) -> Issues {
 
 /// The file's error models built against the finished tree and mass model of `robot`, with
 /// every parameter name owned once and every `fixed` entry matching a parameter.
-fn build_error_models(robot: &Robot, base_dir: &Path, issues: &mut Issues) -> Vec<Box<dyn ErrorModel>> {
+fn build_error_models(
+    robot: &Robot,
+    base_dir: &Path,
+    limits: InputLimits,
+    issues: &mut Issues,
+) -> Vec<Box<dyn ErrorModel>> {
     let units = robot.units();
     let mut models = Vec::new();
     for (i, spec) in robot.file.error_models.iter().enumerate() {
@@ -753,6 +782,7 @@ fn build_error_models(robot: &Robot, base_dir: &Path, issues: &mut Issues) -> Ve
                 units,
                 base_dir,
                 path: &path,
+                limits,
             },
             tree: &robot.tree,
             mass: &robot.mass,

@@ -32,6 +32,7 @@ use crate::model::tree::KinematicTree;
 use crate::model::units::Units;
 use crate::plugin::{Chain, ErrorModel};
 use crate::robot::robot_file::RobotFile;
+use crate::support::io::InputLimits;
 use crate::support::limits::Cost;
 
 /// A point resolved against the tree: body index and pose in the convention's link frame.
@@ -88,6 +89,8 @@ pub struct Robot {
     warnings: Vec<String>,
     /// Files read to build it besides `source` (URDF, meshes, plugin libraries).
     reads: Vec<PathBuf>,
+    /// How large the files it was built from could be; a rebuild reads within them again.
+    limits: InputLimits,
 }
 
 /// Conditions of one evaluation that error models may depend on besides the joint values.
@@ -147,6 +150,11 @@ impl Robot {
         Ok(tree)
     }
 
+    /// How large the files it was built from could be (those a rebuild reads again).
+    pub fn input_limits(&self) -> InputLimits {
+        self.limits
+    }
+
     /// Folder that relative paths in the description resolve against.
     pub fn base_dir(&self) -> PathBuf {
         self.source
@@ -159,7 +167,7 @@ impl Robot {
     /// Builds another robot from `file` as if it lived next to this one (same folder, same
     /// source for messages); used to apply identified values.
     pub fn rebuild(&self, file: RobotFile) -> Result<Robot> {
-        let mut robot = Robot::build(file, &self.base_dir()).map_err(Error::InvalidModel)?;
+        let mut robot = Robot::build(file, &self.base_dir(), self.limits).map_err(Error::InvalidModel)?;
         robot.source = self.source.clone();
         for f in &self.reads {
             if !robot.reads.contains(f) {

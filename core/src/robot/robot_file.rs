@@ -13,6 +13,7 @@ use crate::model::mass::Section;
 use crate::model::shape::Geometry;
 use crate::model::units::Units;
 use crate::plugin::{ErrorModelSpec, FittedPredictor, KinematicsSpec, PredictorSpec};
+use crate::support::io::InputLimits;
 
 fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
@@ -430,9 +431,10 @@ pub struct SourceFile {
 }
 
 impl SourceFile {
-    /// Reads a file; the format follows the extension (`.json` is JSON, anything else TOML).
-    pub fn read(path: &Path) -> Result<Self> {
-        let text = crate::support::io::read_text(path)?;
+    /// Reads a file within `limits`; the format follows the extension (`.json` is JSON,
+    /// anything else TOML).
+    pub fn read(path: &Path, limits: InputLimits) -> Result<Self> {
+        let text = crate::support::io::read_text(path, limits)?;
         let format = match path.extension().and_then(|e| e.to_str()) {
             Some(e) if e.eq_ignore_ascii_case("json") => Format::Json,
             _ => Format::Toml,
@@ -908,10 +910,10 @@ fn toml_span_of_path(text: &str, path: &str) -> Option<usize> {
 }
 
 impl RobotFile {
-    /// Reads and parses a robot file (TOML, or JSON by extension). Semantic checks happen when
-    /// the robot is built ([`Robot::from_source`](crate::Robot::from_source)).
-    pub fn read(path: &Path) -> Result<(RobotFile, SourceFile)> {
-        let src = SourceFile::read(path)?;
+    /// Reads and parses a robot file (TOML, or JSON by extension) within `limits`. Semantic
+    /// checks happen when the robot is built ([`Robot::from_source`](crate::Robot::from_source)).
+    pub fn read(path: &Path, limits: InputLimits) -> Result<(RobotFile, SourceFile)> {
+        let src = SourceFile::read(path, limits)?;
         let file = src.parse()?;
         Ok((file, src))
     }
@@ -929,10 +931,7 @@ impl RobotFile {
         } else {
             toml::to_string(self).map_err(|e| e.to_string())
         };
-        text.map_err(|message| Error::Io {
-            path: path.to_path_buf(),
-            message: format!("cannot serialise the robot description: {message}"),
-        })
+        text.map_err(|message| Error::not_written(path, format!("cannot serialise the robot description: {message}")))
     }
 }
 

@@ -11,6 +11,7 @@ use crate::model::tree::{KinematicTree, Motion};
 use crate::plugin::{BuildContext, Chain, KinematicsSpec};
 use crate::robot::Robot;
 use crate::robot::robot_file::RobotFile;
+use crate::support::io::InputLimits;
 
 /// A kinematics plugin for these tests alone: one revolute joint and a link of length `length`
 /// (m) to the `tool` body.
@@ -73,7 +74,7 @@ fn tool_at(robot: &Robot, q: f64) -> Vector3<f64> {
 
 #[test]
 fn a_rigid_robot_puts_its_tool_where_its_chain_does() {
-    let robot = Robot::build(file(""), Path::new(".")).unwrap();
+    let robot = Robot::build(file(""), Path::new("."), InputLimits::default()).unwrap();
     for q in [0.0, 0.3, -2.0] {
         let expected = Vector3::new(0.5 * f64::cos(q), 0.5 * f64::sin(q), 0.0);
         assert!((tool_at(&robot, q) - expected).norm() < 1e-12, "q = {q}");
@@ -82,21 +83,33 @@ fn a_rigid_robot_puts_its_tool_where_its_chain_does() {
 
 #[test]
 fn values_written_back_build_the_same_robot() {
-    let mut robot = Robot::build(file(""), Path::new(".")).unwrap();
+    let mut robot = Robot::build(file(""), Path::new("."), InputLimits::default()).unwrap();
     robot.set_chain_values(&[0.8]).unwrap();
-    let rebuilt = Robot::build(robot.to_file(), Path::new(".")).unwrap();
+    let rebuilt = Robot::build(robot.to_file(), Path::new("."), InputLimits::default()).unwrap();
     assert_eq!(rebuilt.chain_values(), [0.8]);
     assert!((tool_at(&rebuilt, 0.0) - Vector3::new(0.8, 0.0, 0.0)).norm() < 1e-12);
 }
 
 #[test]
 fn an_absurd_gravity_is_refused_at_its_field() {
-    let issues = Robot::build(file("gravity = [0.0, 0.0, -9810.0]"), Path::new(".")).unwrap_err();
+    let issues = Robot::build(
+        file("gravity = [0.0, 0.0, -9810.0]"),
+        Path::new("."),
+        InputLimits::default(),
+    )
+    .unwrap_err();
     assert!(
         issues
             .iter()
             .any(|i| i.path == "gravity" && i.message.contains("absurd")),
         "{issues:?}"
     );
-    assert!(Robot::build(file("gravity = [0.0, 0.0, -9.81]"), Path::new(".")).is_ok());
+    assert!(
+        Robot::build(
+            file("gravity = [0.0, 0.0, -9.81]"),
+            Path::new("."),
+            InputLimits::default()
+        )
+        .is_ok()
+    );
 }

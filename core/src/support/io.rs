@@ -10,24 +10,31 @@
 use std::cell::RefCell;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 use crate::error::{Error, Location, Result};
 
-/// The input size cap when none is configured: 256 MiB.
-pub const DEFAULT_MAX_INPUT_BYTES: u64 = 256 << 20;
-
-static MAX_INPUT_BYTES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_INPUT_BYTES);
-
-/// Sets the largest input file (bytes) any read of this process accepts.
-pub fn set_max_input_bytes(bytes: u64) {
-    MAX_INPUT_BYTES.store(bytes, Ordering::Relaxed);
+/// How much a read accepts, passed to every reader (robot file, URDF, meshes, CSV) by whoever
+/// holds the user's settings; the default is 256 MiB per file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InputLimits {
+    /// The largest input file, bytes.
+    pub max_bytes: u64,
 }
 
-/// The largest input file (bytes) reads accept.
-pub fn max_input_bytes() -> u64 {
-    MAX_INPUT_BYTES.load(Ordering::Relaxed)
+impl Default for InputLimits {
+    fn default() -> Self {
+        InputLimits { max_bytes: 256 << 20 }
+    }
+}
+
+impl InputLimits {
+    /// Limits of `mib` MiB per file.
+    pub fn from_mib(mib: u64) -> Self {
+        InputLimits {
+            max_bytes: mib.saturating_mul(1 << 20),
+        }
+    }
 }
 
 thread_local! {
@@ -119,16 +126,16 @@ pub fn check_input_file(path: &Path) -> std::result::Result<(), String> {
     }
 }
 
-/// Reads a whole input file: a regular file of at most [`max_input_bytes`]; recorded for
+/// Reads a whole input file: a regular file within `limits`; recorded for
 /// [`recording_reads`].
-pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+pub fn read_bytes(path: &Path, limits: InputLimits) -> Result<Vec<u8>> {
     let input = |message: String| Error::InputAt {
         location: Location::file(path),
         column: None,
         message,
     };
     check_input_file(path).map_err(input)?;
-    let limit = max_input_bytes();
+    let limit = limits.max_bytes;
     let file = std::fs::File::open(path).map_err(|e| input(format!("cannot read: {e}")))?;
     let mut bytes = Vec::new();
     // One byte past the cap tells a file at the cap from a larger one without reading it all.
@@ -147,8 +154,8 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
 
 /// Reads a whole input file as UTF-8 text (see [`read_bytes`]); a leading byte-order mark is
 /// dropped.
-pub fn read_text(path: &Path) -> Result<String> {
-    let bytes = read_bytes(path)?;
+pub fn read_text(path: &Path, limits: InputLimits) -> Result<String> {
+    let bytes = read_bytes(path, limits)?;
     let mut text = String::from_utf8(bytes).map_err(|e| {
         let at = e.utf8_error().valid_up_to();
         let line = e.as_bytes()[..at].iter().filter(|b| **b == b'\n').count() + 1;
@@ -237,10 +244,22 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// The error for an output `path` that may not be written, and why.
-fn refusal(path: &Path) -> impl Fn(String) -> Error + '_ {
+/// The error for an output `path` that armcomp refuses to write, of `kind`, and why.
+fn refusal(path: &Path, kind: std::io::ErrorKind) -> impl Fn(String) -> Error + '_ {
     move |message| Error::Io {
         path: path.to_path_buf(),
+        kind,
+        os_code: None,
+        message,
+    }
+}
+
+/// The error for the operating system's failure `e` at `path`, said as `message`.
+fn os_failure(path: &Path, e: &std::io::Error, message: String) -> Error {
+    Error::Io {
+        path: path.to_path_buf(),
+        kind: e.kind(),
+        os_code: e.raw_os_error(),
         message,
     }
 }
@@ -250,15 +269,26 @@ fn refusal(path: &Path) -> impl Fn(String) -> Error + '_ {
 /// device or folder) that is not read-only, that the user owns or could give back to its owner
 /// and that is none of `inputs`.
 pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
-    let refuse = refusal(out);
+    use std::io::ErrorKind::{InvalidInput, NotADirectory, NotFound, PermissionDenied};
+    let refuse = refusal(out, InvalidInput);
     if out.file_name().is_none() {
         return Err(refuse("not a file name".into()));
     }
     let dir = folder_of(out);
     match std::fs::metadata(dir) {
         Ok(m) if m.is_dir() => {}
-        Ok(_) => return Err(refuse(format!("`{}` is not a folder", dir.display()))),
-        Err(_) => return Err(refuse(format!("the folder `{}` does not exist", dir.display()))),
+        Ok(_) => {
+            return Err(refusal(out, NotADirectory)(format!(
+                "`{}` is not a folder",
+                dir.display()
+            )));
+        }
+        Err(_) => {
+            return Err(refusal(out, NotFound)(format!(
+                "the folder `{}` does not exist",
+                dir.display()
+            )));
+        }
     }
     let existing = existing_target(out)?;
     if let Some(i) = inputs.iter().find(|i| same_file(out, i)) {
@@ -269,35 +299,36 @@ pub fn check_output(out: &Path, inputs: &[PathBuf]) -> Result<()> {
     }
     // A probe created the way the real temporary will be: the folder must take new files, and
     // a target owned by someone else must be able to keep its owner.
-    let probe = temporary_in(out, existing.as_ref()).map_err(|e| refuse(e.to_string()))?;
+    let probe = temporary_in(out, existing.as_ref()).map_err(|e| os_failure(out, &e, e.to_string()))?;
     if let Some(m) = &existing {
-        keep_owner(probe.as_file(), m).map_err(refuse)?;
+        keep_owner(probe.as_file(), m).map_err(refusal(out, PermissionDenied))?;
     }
     Ok(())
 }
 
 /// The metadata of an existing output target, refusing anything but a writable regular file.
 fn existing_target(out: &Path) -> Result<Option<std::fs::Metadata>> {
-    let refuse = refusal(out);
     let m = match std::fs::symlink_metadata(out) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(e) => return Err(refuse(format!("cannot inspect: {e}"))),
+        Err(e) => return Err(os_failure(out, &e, format!("cannot inspect: {e}"))),
     };
     if !m.file_type().is_file() {
-        return Err(refuse(format!(
+        return Err(refusal(out, std::io::ErrorKind::InvalidInput)(format!(
             "is {}; armcomp replaces only regular files, so choose another output",
             kind_of(m.file_type())
         )));
     }
     if m.permissions().readonly() {
-        return Err(refuse("is read-only; armcomp does not replace it".into()));
+        return Err(refusal(out, std::io::ErrorKind::PermissionDenied)(
+            "is read-only; armcomp does not replace it".into(),
+        ));
     }
     // Opening for writing (without truncating) asks the system whether this user may write it.
     std::fs::OpenOptions::new()
         .write(true)
         .open(out)
-        .map_err(|e| refuse(format!("is not writable: {e}")))?;
+        .map_err(|e| os_failure(out, &e, format!("is not writable: {e}")))?;
     Ok(Some(m))
 }
 
@@ -351,18 +382,17 @@ fn keep_owner(file: &std::fs::File, target: &std::fs::Metadata) -> std::result::
 /// failed write leaves any old file intact. The target must be absent or a writable regular
 /// file; a replaced file keeps its permissions and owner.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let io = |e: std::io::Error| Error::Io {
-        path: path.to_path_buf(),
-        message: e.to_string(),
-    };
+    let io = |e: std::io::Error| os_failure(path, &e, e.to_string());
     if path.file_name().is_none() {
-        return Err(refusal(path)("not a file name".into()));
+        return Err(refusal(path, std::io::ErrorKind::InvalidInput)(
+            "not a file name".into(),
+        ));
     }
     let existing = existing_target(path)?;
     let mut tmp = temporary_in(path, existing.as_ref()).map_err(io)?;
     let _pending = Pending::new(tmp.path());
     if let Some(m) = &existing {
-        keep_owner(tmp.as_file(), m).map_err(refusal(path))?;
+        keep_owner(tmp.as_file(), m).map_err(refusal(path, std::io::ErrorKind::PermissionDenied))?;
     }
     tmp.write_all(bytes).map_err(io)?;
     tmp.as_file().sync_all().map_err(io)?;
@@ -375,18 +405,22 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 /// absent, or a folder (not a link) holding only files a report writes (`is_report_file`), and
 /// none of `inputs` lies in it.
 pub fn check_report_folder(dir: &Path, is_report_file: &dyn Fn(&str) -> bool, inputs: &[PathBuf]) -> Result<()> {
-    let refuse = refusal(dir);
+    let refuse = refusal(dir, std::io::ErrorKind::InvalidInput);
+    let os = |e: std::io::Error| os_failure(dir, &e, e.to_string());
     if dir.file_name().is_none() {
         return Err(refuse("not a folder name; name the report's own folder".into()));
     }
     let parent = folder_of(dir);
     if !parent.is_dir() {
-        return Err(refuse(format!("the folder `{}` does not exist", parent.display())));
+        return Err(refusal(dir, std::io::ErrorKind::NotFound)(format!(
+            "the folder `{}` does not exist",
+            parent.display()
+        )));
     }
     let m = match std::fs::symlink_metadata(dir) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(refuse(format!("cannot inspect: {e}"))),
+        Err(e) => return Err(os_failure(dir, &e, format!("cannot inspect: {e}"))),
     };
     if !m.is_dir() {
         return Err(refuse(format!(
@@ -394,7 +428,7 @@ pub fn check_report_folder(dir: &Path, is_report_file: &dyn Fn(&str) -> bool, in
             kind_of(m.file_type())
         )));
     }
-    let canonical = std::fs::canonicalize(dir).map_err(|e| refuse(e.to_string()))?;
+    let canonical = std::fs::canonicalize(dir).map_err(os)?;
     if let Some(i) = inputs
         .iter()
         .find(|i| std::fs::canonicalize(i).is_ok_and(|c| c.starts_with(&canonical)))
@@ -404,8 +438,8 @@ pub fn check_report_folder(dir: &Path, is_report_file: &dyn Fn(&str) -> bool, in
             i.display()
         )));
     }
-    for entry in std::fs::read_dir(dir).map_err(|e| refuse(e.to_string()))? {
-        let entry = entry.map_err(|e| refuse(e.to_string()))?;
+    for entry in std::fs::read_dir(dir).map_err(os)? {
+        let entry = entry.map_err(os)?;
         let name = entry.file_name().to_string_lossy().into_owned();
         let regular = entry.file_type().is_ok_and(|t| t.is_file());
         if !regular || !is_report_file(&name) {
@@ -420,10 +454,7 @@ pub fn check_report_folder(dir: &Path, is_report_file: &dyn Fn(&str) -> bool, in
 /// Writes `files` (name, content) as the folder `dir`: into a temporary folder beside it, then
 /// moved into place, replacing an earlier report folder, so `dir` never mixes two reports.
 pub fn write_folder_atomic(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
-    let io = |e: std::io::Error| Error::Io {
-        path: dir.to_path_buf(),
-        message: e.to_string(),
-    };
+    let io = |e: std::io::Error| os_failure(dir, &e, e.to_string());
     let parent = folder_of(dir);
     let name = dir.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
     let hidden = |what: &str| {
@@ -543,13 +574,18 @@ mod tests {
         let dir = scratch("armcomp-io-read");
         let p = dir.path().join("in.txt");
         std::fs::write(&p, "\u{feff}abc").unwrap();
-        let (text, read) = recording_reads(|| read_text(&p).unwrap());
+        let any = InputLimits::default();
+        let (text, read) = recording_reads(|| read_text(&p, any).unwrap());
         assert_eq!(text, "abc", "the byte-order mark is dropped");
         assert_eq!(read, vec![p.clone()]);
-        assert!(read_text(dir.path()).unwrap_err().to_string().contains("a folder"));
+        // The file is 6 bytes: a limit of 6 takes it, one of 5 names the limit it broke.
+        assert!(read_text(&p, InputLimits { max_bytes: 6 }).is_ok());
+        let e = read_text(&p, InputLimits { max_bytes: 5 }).unwrap_err().to_string();
+        assert!(e.contains("larger than the input limit of 5 bytes"), "{e}");
+        assert!(read_text(dir.path(), any).unwrap_err().to_string().contains("a folder"));
         #[cfg(unix)]
         assert!(
-            read_text(Path::new("/dev/zero"))
+            read_text(Path::new("/dev/zero"), any)
                 .unwrap_err()
                 .to_string()
                 .contains("character device")

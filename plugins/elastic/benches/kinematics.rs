@@ -5,6 +5,7 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
 
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{IkParams, IkTarget, IkWorkspace, Robot, RobotFile, solve_ik};
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Matrix6xX;
@@ -16,7 +17,7 @@ fn build(src: &str) -> Robot {
     let _ = armcomp_chains::plugins();
     let _ = armcomp_elastic::plugins();
     let file: RobotFile = toml::from_str(src).expect("bench robot parses");
-    Robot::build(file, Path::new(".")).expect("bench robot builds")
+    Robot::build(file, Path::new("."), InputLimits::default()).expect("bench robot builds")
 }
 
 fn mid(r: &Robot) -> Vec<f64> {

@@ -17,6 +17,7 @@ use std::sync::OnceLock;
 
 use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
 use armcomp_core::model::mass::MassModel;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{
     AngleUnit, BuildContext, CandidateTemplate, ErrorModel, ErrorModelSpec, FittedPredictor, Issues, KinematicTree,
     LengthUnit, Limits, ModelContext, Perturbation, PredictorSpec, Quantity, StaticState, TrainingSet, TreeWorkspace,
@@ -364,6 +365,9 @@ pub unsafe fn model_create(
                 units,
                 base_dir: Path::new(base_dir),
                 path,
+                // The host's limits do not cross the C ABI: a library reads with its own copy
+                // of the readers, within their default.
+                limits: InputLimits::default(),
             },
             tree: &tree,
             mass: &mass,

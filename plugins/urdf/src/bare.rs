@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use armcomp_core::robot::robot_file::PointSpec;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Robot, RobotFile, Units};
 
 use crate::chain::UrdfSpec;
@@ -10,9 +11,9 @@ use crate::document::UrdfDocument;
 
 /// The robot file a bare URDF stands for: SI units, the URDF's kinematics and inertials, one
 /// point at the origin of every link (named as the link), and the tool at the last link the
-/// file lists that carries no joint (an end link).
-pub fn robot_file_for_urdf(path: &Path) -> armcomp_core::Result<RobotFile> {
-    let doc = UrdfDocument::load(path).map_err(|issues| armcomp_core::Error::InvalidFile {
+/// file lists that carries no joint (an end link). The URDF is read within `limits`.
+pub fn robot_file_for_urdf(path: &Path, limits: InputLimits) -> armcomp_core::Result<RobotFile> {
+    let doc = UrdfDocument::load(path, limits).map_err(|issues| armcomp_core::Error::InvalidFile {
         file: path.to_path_buf(),
         issues,
     })?;
@@ -59,11 +60,12 @@ pub fn robot_file_for_urdf(path: &Path) -> armcomp_core::Result<RobotFile> {
     })
 }
 
-/// Builds the robot of a bare URDF; problems name the URDF file, line and element.
-pub fn robot_from_urdf(path: &Path) -> armcomp_core::Result<Robot> {
-    let file = robot_file_for_urdf(path)?;
+/// Builds the robot of a bare URDF, whose files are read within `limits`; problems name the
+/// URDF file, line and element.
+pub fn robot_from_urdf(path: &Path, limits: InputLimits) -> armcomp_core::Result<Robot> {
+    let file = robot_file_for_urdf(path, limits)?;
     let dir = path.parent().unwrap_or(Path::new("."));
-    let mut robot = Robot::build(file, dir).map_err(|issues| armcomp_core::Error::InvalidFile {
+    let mut robot = Robot::build(file, dir, limits).map_err(|issues| armcomp_core::Error::InvalidFile {
         file: path.to_path_buf(),
         issues,
     })?;

@@ -119,7 +119,7 @@ impl KinematicsSpec for UrdfSpec {
             errors.into_iter().for_each(|e| issues.push(field.clone(), e));
             issues
         };
-        let doc = UrdfDocument::read(&file).map_err(to_issues)?;
+        let doc = UrdfDocument::read(&file, ctx.limits).map_err(to_issues)?;
         let order = doc.placement_order().map_err(to_issues)?;
         UrdfChain::compile(self, &doc, &order, ctx).map(|c| Box::new(c) as Box<dyn Chain>)
     }

@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 use armcomp_core::Issue;
 use armcomp_core::model::shape::Shape;
+use armcomp_core::support::io::InputLimits;
 use nalgebra::Isometry3;
 use roxmltree::Node;
 
@@ -97,15 +98,16 @@ pub struct UrdfDocument {
 
 impl UrdfDocument {
     /// Reads and checks a URDF file. Every problem is one message naming the file, the line and
-    /// the element.
-    pub fn read(path: &Path) -> Result<UrdfDocument, Vec<String>> {
-        UrdfDocument::load(path).map_err(|issues| in_file(path, &issues))
+    /// the element. It and its meshes are read within `limits`.
+    pub fn read(path: &Path, limits: InputLimits) -> Result<UrdfDocument, Vec<String>> {
+        UrdfDocument::load(path, limits).map_err(|issues| in_file(path, &issues))
     }
 
     /// Reads and checks a URDF file. Every problem names its line (when it has one) and its
     /// element, but not the file: an [`armcomp_core::Error::InvalidFile`] of `path` holds them.
-    pub fn load(path: &Path) -> Result<UrdfDocument, Vec<Issue>> {
-        let text = armcomp_core::support::io::read_text(path).map_err(|e| {
+    /// It and its meshes are read within `limits`.
+    pub fn load(path: &Path, limits: InputLimits) -> Result<UrdfDocument, Vec<Issue>> {
+        let text = armcomp_core::support::io::read_text(path, limits).map_err(|e| {
             // The issue is reported within the file, which it need not name again.
             vec![match e {
                 armcomp_core::Error::InputAt { location, message, .. } => Issue {
@@ -115,11 +117,12 @@ impl UrdfDocument {
                 other => Issue::new("", other.to_string()),
             }]
         })?;
-        UrdfDocument::parse(path, text)
+        UrdfDocument::parse(path, text, limits)
     }
 
-    /// Checks and reads URDF `text`; `path` names it in warnings and resolves mesh files.
-    pub fn parse(path: &Path, text: String) -> Result<UrdfDocument, Vec<Issue>> {
+    /// Checks and reads URDF `text`; `path` names it in warnings and resolves mesh files, which
+    /// are read within `limits`.
+    pub fn parse(path: &Path, text: String, limits: InputLimits) -> Result<UrdfDocument, Vec<Issue>> {
         let file = path.display().to_string();
         let xml = roxmltree::Document::parse(&text)
             .map_err(|e| vec![at_line(e.pos().row as usize, format!("malformed XML: {e}"))])?;
@@ -127,6 +130,7 @@ impl UrdfDocument {
             xml: &xml,
             errors: Vec::new(),
             warnings: Tally::default(),
+            limits,
         };
         let robot_el = reading.robot_element()?;
         let (joint_nodes, link_nodes) = reading.check_elements(robot_el);
@@ -215,6 +219,8 @@ struct Reading<'x, 'input> {
     xml: &'x roxmltree::Document<'input>,
     errors: Vec<Issue>,
     warnings: Tally,
+    /// How large mesh files may be.
+    limits: InputLimits,
 }
 
 impl<'x, 'input> Reading<'x, 'input> {
@@ -319,7 +325,7 @@ impl<'x, 'input> Reading<'x, 'input> {
         let mut collisions = Vec::new();
         for c in &l.collision {
             let origin = armcomp_core::model::geom::xyz_rpy(c.origin.xyz.0, c.origin.rpy.0);
-            match collision_shape(&c.geometry, dir) {
+            match collision_shape(&c.geometry, dir, self.limits) {
                 Ok(MeshOutcome::Shape(pose, shape)) => {
                     if matches!(c.geometry, urdf_rs::Geometry::Mesh { .. }) {
                         self.warnings.add(MESH_BOXED, String::new(), line, &at);
@@ -646,7 +652,7 @@ impl Tally {
 }
 
 /// The shape of a `<collision>` geometry; meshes become bounding boxes.
-fn collision_shape(g: &urdf_rs::Geometry, dir: &Path) -> Result<MeshOutcome, String> {
+fn collision_shape(g: &urdf_rs::Geometry, dir: &Path, limits: InputLimits) -> Result<MeshOutcome, String> {
     let positive = |what: &str, v: f64| {
         if v.is_finite() && v > 0.0 {
             Ok(v)
@@ -671,7 +677,7 @@ fn collision_shape(g: &urdf_rs::Geometry, dir: &Path) -> Result<MeshOutcome, Str
         urdf_rs::Geometry::Sphere { radius } => Shape::Sphere(positive("<sphere radius>", *radius)?),
         urdf_rs::Geometry::Mesh { filename, scale } => {
             let scale = scale.map_or([1.0; 3], |s| s.0);
-            return mesh_bounding_box(filename, scale, dir);
+            return mesh_bounding_box(filename, scale, dir, limits);
         }
     };
     Ok(MeshOutcome::Shape(Isometry3::identity(), shape))

@@ -75,7 +75,7 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
     let spec: UrdfSpec = serde_json::from_value(value).map_err(|e| invalid(format!("invalid urdf kinematics: {e}")))?;
     let dir = robot.source.as_deref().and_then(Path::parent).unwrap_or(Path::new("."));
     let path = dir.join(&spec.path);
-    let doc = UrdfDocument::load(&path).map_err(|issues| Error::InvalidFile {
+    let doc = UrdfDocument::load(&path, robot.input_limits()).map_err(|issues| Error::InvalidFile {
         file: path.clone(),
         issues,
     })?;

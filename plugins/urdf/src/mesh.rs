@@ -12,6 +12,7 @@
 use std::path::{Path, PathBuf};
 
 use armcomp_core::model::shape::Shape;
+use armcomp_core::support::io::InputLimits;
 use nalgebra::{Isometry3, Vector3};
 
 /// What became of a collision geometry.
@@ -24,7 +25,12 @@ pub enum MeshOutcome {
 }
 
 /// The bounding box of a mesh file, scaled; `dir` is the URDF's folder.
-pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<MeshOutcome, String> {
+pub fn mesh_bounding_box(
+    filename: &str,
+    scale: [f64; 3],
+    dir: &Path,
+    limits: InputLimits,
+) -> Result<MeshOutcome, String> {
     let path = match filename.strip_prefix("package://") {
         Some(rest) => match find_in_package(rest, dir) {
             Some(p) => p,
@@ -56,7 +62,7 @@ pub fn mesh_bounding_box(filename: &str, scale: [f64; 3], dir: &Path) -> Result<
             "not an STL file, and only STL meshes are read (as their bounding box)".into(),
         ));
     }
-    let bytes = armcomp_core::support::io::read_bytes(&path).map_err(|e| e.to_string())?;
+    let bytes = armcomp_core::support::io::read_bytes(&path, limits).map_err(|e| e.to_string())?;
     let mesh = match stl_io::read_stl(&mut std::io::Cursor::new(bytes)) {
         Ok(m) => m,
         Err(e) => return Ok(MeshOutcome::Skipped(format!("cannot read `{}`: {e}", path.display()))),

@@ -122,10 +122,7 @@ pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<Path
         for (kind, caption, draw) in plots {
             let name = format!("{stem}-{kind}.svg");
             let path = dir.join(&name);
-            let svg = draw(t).map_err(|message| armcomp_core::Error::Io {
-                path: path.clone(),
-                message,
-            })?;
+            let svg = draw(t).map_err(|message| armcomp_core::Error::not_written(&path, message))?;
             files.push((name.clone(), svg.into_bytes()));
             let _ = writeln!(
                 html,
@@ -160,10 +157,8 @@ pub fn write_page(dir: &Path, tables: &[Table], curves: &[Curve]) -> Result<Path
         }
         html.push_str("</table>\n");
         let name = format!("curve-{}.svg", i + 1);
-        let svg = plots::learning_curve(c).map_err(|message| armcomp_core::Error::Io {
-            path: dir.join(&name),
-            message,
-        })?;
+        let svg =
+            plots::learning_curve(c).map_err(|message| armcomp_core::Error::not_written(&dir.join(&name), message))?;
         files.push((name.clone(), svg.into_bytes()));
         let caption =
             "Held-out error against training poses: the tool's choice, and the random subsets' median with their range";

@@ -8,6 +8,7 @@ use armcomp_core::calibrate::{CalibrationParams, calibrate};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::plugin::PredictorSpec;
 use armcomp_core::robot::robot_file::{Format, SourceFile};
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{FitControl, Result, Robot};
 use armcomp_learn::{GpSpec, SparrowParams, SsaBpSpec};
 use rand::rngs::StdRng;
@@ -142,7 +143,7 @@ fn elastic_start() -> Result<Robot> {
         ),
         format: Format::Toml,
     };
-    Robot::from_source(src.parse()?, &src)
+    Robot::from_source(src.parse()?, &src, InputLimits::default())
 }
 
 fn ssa_bp(config: &Config, seed: u64) -> SsaBpSpec {

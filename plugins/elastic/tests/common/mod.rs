@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use armcomp_core::kinematics::subtree_loads::SubtreeLoads;
+use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Perturbation, Robot, RobotFile, StaticState, TreeWorkspace};
 use nalgebra::Vector3;
 
@@ -16,7 +17,7 @@ pub fn robot(src: &str) -> Robot {
     let _ = armcomp_chains::plugins();
     let _ = armcomp_elastic::plugins();
     let file: RobotFile = toml::from_str(src).unwrap_or_else(|e| panic!("parse: {e}\n{src}"));
-    Robot::build(file, Path::new(".")).unwrap_or_else(|e| panic!("build: {e:?}"))
+    Robot::build(file, Path::new("."), InputLimits::default()).unwrap_or_else(|e| panic!("build: {e:?}"))
 }
 
 /// Builds a robot expecting it to fail; returns the issues' `path: message` lines.
@@ -24,7 +25,7 @@ pub fn robot_issues(src: &str) -> Vec<String> {
     let _ = armcomp_chains::plugins();
     let _ = armcomp_elastic::plugins();
     let file: RobotFile = toml::from_str(src).unwrap_or_else(|e| panic!("parse: {e}\n{src}"));
-    match Robot::build(file, Path::new(".")) {
+    match Robot::build(file, Path::new("."), InputLimits::default()) {
         Ok(_) => panic!("expected the robot to be rejected"),
         Err(issues) => issues.iter().map(|i| format!("{}: {}", i.path, i.message)).collect(),
     }
