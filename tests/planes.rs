@@ -508,28 +508,96 @@ fn the_prior_choice_scores_plane_contacts_by_their_held_out_height() {
     }
 }
 
+/// The ladder on contacts alone, scored by what those rows measure: `robot` and `truth` with
+/// measurement `kind`, `samples` from the truth; returns the ladder's report.
+fn climb_contacts(robot: &Robot, samples: &[Sample], seed: u64) -> armcomp_core::analysis::ladder::LadderReport {
+    let params = armcomp_core::analysis::ladder::LadderParams {
+        calibration: CalibrationParams {
+            measurement_std: 3e-5,
+            orientation_std: 6e-5,
+            ..CalibrationParams::default()
+        },
+        noise_declared: true,
+        folds: 4,
+        seed,
+        fold_groups: None,
+        predictor: Some(Box::new(armcomp_learn::GpSpec::default())),
+    };
+    armcomp_core::analysis::ladder::climb(robot, samples, &params, &|_| {})
+        .unwrap()
+        .report
+}
+
 #[test]
-fn the_diagnosis_and_the_ladder_refuse_plane_rows() {
+fn the_ladder_scores_plane_contacts_by_their_held_out_height() {
+    use armcomp_core::analysis::ladder::Rung;
+    let nominal = panda("");
+    let truth = truth_of(&nominal, &CHANGES);
+    for seed in 1..=3 {
+        let samples = simulated(&truth, 40, 2e-5, 40 + seed);
+        let (gaps, _) = armcomp_core::calibrate::contact_gaps(&truth, &samples).unwrap();
+        let noise =
+            (gaps.iter().flatten().map(|g| g.height * g.height).sum::<f64>() / samples.len() as f64).sqrt() * 1e3;
+        let report = climb_contacts(&nominal, &samples, seed);
+        assert_eq!(report.scored_by, "plane height");
+        // The truth's joint offsets move the contacts by millimetres: registration alone
+        // (the planes' poses and the ball) leaves them, a rung with the offsets does not.
+        let registration = report.rungs[0].rms_mm;
+        assert!(
+            report.chosen != Rung::Registration && registration > 10.0 * report.expected_rms_mm,
+            "seed {seed}: {:?}",
+            report.rungs
+        );
+        assert!(
+            report.expected_rms_mm > 0.8 * noise && report.expected_rms_mm < 2.0 * noise,
+            "seed {seed}: expected held-out height {} mm, the truth's own {noise} mm",
+            report.expected_rms_mm
+        );
+        assert!(report.predictor_not_tried.is_some() && report.rungs.iter().all(|r| r.rung != Rung::Predictor));
+    }
+}
+
+#[test]
+fn the_ladder_scores_fixed_points_by_their_held_out_distance() {
+    use armcomp_core::analysis::ladder::Rung;
+    let text = panda_text("").replace("kind = \"plane\"", "kind = \"fixed_point\"");
+    let nominal = robot_from_toml(&text);
+    let truth = truth_of(&nominal, &CHANGES);
+    let points = vec![
+        ("hole_0".to_string(), Vector3::new(0.5, 0.0, 0.3)),
+        ("hole_1".to_string(), Vector3::new(0.5, 0.05, 0.3)),
+    ];
+    for seed in 1..=3 {
+        let params = FixedPointParams {
+            per_point: 40,
+            joint_noise_std: 2e-5,
+            seed: 60 + seed,
+        };
+        let samples = armcomp_core::algorithms::simulate::simulate_fixed_points(&truth, &points, params)
+            .unwrap()
+            .samples;
+        let report = climb_contacts(&nominal, &samples, seed);
+        assert_eq!(report.scored_by, "fixed-point distance");
+        let registration = report.rungs[0].rms_mm;
+        assert!(
+            report.chosen != Rung::Registration && registration > 5.0 * report.expected_rms_mm,
+            "seed {seed}: {:?}",
+            report.rungs
+        );
+        // Joint noise of 2e-5 rad moves the ball by about 2e-5 × 0.5 m per joint: a few
+        // hundredths of a millimetre, which the held-out distance comes down to.
+        assert!(report.expected_rms_mm < 0.1, "seed {seed}: {:?}", report.rungs);
+    }
+}
+
+#[test]
+fn the_diagnosis_refuses_plane_rows() {
     let robot = panda("");
     let samples = simulated(&truth_of(&robot, &CHANGES), 4, 0.0, 8);
-    let ladder_params = armcomp_core::analysis::ladder::LadderParams {
-        calibration: CalibrationParams::default(),
-        noise_declared: false,
-        folds: 2,
-        seed: 0,
-        fold_groups: None,
-        predictor: None,
-    };
-    let ladder = armcomp_core::analysis::ladder::climb(&robot, &samples, &ladder_params, &|_| {})
+    let e = armcomp_core::analysis::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
         .unwrap_err()
         .to_string();
-    let diagnosis =
-        armcomp_core::analysis::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
-            .unwrap_err()
-            .to_string();
-    for e in [ladder, diagnosis] {
-        assert!(e.contains("sample 1") && e.contains("plane-contact measurement"), "{e}");
-    }
+    assert!(e.contains("sample 1") && e.contains("plane-contact measurement"), "{e}");
 }
 
 /// FIGAROH's TALOS table contacts beside the repository (see docs/reproductions/talos-table.md):

@@ -95,6 +95,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 .as_deref()
                 .map_or(r.folds_by.clone(), |c| format!("`{c}`"))
         );
+        if r.scored_by != "position" {
+            println!("a held-out row's error: {}", r.scored_by);
+        }
         println!(
             "{:<26} {:>14} {:>12} {:>9}  verdict",
             "rung", "held-out RMS", "± spread", "time"
@@ -113,6 +116,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 if s.kept { "kept" } else { "not kept" },
                 s.reason
             );
+        }
+        if let Some(why) = &r.predictor_not_tried {
+            println!("residual predictor not tried: {why}");
         }
         let e = &r.evidence;
         println!(

@@ -12,12 +12,13 @@
 
 use std::time::Instant;
 
+use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::algorithms::evaluate::{fit_residual_predictor, position_errors};
 use crate::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
-use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, register_held_out_stations};
+use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, contact_gaps, register_held_out_stations};
 use crate::data::measurement::Sample;
 use crate::data::split::{FoldBy, Split, subset};
 use crate::error::{Error, Result};
@@ -90,7 +91,8 @@ pub struct RungScore {
     pub rung: Rung,
     /// Its name in reports.
     pub label: String,
-    /// Pooled held-out RMS of the 3-D error over the outer folds (mm).
+    /// Pooled held-out RMS over the outer folds of the error [`LadderReport::scored_by`] names
+    /// (mm).
     pub rms_mm: f64,
     /// Held-out RMS of each outer fold (mm).
     pub fold_rms_mm: Vec<f64>,
@@ -121,6 +123,12 @@ pub struct LadderReport {
     /// What each fold held out together: `pose`, `station` (data from several), or `groups`
     /// (the caller's).
     pub folds_by: String,
+    /// What a held-out row's error is: `position` (its 3-D error), `plane height` (a contact's
+    /// height above the plane its fold identified), `fixed-point distance` (a contact's
+    /// distance from where its fold's contacts put the point), `+`-joined for mixed data.
+    pub scored_by: String,
+    /// Why the residual predictor was not tried although one was asked for, if so.
+    pub predictor_not_tried: Option<String>,
     /// The noise and priors the evidence chose for the chosen rung on all rows.
     pub evidence: EvidenceReport,
     /// Whether a stop request ([`CalibrationParams::cancel`]) ended the cross-validation: the rungs
@@ -195,16 +203,77 @@ fn json_error(e: serde_json::Error) -> Error {
     }
 }
 
-/// Squared held-out error of every sample (m²), in sample order, from the folds' models.
-fn held_out_errors(samples: &[Sample], splits: &[Split], models: &[Robot]) -> Vec<f64> {
-    let mut out = vec![0.0; samples.len()];
+/// Squared held-out error of every sample (m²), in sample order, from the folds' models (fitted
+/// on each split's training rows, its held-out stations registered): a measured position's 3-D
+/// error; a plane contact's height above the plane its fold identified; a fixed-point
+/// contact's distance from where the fold's training contacts put that point (the mean of their
+/// modelled points, the least-squares estimate for that model). A sample nothing in its fold
+/// locates (a plane or fixed point the training rows never touched) is NaN: unscored.
+fn held_out_errors(samples: &[Sample], splits: &[Split], models: &[Robot]) -> Result<Vec<f64>> {
+    let mut out = vec![f64::NAN; samples.len()];
     for (split, model) in splits.iter().zip(models) {
         let test = subset(samples, &split.test);
-        for (&i, e) in split.test.iter().zip(position_errors(model, &test)) {
-            out[i] = e.norm_squared();
+        let errors = position_errors(model, &test);
+        let planes = if test.iter().any(|s| s.plane.is_some()) {
+            Some(contact_gaps(model, &test)?)
+        } else {
+            None
+        };
+        let train = subset(samples, &split.train);
+        let centres = fixed_point_centres(model, &train);
+        for (k, (&i, s)) in split.test.iter().zip(&test).enumerate() {
+            out[i] = match (&s.fixed_point, &planes) {
+                (Some(name), _) => match centres.iter().find(|(n, _)| n == name) {
+                    // The modelled point is the sample's (unused) position less its error.
+                    Some((_, c)) => (s.position - errors[k] - c).norm_squared(),
+                    None => f64::NAN,
+                },
+                (None, Some((gaps, names))) if s.plane.is_some() => match &gaps[k] {
+                    Some(g) if !names[g.plane].1 => g.height * g.height,
+                    _ => f64::NAN,
+                },
+                _ => errors[k].norm_squared(),
+            };
         }
     }
-    out
+    Ok(out)
+}
+
+/// The kinds of held-out error the samples are scored by (see [`LadderReport::scored_by`]).
+fn scored_by(samples: &[Sample]) -> String {
+    let kinds = [
+        ("position", samples.iter().any(|s| s.fixed_point.is_none() && s.plane.is_none())),
+        ("plane height", samples.iter().any(|s| s.plane.is_some())),
+        ("fixed-point distance", samples.iter().any(|s| s.fixed_point.is_some())),
+    ];
+    kinds
+        .iter()
+        .filter(|(_, any)| *any)
+        .map(|(k, _)| *k)
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
+/// Where `model` puts each fixed point `samples` touch: the mean of its contacts' modelled
+/// points (measurement frame of their station).
+fn fixed_point_centres(model: &Robot, samples: &[Sample]) -> Vec<(String, Vector3<f64>)> {
+    if samples.iter().all(|s| s.fixed_point.is_none()) {
+        return Vec::new();
+    }
+    let errors = position_errors(model, samples);
+    let mut sums: Vec<(String, Vector3<f64>, usize)> = Vec::new();
+    for (s, e) in samples.iter().zip(&errors) {
+        let Some(name) = &s.fixed_point else { continue };
+        let p = s.position - e;
+        match sums.iter_mut().find(|(n, _, _)| n == name) {
+            Some((_, sum, n)) => {
+                *sum += p;
+                *n += 1;
+            }
+            None => sums.push((name.clone(), p, 1)),
+        }
+    }
+    sums.into_iter().map(|(n, sum, k)| (n, sum / k as f64)).collect()
 }
 
 /// Chooses among the rungs by nested cross-validation on `samples` and fits the choice on all
@@ -216,7 +285,6 @@ pub fn climb(
     params: &LadderParams,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<Ladder> {
-    crate::data::measurement::require_positions(samples, "the model ladder")?;
     // By the caller's groups, else by station for data from several, else by pose; `groups`
     // is what the spread of the scores is judged over.
     let by = FoldBy::choose(samples, params.fold_groups.clone().map(|g| ("groups".to_string(), g)));
@@ -238,7 +306,10 @@ pub fn climb(
     let cancel = &params.calibration.cancel;
     let rungs = physical_rungs(robot);
     // Every rung on every fold, the choice on all rows, the predictor on every fold and on all rows.
-    let total = rungs.len() * splits.len() + 1 + params.predictor.as_ref().map_or(0, |_| splits.len() + 1);
+    // A residual predictor learns 3-D errors, which fixed-point and plane rows do not give.
+    let positions_only = samples.iter().all(|s| s.fixed_point.is_none() && s.plane.is_none());
+    let predictor = params.predictor.as_ref().filter(|_| positions_only);
+    let total = rungs.len() * splits.len() + 1 + predictor.map_or(0, |_| splits.len() + 1);
     let done = std::sync::atomic::AtomicUsize::new(0);
     let tick = || {
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
@@ -287,7 +358,7 @@ pub fn climb(
     let mut kept_errors: Option<Vec<f64>> = None;
     let mut chosen = 0;
     for (r, &rung) in rungs.iter().enumerate() {
-        let errors = held_out_errors(samples, &splits, &fold_models[r]);
+        let errors = held_out_errors(samples, &splits, &fold_models[r])?;
         let score = score_rung(rung, &errors, kept_errors.as_deref(), &groups, &splits, seconds[r]);
         if score.kept {
             kept_errors = Some(errors);
@@ -299,7 +370,10 @@ pub fn climb(
     let mut predictor_models = None;
     // The choice is still fitted on all rows after a stop request; only a further one stops it.
     let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
-    if let Some(spec) = params.predictor.as_ref().filter(|_| !interrupted) {
+    let predictor_not_tried = (params.predictor.is_some() && !positions_only).then(|| {
+        "fixed-point and plane rows give no 3-D error for a residual predictor to learn".to_string()
+    });
+    if let Some(spec) = predictor.filter(|_| !interrupted) {
         let start = Instant::now();
         let models: Vec<Robot> = splits
             .par_iter()
@@ -310,7 +384,7 @@ pub fn climb(
                 m
             })
             .collect::<Result<_>>()?;
-        let errors = held_out_errors(samples, &splits, &models);
+        let errors = held_out_errors(samples, &splits, &models)?;
         let score = score_rung(
             Rung::Predictor,
             &errors,
@@ -336,7 +410,7 @@ pub fn climb(
             m
         }
         _ => {
-            if params.predictor.is_some() && !interrupted {
+            if predictor.is_some() && !interrupted {
                 // Not kept: its fit on all rows is not needed, and the count is complete.
                 tick();
             }
@@ -352,15 +426,17 @@ pub fn climb(
             expected_rms_mm,
             folds: splits.len(),
             folds_by,
+            scored_by: scored_by(samples),
+            predictor_not_tried,
             evidence,
             interrupted,
         },
     })
 }
 
-/// Scores a rung's held-out squared errors `errors` (m², per sample) against those of the last
-/// rung kept: the pooled RMS, and the paired gain over the held-out groups with its standard
-/// error.
+/// Scores a rung's held-out squared errors `errors` (m², per sample; NaN for unscored samples,
+/// the same for every rung) against those of the last rung kept: the pooled RMS, and the
+/// paired gain over the held-out groups with its standard error.
 fn score_rung(
     rung: Rung,
     errors: &[f64],
@@ -369,11 +445,19 @@ fn score_rung(
     splits: &[Split],
     seconds: f64,
 ) -> RungScore {
-    let n = errors.len().max(1) as f64;
-    let rms_mm = (errors.iter().sum::<f64>() / n).sqrt() * 1e3;
+    let rms_of = |indices: &mut dyn Iterator<Item = usize>| {
+        let (sum, n) = indices
+            .map(|i| errors[i])
+            .filter(|e| !e.is_nan())
+            .fold((0.0, 0usize), |(s, n), e| (s + e, n + 1));
+        if n == 0 { f64::NAN } else { (sum / n as f64).sqrt() * 1e3 }
+    };
+    let rms_mm = rms_of(&mut (0..errors.len()));
+    // A fold none of whose rows is scored has no RMS.
     let fold_rms_mm = splits
         .iter()
-        .map(|s| (s.test.iter().map(|&i| errors[i]).sum::<f64>() / s.test.len().max(1) as f64).sqrt() * 1e3)
+        .map(|s| rms_of(&mut s.test.iter().copied()))
+        .filter(|r| !r.is_nan())
         .collect();
     let Some(kept) = kept else {
         return RungScore {
@@ -392,7 +476,7 @@ fn score_rung(
     // independent), each group's the mean over its samples.
     let n_groups = groups.iter().max().map_or(0, |m| m + 1);
     let (mut sum, mut count) = (vec![0.0; n_groups], vec![0usize; n_groups]);
-    for i in 0..errors.len() {
+    for i in (0..errors.len()).filter(|&i| !errors[i].is_nan()) {
         sum[groups[i]] += (kept[i] - errors[i]) * 1e6;
         count[groups[i]] += 1;
     }
