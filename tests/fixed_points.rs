@@ -79,6 +79,67 @@ const CHANGES: [(&str, f64); 5] = [
     ("panda_joint5.y", -0.6e-3),
 ];
 
+/// `nominal` with a transmission scale of `scale` on `joint` among its error models.
+fn with_transmission_scale(nominal: &Robot, joint: &str, scale: f64) -> Robot {
+    let mut file = nominal.to_file();
+    let spec = serde_json::json!({"type": "transmission_scale", "scale": {joint: scale}});
+    file.error_models.push(serde_json::from_value(spec).unwrap());
+    nominal.rebuild(file).unwrap()
+}
+
+/// The robot alone, no instrument: a joint that turns 1 % further than commanded is named from
+/// its contacts with three sockets, each held-out contact scored by its distance from where its
+/// fold's training contacts put the socket (three seeds).
+#[test]
+fn the_diagnosis_names_an_effect_from_fixed_points_alone() {
+    use armcomp_core::analysis::diagnose::{DiagnoseParams, diagnose};
+    let nominal = panda("");
+    let truth = with_transmission_scale(&nominal, "panda_joint2", 0.01);
+    for seed in 1..=3 {
+        let params = FixedPointParams {
+            per_point: 60,
+            joint_noise_std: 3e-5,
+            seed,
+        };
+        let samples = simulate_fixed_points(&truth, &sockets(), params).unwrap().samples;
+        let params = DiagnoseParams {
+            calibration: CalibrationParams {
+                measurement_std: 5e-5,
+                ..Default::default()
+            },
+            max_steps: 2,
+            ..Default::default()
+        };
+        let report = diagnose(
+            &nominal,
+            &samples,
+            &armcomp_api::registry::builtin_plugins(),
+            None,
+            &params,
+            &|_| {},
+        )
+        .unwrap()
+        .report;
+        let named: Vec<(&str, &str)> = report
+            .steps
+            .iter()
+            .map(|s| (s.effect.as_str(), s.location.as_str()))
+            .collect();
+        assert_eq!(
+            named.first(),
+            Some(&("transmission_scale", "panda_joint2")),
+            "seed {seed}"
+        );
+        let step = &report.steps[0];
+        assert!(
+            step.heldout_after.rms_mm < 0.1 * step.heldout_before.rms_mm,
+            "seed {seed}: {} → {} mm",
+            step.heldout_before.rms_mm,
+            step.heldout_after.rms_mm
+        );
+    }
+}
+
 #[test]
 fn a_fixed_point_truth_is_recovered_with_its_points() {
     let nominal = panda(KNOWN_50MM);

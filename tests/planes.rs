@@ -590,14 +590,47 @@ fn the_ladder_scores_fixed_points_by_their_held_out_distance() {
     }
 }
 
+/// A joint that turns 1 % further than commanded is named from plane contacts alone, each
+/// held-out contact scored by its height above the plane its fold identified (three seeds).
 #[test]
-fn the_diagnosis_refuses_plane_rows() {
-    let robot = panda("");
-    let samples = simulated(&truth_of(&robot, &CHANGES), 4, 0.0, 8);
-    let e = armcomp_core::analysis::diagnose::diagnose(&robot, &samples, &[], None, &Default::default(), &|_| {})
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("sample 1") && e.contains("plane-contact measurement"), "{e}");
+fn the_diagnosis_names_an_effect_from_plane_contacts_alone() {
+    use armcomp_core::analysis::diagnose::{DiagnoseParams, diagnose};
+    let nominal = panda("");
+    let mut file = nominal.to_file();
+    let spec = serde_json::json!({"type": "transmission_scale", "scale": {"panda_joint2": 0.01}});
+    file.error_models.push(serde_json::from_value(spec).unwrap());
+    let truth = nominal.rebuild(file).unwrap();
+    for seed in 1..=3 {
+        let samples = simulated(&truth, 60, 2e-5, 80 + seed);
+        let params = DiagnoseParams {
+            calibration: CalibrationParams {
+                measurement_std: 3e-5,
+                orientation_std: 6e-5,
+                ..Default::default()
+            },
+            max_steps: 2,
+            ..Default::default()
+        };
+        let report = diagnose(
+            &nominal,
+            &samples,
+            &armcomp_api::registry::builtin_plugins(),
+            None,
+            &params,
+            &|_| {},
+        )
+        .unwrap()
+        .report;
+        let first = report.steps.first().map(|s| (s.effect.as_str(), s.location.as_str()));
+        assert_eq!(first, Some(("transmission_scale", "panda_joint2")), "seed {seed}");
+        let step = &report.steps[0];
+        assert!(
+            step.heldout_after.rms_mm < 0.2 * step.heldout_before.rms_mm,
+            "seed {seed}: {} → {} mm",
+            step.heldout_before.rms_mm,
+            step.heldout_after.rms_mm
+        );
+    }
 }
 
 /// FIGAROH's TALOS table contacts beside the repository (see docs/reproductions/talos-table.md):

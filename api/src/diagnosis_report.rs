@@ -125,12 +125,25 @@ fn cells(s: &ErrorStats) -> String {
     )
 }
 
+/// What the report's rows are, for its header: `measured positions`, or for contacts the
+/// error they are scored by (`rows scored by plane height`).
+pub fn rows_scored_by(r: &DiagnosisReport) -> String {
+    if r.scored_by == "position" {
+        "measured positions".into()
+    } else {
+        format!("rows scored by {}", r.scored_by)
+    }
+}
+
 fn html(r: &DiagnosisReport) -> String {
     let mut h = page_start("armcomp diagnosis", "Diagnosis");
     let _ = writeln!(
         h,
-        "<p>{} measured positions, held-out scores in mm (folds: {}, grouped by {}).</p>",
-        r.n_samples, r.folds, r.grouped_by
+        "<p>{} {}, held-out scores in mm (folds: {}, grouped by {}).</p>",
+        r.n_samples,
+        rows_scored_by(r),
+        r.folds,
+        r.grouped_by
     );
     h.push_str("<table><tr><th>step</th><th>effect</th><th>mean</th><th>RMS</th><th>max</th><th>removed</th></tr>\n");
     let _ = writeln!(

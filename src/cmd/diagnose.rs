@@ -237,8 +237,11 @@ fn print_report(r: &DiagnosisReport, gross_rows: &[usize]) {
     };
     super::print_gross_errors("of the final model ", gross_rows, what, r.drift.as_ref());
     println!(
-        "{} measured positions, held-out scores (mean / RMS / max in mm; folds: {}, grouped by {})",
-        r.n_samples, r.folds, r.grouped_by
+        "{} {}, held-out scores (mean / RMS / max in mm; folds: {}, grouped by {})",
+        r.n_samples,
+        armcomp_api::diagnosis_report::rows_scored_by(r),
+        r.folds,
+        r.grouped_by
     );
     print_residuals("held-out residuals of the model as given:", &r.initial_residuals);
     println!(

@@ -63,6 +63,7 @@ use serde::Serialize;
 
 use crate::algorithms::evaluate::{ErrorStats, position_errors};
 use crate::algorithms::residuals::{ResidualDescription, describe_residuals};
+use crate::analysis::held_out::{held_out_errors, measures_positions};
 use crate::calibrate::{
     CalibrationParams, Drift, Outlier, ParamResult, calibrate, register_held_out_stations, score_test,
 };
@@ -256,8 +257,11 @@ pub struct LearnableResidual {
 /// What the diagnosis found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DiagnosisReport {
-    /// Measured positions used (those given, less the gross errors left out).
+    /// Rows used (those given, less the gross errors left out).
     pub n_samples: usize,
+    /// What a held-out row's error is ([`held_out::scored_by`](crate::analysis::held_out::scored_by)):
+    /// `position`, `plane height`, `fixed-point distance`, `+`-joined for mixed data.
+    pub scored_by: String,
     /// The samples (indices into those given) that the final model of a search on all of
     /// them, fitted to all of them, leaves far beyond the noise, largest first; the search was
     /// made again without them when [`DiagnoseParams::exclude_gross_errors`].
@@ -341,7 +345,6 @@ pub fn diagnose(
     params: &DiagnoseParams,
     progress: &(dyn Fn(DiagnoseProgress) + Sync),
 ) -> Result<Diagnosis> {
-    crate::data::measurement::require_positions(samples, "the diagnosis")?;
     if !(params.min_rms_reduction.is_finite() && (0.0..1.0).contains(&params.min_rms_reduction)) {
         return Err(Error::InvalidArgument {
             what: "smallest RMS reduction".into(),
@@ -450,6 +453,7 @@ fn search(
     let current = current.errors;
     let learnable_residual = s.learnable_residual(&model, &current, predictor, &mut interrupted)?;
     let report = DiagnosisReport {
+        scored_by: crate::analysis::held_out::scored_by(samples),
         n_samples: samples.len(),
         gross_errors: Vec::new(),
         gross_errors_excluded: false,
@@ -638,8 +642,10 @@ impl Search<'_> {
                     .map(|p| p.name.clone())
                     .collect(),
             );
-            for (&i, e) in split.test.iter().zip(position_errors(&fit.robot, &test)) {
-                errors[i] = e;
+            // A sample its fold cannot score (a plane or fixed point no training row touched)
+            // counts as no error for every model alike, so it moves no comparison.
+            for (&i, e) in split.test.iter().zip(held_out_errors(&fit.robot, &train, &test)?) {
+                errors[i] = e.unwrap_or_else(Vector3::zeros);
             }
             params.push(fit.report.params);
         }
@@ -691,16 +697,19 @@ impl Search<'_> {
         predictor: Option<(&str, &dyn PredictorSpec)>,
         interrupted: &mut bool,
     ) -> Result<Option<LearnableResidual>> {
-        Ok(match predictor.filter(|_| !*interrupted) {
-            Some((name, spec)) => match self.learnable(model, current, name, spec) {
-                Err(Error::Interrupted) => {
-                    *interrupted = true;
-                    None
-                }
-                other => Some(other?),
+        // A residual predictor learns 3-D errors, which fixed-point and plane rows do not give.
+        Ok(
+            match predictor.filter(|_| !*interrupted && measures_positions(self.samples)) {
+                Some((name, spec)) => match self.learnable(model, current, name, spec) {
+                    Err(Error::Interrupted) => {
+                        *interrupted = true;
+                        None
+                    }
+                    other => Some(other?),
+                },
+                None => None,
             },
-            None => None,
-        })
+        )
     }
 
     /// Fits `spec` (named `name`) to each fold's training residuals of `model` (joint values

@@ -12,13 +12,12 @@
 
 use std::time::Instant;
 
-use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::algorithms::evaluate::{fit_residual_predictor, position_errors};
+use crate::algorithms::evaluate::fit_residual_predictor;
 use crate::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
-use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, contact_gaps, register_held_out_stations};
+use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, register_held_out_stations};
 use crate::data::measurement::Sample;
 use crate::data::split::{FoldBy, Split, subset};
 use crate::error::{Error, Result};
@@ -203,77 +202,22 @@ fn json_error(e: serde_json::Error) -> Error {
     }
 }
 
-/// Squared held-out error of every sample (m²), in sample order, from the folds' models (fitted
-/// on each split's training rows, its held-out stations registered): a measured position's 3-D
-/// error; a plane contact's height above the plane its fold identified; a fixed-point
-/// contact's distance from where the fold's training contacts put that point (the mean of their
-/// modelled points, the least-squares estimate for that model). A sample nothing in its fold
-/// locates (a plane or fixed point the training rows never touched) is NaN: unscored.
+/// Squared held-out error of every sample (m²), in sample order, from the folds' models
+/// ([`held_out_errors`](crate::analysis::held_out::held_out_errors)); NaN for a sample its fold
+/// cannot score.
 fn held_out_errors(samples: &[Sample], splits: &[Split], models: &[Robot]) -> Result<Vec<f64>> {
     let mut out = vec![f64::NAN; samples.len()];
     for (split, model) in splits.iter().zip(models) {
-        let test = subset(samples, &split.test);
-        let errors = position_errors(model, &test);
-        let planes = if test.iter().any(|s| s.plane.is_some()) {
-            Some(contact_gaps(model, &test)?)
-        } else {
-            None
-        };
-        let train = subset(samples, &split.train);
-        let centres = fixed_point_centres(model, &train);
-        for (k, (&i, s)) in split.test.iter().zip(&test).enumerate() {
-            out[i] = match (&s.fixed_point, &planes) {
-                (Some(name), _) => match centres.iter().find(|(n, _)| n == name) {
-                    // The modelled point is the sample's (unused) position less its error.
-                    Some((_, c)) => (s.position - errors[k] - c).norm_squared(),
-                    None => f64::NAN,
-                },
-                (None, Some((gaps, names))) if s.plane.is_some() => match &gaps[k] {
-                    Some(g) if !names[g.plane].1 => g.height * g.height,
-                    _ => f64::NAN,
-                },
-                _ => errors[k].norm_squared(),
-            };
+        let errors = crate::analysis::held_out::held_out_errors(
+            model,
+            &subset(samples, &split.train),
+            &subset(samples, &split.test),
+        )?;
+        for (&i, e) in split.test.iter().zip(errors) {
+            out[i] = e.map_or(f64::NAN, |e| e.norm_squared());
         }
     }
     Ok(out)
-}
-
-/// The kinds of held-out error the samples are scored by (see [`LadderReport::scored_by`]).
-fn scored_by(samples: &[Sample]) -> String {
-    let kinds = [
-        ("position", samples.iter().any(|s| s.fixed_point.is_none() && s.plane.is_none())),
-        ("plane height", samples.iter().any(|s| s.plane.is_some())),
-        ("fixed-point distance", samples.iter().any(|s| s.fixed_point.is_some())),
-    ];
-    kinds
-        .iter()
-        .filter(|(_, any)| *any)
-        .map(|(k, _)| *k)
-        .collect::<Vec<_>>()
-        .join(" + ")
-}
-
-/// Where `model` puts each fixed point `samples` touch: the mean of its contacts' modelled
-/// points (measurement frame of their station).
-fn fixed_point_centres(model: &Robot, samples: &[Sample]) -> Vec<(String, Vector3<f64>)> {
-    if samples.iter().all(|s| s.fixed_point.is_none()) {
-        return Vec::new();
-    }
-    let errors = position_errors(model, samples);
-    let mut sums: Vec<(String, Vector3<f64>, usize)> = Vec::new();
-    for (s, e) in samples.iter().zip(&errors) {
-        let Some(name) = &s.fixed_point else { continue };
-        let p = s.position - e;
-        match sums.iter_mut().find(|(n, _, _)| n == name) {
-            Some((_, sum, n)) => {
-                *sum += p;
-                *n += 1;
-            }
-            None => sums.push((name.clone(), p, 1)),
-        }
-    }
-    sums.into_iter().map(|(n, sum, k)| (n, sum / k as f64)).collect()
 }
 
 /// Chooses among the rungs by nested cross-validation on `samples` and fits the choice on all
@@ -307,7 +251,7 @@ pub fn climb(
     let rungs = physical_rungs(robot);
     // Every rung on every fold, the choice on all rows, the predictor on every fold and on all rows.
     // A residual predictor learns 3-D errors, which fixed-point and plane rows do not give.
-    let positions_only = samples.iter().all(|s| s.fixed_point.is_none() && s.plane.is_none());
+    let positions_only = crate::analysis::held_out::measures_positions(samples);
     let predictor = params.predictor.as_ref().filter(|_| positions_only);
     let total = rungs.len() * splits.len() + 1 + predictor.map_or(0, |_| splits.len() + 1);
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -370,9 +314,8 @@ pub fn climb(
     let mut predictor_models = None;
     // The choice is still fitted on all rows after a stop request; only a further one stops it.
     let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
-    let predictor_not_tried = (params.predictor.is_some() && !positions_only).then(|| {
-        "fixed-point and plane rows give no 3-D error for a residual predictor to learn".to_string()
-    });
+    let predictor_not_tried = (params.predictor.is_some() && !positions_only)
+        .then(|| "fixed-point and plane rows give no 3-D error for a residual predictor to learn".to_string());
     if let Some(spec) = predictor.filter(|_| !interrupted) {
         let start = Instant::now();
         let models: Vec<Robot> = splits
@@ -426,7 +369,7 @@ pub fn climb(
             expected_rms_mm,
             folds: splits.len(),
             folds_by,
-            scored_by: scored_by(samples),
+            scored_by: crate::analysis::held_out::scored_by(samples),
             predictor_not_tried,
             evidence,
             interrupted,
@@ -450,7 +393,11 @@ fn score_rung(
             .map(|i| errors[i])
             .filter(|e| !e.is_nan())
             .fold((0.0, 0usize), |(s, n), e| (s + e, n + 1));
-        if n == 0 { f64::NAN } else { (sum / n as f64).sqrt() * 1e3 }
+        if n == 0 {
+            f64::NAN
+        } else {
+            (sum / n as f64).sqrt() * 1e3
+        }
     };
     let rms_mm = rms_of(&mut (0..errors.len()));
     // A fold none of whose rows is scored has no RMS.

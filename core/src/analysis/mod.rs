@@ -3,5 +3,6 @@
 
 pub mod design;
 pub mod diagnose;
+pub mod held_out;
 pub mod ladder;
 pub mod prior_choice;

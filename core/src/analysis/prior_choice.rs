@@ -12,8 +12,8 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::algorithms::evaluate::model_errors;
-use crate::calibrate::{CalibrationParams, FitsProgress, calibrate, contact_gaps, register_held_out_stations};
+use crate::analysis::held_out::held_out_errors;
+use crate::calibrate::{CalibrationParams, FitsProgress, calibrate, register_held_out_stations};
 use crate::data::measurement::Sample;
 use crate::data::split::{FoldPlan, subset};
 use crate::error::{Error, Result};
@@ -62,12 +62,6 @@ pub fn choose_prior_scale(
     plan: &FoldPlan,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<PriorChoice> {
-    // Plane contacts are scored by their height above the plane the training folds identified;
-    // fixed points (whose position each fold would identify anew) are not scored.
-    let planes = samples.iter().any(|s| s.plane.is_some());
-    if !planes {
-        crate::data::measurement::require_positions(samples, "the prior's cross-validation")?;
-    }
     if grid.is_empty() || grid.iter().any(|s| s.is_nan() || *s <= 0.0) {
         return Err(Error::InvalidArgument {
             what: "prior scales to try".into(),
@@ -95,16 +89,13 @@ pub fn choose_prior_scale(
                 return Ok(None);
             };
             let mut fitted = fit.robot;
-            let scored = if planes {
-                let (gaps, _) = contact_gaps(&fitted, &test)?;
-                gaps.iter()
-                    .flatten()
-                    .fold((0.0, 0), |(sum, n), g| (sum + g.height * g.height, n + 1))
-            } else {
-                register_held_out_stations(&mut fitted, &train, &test)?;
-                let errors = model_errors(&fitted, &test);
-                (errors.iter().map(|e| e.norm_squared()).sum(), errors.len())
-            };
+            register_held_out_stations(&mut fitted, &train, &test)?;
+            // Every kind of row scored by what it measures (a plane contact by its height above
+            // the plane the fold identified, ...); rows the fold cannot score are left out.
+            let scored = held_out_errors(&fitted, &train, &test)?
+                .iter()
+                .flatten()
+                .fold((0.0, 0), |(sum, n), e| (sum + e.norm_squared(), n + 1));
             progress(FitsProgress {
                 done: done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
                 total: jobs.len(),

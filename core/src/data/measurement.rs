@@ -66,34 +66,6 @@ pub struct Sample {
     pub station: usize,
 }
 
-/// Refuses fixed-point and plane samples for `what`, which scores models on held-out measured
-/// positions: such a row measures none.
-pub fn require_positions(samples: &[Sample], what: &str) -> Result<()> {
-    match samples
-        .iter()
-        .position(|s| s.fixed_point.is_some() || s.plane.is_some())
-    {
-        Some(i) => Err(Error::InvalidArgument {
-            what: format!("sample {}", i + 1),
-            reason: format!(
-                "is a {} measurement, which gives no position for {what} to score models on; calibrate from it \
-                 and compare {} by evaluating the model on them",
-                if samples[i].plane.is_some() {
-                    "plane-contact"
-                } else {
-                    "fixed-point"
-                },
-                if samples[i].plane.is_some() {
-                    "planes"
-                } else {
-                    "fixed points"
-                },
-            ),
-        }),
-        None => Ok(()),
-    }
-}
-
 /// A set of measured poses, with the warnings raised while reading it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MeasurementSet {

@@ -1,0 +1,95 @@
+//! The error of a model fitted on some rows on the rows it was not fitted on, for every kind of
+//! measurement: what the ladder and the diagnosis score models by.
+
+use nalgebra::Vector3;
+
+use crate::algorithms::evaluate::position_errors;
+use crate::calibrate::contact_gaps;
+use crate::data::measurement::Sample;
+use crate::error::Result;
+use crate::robot::Robot;
+
+/// The held-out error of each of `test`'s samples under `model`, fitted on `train` (the held-out
+/// stations registered by the caller, [`register_held_out_stations`](crate::calibrate::register_held_out_stations)):
+/// - a measured position: its 3-D error;
+/// - a plane contact: its height above the plane the training rows identified, along the
+///   plane's normal;
+/// - a fixed-point contact: its modelled point less where the training contacts with that
+///   point put it (the mean of their modelled points, the least-squares estimate of the point
+///   for that model).
+///
+/// `None` for a sample nothing in `train` locates: a plane or fixed point no training row
+/// touched.
+pub fn held_out_errors(model: &Robot, train: &[Sample], test: &[Sample]) -> Result<Vec<Option<Vector3<f64>>>> {
+    let errors = position_errors(model, test);
+    let planes = if test.iter().any(|s| s.plane.is_some()) {
+        Some(contact_gaps(model, test)?)
+    } else {
+        None
+    };
+    let centres = fixed_point_centres(model, train);
+    Ok(test
+        .iter()
+        .enumerate()
+        .map(|(k, s)| match (&s.fixed_point, &planes) {
+            (Some(name), _) => centres
+                .iter()
+                .find(|(n, _)| n == name)
+                // The modelled point is the sample's (unused) position less its error.
+                .map(|(_, c)| s.position - errors[k] - c),
+            (None, Some((gaps, names))) if s.plane.is_some() => match &gaps[k] {
+                // A plane the model does not hold was fitted to the held-out rows themselves.
+                Some(g) if !names[g.plane].1 => Some(g.normal * g.height),
+                _ => None,
+            },
+            _ => Some(errors[k]),
+        })
+        .collect())
+}
+
+/// Where `model` puts each fixed point `samples` touch: the mean of its contacts' modelled
+/// points (measurement frame of their station).
+fn fixed_point_centres(model: &Robot, samples: &[Sample]) -> Vec<(String, Vector3<f64>)> {
+    if samples.iter().all(|s| s.fixed_point.is_none()) {
+        return Vec::new();
+    }
+    let errors = position_errors(model, samples);
+    let mut sums: Vec<(String, Vector3<f64>, usize)> = Vec::new();
+    for (s, e) in samples.iter().zip(&errors) {
+        let Some(name) = &s.fixed_point else { continue };
+        let p = s.position - e;
+        match sums.iter_mut().find(|(n, _, _)| n == name) {
+            Some((_, sum, n)) => {
+                *sum += p;
+                *n += 1;
+            }
+            None => sums.push((name.clone(), p, 1)),
+        }
+    }
+    sums.into_iter().map(|(n, sum, k)| (n, sum / k as f64)).collect()
+}
+
+/// The kinds of held-out error [`held_out_errors`] gives `samples`: `position`, `plane height`,
+/// `fixed-point distance`, `+`-joined for mixed data.
+pub fn scored_by(samples: &[Sample]) -> String {
+    let kinds = [
+        (
+            "position",
+            samples.iter().any(|s| s.fixed_point.is_none() && s.plane.is_none()),
+        ),
+        ("plane height", samples.iter().any(|s| s.plane.is_some())),
+        ("fixed-point distance", samples.iter().any(|s| s.fixed_point.is_some())),
+    ];
+    kinds
+        .iter()
+        .filter(|(_, any)| *any)
+        .map(|(k, _)| *k)
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
+/// Whether every sample measures a position (no fixed-point or plane contacts): the rows a
+/// residual predictor, which learns 3-D errors, can learn from.
+pub fn measures_positions(samples: &[Sample]) -> bool {
+    samples.iter().all(|s| s.fixed_point.is_none() && s.plane.is_none())
+}
