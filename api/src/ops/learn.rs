@@ -5,6 +5,7 @@ use std::time::Instant;
 use armcomp_core::algorithms::evaluate::{
     ErrorStats, cross_validated_predictor_errors, fit_residual_predictor, model_errors, position_errors,
 };
+use armcomp_core::analysis::held_out::{contacts_as_positions, measures_positions};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::{Error, FitControl, PredictorSpec, Robot, RobotFile, Role};
 
@@ -102,6 +103,14 @@ pub fn run(
             reason: "the model has no [predictor] table; name a predictor (e.g. gp) or add a `[predictor]` table with its type and settings"
                 .into(),
         });
+    };
+    // Contacts become the positions they measure under the model (its fixed points and planes).
+    let converted;
+    let samples = if measures_positions(samples) {
+        samples
+    } else {
+        converted = contacts_as_positions(robot, samples)?;
+        &converted
     };
     let start = Instant::now();
     let fitted = fit_residual_predictor(robot, spec, samples, control)?;

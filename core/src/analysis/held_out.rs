@@ -1,5 +1,6 @@
-//! The error of a model fitted on some rows on the rows it was not fitted on, for every kind of
-//! measurement: what the ladder and the diagnosis score models by.
+//! What rows of every kind measure under a model: the error of a model fitted on some rows on
+//! the rows it was not fitted on (what the ladder and the diagnosis score models by), and
+//! contacts as the positions they measure (what a residual predictor learns from).
 
 use nalgebra::Vector3;
 
@@ -67,6 +68,44 @@ fn fixed_point_centres(model: &Robot, samples: &[Sample]) -> Vec<(String, Vector
         }
     }
     sums.into_iter().map(|(n, sum, k)| (n, sum / k as f64)).collect()
+}
+
+/// `samples` with every contact turned into the position it measures under `model`: a
+/// fixed-point contact into where `model`'s contacts with that point put it (the mean of their
+/// modelled points), a plane contact into its modelled point moved along the normal onto the
+/// plane `model` holds (the plane fitted to the contacts when it holds none). What `model`
+/// leaves of them is then a 3-D error, as of measured positions, which a residual predictor
+/// can learn. Measured positions are kept as they are.
+pub fn contacts_as_positions(model: &Robot, samples: &[Sample]) -> Result<Vec<Sample>> {
+    let errors = position_errors(model, samples);
+    let centres = fixed_point_centres(model, samples);
+    let gaps = if samples.iter().any(|s| s.plane.is_some()) {
+        contact_gaps(model, samples)?.0
+    } else {
+        vec![None; samples.len()]
+    };
+    Ok(samples
+        .iter()
+        .zip(errors)
+        .zip(gaps)
+        .map(|((s, e), gap)| {
+            let modelled = s.position - e;
+            let position = match (&s.fixed_point, gap) {
+                (Some(name), _) => centres.iter().find(|(n, _)| n == name).map(|(_, c)| *c),
+                (None, Some(g)) => Some(modelled - g.normal * g.height),
+                (None, None) => None,
+            };
+            match position {
+                Some(position) => Sample {
+                    position,
+                    fixed_point: None,
+                    plane: None,
+                    ..s.clone()
+                },
+                None => s.clone(),
+            }
+        })
+        .collect())
 }
 
 /// The kinds of held-out error [`held_out_errors`] gives `samples`: `position`, `plane height`,
