@@ -190,8 +190,6 @@ fn map_by_name(
             q,
             point,
             torque: if same_joints { s.torque.clone() } else { None },
-            fixed_point: None,
-            plane: None,
             // A sensor reading names a body of the tree it was read for.
             gravity: if same_joints { s.gravity } else { None },
             ..s.clone()

@@ -266,3 +266,32 @@ def test_fit_chooses_and_writes_what_the_command_line_does(simulated):
     assert got == expected
     assert [r.label for r in report.rungs] == ["registration", "joint offsets", "geometry"]
     assert report.rungs[0].kept and report.expected_rms_mm > 0
+
+
+def test_fit_and_diagnose_score_fixed_points_as_the_command_line(tmp_path):
+    """The robot alone (a ball put into two sockets): the ladder and the diagnosis score a
+    held-out contact by its distance from where the training contacts put its socket, from
+    Python as from the command line."""
+    robot_path = ROOT / "robots" / "panda-sockets.toml"
+    data_path = tmp_path / "sockets.csv"
+    cli(
+        "simulate", "--robot", robot_path, "--fixed-point", "hole_0=500,0,300", "--fixed-point", "hole_1=500,50,300",
+        "--n", 30, "--joint-noise-deg", 0.01, "--seed", 5, "--out", data_path,
+    )
+    robot = armcomp.Robot.load(robot_path)
+    data = armcomp.Measurements.read(data_path, robot)
+    expected = cli_json("fit", "--robot", robot_path, "--data", data_path, "--folds", 3, "--out", tmp_path / "fit.toml")
+    _, report = armcomp.fit(robot, data, folds=3)
+    got = report.to_dict()
+    for rungs in (got["rungs"], expected["rungs"]):
+        for r in rungs:
+            r.pop("seconds")
+    assert got == expected
+    assert got["scored_by"] == "fixed-point distance" and "no 3-D error" in got["predictor_not_tried"]
+    # Joint noise of 0.01° moves the ball by about 0.1 mm: what a held-out contact is off by.
+    assert 0.02 < got["expected_rms_mm"] < 0.5
+    args = ["--folds", 3, "--max-steps", 1, "--predictor", "none", "--seed", 2]
+    expected = cli_json("diagnose", "--robot", robot_path, "--data", data_path, *args)
+    _, report = armcomp.diagnose(robot, data, folds=3, max_steps=1, predictor=None, seed=2)
+    assert report.to_dict() == expected
+    assert expected["scored_by"] == "fixed-point distance"
