@@ -79,6 +79,35 @@ const CHANGES: [(&str, f64); 5] = [
     ("panda_joint5.y", -0.6e-3),
 ];
 
+/// The ladder on socket contacts alone: a held-out contact is scored by its distance from where
+/// its fold's training contacts put the socket; the truth's offsets and lengths are found
+/// (three seeds).
+#[test]
+fn the_ladder_scores_fixed_points_by_their_held_out_distance() {
+    use armcomp_core::analysis::ladder::Rung;
+    let nominal = panda("");
+    let truth = truth_of(&nominal, &CHANGES);
+    for seed in 1..=3 {
+        let params = FixedPointParams {
+            per_point: 40,
+            joint_noise_std: 2e-5,
+            seed: 60 + seed,
+        };
+        let samples = simulate_fixed_points(&truth, &sockets(), params).unwrap().samples;
+        let report = crate::planes::climb_contacts(&nominal, &samples, seed);
+        assert_eq!(report.scored_by, "fixed-point distance");
+        let registration = report.rungs[0].rms_mm;
+        assert!(
+            report.chosen != Rung::Registration && registration > 5.0 * report.expected_rms_mm,
+            "seed {seed}: {:?}",
+            report.rungs
+        );
+        // Joint noise of 2e-5 rad moves the ball by about 2e-5 × 0.5 m per joint: a few
+        // hundredths of a millimetre, which the held-out distance comes down to.
+        assert!(report.expected_rms_mm < 0.1, "seed {seed}: {:?}", report.rungs);
+    }
+}
+
 /// `nominal` with a transmission scale of `scale` on `joint` among its error models.
 fn with_transmission_scale(nominal: &Robot, joint: &str, scale: f64) -> Robot {
     let mut file = nominal.to_file();
