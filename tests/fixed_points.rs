@@ -16,7 +16,7 @@ use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
-use crate::common::{random_configurations, robot_from_toml, root};
+use crate::common::{assert_diagnosis_names, random_configurations, robot_from_toml, root, with_transmission_scale};
 
 /// The Panda of `robots/panda-sockets.toml` with its `[measurement] distances` line replaced by
 /// `distances` (empty for none).
@@ -108,12 +108,14 @@ fn the_ladder_scores_fixed_points_by_their_held_out_distance() {
     }
 }
 
-/// `nominal` with a transmission scale of `scale` on `joint` among its error models.
-fn with_transmission_scale(nominal: &Robot, joint: &str, scale: f64) -> Robot {
-    let mut file = nominal.to_file();
-    let spec = serde_json::json!({"type": "transmission_scale", "scale": {joint: scale}});
-    file.error_models.push(serde_json::from_value(spec).unwrap());
-    nominal.rebuild(file).unwrap()
+/// 60 contacts of `truth`'s ball with each socket, its joints read with 3e-5 rad of noise.
+fn socket_contacts(truth: &Robot, seed: u64) -> Vec<Sample> {
+    let params = FixedPointParams {
+        per_point: 60,
+        joint_noise_std: 3e-5,
+        seed,
+    };
+    simulate_fixed_points(truth, &sockets(), params).unwrap().samples
 }
 
 /// A residual predictor learns from contacts what the model leaves of the positions they
@@ -125,12 +127,7 @@ fn a_residual_predictor_learns_from_fixed_points() {
     let nominal = panda("");
     let truth = with_transmission_scale(&nominal, "panda_joint2", 0.01);
     for seed in 1..=3 {
-        let params = FixedPointParams {
-            per_point: 60,
-            joint_noise_std: 3e-5,
-            seed: 10 + seed,
-        };
-        let samples = simulate_fixed_points(&truth, &sockets(), params).unwrap().samples;
+        let samples = socket_contacts(&truth, 10 + seed);
         let spec = armcomp_api::ops::learn::default_predictor("gp").unwrap();
         let run = armcomp_api::ops::learn::run(
             &nominal,
@@ -156,50 +153,21 @@ fn a_residual_predictor_learns_from_fixed_points() {
 /// fold's training contacts put the socket (three seeds).
 #[test]
 fn the_diagnosis_names_an_effect_from_fixed_points_alone() {
-    use armcomp_core::analysis::diagnose::{DiagnoseParams, diagnose};
     let nominal = panda("");
     let truth = with_transmission_scale(&nominal, "panda_joint2", 0.01);
     for seed in 1..=3 {
-        let params = FixedPointParams {
-            per_point: 60,
-            joint_noise_std: 3e-5,
-            seed,
-        };
-        let samples = simulate_fixed_points(&truth, &sockets(), params).unwrap().samples;
-        let params = DiagnoseParams {
-            calibration: CalibrationParams {
-                measurement_std: 5e-5,
-                ..Default::default()
-            },
-            max_steps: 2,
+        let samples = socket_contacts(&truth, seed);
+        let calibration = CalibrationParams {
+            measurement_std: 5e-5,
             ..Default::default()
         };
-        let report = diagnose(
+        assert_diagnosis_names(
             &nominal,
             &samples,
-            &armcomp_api::registry::builtin_plugins(),
-            None,
-            &params,
-            &|_| {},
-        )
-        .unwrap()
-        .report;
-        let named: Vec<(&str, &str)> = report
-            .steps
-            .iter()
-            .map(|s| (s.effect.as_str(), s.location.as_str()))
-            .collect();
-        assert_eq!(
-            named.first(),
-            Some(&("transmission_scale", "panda_joint2")),
-            "seed {seed}"
-        );
-        let step = &report.steps[0];
-        assert!(
-            step.heldout_after.rms_mm < 0.1 * step.heldout_before.rms_mm,
-            "seed {seed}: {} → {} mm",
-            step.heldout_before.rms_mm,
-            step.heldout_after.rms_mm
+            calibration,
+            ("transmission_scale", "panda_joint2"),
+            0.1,
+            seed,
         );
     }
 }

@@ -12,7 +12,7 @@ use armcomp_core::robot::robot_file::{Format, RobotFile, SourceFile};
 use armcomp_core::support::io::InputLimits;
 use nalgebra::{Isometry3, Vector3};
 
-use crate::common::{robot_from_toml, root};
+use crate::common::{assert_diagnosis_names, robot_from_toml, root, with_transmission_scale};
 
 /// The Panda of the sockets' URDF pressing its ball frame on planes, with `measurement` lines
 /// added to its [measurement] table.
@@ -561,41 +561,22 @@ fn the_ladder_scores_plane_contacts_by_their_held_out_height() {
 /// held-out contact scored by its height above the plane its fold identified (three seeds).
 #[test]
 fn the_diagnosis_names_an_effect_from_plane_contacts_alone() {
-    use armcomp_core::analysis::diagnose::{DiagnoseParams, diagnose};
     let nominal = panda("");
-    let mut file = nominal.to_file();
-    let spec = serde_json::json!({"type": "transmission_scale", "scale": {"panda_joint2": 0.01}});
-    file.error_models.push(serde_json::from_value(spec).unwrap());
-    let truth = nominal.rebuild(file).unwrap();
+    let truth = with_transmission_scale(&nominal, "panda_joint2", 0.01);
     for seed in 1..=3 {
         let samples = simulated(&truth, 60, 2e-5, 80 + seed);
-        let params = DiagnoseParams {
-            calibration: CalibrationParams {
-                measurement_std: 3e-5,
-                orientation_std: 6e-5,
-                ..Default::default()
-            },
-            max_steps: 2,
+        let calibration = CalibrationParams {
+            measurement_std: 3e-5,
+            orientation_std: 6e-5,
             ..Default::default()
         };
-        let report = diagnose(
+        assert_diagnosis_names(
             &nominal,
             &samples,
-            &armcomp_api::registry::builtin_plugins(),
-            None,
-            &params,
-            &|_| {},
-        )
-        .unwrap()
-        .report;
-        let first = report.steps.first().map(|s| (s.effect.as_str(), s.location.as_str()));
-        assert_eq!(first, Some(("transmission_scale", "panda_joint2")), "seed {seed}");
-        let step = &report.steps[0];
-        assert!(
-            step.heldout_after.rms_mm < 0.2 * step.heldout_before.rms_mm,
-            "seed {seed}: {} → {} mm",
-            step.heldout_before.rms_mm,
-            step.heldout_after.rms_mm
+            calibration,
+            ("transmission_scale", "panda_joint2"),
+            0.2,
+            seed,
         );
     }
 }

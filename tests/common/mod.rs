@@ -69,3 +69,50 @@ impl Drop for Scratch {
 }
 
 pub mod robots;
+
+/// `nominal` with a transmission scale of `scale` on `joint` among its error models: a joint
+/// turning further than commanded, which the nominal model lacks.
+pub fn with_transmission_scale(nominal: &Robot, joint: &str, scale: f64) -> Robot {
+    let mut file = nominal.to_file();
+    let spec = serde_json::json!({"type": "transmission_scale", "scale": {joint: scale}});
+    file.error_models.push(serde_json::from_value(spec).unwrap());
+    nominal.rebuild(file).unwrap()
+}
+
+/// The diagnosis of `nominal` on `samples` (at most two steps, every built-in candidate),
+/// calibrating as `calibration` says; asserts, for `seed`, that the first effect it names is
+/// `first` (effect, location) and that it cuts the held-out RMS below `share` of what it was.
+pub fn assert_diagnosis_names(
+    nominal: &Robot,
+    samples: &[armcomp_core::data::measurement::Sample],
+    calibration: armcomp_core::calibrate::CalibrationParams,
+    first: (&str, &str),
+    share: f64,
+    seed: u64,
+) {
+    use armcomp_core::analysis::diagnose::{DiagnoseParams, diagnose};
+    let params = DiagnoseParams {
+        calibration,
+        max_steps: 2,
+        ..Default::default()
+    };
+    let report = diagnose(
+        nominal,
+        samples,
+        &armcomp_api::registry::builtin_plugins(),
+        None,
+        &params,
+        &|_| {},
+    )
+    .unwrap()
+    .report;
+    let named = report.steps.first().map(|s| (s.effect.as_str(), s.location.as_str()));
+    assert_eq!(named, Some(first), "seed {seed}");
+    let step = &report.steps[0];
+    assert!(
+        step.heldout_after.rms_mm < share * step.heldout_before.rms_mm,
+        "seed {seed}: {} → {} mm",
+        step.heldout_before.rms_mm,
+        step.heldout_after.rms_mm
+    );
+}
