@@ -11,7 +11,7 @@ use crate::robot::PyRobot;
 /// `groups`: one label per data row; folds then hold out whole groups. `progress`, when given,
 /// is called as `progress("model choice", done, total)` after every fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None))]
+#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
@@ -23,6 +23,7 @@ pub fn fit(
     groups: Option<Vec<String>>,
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
+    noise_deg: Option<f64>,
 ) -> PyResult<(PyRobot, String)> {
     let robot = robot.robot.clone();
     let set = data.resolve(&robot)?;
@@ -45,6 +46,7 @@ pub fn fit(
     let ladder = crate::interrupt::run(py, |cancel| {
         let params = armcomp_api::ops::fit::FitParams {
             noise_mm,
+            noise_deg,
             folds,
             seed,
             fold_groups,

@@ -23,6 +23,11 @@ pub struct Args {
     /// data with every fit.
     #[arg(long)]
     noise_mm: Option<f64>,
+    /// Standard deviation of the orientation noise per axis (poses, plane contacts' tilts), in
+    /// degrees. The noises are declared, not estimated, when `--noise-mm` is given and this too
+    /// (or the robot measures no poses); default 0.1 where it is not estimated.
+    #[arg(long)]
+    noise_deg: Option<f64>,
     /// Outer cross-validation folds that score the rungs.
     #[arg(long, default_value_t = 5)]
     folds: usize,
@@ -60,6 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let ladder = crate::stoppable(|cancel| {
         let params = armcomp_api::ops::fit::FitParams {
             noise_mm: args.noise_mm,
+            noise_deg: args.noise_deg,
             folds: args.folds,
             seed: args.seed,
             fold_groups,

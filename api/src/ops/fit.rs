@@ -13,6 +13,10 @@ use armcomp_core::support::cancel::Cancel;
 pub struct FitParams {
     /// The declared noise per axis (mm); `None` estimates it with every fit.
     pub noise_mm: Option<f64>,
+    /// The declared orientation noise per axis (degrees) of poses and plane contacts' tilts;
+    /// the noises are declared only when this is given too (or the robot measures no poses),
+    /// as for `calibrate`.
+    pub noise_deg: Option<f64>,
     /// Outer folds.
     pub folds: usize,
     /// Seed of the folds.
@@ -41,11 +45,12 @@ pub fn run(
     let ladder = LadderParams {
         calibration: CalibrationParams {
             measurement_std: params.noise_mm.unwrap_or(0.1) * 1e-3,
+            orientation_std: params.noise_deg.unwrap_or(0.1).to_radians(),
             seed: params.seed,
             cancel: params.cancel,
             ..CalibrationParams::default()
         },
-        noise_declared: params.noise_mm.is_some(),
+        noise_declared: params.noise_mm.is_some() && (params.noise_deg.is_some() || !robot.measures_pose()),
         folds: params.folds,
         seed: params.seed,
         fold_groups: params.fold_groups,

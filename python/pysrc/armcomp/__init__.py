@@ -236,17 +236,21 @@ def fit(
     groups: Optional[Sequence[str]] = None,
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
+    noise_deg: Optional[float] = None,
 ) -> Tuple[Robot, FitReport]:
     """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
     offsets, geometry, the robot file's error models and ``predictor`` (None for none), each
     with the noise and prior scales the evidence chooses, scored by nested cross-validation
     over ``folds`` folds (whole groups held out when ``groups`` gives a label per data row);
     returns the chosen model fitted on all of ``data`` and the ladder.
-    ``progress("model choice", done, total)`` is called after every fit."""
+    ``progress("model choice", done, total)`` is called after every fit. ``noise_mm`` and
+    ``noise_deg`` (orientation noise of poses and plane contacts' tilts, degrees) declare the
+    noises instead of estimating them, as ``armcomp fit --noise-mm --noise-deg`` do."""
     model, text = _native.fit(
         robot,
         data,
         noise_mm=noise_mm,
+        noise_deg=noise_deg,
         folds=folds,
         seed=seed,
         groups=None if groups is None else [str(g) for g in groups],
