@@ -159,21 +159,101 @@ fn a_plane_truth_is_recovered_with_its_planes() {
     assert!(report.rms_over_noise < 1.5, "{}", report.rms_over_noise);
 }
 
+/// Tracker positions and table contacts in one fit (a robot of `kind = "point"` whose rows may
+/// name a plane): the truth is recovered within its standard deviations, the contacts make
+/// the offsets better determined than the positions alone do, and the fit ends at the noise
+/// (three seeds).
+#[test]
+fn positions_and_plane_contacts_are_fitted_together() {
+    use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+    let nominal = robot_from_toml(&panda_text("").replace("kind = \"plane\"", "kind = \"point\""));
+    let truth = truth_of(&nominal, &CHANGES);
+    let params = CalibrationParams {
+        identify: CHANGES.iter().map(|(n, _)| n.to_string()).collect(),
+        measurement_std: 3e-5,
+        orientation_std: 6e-5,
+        ..CalibrationParams::default()
+    };
+    for seed in 1..=3 {
+        let poses = crate::common::random_configurations(&truth, 12, seed);
+        let tracker = SimulateParams {
+            noise_std: 3e-5,
+            seed: seed + 100,
+        };
+        let positions = simulate(&truth, &poses, tracker).unwrap().samples;
+        let contacts = simulated(&truth, 30, 2e-5, seed + 200);
+        let mixed: Vec<Sample> = positions.iter().chain(&contacts).cloned().collect();
+        let alone = calibrate(&nominal, &positions, &params, &mut |_| {}).unwrap().report;
+        let cal = calibrate(&nominal, &mixed, &params, &mut |_| {}).unwrap();
+        let report = &cal.report;
+        for (name, delta) in CHANGES {
+            let r = report.params.iter().find(|r| r.name == name).unwrap();
+            let a = alone.params.iter().find(|r| r.name == name).unwrap();
+            assert!(
+                (r.value - r.initial - delta).abs() < 4.0 * r.std && r.std < a.std,
+                "seed {seed}, {name}: moved by {}, truth {delta} (std {}; positions alone {})",
+                r.value - r.initial,
+                r.std,
+                a.std
+            );
+        }
+        assert!(report.params.iter().any(|p| p.name == "plane.table.height"));
+        assert!(report.rms_over_noise < 1.5, "seed {seed}: {}", report.rms_over_noise);
+        // The figures of the measured positions alone; the contacts have their own.
+        let evaluation = armcomp_api::ops::evaluate::run(&cal.robot, &mixed).unwrap();
+        assert_eq!(evaluation.stats.n, positions.len());
+        let planes = evaluation.planes.expect("the contacts are evaluated");
+        assert!(
+            planes.planes.iter().all(|p| p.rms_mm < 0.1),
+            "seed {seed}: {:?}",
+            planes.planes
+        );
+    }
+    // One file: a row gives its position or names its plane, and says which in `kind`.
+    let joints: Vec<String> = nominal.csv_joint_names();
+    let header = joints.iter().map(|j| format!("{j}[rad]")).collect::<Vec<_>>().join(",");
+    let q = vec!["0.1"; joints.len()].join(",");
+    let path = std::path::Path::new("mixed.csv");
+    let text = format!("{header},kind,x,y,z,plane\n{q},point,0.5,0.1,0.2,\n{q},plane,,,,table\n");
+    let set = parse_csv(&text, path, &nominal.csv_layout()).unwrap();
+    let kinds: Vec<_> = set.samples.iter().map(|s| s.plane.as_deref()).collect();
+    assert_eq!(kinds, [None, Some("table")]);
+    assert_eq!(set.samples[0].position, Vector3::new(0.5, 0.1, 0.2));
+    let wrong = format!("{header},kind,x,y,z,plane\n{q},plane,0.5,0.1,0.2,table\n");
+    let e = parse_csv(&wrong, path, &nominal.csv_layout()).unwrap_err().to_string();
+    assert!(
+        e.contains("mixed.csv:2") && e.contains("a row naming a plane gives no measured position"),
+        "{e}"
+    );
+    let both = format!("{header},x,y,z,plane,fixed_point\n{q},0.5,0.1,0.2,,\n");
+    let e = parse_csv(&both, path, &nominal.csv_layout()).unwrap_err().to_string();
+    assert!(e.contains("`fixed_point` and `plane` together"), "{e}");
+}
+
 /// Residuals as the problem states them (σ = 1): heights, then roll and pitch per sample.
 fn residuals(robot: &Robot, space: &ParameterSpace, theta: &[f64], samples: &[Sample], link: Option<&str>) -> Vec<f64> {
     let model = space.apply(robot, theta).unwrap();
     let planes = model.nominal_planes();
-    let gaps: Vec<[f64; 3]> = samples
-        .iter()
-        .map(|s| {
-            let plane = planes.iter().find(|(n, _)| Some(n) == s.plane.as_ref()).unwrap().1;
-            gap(&plane, &contact(&model, &s.q, link))
-        })
-        .collect();
-    gaps.iter()
-        .map(|g| g[0])
-        .chain(gaps.iter().flat_map(|g| [g[1], g[2]]))
-        .collect()
+    // A measured position's three rows (modelled minus measured), a contact's height; then
+    // the contacts' roll and pitch.
+    let mut rows = Vec::new();
+    let mut tilts = Vec::new();
+    for s in samples {
+        let c = contact(&model, &s.q, link);
+        match &s.plane {
+            Some(name) => {
+                let plane = planes.iter().find(|(n, _)| n == name).unwrap().1;
+                let g = gap(&plane, &c);
+                rows.push(g[0]);
+                tilts.extend([g[1], g[2]]);
+            }
+            None => rows.extend((c.translation.vector - s.position).iter()),
+        }
+    }
+    let positions = rows.len();
+    rows.extend(tilts);
+    rows.push(positions as f64);
+    rows
 }
 
 /// The Jacobian calibration linearised at its (unconverged) end, against central differences of
@@ -196,14 +276,20 @@ fn check_jacobian(robot: &Robot, samples: &[Sample], link: Option<&str>, names: 
     .unwrap();
     let lin = &cal.linearisation;
     let space = ParameterSpace::for_samples(robot, samples);
-    let n = samples.len();
-    assert_eq!(lin.jacobian.nrows(), 3 * n, "a height and two tilts a sample");
-    let whiten = |r: Vec<f64>| -> Vec<f64> {
+    // The residual rows end with the number of position rows (not a residual).
+    let whiten = |mut r: Vec<f64>| -> Vec<f64> {
+        let n = r.pop().unwrap() as usize;
         r.iter()
             .enumerate()
             .map(|(i, v)| v / if i < n { sigma } else { sigma_rot })
             .collect()
     };
+    let rows = whiten(residuals(robot, &space, &lin.theta, samples, link)).len();
+    assert_eq!(
+        lin.jacobian.nrows(),
+        rows,
+        "3 rows a position, a height and two tilts a contact"
+    );
     for name in names {
         let k = space.index(name).unwrap_or_else(|| panic!("no parameter {name}"));
         let c = lin
@@ -232,6 +318,37 @@ fn check_jacobian(robot: &Robot, samples: &[Sample], link: Option<&str>, names: 
             );
         }
     }
+}
+
+/// Positions and contacts in one problem: each kind's rows where the residuals put them.
+#[test]
+fn the_mixed_jacobian_matches_finite_differences() {
+    use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+    let robot = robot_from_toml(&panda_text(NOMINAL_PLANES).replace("kind = \"plane\"", "kind = \"point\""));
+    let truth = truth_of(&robot, &CHANGES);
+    let poses = crate::common::random_configurations(&truth, 4, 9);
+    let tracker = SimulateParams {
+        noise_std: 0.0,
+        seed: 9,
+    };
+    let mut samples = simulate(&truth, &poses, tracker).unwrap().samples;
+    // Contacts between the positions, so that neither kind's rows come all first.
+    let contacts = simulated(&truth, 2, 0.0, 6);
+    samples.splice(2..2, contacts);
+    check_jacobian(
+        &robot,
+        &samples,
+        None,
+        &[
+            "base.x",
+            "panda_joint2.offset",
+            "panda_joint3.y",
+            "marker.ball.z",
+            "plane.table.height",
+            "plane.table.roll",
+            "plane.ramp.pitch",
+        ],
+    );
 }
 
 #[test]
@@ -355,8 +472,10 @@ fn bad_plane_files_are_refused_with_their_place() {
     );
     let missing = robot_error(&panda_text("frame_link = \"nowhere\""));
     assert!(missing.contains("`nowhere` is not a link"), "{missing}");
-    let point =
-        robot_error(&panda_text("").replace("kind = \"plane\"", "kind = \"point\"\nplanes = [{ name = \"t\" }]"));
+    let point = robot_error(&panda_text("").replace(
+        "kind = \"plane\"",
+        "kind = \"fixed_point\"\nplanes = [{ name = \"t\" }]",
+    ));
     assert!(
         point.contains("measurement.planes[0]") && point.contains("plane contacts touch"),
         "{point}"

@@ -38,10 +38,11 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<Evaluation
     let mut errors = position_errors(robot, samples);
     let fixed_points = evaluate_fixed_points(robot, samples, &mut errors);
     let planes = evaluate_planes(robot, samples, &mut errors)?;
-    // Data mixing measured positions with fixed points: the figures are the measured
-    // positions', the fixed points have their own.
+    // Data mixing measured positions with fixed points or plane contacts: the figures are the
+    // measured positions', the contacts have their own.
     let measured: Vec<Vector3<f64>> = (errors.iter().zip(samples))
         .filter(|(_, s)| fixed_points.is_none() || s.fixed_point.is_none())
+        .filter(|(_, s)| planes.is_none() || s.plane.is_none())
         .map(|(e, _)| *e)
         .collect();
     let stats = ErrorStats::from_errors(if measured.is_empty() { &errors } else { &measured });

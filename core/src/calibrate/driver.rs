@@ -411,11 +411,10 @@ impl Problem<'_> {
         let after = ErrorStats::from_errors(&residual_vectors);
         let (outliers, trend) = self.gross_errors_and_drift(&residual_vectors);
         // The RMS the noise gives: √3 σ in 3-D, σ for a plane's height.
-        let dims = (self.position_width.max(1)) as f64;
         let chi2: f64 = (residual_vectors.iter().enumerate())
             .map(|(i, e)| (e.norm() / self.position_sigma(i)).powi(2))
             .sum();
-        let rms_over_noise = (chi2 / (dims * residual_vectors.len().max(1) as f64)).sqrt();
+        let rms_over_noise = (chi2 / self.position_rows().max(1) as f64).sqrt();
         // Mislabelled units are looked for whatever the fit reached: with enough freedom a fit
         // can shrink the arm onto positions read a thousand times too small.
         let unit_mistake = unit_mistake(self, &start.theta0)?;
@@ -439,6 +438,14 @@ impl Problem<'_> {
             fixed_point_noise: mixes_fixed_points(samples).then_some(self.sigma_fixed),
             fixed_point_samples: self.fixed.iter().map(Option::is_some).collect(),
             position_rows: self.position_rows(),
+            position_row_of: (0..samples.len())
+                .flat_map(|i| {
+                    let plane = self.plane[i].is_some();
+                    self.position_range(i)
+                        .enumerate()
+                        .map(move |(a, _)| (i, (!plane).then_some(a)))
+                })
+                .collect(),
             distance_rows: self.distances.len(),
             residuals: r,
             jacobian: j,
@@ -643,20 +650,29 @@ fn stats(targets: &[Vector3<f64>], predicted: &[Vector3<f64>]) -> ErrorStats {
     ErrorStats::from_errors(&measured_minus_modelled(targets, predicted))
 }
 
-/// Refuses plane samples on a robot that measures something else and the reverse, samples
-/// without a fixed point on a robot of fixed points, known distances naming a fixed point the samples lack, and a frame link on a robot
-/// with error models (whose deformation of the frame link's path the Jacobian leaves out).
+/// Refuses samples without a plane on a robot of plane contacts, plane contacts on a robot of
+/// fixed points, samples without a fixed point on a robot of fixed points, known distances
+/// naming a fixed point the samples lack, and a frame link on a robot with error models (whose
+/// deformation of the frame link's path the Jacobian leaves out). Plane contacts and fixed
+/// points may join measured positions (mixed data).
 fn check_measurement_kinds(robot: &Robot, samples: &[Sample]) -> Result<()> {
     let planes = robot.measures_planes();
-    if let Some(i) = samples.iter().position(|s| s.plane.is_some() != planes) {
+    let wrong = |s: &Sample| {
+        if planes {
+            s.plane.is_none()
+        } else {
+            s.plane.is_some() && robot.measures_fixed_points()
+        }
+    };
+    if let Some(i) = samples.iter().position(wrong) {
         return Err(Error::InvalidArgument {
             what: format!("sample {}", i + 1),
             reason: if planes {
-                "names no plane, but the robot file measures plane contacts (`kind = \"plane\"`)".into()
-            } else {
-                "names a plane, but the robot file does not measure plane contacts; set `kind = \"plane\"` in its \
-                 [measurement]"
+                "names no plane, but the robot file measures plane contacts only (`kind = \"plane\"`); for data that \
+                 mix measured positions with plane contacts set `kind = \"point\"` (or `\"pose\"`)"
                     .into()
+            } else {
+                "names a plane, but the robot file measures fixed points (`kind = \"fixed_point\"`)".into()
             },
         });
     }

@@ -171,9 +171,8 @@ fn row_kind(lin: &Linearisation, i: usize) -> (usize, f64) {
     if i >= lin.position_rows {
         return (1, lin.orientation_noise);
     }
-    // Mixed data have no plane contacts: three position rows a sample.
     match lin.fixed_point_noise {
-        Some(sigma) if lin.fixed_point_samples[i / 3] => (2, sigma),
+        Some(sigma) if lin.fixed_point_samples[lin.position_row_of[i].0] => (2, sigma),
         _ => (0, lin.noise),
     }
 }
@@ -377,16 +376,15 @@ fn report(
         .collect();
     groups.sort_by_key(|g| g.group);
     // Measured positions only: a fixed point's residual is not along a tracker's axes.
-    let mut axis = [0.0; 3];
+    let (mut axis, mut rows) = ([0.0; 3], [0usize; 3]);
     for (i, r) in lin.residuals.iter().take(lin.position_rows).enumerate() {
-        if let (0, sigma) = row_kind(lin, i) {
-            axis[i % 3] += (r * sigma).powi(2);
+        if let ((0, sigma), (_, Some(a))) = (row_kind(lin, i), lin.position_row_of[i]) {
+            axis[a] += (r * sigma).powi(2);
+            rows[a] += 1;
         }
     }
-    let n = (lin.fixed_point_samples.iter())
-        .filter(|&&f| !f || lin.fixed_point_noise.is_none())
-        .count()
-        .max(1) as f64;
+    // The samples whose residuals count (every axis has one row of each).
+    let n = rows[0].max(1) as f64;
     EvidenceReport {
         noise_estimated: evidence.estimate_noise,
         noise_mm: lin.noise * 1e3,

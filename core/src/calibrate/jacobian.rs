@@ -121,15 +121,14 @@ impl Problem<'_> {
                 .collect(),
             None => Vec::new(),
         };
-        let width = self.position_width;
         let positions = predicted.iter().enumerate().flat_map(|(i, p)| {
             let r = match gaps.get(i) {
                 Some(Some(gap)) => Vector3::new(gap.height, 0.0, 0.0) / self.sigma,
                 _ => (p - self.target(d, i, p)) / self.sigma,
             };
-            [r.x, r.y, r.z].into_iter().take(width)
+            [r.x, r.y, r.z].into_iter().take(self.position_range(i).len())
         });
-        let orientations = self.oriented.iter().flat_map(|&i| {
+        let orientations = self.oriented.iter().enumerate().flat_map(|(k, &i)| {
             let r = match (gaps.get(i), &self.constraints) {
                 (Some(Some(gap)), Some(c)) => {
                     let t = gap.tilts(c, self.sigma_rot);
@@ -137,7 +136,7 @@ impl Problem<'_> {
                 }
                 _ => orientation_residual(d, e, &self.samples[i], i) / self.sigma_rot,
             };
-            [r.x, r.y, r.z].into_iter().take(self.turn_width)
+            [r.x, r.y, r.z].into_iter().take(self.turn_range(k).len())
         });
         let distances = (0..self.distances.len()).map(|k| {
             let known = &self.distances[k];
@@ -150,14 +149,12 @@ impl Problem<'_> {
 
     /// Statistics of the orientation residuals (`None` without pose samples).
     pub(super) fn orientation_stats(&self, d: &Decoded, e: &Evaluation) -> Option<AngleStats> {
-        (!self.oriented.is_empty() && self.constraints.is_none()).then(|| {
-            let angles: Vec<f64> = self
-                .oriented
-                .iter()
-                .map(|&i| orientation_residual(d, e, &self.samples[i], i).norm())
-                .collect();
-            AngleStats::from_angles(&angles)
-        })
+        // The poses' alone: a plane contact's tilts have their own figures.
+        let angles: Vec<f64> = (self.oriented.iter())
+            .filter(|&&i| self.plane[i].is_none())
+            .map(|&i| orientation_residual(d, e, &self.samples[i], i).norm())
+            .collect();
+        (!angles.is_empty()).then(|| AngleStats::from_angles(&angles))
     }
 
     /// How each Jacobian column of `free` is computed at `theta`.
@@ -316,7 +313,7 @@ impl Problem<'_> {
     /// Known distances' rows: ∂‖p_a − p_b‖/∂p_a = u, ∂/∂p_b = −u, u the unit vector from b to
     /// a.
     fn distance_rows(&self, d: &Decoded, plans: &[ColumnPlan], jac: &mut DMatrix<f64>) {
-        let r0 = self.position_rows() + self.turn_width * self.oriented.len();
+        let r0 = self.position_rows() + self.turn_rows();
         for (k, known) in self.distances.iter().enumerate() {
             let (_, u) = self.distance(d, k);
             for (c, plan) in plans.iter().enumerate() {
@@ -402,7 +399,7 @@ impl Problem<'_> {
         let oriented = self.oriented.binary_search(&s_idx).ok();
         // Rows of the orientation block: J_r⁻¹(r) R̂ᵀ per unit turn of the model (measurement
         // frame), so a turn maps to the change of log(R_measᵀ R̂).
-        let turn_map = oriented.filter(|_| self.constraints.is_none()).map(|_| {
+        let turn_map = oriented.filter(|_| self.plane[s_idx].is_none()).map(|_| {
             let model = d.frames[s.station].rotation * e.rotation[s_idx];
             let r = orientation_residual(d, e, s, s_idx);
             so3_right_jacobian_inverse(&r) * model.inverse().to_rotation_matrix().into_inner() / self.sigma_rot
@@ -412,7 +409,8 @@ impl Problem<'_> {
             (Some(g), Some(_)) => Some(self.plane_gap(d, e, s_idx, g)),
             _ => None,
         };
-        let tw = if oriented.is_some() { self.turn_width } else { 0 };
+        let tw = oriented.map_or(0, |k| self.turn_range(k).len());
+        let pw = self.position_range(s_idx).len();
         SampleView {
             s_idx,
             point: s.point,
@@ -429,9 +427,9 @@ impl Problem<'_> {
             oriented: oriented.is_some(),
             turn_map,
             gap,
-            pw: self.position_width,
+            pw,
             tw,
-            width: self.position_width + tw,
+            width: pw + tw,
         }
     }
 
@@ -562,23 +560,18 @@ impl Problem<'_> {
     /// entries) placed as the residuals are: position rows in sample order, then the
     /// orientation rows of the oriented samples. Distance rows are left zero.
     fn assemble(&self, rows: &[Vec<f64>], ncols: usize) -> DMatrix<f64> {
-        let (pw, tw) = (self.position_width, self.turn_width);
         let mut jac = DMatrix::zeros(self.n_residuals(), ncols);
         for (s_idx, row) in rows.iter().enumerate() {
-            let turn_row = self
-                .oriented
-                .binary_search(&s_idx)
-                .ok()
-                .map(|k| self.position_rows() + tw * k);
-            let width = pw + if turn_row.is_some() { tw } else { 0 };
+            let positions = self.position_range(s_idx);
+            let turns = (self.oriented.binary_search(&s_idx).ok()).map_or(0..0, |k| self.turn_range(k));
+            let (pw, tw) = (positions.len(), turns.len());
+            let width = pw + tw;
             for c in 0..ncols {
                 for a in 0..pw {
-                    jac[(pw * s_idx + a, c)] = row[width * c + a];
+                    jac[(positions.start + a, c)] = row[width * c + a];
                 }
-                if let Some(r0) = turn_row {
-                    for a in 0..tw {
-                        jac[(r0 + a, c)] = row[width * c + pw + a];
-                    }
+                for a in 0..tw {
+                    jac[(turns.start + a, c)] = row[width * c + pw + a];
                 }
             }
         }

@@ -512,6 +512,9 @@ pub struct Linearisation {
     /// How many leading residuals are positions; the rest are orientations, then the
     /// `distance_rows` known distances.
     pub position_rows: usize,
+    /// Per position row, its sample and its axis (`x`, `y`, `z` as 0, 1, 2), or `None` for a
+    /// plane contact's height.
+    pub position_row_of: Vec<(usize, Option<usize>)>,
     /// How many trailing residuals are known distances between fixed points (weighed by their
     /// own declared noise, which the evidence does not estimate).
     pub distance_rows: usize,
@@ -544,12 +547,14 @@ struct Problem<'a> {
     fixed: Vec<Option<usize>>,
     /// Per sample, the plane it was pressed on (index into the space's planes).
     plane: Vec<Option<usize>>,
-    /// What plane contacts constrain, when the robot measures them.
+    /// What plane contacts constrain, when the samples have any.
     constraints: Option<PlaneConstraints>,
-    /// Position rows per sample: 3, or for plane contacts 1 (the height) or 0.
-    position_width: usize,
-    /// Orientation rows per oriented sample: 3, or for plane contacts the constrained tilts.
-    turn_width: usize,
+    /// Per sample, its first position row; then the number of position rows. A sample has 3,
+    /// or a plane contact 1 (the height) or 0.
+    position_start: Vec<usize>,
+    /// Per oriented sample, its first orientation row after the position rows; then their
+    /// number. A sample has 3, or a plane contact its constrained tilts.
+    turn_start: Vec<usize>,
     /// The known distances between fixed points: a residual row each, after the orientations.
     distances: Vec<KnownDistance>,
     /// Per sample, the square root of its robust weight ([`Loss::Huber`]); empty: all 1.
@@ -619,20 +624,31 @@ impl<'a> Problem<'a> {
                 })
                 .collect()
         };
-        let constraints = robot.measures_planes().then(|| robot.plane_constraints());
-        let (position_width, turn_width) = match constraints {
-            Some(c) => (usize::from(c.height), c.tilts()),
-            None => (3, 3),
+        let contacts = samples.iter().any(|s| s.plane.is_some());
+        let constraints = (robot.measures_planes() || contacts).then(|| robot.plane_constraints());
+        // Plane contacts give their height and tilts (as constrained), other samples three rows each.
+        let widths = |s: &Sample| match (&s.plane, constraints) {
+            (Some(_), Some(c)) => (usize::from(c.height), c.tilts()),
+            _ => (3, 3),
         };
-        let oriented = if robot.measures_pose() {
-            (0..samples.len())
-                .filter(|&i| samples[i].orientation.is_some())
-                .collect()
-        } else if turn_width > 0 && constraints.is_some() {
-            (0..samples.len()).collect()
-        } else {
-            Vec::new()
+        let oriented: Vec<usize> = (0..samples.len())
+            .filter(|&i| {
+                let s = &samples[i];
+                match s.plane {
+                    Some(_) => widths(s).1 > 0,
+                    None => robot.measures_pose() && s.orientation.is_some(),
+                }
+            })
+            .collect();
+        let prefix = |w: &mut dyn Iterator<Item = usize>| {
+            let mut at = vec![0];
+            for w in w {
+                at.push(at.last().copied().unwrap_or(0) + w);
+            }
+            at
         };
+        let position_start = prefix(&mut samples.iter().map(|s| widths(s).0));
+        let turn_start = prefix(&mut oriented.iter().map(|&i| widths(&samples[i]).1));
         let plane_index = |name: &str| space.planes.iter().position(|f| f == name);
         let plane = samples
             .iter()
@@ -668,8 +684,8 @@ impl<'a> Problem<'a> {
             fixed,
             plane,
             constraints,
-            position_width,
-            turn_width,
+            position_start,
+            turn_start,
             distances,
             weights: Vec::new(),
         }
@@ -695,12 +711,28 @@ impl<'a> Problem<'a> {
 
     /// Number of residuals: the position rows, the orientation rows, one per known distance.
     fn n_residuals(&self) -> usize {
-        self.position_rows() + self.turn_width * self.oriented.len() + self.distances.len()
+        self.position_rows() + self.turn_rows() + self.distances.len()
     }
 
     /// Number of leading residuals that are positions (or plane contacts' heights).
     fn position_rows(&self) -> usize {
-        self.position_width * self.samples.len()
+        self.position_start.last().copied().unwrap_or(0)
+    }
+
+    /// Number of orientation residuals (after the position rows).
+    fn turn_rows(&self) -> usize {
+        self.turn_start.last().copied().unwrap_or(0)
+    }
+
+    /// Sample `i`'s position rows.
+    fn position_range(&self, i: usize) -> std::ops::Range<usize> {
+        self.position_start[i]..self.position_start[i + 1]
+    }
+
+    /// The `k`-th oriented sample's orientation rows.
+    fn turn_range(&self, k: usize) -> std::ops::Range<usize> {
+        let r0 = self.position_rows();
+        r0 + self.turn_start[k]..r0 + self.turn_start[k + 1]
     }
 
     /// What sample `i`'s modelled point `p` is compared with: its measured position, the

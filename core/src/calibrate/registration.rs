@@ -25,8 +25,8 @@ pub(super) fn register_base(
     let (model, measured): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = samples
         .iter()
         .zip(measured_now)
-        // Fixed-point samples measure no position to register on.
-        .filter(|(s, _)| s.station == station && s.fixed_point.is_none())
+        // Fixed-point and plane samples measure no position to register on.
+        .filter(|(s, _)| s.station == station && s.fixed_point.is_none() && s.plane.is_none())
         .map(|(s, p)| (t_now.inverse_transform_point(&(*p).into()).coords, s.position))
         .unzip();
     if model.is_empty() {
@@ -98,8 +98,8 @@ pub(super) fn registered_rms(model: &[Vector3<f64>], measured: &[Vector3<f64>], 
 /// points fits ten times better once the positions or the revolute joint values are read in
 /// the other unit. The message names the mistake and the fix.
 pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Option<String>> {
-    // Fixed-point samples measure no position whose unit could be wrong.
-    if problem.fixed.iter().any(Option::is_some) {
+    // Fixed-point and plane samples measure no position whose unit could be wrong.
+    if problem.fixed.iter().any(Option::is_some) || problem.plane.iter().any(Option::is_some) {
         return Ok(None);
     }
     let model_points = |samples: &[Sample]| -> Result<Vec<Vector3<f64>>> {

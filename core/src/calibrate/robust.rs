@@ -190,18 +190,16 @@ impl Problem<'_> {
             return;
         }
         let weight = |i: usize| self.weights.get(i).unwrap_or(&1.0) * self.kind_weights.get(i).unwrap_or(&1.0);
-        let (pw, tw) = (self.position_width, self.turn_width);
         for i in 0..self.samples.len() {
             let w = weight(i);
             if w != 1.0 {
-                (pw * i..pw * (i + 1)).for_each(|row| scale(row, w));
+                self.position_range(i).for_each(|row| scale(row, w));
             }
         }
-        let r0 = self.position_rows();
         for (k, &i) in self.oriented.iter().enumerate() {
             let w = weight(i);
             if w != 1.0 {
-                (r0 + tw * k..r0 + tw * (k + 1)).for_each(|row| scale(row, w));
+                self.turn_range(k).for_each(|row| scale(row, w));
             }
         }
     }

@@ -91,9 +91,12 @@ enum Column {
     Point,
     /// What the row measures (`point`, `pose` or `fixed_point`), checked against its cells.
     Kind,
-    /// The name of the unknown fixed point the marker was put into, or of the unknown plane
-    /// it was pressed on: the layout's [group column](CsvLayout::group_column).
-    Group,
+    /// The name of the unknown fixed point the marker was put into, or (`plane`) of the
+    /// unknown plane it was pressed on: the layout's [group column](CsvLayout::group_column),
+    /// or in data of measured positions the rows that are contacts instead.
+    Group {
+        plane: bool,
+    },
     /// `slot`: which measured point a numbered column (`x2` → 1) is; `None` for plain `x`.
     Position {
         slot: Option<usize>,
@@ -131,7 +134,7 @@ impl Column {
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
-            Column::Point | Column::Kind | Column::Group | Column::Station | Column::Ignored => None,
+            Column::Point | Column::Kind | Column::Group { .. } | Column::Station | Column::Ignored => None,
         }
     }
 }

@@ -546,18 +546,20 @@ fn station_frames(file: &RobotFile, units: &Units, issues: &mut Issues) -> Vec<S
     stations
 }
 
-/// Checks what `kind = "plane"` adds to [measurement]: nominal planes with finite poses and
-/// distinct names, a non-empty list of constrained components without repeats, and a frame
-/// link that is a link of the robot other than its root.
+/// Checks what plane contacts add to [measurement] (of `kind = "plane"`, or `point` and `pose`
+/// whose data mix them in): nominal planes with finite poses and distinct names, a non-empty
+/// list of constrained components without repeats, and a frame link that is a link of the
+/// robot other than its root.
 fn check_planes(m: &crate::robot::robot_file::MeasurementSpec, tree: &KinematicTree, issues: &mut Issues) {
     use crate::robot::robot_file::MeasurementKind;
-    let planar = m.kind == MeasurementKind::Plane;
+    let planar = m.kind != MeasurementKind::FixedPoint;
     for (i, p) in m.planes.iter().enumerate() {
         let field = format!("measurement.planes[{i}]");
         if !planar {
             issues.push(
                 field.clone(),
-                "a plane is what plane contacts touch; expected `kind = \"plane\"` in [measurement]",
+                "a plane is what plane contacts touch, which a robot of fixed points does not measure; expected \
+                 `kind` `plane`, `point` or `pose` in [measurement]",
             );
         }
         if p.name.trim().is_empty() {
@@ -575,7 +577,8 @@ fn check_planes(m: &crate::robot::robot_file::MeasurementSpec, tree: &KinematicT
     if !m.constrain.is_empty() && !planar {
         issues.push(
             "measurement.constrain",
-            "constrains plane contacts; expected `kind = \"plane\"` in [measurement]",
+            "constrains plane contacts, which a robot of fixed points does not measure; expected `kind` `plane`, \
+             `point` or `pose` in [measurement]",
         );
     }
     for (i, c) in m.constrain.iter().enumerate() {

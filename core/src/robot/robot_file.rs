@@ -251,11 +251,12 @@ pub struct MeasurementSpec {
     /// the robot is not observable from fixed points alone.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub distances: Vec<DistanceSpec>,
-    /// Nominal poses of the planes of `kind = "plane"` measurements, by the name their
-    /// `plane` column gives; a plane not listed starts from a fit to its rows.
+    /// Nominal poses of the planes of plane contacts (`kind = "plane"`, or contacts among the
+    /// positions of `point` and `pose`), by the name their `plane` column gives; a plane not
+    /// listed starts from a fit to its rows.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub planes: Vec<PlaneSpec>,
-    /// What a plane contact constrains (`kind = "plane"`): `height` (the marker's distance
+    /// What a plane contact constrains (any kind but `fixed_point`): `height` (the marker's distance
     /// from the plane) and the tilts `roll` and `pitch` of the marker's frame from the
     /// plane's. Default: all three (flush contact); `["height"]` for a point touching.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

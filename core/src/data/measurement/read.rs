@@ -74,6 +74,15 @@ struct Header<'t> {
 }
 
 impl Header<'_> {
+    /// The column and kind of the contacts among measured positions: `fixed_point` rows or
+    /// `plane` rows.
+    fn mixed_kind(&self) -> (&'static str, &'static str) {
+        match self.mixed_group.map(|k| &self.columns[k]) {
+            Some(Column::Group { plane: true }) => ("plane", "plane"),
+            _ => ("fixed_point", "fixed point"),
+        }
+    }
+
     fn has(&self, f: impl Fn(&Column) -> bool) -> bool {
         self.columns.iter().any(f)
     }
@@ -182,8 +191,22 @@ impl<'t> Table<'t, '_> {
         header.sensor = self.sensor_columns(&header)?;
         header.has_torque = header.has(|k| matches!(k, Column::Torque(_)));
         header.mixed_group = (header.columns.iter())
-            .position(|c| matches!(c, Column::Group))
+            .position(|c| matches!(c, Column::Group { .. }))
             .filter(|_| self.with_positions && self.layout.group_column().is_none());
+        if header
+            .columns
+            .iter()
+            .filter(|c| matches!(c, Column::Group { .. }))
+            .count()
+            > 1
+        {
+            return Err(self.err(
+                Some(line),
+                "columns `fixed_point` and `plane` together: a file mixes measured positions with one kind of \
+                 contact; give the other kind in a file of its own"
+                    .into(),
+            ));
+        }
         Ok(header)
     }
 
@@ -275,9 +298,12 @@ impl<'t> Table<'t, '_> {
         Ok(match name {
             "point" => Column::Point,
             "kind" => Column::Kind,
-            g if self.layout.group_column().is_some_and(|(c, _)| c == g) => Column::Group,
-            // Fixed-point rows among measured positions (mixed data).
-            "fixed_point" if !self.layout.planes => Column::Group,
+            g if self.layout.group_column().is_some_and(|(c, _)| c == g) => Column::Group {
+                plane: self.layout.planes,
+            },
+            // Fixed-point or plane-contact rows among measured positions (mixed data).
+            "fixed_point" if !self.layout.planes => Column::Group { plane: false },
+            "plane" if self.layout.group_column().is_none() => Column::Group { plane: true },
             g @ ("fixed_point" | "plane") => {
                 let what = if g == "plane" { "plane contacts" } else { "fixed points" };
                 return Err(self.err_in(
@@ -354,7 +380,7 @@ impl<'t> Table<'t, '_> {
             return Ok(slots);
         }
         if let Some((column, what)) = self.layout.group_column() {
-            if !header.has(|k| matches!(k, Column::Group)) {
+            if !header.has(|k| matches!(k, Column::Group { .. })) {
                 return Err(self.err_in(
                     header.line,
                     column,
@@ -372,7 +398,7 @@ impl<'t> Table<'t, '_> {
             }
             return Ok(slots);
         }
-        if slots.is_empty() && !header.has(|k| matches!(k, Column::Group)) {
+        if slots.is_empty() && !header.has(|k| matches!(k, Column::Group { .. })) {
             return err(
                 "missing columns `x`, `y`, `z` (measured position, e.g. `x[mm]`; or `x1, y1, z1`, ... for several points)".into(),
             );
@@ -604,16 +630,20 @@ impl<'t> Table<'t, '_> {
                 })?;
             }
             Column::Kind => row.kind_cell = Some(field),
-            Column::Group if field.is_empty() && header.mixed_group.is_some() && !header.slots.is_empty() => {}
-            Column::Group => {
-                let (column, what) = self.layout.group_column().unwrap_or(("fixed_point", "fixed point"));
+            Column::Group { .. } if field.is_empty() && header.mixed_group.is_some() && !header.slots.is_empty() => {}
+            Column::Group { plane } => {
+                let (column, what) = if *plane {
+                    ("plane", "plane")
+                } else {
+                    ("fixed_point", "fixed point")
+                };
                 if field.is_empty() {
                     return err(
                         column,
                         format!("column `{column}` is empty; every row names the {what} it was measured at"),
                     );
                 }
-                if self.layout.planes {
+                if *plane {
                     row.sample.plane = Some(field.to_string());
                 } else {
                     row.sample.fixed_point = Some(field.to_string());
@@ -636,21 +666,23 @@ impl<'t> Table<'t, '_> {
             }
             Column::Position { .. } | Column::Orientation(..) if row.fixed_row => {
                 if !field.is_empty() {
+                    let (column, what) = header.mixed_kind();
                     return err(
                         head,
                         format!(
-                            "column `{head}`: a row naming a fixed point gives no measured position or orientation; \
-                             empty this cell or the row's `fixed_point`"
+                            "column `{head}`: a row naming a {what} gives no measured position or orientation; \
+                             empty this cell or the row's `{column}`"
                         ),
                     );
                 }
             }
             Column::Position { slot: None, .. } if field.is_empty() && header.mixed_group.is_some() => {
+                let (column, what) = header.mixed_kind();
                 return err(
                     head,
                     format!(
-                        "column `{head}` is empty; a row gives its measured position or names the fixed point it was \
-                         measured at in `fixed_point`"
+                        "column `{head}` is empty; a row gives its measured position or names the {what} it was \
+                         measured at in `{column}`"
                     ),
                 );
             }
@@ -697,7 +729,7 @@ impl<'t> Table<'t, '_> {
                 }
             }
             Column::Sensor(k, scale) => row.sensor_reading[k] = v * scale,
-            Column::Point | Column::Kind | Column::Group | Column::Station | Column::Ignored => {}
+            Column::Point | Column::Kind | Column::Group { .. } | Column::Station | Column::Ignored => {}
         }
         Ok(())
     }
