@@ -253,17 +253,17 @@ fn print_gross_errors(rows: &[usize], report: &CalibrationReport, excluded: bool
 
 fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {
     if e.noise_estimated {
+        // Plane contacts alone have no tracker axes.
+        let axes = if e.rms_per_axis_mm.iter().any(|v| *v > 0.0) {
+            let [x, y, z] = e.rms_per_axis_mm;
+            format!("residual RMS per axis x {x:.4}, y {y:.4}, z {z:.4} mm; ")
+        } else {
+            String::new()
+        };
         println!(
-            "noise estimated from the data: {:.4} ± {:.4} mm per axis (residual RMS per axis x {:.4}, y {:.4}, z {:.4} \
-             mm; {:.1} of {} parameters determined by {} equations)",
-            e.noise_mm,
-            e.noise_std_mm,
-            e.rms_per_axis_mm[0],
-            e.rms_per_axis_mm[1],
-            e.rms_per_axis_mm[2],
-            e.determined,
-            e.n_free,
-            e.n_equations
+            "noise estimated from the data: {:.4} ± {:.4} mm per axis ({axes}{:.1} of {} parameters determined by {} \
+             equations)",
+            e.noise_mm, e.noise_std_mm, e.determined, e.n_free, e.n_equations
         );
         if let Some(deg) = e.orientation_noise_deg {
             println!("orientation noise estimated from the data: {deg:.4}° per axis");

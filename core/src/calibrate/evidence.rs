@@ -114,8 +114,9 @@ pub struct EvidenceReport {
     pub fixed_point_noise_mm: Option<f64>,
     /// Its standard error (mm).
     pub fixed_point_noise_std_mm: Option<f64>,
-    /// The residual RMS of each axis of the measurement frame (mm): unequal values say the
-    /// tracker is better along some axes.
+    /// The residual RMS of each axis of the measurement frame (mm) over the measured positions
+    /// (zero without any, as with plane contacts alone): unequal values say the tracker is
+    /// better along some axes.
     pub rms_per_axis_mm: [f64; 3],
     /// The number of parameters the data determine (`γ`), out of the free ones.
     pub determined: f64,
