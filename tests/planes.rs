@@ -209,6 +209,35 @@ fn positions_and_plane_contacts_are_fitted_together() {
             planes.planes
         );
     }
+    // The diagnosis on mixed rows gives each kind's held-out RMS, which pool to its figure.
+    let poses = crate::common::random_configurations(&truth, 12, 7);
+    let tracker = SimulateParams {
+        noise_std: 3e-5,
+        seed: 7,
+    };
+    let mut mixed = simulate(&truth, &poses, tracker).unwrap().samples;
+    mixed.extend(simulated(&truth, 30, 2e-5, 207));
+    let diagnosis = armcomp_core::analysis::diagnose::DiagnoseParams {
+        calibration: params.clone(),
+        max_steps: 0,
+        ..Default::default()
+    };
+    let report = armcomp_core::analysis::diagnose::diagnose(&nominal, &mixed, &[], None, &diagnosis, &|_| {})
+        .unwrap()
+        .report;
+    assert_eq!(report.scored_by, "position + plane height");
+    let kinds: Vec<(&str, usize)> = report.per_kind.iter().map(|k| (k.kind.as_str(), k.n)).collect();
+    assert_eq!(kinds, [("position", 12), ("plane height", 60)]);
+    let pooled = report
+        .per_kind
+        .iter()
+        .map(|k| k.n as f64 * k.before_rms_mm.powi(2))
+        .sum::<f64>()
+        / 72.0;
+    assert!(
+        (pooled.sqrt() - report.initial.rms_mm).abs() < 1e-9 * report.initial.rms_mm,
+        "{report:?}"
+    );
     // One file: a row gives its position or names its plane, and says which in `kind`.
     let joints: Vec<String> = nominal.csv_joint_names();
     let header = joints.iter().map(|j| format!("{j}[rad]")).collect::<Vec<_>>().join(",");

@@ -161,7 +161,25 @@ fn html(r: &DiagnosisReport) -> String {
             100.0 * s.share_removed
         );
     }
-    h.push_str("</table>\n<p><img src=\"heldout_rms.svg\"> <img src=\"residuals.svg\"></p>\n");
+    h.push_str("</table>\n");
+    if !r.per_kind.is_empty() {
+        h.push_str(
+            "<p>Each kind of row on its own:</p>\n<table><tr><th>rows</th><th>n</th><th>held-out RMS as given</th>\
+             <th>at the end</th></tr>\n",
+        );
+        for k in &r.per_kind {
+            let _ = writeln!(
+                h,
+                "<tr><td>{}</td><td>{}</td><td>{:.4} mm</td><td>{:.4} mm</td></tr>",
+                escape(&k.kind),
+                k.n,
+                k.before_rms_mm,
+                k.after_rms_mm
+            );
+        }
+        h.push_str("</table>\n");
+    }
+    h.push_str("<p><img src=\"heldout_rms.svg\"> <img src=\"residuals.svg\"></p>\n");
     for (i, s) in r.steps.iter().enumerate() {
         let _ = writeln!(
             h,

@@ -259,6 +259,15 @@ fn print_report(r: &DiagnosisReport, gross_rows: &[usize]) {
             100.0 * s.share_removed
         );
     }
+    if !r.per_kind.is_empty() {
+        println!("each kind of row on its own (held-out RMS as given → at the end):");
+        for k in &r.per_kind {
+            println!(
+                "     {:<40} n {:<5} {:.4} → {:.4} mm",
+                k.kind, k.n, k.before_rms_mm, k.after_rms_mm
+            );
+        }
+    }
     for (i, s) in r.steps.iter().enumerate() {
         println!("\nstep {}: {}", i + 1, s.summary);
         print_ranking(&s.ranking);

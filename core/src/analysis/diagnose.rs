@@ -254,6 +254,46 @@ pub struct LearnableResidual {
     pub share_learnable: f64,
 }
 
+/// One kind of row's held-out RMS in data of several kinds.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KindHeldout {
+    /// What its rows are scored by: `position`, `plane height` or `fixed-point distance`.
+    pub kind: String,
+    /// Its rows.
+    pub n: usize,
+    /// Held-out RMS of the model as given (mm).
+    pub before_rms_mm: f64,
+    /// Held-out RMS of the final model (mm).
+    pub after_rms_mm: f64,
+}
+
+/// Each kind's held-out RMS in `norms` (mm per sample, the model as given first, the final
+/// model last), when `samples` are of several kinds.
+fn per_kind(samples: &[Sample], norms: &[Vec<f64>]) -> Vec<KindHeldout> {
+    let kinds = crate::analysis::held_out::kinds(samples);
+    let (Some(first), Some(last)) = (norms.first(), norms.last()) else {
+        return Vec::new();
+    };
+    if kinds.len() < 2 {
+        return Vec::new();
+    }
+    kinds
+        .into_iter()
+        .map(|kind| {
+            let rows: Vec<usize> = (0..samples.len())
+                .filter(|&i| crate::analysis::held_out::kind_of(&samples[i]) == kind)
+                .collect();
+            let rms = |v: &[f64]| (rows.iter().map(|&i| v[i] * v[i]).sum::<f64>() / rows.len() as f64).sqrt();
+            KindHeldout {
+                kind: kind.to_string(),
+                n: rows.len(),
+                before_rms_mm: rms(first),
+                after_rms_mm: rms(last),
+            }
+        })
+        .collect()
+}
+
 /// What the diagnosis found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DiagnosisReport {
@@ -290,6 +330,11 @@ pub struct DiagnosisReport {
     /// Held-out error norms (mm) per sample used of the initial model and after each step.
     #[serde(skip)]
     pub heldout_norms_mm: Vec<Vec<f64>>,
+    /// Data of several kinds (positions, plane contacts, fixed points): each kind's held-out
+    /// RMS before and after, since one pooled figure mixes 3-D errors with heights or
+    /// distances. Empty for one kind.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub per_kind: Vec<KindHeldout>,
     /// Whether a stop request ([`CalibrationParams::cancel`]) ended the search early: the steps are
     /// those accepted before it, the round it interrupted is dropped.
     pub interrupted: bool,
@@ -470,6 +515,7 @@ fn search(
         },
         steps,
         learnable_residual,
+        per_kind: per_kind(samples, &heldout_norms_mm),
         heldout_norms_mm,
         interrupted,
     };

@@ -108,23 +108,28 @@ pub fn contacts_as_positions(model: &Robot, samples: &[Sample]) -> Result<Vec<Sa
         .collect())
 }
 
-/// The kinds of held-out error [`held_out_errors`] gives `samples`: `position`, `plane height`,
-/// `fixed-point distance`, `+`-joined for mixed data.
+/// The kind of held-out error [`held_out_errors`] gives sample `s`: `position`, `plane height`
+/// or `fixed-point distance`.
+pub fn kind_of(s: &Sample) -> &'static str {
+    match (&s.fixed_point, &s.plane) {
+        (Some(_), _) => "fixed-point distance",
+        (None, Some(_)) => "plane height",
+        (None, None) => "position",
+    }
+}
+
+/// The kinds of held-out error `samples` are scored by ([`kind_of`]), `+`-joined for mixed
+/// data.
 pub fn scored_by(samples: &[Sample]) -> String {
-    let kinds = [
-        (
-            "position",
-            samples.iter().any(|s| s.fixed_point.is_none() && s.plane.is_none()),
-        ),
-        ("plane height", samples.iter().any(|s| s.plane.is_some())),
-        ("fixed-point distance", samples.iter().any(|s| s.fixed_point.is_some())),
-    ];
-    kinds
-        .iter()
-        .filter(|(_, any)| *any)
-        .map(|(k, _)| *k)
-        .collect::<Vec<_>>()
-        .join(" + ")
+    kinds(samples).join(" + ")
+}
+
+/// The kinds of `samples` ([`kind_of`]), each once, positions first.
+pub fn kinds(samples: &[Sample]) -> Vec<&'static str> {
+    ["position", "plane height", "fixed-point distance"]
+        .into_iter()
+        .filter(|k| samples.iter().any(|s| kind_of(s) == *k))
+        .collect()
 }
 
 /// Whether every sample measures a position (no fixed-point or plane contacts): the rows a
