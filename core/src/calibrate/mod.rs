@@ -899,10 +899,11 @@ pub struct PlaneEvaluation {
 }
 
 /// Evaluates `robot` on plane-contact samples whose position errors (the measured position
-/// unused and zero) are `errors`: each contact against its plane as the model file gives it
-/// (identified by `calibrate`), or fitted to the contacts when it names no such plane. Rewrites
-/// each plane sample's error as its point moved onto the plane minus the point; `None` when no
-/// sample names a plane.
+/// unused and zero) are `errors`, its fitted predictor's correction included: each contact,
+/// moved by that correction, against its plane as the model file gives it (identified by
+/// `calibrate`), or fitted to the contacts when it names no such plane. Rewrites each plane
+/// sample's error as its point moved onto the plane minus the point; `None` when no sample
+/// names a plane.
 pub fn evaluate_planes(
     robot: &Robot,
     samples: &[Sample],
@@ -911,7 +912,16 @@ pub fn evaluate_planes(
     if samples.iter().all(|s| s.plane.is_none()) {
         return Ok(None);
     }
-    let (gaps, names) = contact_gaps(robot, samples)?;
+    let (mut gaps, names) = contact_gaps(robot, samples)?;
+    if robot.predictor().is_some() {
+        // The predictor's correction of each point is what it takes from the model's error.
+        let model = crate::algorithms::evaluate::model_errors(robot, samples);
+        for ((gap, m), e) in gaps.iter_mut().zip(&model).zip(errors.iter()) {
+            if let Some(g) = gap {
+                g.height += g.normal.dot(&(m - e));
+            }
+        }
+    }
     let rms = |v: &mut dyn Iterator<Item = f64>| {
         let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
         (sum / n.max(1) as f64).sqrt()
