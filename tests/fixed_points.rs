@@ -128,16 +128,7 @@ fn a_residual_predictor_learns_from_fixed_points() {
     let truth = with_transmission_scale(&nominal, "panda_joint2", 0.01);
     for seed in 1..=3 {
         let samples = socket_contacts(&truth, 10 + seed);
-        let spec = armcomp_api::ops::learn::default_predictor("gp").unwrap();
-        let run = armcomp_api::ops::learn::run(
-            &nominal,
-            nominal.to_file(),
-            &samples,
-            Some(spec),
-            None,
-            &armcomp_core::FitControl::default(),
-        )
-        .unwrap();
+        let run = crate::common::learn_gp(&nominal, &samples);
         let (held_out, _) = run.cross_validated.expect("enough poses to cross-validate");
         assert!(
             run.before.rms_mm > 1.0 && held_out.rms_mm < 0.3 * run.before.rms_mm,

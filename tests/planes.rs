@@ -269,16 +269,7 @@ fn a_predictor_learned_from_contacts_corrects_new_contacts() {
     for seed in 1..=3 {
         let train = simulated(&truth, 60, 2e-5, 300 + seed);
         let test = simulated(&truth, 20, 2e-5, 400 + seed);
-        let spec = armcomp_api::ops::learn::default_predictor("gp").unwrap();
-        let run = armcomp_api::ops::learn::run(
-            &nominal,
-            nominal.to_file(),
-            &train,
-            Some(spec),
-            None,
-            &armcomp_core::FitControl::default(),
-        )
-        .unwrap();
+        let run = crate::common::learn_gp(&nominal, &train);
         let height = |robot: &Robot| {
             armcomp_api::ops::evaluate::run(robot, &test)
                 .unwrap()

@@ -116,3 +116,21 @@ pub fn assert_diagnosis_names(
         step.heldout_after.rms_mm
     );
 }
+
+/// `model` with a GP (default settings) learned on what it leaves of `samples`, as `armcomp
+/// learn --predictor gp` fits it.
+pub fn learn_gp(
+    model: &Robot,
+    samples: &[armcomp_core::data::measurement::Sample],
+) -> armcomp_api::ops::learn::LearnRun {
+    let spec = armcomp_api::ops::learn::default_predictor("gp").unwrap();
+    armcomp_api::ops::learn::run(
+        model,
+        model.to_file(),
+        samples,
+        Some(spec),
+        None,
+        &armcomp_core::FitControl::default(),
+    )
+    .unwrap()
+}

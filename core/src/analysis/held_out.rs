@@ -135,5 +135,5 @@ pub fn kinds(samples: &[Sample]) -> Vec<&'static str> {
 /// Whether every sample measures a position (no fixed-point or plane contacts): the rows a
 /// residual predictor, which learns 3-D errors, can learn from.
 pub fn measures_positions(samples: &[Sample]) -> bool {
-    samples.iter().all(|s| s.fixed_point.is_none() && s.plane.is_none())
+    samples.iter().all(|s| kind_of(s) == "position")
 }
