@@ -10,23 +10,32 @@ D=data/talos-left-arm/measurements.csv
 OUT=$(mktemp -d)
 trap 'rm -rf "$OUT"' EXIT
 stats() { awk '{printf "%.2f / %.2f / %.2f", $10, $4, $13}'; }
-level() { # split-name train-rows test-rows level robot identify prior
+level() { # split-name train-rows test-rows level robot identify prior [calibrate options]
   local model="$OUT/$1-$4.toml"
   local start=$(date +%s.%N)
-  "$A" calibrate --robot "$5" --data "$D" --rows "$2" --identify "$6" --prior "$7" --out "$model" > "$OUT/log" 2>&1 || true
+  "$A" calibrate --robot "$5" --data "$D" --rows "$2" --identify "$6" --prior "$7" "${@:8}" --out "$model" > "$OUT/log" 2>&1 || true
   local end=$(date +%s.%N)
   # With --prior auto: the chosen factor and its cross-validated RMS on the training rows.
-  local chosen=$(grep -o 'cross-validation on these data: [^ ]*' "$OUT/log" | awk '{print $5}')
+  local chosen=$(grep -o 'cross-validation on these data[^:]*: [^ ]*' "$OUT/log" | awk '{print $NF}')
   local cv=$(grep -o "$chosen → [0-9.]*" "$OUT/log" | head -1 | awk '{print $3}')
   printf '| %s | %s | %s | %s | %s | %.2f |\n' "$1" "$4" "${chosen:+×$chosen, $cv mm}" \
     "$("$A" evaluate --model "$model" --data "$D" --rows "$2" 2>/dev/null | stats)" \
     "$("$A" evaluate --model "$model" --data "$D" --rows "$3" 2>/dev/null | stats)" \
     "$(awk "BEGIN{print $end - $start}")"
 }
+# FIGAROH 1.0.2's full_params parameters for each split's training rows (its QR selection on as
+# many random postures as training rows, seed 0, then the measurement frame's six and the
+# marker's three), in armcomp's names: FIGAROH's d_px, d_py, d_pz of a joint are its x, y, z;
+# the rotation vector's component about the joint's axis is its offset, the two across it its
+# rot_u and rot_v (the URDF plugin's module documentation says which is which).
+FIGAROH_INTERLEAVED=torso_2_joint.y,torso_2_joint.rot_v,arm_left_1_joint.x,arm_left_1_joint.z,arm_left_1_joint.rot_v,arm_left_1_joint.rot_u,arm_left_1_joint.offset,arm_left_2_joint.x,arm_left_2_joint.y,arm_left_2_joint.offset,arm_left_2_joint.rot_v,arm_left_3_joint.y,arm_left_3_joint.z,arm_left_3_joint.rot_u,arm_left_4_joint.x,arm_left_4_joint.y,arm_left_4_joint.rot_v,arm_left_4_joint.rot_u,arm_left_5_joint.x,arm_left_5_joint.z,arm_left_5_joint.rot_v,arm_left_5_joint.rot_u,arm_left_5_joint.offset,arm_left_6_joint.x,arm_left_6_joint.y,arm_left_6_joint.offset,arm_left_6_joint.rot_v,arm_left_7_joint.z,arm_left_7_joint.rot_u
+FIGAROH_TIME=torso_2_joint.rot_v,torso_2_joint.offset,arm_left_1_joint.x,arm_left_1_joint.y,arm_left_1_joint.z,arm_left_1_joint.rot_v,arm_left_2_joint.x,arm_left_2_joint.y,arm_left_2_joint.rot_v,arm_left_2_joint.rot_u,arm_left_3_joint.y,arm_left_3_joint.z,arm_left_3_joint.rot_v,arm_left_3_joint.rot_u,arm_left_3_joint.offset,arm_left_4_joint.x,arm_left_4_joint.y,arm_left_4_joint.rot_v,arm_left_4_joint.offset,arm_left_5_joint.x,arm_left_5_joint.z,arm_left_5_joint.rot_v,arm_left_5_joint.offset,arm_left_6_joint.x,arm_left_6_joint.y,arm_left_6_joint.rot_v,arm_left_7_joint.z,arm_left_7_joint.rot_v,arm_left_7_joint.rot_u
 echo "| split | level | prior (training CV RMS) | train RMSE / mean / max | held-out RMSE / mean / max | seconds |"
 echo "|---|---|---|---|---|---|"
-for split in "interleaved even odd" "time ..40 40.."; do
+for split in "interleaved even odd $FIGAROH_INTERLEAVED" "time ..40 40.. $FIGAROH_TIME"; do
   set -- $split
+  # FIGAROH's level: its parameters, no priors, the Levenberg–Marquardt run to convergence.
+  level "$1" "$2" "$3" full_params robots/talos-left-arm.toml "base,markers,$4" none --max-iterations 5000 --restarts 0
   level "$1" "$2" "$3" registration robots/talos-left-arm.toml base,markers 1
   level "$1" "$2" "$3" joint_offset robots/talos-left-arm.toml base,markers,offsets none
   level "$1" "$2" "$3" full_geometry robots/talos-left-arm.toml base,markers,geometry auto
