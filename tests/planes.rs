@@ -639,6 +639,92 @@ fn simulate_calibrate_and_evaluate_planes_on_the_command_line() {
     assert!(tilt < 0.01, "calibrated roll {tilt} deg");
 }
 
+/// `simulate` of a truth that measures positions, given planes: the tracker's rows, then the
+/// contacts' naming their plane, in one file that `calibrate` fits together (the truth's
+/// changes recovered) and `evaluate` scores per kind.
+#[test]
+fn simulate_writes_positions_and_plane_contacts_in_one_file() {
+    let s = crate::common::Scratch::new("mixed-planes");
+    let nominal = robot_from_toml(&panda_text("").replace("kind = \"plane\"", "kind = \"point\""));
+    let write = |name: &str, robot: &Robot| {
+        let path = s.0.join(name);
+        std::fs::write(&path, robot.to_file().to_text_for(&path).unwrap()).unwrap();
+        path.display().to_string()
+    };
+    let truth = write("truth.toml", &truth_of(&nominal, &CHANGES));
+    let nominal = write("nominal.toml", &nominal);
+    let (data, model) = (s.0.join("data.csv"), s.0.join("model.toml"));
+    let (data, model) = (data.to_str().unwrap(), model.to_str().unwrap());
+    let run = |args: &[&str]| {
+        let (code, out, err) = crate::cli::armcomp(args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        out
+    };
+    #[rustfmt::skip]
+    run(&["simulate", "--robot", &truth, "--n", "15", "--noise-mm", "0.02", "--plane", "table=500,0,150,180,0,0",
+          "--plane", "ramp=350,300,250,191.46,8.59,0", "--joint-noise-deg", "0.001", "--seed", "4", "--out", data]);
+    let text = std::fs::read_to_string(data).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let plane = header.iter().position(|c| *c == "plane").expect("a plane column");
+    let x = header
+        .iter()
+        .position(|c| c.starts_with("x["))
+        .expect("position columns");
+    let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 15 + 2 * 15);
+    // A row measures a position or names a plane, never both.
+    assert!(rows.iter().all(|r| r[plane].is_empty() != r[x].is_empty()));
+    assert_eq!(rows.iter().filter(|r| r[plane] == "ramp").count(), 15);
+    #[rustfmt::skip]
+    let report = run(&["calibrate", "--robot", &nominal, "--data", data, "--identify",
+                       &CHANGES.map(|(n, _)| n).join(","), "--noise-mm", "0.02", "--json", "--out", model]);
+    let report: serde_json::Value = serde_json::from_str(&report).unwrap();
+    for (name, delta) in CHANGES {
+        let p = report["params"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap();
+        let moved = p["value"].as_f64().unwrap() - p["initial"].as_f64().unwrap();
+        let std = p["std"].as_f64().unwrap();
+        assert!(
+            (moved - delta).abs() < 4.0 * std,
+            "{name}: moved by {moved}, truth {delta} (std {std})"
+        );
+    }
+    let evaluate = |model: &str| -> serde_json::Value {
+        serde_json::from_str(&run(&["evaluate", "--model", model, "--data", data, "--json"])).unwrap()
+    };
+    let (before, after) = (evaluate(&nominal), evaluate(model));
+    assert_eq!(after["n"], 15, "the positions' figures count the positions");
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+    assert!(
+        f(&before["rms_mm"]) > 0.5 && f(&after["rms_mm"]) < 0.06,
+        "{before} → {after}"
+    );
+    assert!(
+        f(&before["planes"]["rms_mm"]) > 0.2 && f(&after["planes"]["rms_mm"]) < 0.05,
+        "{before} → {after}"
+    );
+    let (code, _, err) = crate::cli::armcomp(&[
+        "simulate",
+        "--robot",
+        &truth,
+        "--plane",
+        "table=500,0,150,180,0,0",
+        "--fixed-point",
+        "a=500,0,100",
+        "--out",
+        data,
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("one kind of contact") && std::fs::read_to_string(data).unwrap() == text,
+        "{err}"
+    );
+}
+
 /// The prior's cross-validation scores plane contacts by their held-out height above the
 /// plane the training folds identified: priors too tight to let the joint offsets move leave
 /// the truth's millimetre errors; the file's priors come down to the height noise the truth

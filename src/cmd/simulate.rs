@@ -40,10 +40,10 @@ pub struct Args {
     /// data.
     #[arg(long = "fixed-point", value_name = "NAME=X,Y,Z")]
     fixed_points: Vec<String>,
-    /// For a truth of `kind = "plane"`: a plane the tool is pressed on from --n configurations
-    /// each (found by inverse kinematics; flush when the truth constrains tilts), as
-    /// `name=x,y,z,roll,pitch,yaw` (mm and deg, measurement frame; its normal the frame's z
-    /// axis); repeat for several.
+    /// A plane the tool is pressed on from --n configurations each (found by inverse
+    /// kinematics; flush when the truth constrains tilts), as `name=x,y,z,roll,pitch,yaw` (mm
+    /// and deg, measurement frame; its normal the frame's z axis); repeat for several. For a
+    /// truth that measures positions or poses, its rows follow the tracker's: mixed data.
     #[arg(long = "plane", value_name = "NAME=X,Y,Z,ROLL,PITCH,YAW")]
     planes: Vec<String>,
     /// Half the side of the square on each plane the contacts are drawn in, in mm.
@@ -143,8 +143,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    if !args.planes.is_empty() {
-        anyhow::bail!("--plane needs a truth robot file of `kind = \"plane\"` in its [measurement]");
+    if !args.planes.is_empty() && !args.fixed_points.is_empty() {
+        anyhow::bail!("--fixed-point and --plane together: a file mixes measured positions with one kind of contact");
     }
     if let Some(k) = args.stations {
         // A stream of its own: the same seed draws the same poses whatever the stations.
@@ -170,10 +170,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let mut set =
         armcomp_api::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
-    // Fixed points named for a truth that measures positions: mixed data, the tracker's rows
-    // then the fixed points'.
+    // Fixed points or planes named for a truth that measures positions: mixed data, the
+    // tracker's rows then the contacts'.
     let contacts = (args.fixed_points.iter())
         .map(|t| fixed_point(t).map(|(name, p)| (name, Contact::FixedPoint(p))))
+        .chain(args.planes.iter().map(|t| plane(t, args.spread_mm)))
         .collect::<anyhow::Result<Vec<_>>>()?;
     if !contacts.is_empty() {
         let params = armcomp_core::algorithms::simulate::FixedPointParams {
@@ -199,9 +200,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             String::new()
         } else {
             format!(
-                " and {} configurations at {} fixed points (joint noise {} deg)",
+                " and {} configurations at {} {} (joint noise {} deg)",
                 args.n * contacts.len(),
                 contacts.len(),
+                if args.planes.is_empty() {
+                    "fixed points"
+                } else {
+                    "planes"
+                },
                 args.joint_noise_deg
             )
         },

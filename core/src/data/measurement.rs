@@ -690,9 +690,9 @@ pub fn write_csv_with_sensor(
         header.push("station".into());
     }
     let first = set.samples.first();
-    // Mixed data give positions, and fixed points in a column of their own.
+    // Mixed data give positions, and fixed points or planes in a column of their own.
     let fixed_points = set.samples.iter().any(|s| s.fixed_point.is_some());
-    let planes = first.is_some_and(|s| s.plane.is_some());
+    let planes = set.samples.iter().any(|s| s.plane.is_some());
     let measured = set
         .samples
         .iter()
@@ -736,7 +736,7 @@ pub fn write_csv_with_sensor(
         match (&s.fixed_point, &s.plane) {
             (Some(name), _) => row.push(name.clone()),
             (_, Some(name)) => row.push(name.clone()),
-            _ if fixed_points => row.push(String::new()),
+            _ if fixed_points || planes => row.push(String::new()),
             _ => {}
         }
         if measured.is_some() {
