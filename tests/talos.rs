@@ -118,6 +118,46 @@ fn joint_offsets_reproduce_figaroh_on_both_splits() {
     assert!((time - 3.19).abs() < 0.05, "{time}");
 }
 
+/// FIGAROH's `full_params` level: its 38 parameters for each split (its QR selection, from
+/// tests/data/figaroh_talos_full_params.txt), no priors, run to convergence. FIGAROH 1.0.2:
+/// 0.39 / 1.34 mm (interleaved) and 0.41 / 0.92 mm (time split) train / held out.
+#[test]
+fn full_params_reproduce_figaroh_given_its_parameters() {
+    let text = std::fs::read_to_string(root().join("tests/data/figaroh_talos_full_params.txt")).unwrap();
+    let chain = |split: &str| -> Vec<String> {
+        let line = text.lines().find_map(|l| l.strip_prefix(&format!("{split}="))).unwrap();
+        ["base", "markers"]
+            .into_iter()
+            .chain(line.split(','))
+            .map(String::from)
+            .collect()
+    };
+    let (r, set) = data();
+    for (split, train, test, train_rms, held_rms) in [
+        ("interleaved", "even", "odd", 0.39, 1.34),
+        ("time", "..40", "40..", 0.41, 0.92),
+    ] {
+        let params = CalibrationParams {
+            identify: chain(split),
+            use_priors: false,
+            max_iterations: 5000,
+            restarts: 0,
+            ..Default::default()
+        };
+        let fitted = calibrate(&r, &rows(&set, train), &params, &mut |_| {}).unwrap();
+        assert!(fitted.report.converged, "{split}: {}", fitted.report.stop_reason);
+        // The rows determine every one of them: nothing is fixed.
+        let id = &fitted.report.identifiability;
+        assert_eq!((id.n_params, id.rank), (38, 38), "{split}: {}", id.message);
+        let rms = |spec: &str| ErrorStats::from_errors(&model_errors(&fitted.robot, &rows(&set, spec))).rms_mm;
+        let (t, h) = (rms(train), rms(test));
+        assert!(
+            (t - train_rms).abs() < 0.005 && (h - held_rms).abs() < 0.005,
+            "{split}: {t} / {h} mm"
+        );
+    }
+}
+
 #[test]
 fn a_zero_guess_of_the_measurement_frame_does_not_leak_into_the_chain() {
     // The file's base frame is the identity, 120 mm and several degrees from the truth; the

@@ -23,13 +23,11 @@ level() { # split-name train-rows test-rows level robot identify prior [calibrat
     "$("$A" evaluate --model "$model" --data "$D" --rows "$3" 2>/dev/null | stats)" \
     "$(awk "BEGIN{print $end - $start}")"
 }
-# FIGAROH 1.0.2's full_params parameters for each split's training rows (its QR selection on as
-# many random postures as training rows, seed 0, then the measurement frame's six and the
-# marker's three), in armcomp's names: FIGAROH's d_px, d_py, d_pz of a joint are its x, y, z;
-# the rotation vector's component about the joint's axis is its offset, the two across it its
-# rot_u and rot_v (the URDF plugin's module documentation says which is which).
-FIGAROH_INTERLEAVED=torso_2_joint.y,torso_2_joint.rot_v,arm_left_1_joint.x,arm_left_1_joint.z,arm_left_1_joint.rot_v,arm_left_1_joint.rot_u,arm_left_1_joint.offset,arm_left_2_joint.x,arm_left_2_joint.y,arm_left_2_joint.offset,arm_left_2_joint.rot_v,arm_left_3_joint.y,arm_left_3_joint.z,arm_left_3_joint.rot_u,arm_left_4_joint.x,arm_left_4_joint.y,arm_left_4_joint.rot_v,arm_left_4_joint.rot_u,arm_left_5_joint.x,arm_left_5_joint.z,arm_left_5_joint.rot_v,arm_left_5_joint.rot_u,arm_left_5_joint.offset,arm_left_6_joint.x,arm_left_6_joint.y,arm_left_6_joint.offset,arm_left_6_joint.rot_v,arm_left_7_joint.z,arm_left_7_joint.rot_u
-FIGAROH_TIME=torso_2_joint.rot_v,torso_2_joint.offset,arm_left_1_joint.x,arm_left_1_joint.y,arm_left_1_joint.z,arm_left_1_joint.rot_v,arm_left_2_joint.x,arm_left_2_joint.y,arm_left_2_joint.rot_v,arm_left_2_joint.rot_u,arm_left_3_joint.y,arm_left_3_joint.z,arm_left_3_joint.rot_v,arm_left_3_joint.rot_u,arm_left_3_joint.offset,arm_left_4_joint.x,arm_left_4_joint.y,arm_left_4_joint.rot_v,arm_left_4_joint.offset,arm_left_5_joint.x,arm_left_5_joint.z,arm_left_5_joint.rot_v,arm_left_5_joint.offset,arm_left_6_joint.x,arm_left_6_joint.y,arm_left_6_joint.rot_v,arm_left_7_joint.z,arm_left_7_joint.rot_v,arm_left_7_joint.rot_u
+# FIGAROH 1.0.2's full_params parameters for each split (its QR selection; the file says how
+# they were obtained and named).
+figaroh() { grep "^$1=" tests/data/figaroh_talos_full_params.txt | cut -d= -f2; }
+FIGAROH_INTERLEAVED=$(figaroh interleaved)
+FIGAROH_TIME=$(figaroh time)
 echo "| split | level | prior (training CV RMS) | train RMSE / mean / max | held-out RMSE / mean / max | seconds |"
 echo "|---|---|---|---|---|---|"
 for split in "interleaved even odd $FIGAROH_INTERLEAVED" "time ..40 40.. $FIGAROH_TIME"; do
