@@ -285,6 +285,64 @@ fn a_predictor_learned_from_contacts_corrects_new_contacts() {
     }
 }
 
+/// Contacts made with the tool off the table (three of 60, 2 mm above it, as when a contact
+/// was recorded before the tool touched): the calibration names exactly those rows as gross
+/// errors, judged against the heights' own noise, and none of the clean rows; on three seeds.
+/// Among tracker positions the same contacts are found, and no drift is reported.
+#[test]
+fn contacts_off_their_plane_are_named_as_gross_errors() {
+    let nominal = panda("constrain = [\"height\"]");
+    let truth = truth_of(&nominal, &CHANGES);
+    let params = CalibrationParams {
+        identify: CHANGES.iter().map(|(n, _)| n.to_string()).collect(),
+        measurement_std: 3e-5,
+        ..CalibrationParams::default()
+    };
+    const LIFTED: [usize; 3] = [4, 33, 51];
+    // The tool's height above its plane when joint 4 turns by `dq` at sample `i`.
+    let lift = |samples: &mut [Sample], i: usize| {
+        let plane = planes()
+            .into_iter()
+            .find(|(n, _)| Some(n) == samples[i].plane.as_ref())
+            .unwrap()
+            .1;
+        let height = |q: &[f64]| gap(&plane, &contact(&truth, q, None))[0];
+        let h0 = height(&samples[i].q);
+        let mut q = samples[i].q.clone();
+        q[3] += 1e-3;
+        let rate = (height(&q) - h0) / 1e-3;
+        samples[i].q[3] += 2e-3 / rate;
+    };
+    for seed in 1..=3 {
+        let clean = simulated(&truth, 30, 2e-5, 500 + seed);
+        let report = calibrate(&nominal, &clean, &params, &mut |_| {}).unwrap().report;
+        assert!(report.outliers.is_empty(), "seed {seed}: {:?}", report.outliers);
+        let mut dirty = clean.clone();
+        LIFTED.iter().for_each(|&i| lift(&mut dirty, i));
+        let report = calibrate(&nominal, &dirty, &params, &mut |_| {}).unwrap().report;
+        let mut found: Vec<usize> = report.outliers.iter().map(|o| o.sample).collect();
+        found.sort_unstable();
+        assert_eq!(found, LIFTED, "seed {seed}: {:?}", report.outliers);
+    }
+    use armcomp_core::algorithms::simulate::{SimulateParams, simulate};
+    let nominal =
+        robot_from_toml(&panda_text("constrain = [\"height\"]").replace("kind = \"plane\"", "kind = \"point\""));
+    let truth = truth_of(&nominal, &CHANGES);
+    let poses = crate::common::random_configurations(&truth, 20, 9);
+    let tracker = SimulateParams {
+        noise_std: 3e-5,
+        seed: 9,
+    };
+    let mut mixed = simulate(&truth, &poses, tracker).unwrap().samples;
+    mixed.extend(simulated(&truth, 30, 2e-5, 509));
+    LIFTED.iter().for_each(|&i| lift(&mut mixed, 20 + i));
+    let report = calibrate(&nominal, &mixed, &params, &mut |_| {}).unwrap().report;
+    let mut found: Vec<usize> = report.outliers.iter().map(|o| o.sample).collect();
+    found.sort_unstable();
+    assert_eq!(found, LIFTED.map(|i| 20 + i), "{:?}", report.outliers);
+    assert!(report.drift.is_none(), "{:?}", report.drift);
+}
+
 /// Residuals as the problem states them (σ = 1): heights, then roll and pitch per sample.
 fn residuals(robot: &Robot, space: &ParameterSpace, theta: &[f64], samples: &[Sample], link: Option<&str>) -> Vec<f64> {
     let model = space.apply(robot, theta).unwrap();

@@ -13,9 +13,9 @@ use super::jacobian::to_meas;
 use super::jacobian::typical_size;
 use super::registration::register_base;
 use super::registration::unit_mistake;
-use super::robust::gross_errors_by_kind;
 use super::robust::{Drift, Loss, Outlier, drift};
 use super::robust::{MAX_REWEIGHTS, WEIGHT_TOLERANCE};
+use super::robust::{ResidualKind, gross_errors_by_kind};
 use super::space::apply;
 use super::space::prior_space;
 use super::{
@@ -519,20 +519,22 @@ impl Problem<'_> {
             .collect()
     }
 
-    /// The rows far beyond the noise and a trend with row order, of the measured positions.
+    /// The rows far beyond their kind's noise, and a trend with row order of the measured
+    /// positions.
     fn gross_errors_and_drift(&self, residuals: &[Vector3<f64>]) -> (Vec<Outlier>, Option<Drift>) {
-        // A plane contact's residual has one component: the robust noise per axis of the 3-D
-        // checks would be that of the two zero ones, calling every row a gross error.
-        if self.constraints.is_some() {
-            return (Vec::new(), None);
-        }
+        let kinds: Vec<ResidualKind> = (self.fixed.iter().zip(&self.plane))
+            .map(|kind| match kind {
+                (Some(_), _) => ResidualKind::FixedPoint,
+                (_, Some(_)) => ResidualKind::PlaneHeight,
+                _ => ResidualKind::Position,
+            })
+            .collect();
         // A drift is the tracker's: the measured positions' alone.
-        let fixed: Vec<bool> = self.fixed.iter().map(Option::is_some).collect();
-        let measured: Vec<Vector3<f64>> = (residuals.iter().zip(&fixed))
-            .filter(|(_, f)| !**f)
+        let measured: Vec<Vector3<f64>> = (residuals.iter().zip(&kinds))
+            .filter(|(_, k)| **k == ResidualKind::Position)
             .map(|(e, _)| *e)
             .collect();
-        (gross_errors_by_kind(residuals, &fixed), drift(&measured))
+        (gross_errors_by_kind(residuals, &kinds), drift(&measured))
     }
 }
 

@@ -39,9 +39,9 @@ pub(super) const WEIGHT_TOLERANCE: f64 = 1e-3;
 pub struct Outlier {
     /// Its index among the calibration's samples.
     pub sample: usize,
-    /// Its 3-D residual (mm).
+    /// Its 3-D residual, or a plane contact's height (mm).
     pub residual_mm: f64,
-    /// That residual over the robust noise per axis.
+    /// That residual over the robust noise per axis (of the heights for a plane contact).
     pub over_noise: f64,
 }
 
@@ -58,10 +58,9 @@ pub struct Drift {
 /// gives one that large once in 80 000 samples.
 pub const GROSS_ERROR: f64 = 5.0;
 
-/// The robust noise per axis of residuals `errors` (m): 1.4826 times the median absolute
-/// residual component, which a few gross errors do not inflate.
-pub fn robust_noise(errors: &[Vector3<f64>]) -> f64 {
-    let mut abs: Vec<f64> = errors.iter().flat_map(|e| e.iter().map(|v| v.abs())).collect();
+/// 1.4826 times the median of `abs` (non-negative values): the standard deviation of
+/// Gaussian noise they would come from, which a few gross errors do not inflate.
+fn scaled_median(mut abs: Vec<f64>) -> f64 {
     if abs.is_empty() {
         return 0.0;
     }
@@ -70,42 +69,75 @@ pub fn robust_noise(errors: &[Vector3<f64>]) -> f64 {
     1.4826 * *median
 }
 
-/// The samples of `errors` (measured minus modelled, m) whose 3-D residual exceeds
-/// [`GROSS_ERROR`] times the robust noise, largest first.
-pub fn gross_errors(errors: &[Vector3<f64>]) -> Vec<Outlier> {
-    let noise = robust_noise(errors);
+/// The robust noise per axis of residuals `errors` (m): 1.4826 times the median absolute
+/// residual component, which a few gross errors do not inflate.
+pub fn robust_noise(errors: &[Vector3<f64>]) -> f64 {
+    scaled_median(errors.iter().flat_map(|e| e.iter().map(|v| v.abs())).collect())
+}
+
+/// The samples whose residual `sizes[i]` (m) exceeds [`GROSS_ERROR`] times `noise`, largest
+/// first.
+fn beyond(sizes: &[f64], noise: f64) -> Vec<Outlier> {
     if noise <= 0.0 {
         return Vec::new();
     }
-    let mut out: Vec<Outlier> = errors
-        .iter()
-        .enumerate()
-        .filter(|(_, e)| e.norm() > GROSS_ERROR * noise)
-        .map(|(i, e)| Outlier {
+    let mut out: Vec<Outlier> = (sizes.iter().enumerate())
+        .filter(|&(_, &e)| e > GROSS_ERROR * noise)
+        .map(|(i, &e)| Outlier {
             sample: i,
-            residual_mm: e.norm() * 1e3,
-            over_noise: e.norm() / noise,
+            residual_mm: e * 1e3,
+            over_noise: e / noise,
         })
         .collect();
     out.sort_by(|a, b| b.residual_mm.total_cmp(&a.residual_mm));
     out
 }
 
-/// [`gross_errors`] judged within each kind of sample, `fixed[i]` saying whether sample `i`
-/// was measured in a fixed point: in mixed data the sockets' residuals are a tracker's tenth,
-/// and one robust noise of both would call every tracker row a gross error.
-pub(super) fn gross_errors_by_kind(errors: &[Vector3<f64>], fixed: &[bool]) -> Vec<Outlier> {
-    let mut out: Vec<Outlier> = [false, true]
-        .into_iter()
-        .flat_map(|kind| {
-            let index: Vec<usize> = (0..errors.len()).filter(|&i| fixed[i] == kind).collect();
-            let own: Vec<Vector3<f64>> = index.iter().map(|&i| errors[i]).collect();
-            gross_errors(&own).into_iter().map(move |o| Outlier {
-                sample: index[o.sample],
-                ..o
-            })
+/// The samples of `errors` (measured minus modelled, m) whose 3-D residual exceeds
+/// [`GROSS_ERROR`] times the robust noise, largest first.
+pub fn gross_errors(errors: &[Vector3<f64>]) -> Vec<Outlier> {
+    let sizes: Vec<f64> = errors.iter().map(|e| e.norm()).collect();
+    beyond(&sizes, robust_noise(errors))
+}
+
+/// What a sample's residual is, for the checks that judge each kind against its own noise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum ResidualKind {
+    /// A measured position's 3-D residual.
+    Position,
+    /// A fixed-point contact's 3-D distance from its point.
+    FixedPoint,
+    /// A plane contact's height above its plane: one component, along the plane's normal.
+    PlaneHeight,
+}
+
+/// [`gross_errors`] judged within each kind of sample: in mixed data the sockets' residuals
+/// are a tracker's tenth, and one robust noise of both would call every tracker row a gross
+/// error. A plane contact's residual has one component, so its noise is the heights' own
+/// (the robust noise per axis of a 3-D check would be that of two zero components).
+pub(super) fn gross_errors_by_kind(errors: &[Vector3<f64>], kinds: &[ResidualKind]) -> Vec<Outlier> {
+    let mut out: Vec<Outlier> = [
+        ResidualKind::Position,
+        ResidualKind::FixedPoint,
+        ResidualKind::PlaneHeight,
+    ]
+    .into_iter()
+    .flat_map(|kind| {
+        let index: Vec<usize> = (0..errors.len()).filter(|&i| kinds[i] == kind).collect();
+        let own: Vec<Vector3<f64>> = index.iter().map(|&i| errors[i]).collect();
+        let found = match kind {
+            ResidualKind::PlaneHeight => {
+                let heights: Vec<f64> = own.iter().map(|e| e.norm()).collect();
+                beyond(&heights, scaled_median(heights.clone()))
+            }
+            _ => gross_errors(&own),
+        };
+        found.into_iter().map(move |o| Outlier {
+            sample: index[o.sample],
+            ..o
         })
-        .collect();
+    })
+    .collect();
     out.sort_by(|a, b| b.residual_mm.total_cmp(&a.residual_mm));
     out
 }

@@ -113,10 +113,12 @@ impl LeastSquares for StageFit<'_, '_> {
 
     fn iteration(&mut self, it: &LmIteration<'_>) -> ControlFlow<()> {
         let n = self.problem.samples.len();
+        // A plane contact gives one row here, its height; a position three.
+        let rows = self.problem.position_rows();
         (self.observer)(&IterationInfo {
             iteration: self.before + it.iteration,
             max_iterations: self.params.max_iterations,
-            rms: (it.residuals.rows(0, 3 * n).norm_squared() / n as f64).sqrt() * self.params.measurement_std,
+            rms: (it.residuals.rows(0, rows).norm_squared() / n as f64).sqrt() * self.params.measurement_std,
             lambda: it.damping,
         });
         ControlFlow::Continue(())
