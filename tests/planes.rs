@@ -765,6 +765,39 @@ fn simulate_writes_positions_and_plane_contacts_in_one_file() {
         f(&before["planes"]["rms_mm"]) > 0.2 && f(&after["planes"]["rms_mm"]) < 0.05,
         "{before} → {after}"
     );
+    // A second file, of positions and socket contacts: every kind in one fit, each file its own
+    // station; the truth's changes are recovered more tightly than from the first file alone.
+    let sockets = s.0.join("sockets.csv");
+    let sockets = sockets.to_str().unwrap();
+    #[rustfmt::skip]
+    run(&["simulate", "--robot", &truth, "--n", "15", "--noise-mm", "0.02", "--fixed-point", "a=500,0,100",
+          "--joint-noise-deg", "0.001", "--seed", "5", "--out", sockets]);
+    #[rustfmt::skip]
+    let both = run(&["calibrate", "--robot", &nominal, "--data", data, "--data", sockets, "--identify",
+                     &CHANGES.map(|(n, _)| n).join(","), "--noise-mm", "0.02", "--json", "--out", model]);
+    let both: serde_json::Value = serde_json::from_str(&both).unwrap();
+    let param = |report: &serde_json::Value, name: &str| {
+        let p = report["params"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .cloned();
+        p.unwrap_or_else(|| panic!("no {name}"))
+    };
+    for (name, delta) in CHANGES {
+        let (p, alone) = (param(&both, name), param(&report, name));
+        let moved = p["value"].as_f64().unwrap() - p["initial"].as_f64().unwrap();
+        let std = p["std"].as_f64().unwrap();
+        assert!(
+            (moved - delta).abs() < 4.0 * std && std < alone["std"].as_f64().unwrap(),
+            "{name}: moved by {moved}, truth {delta} (std {std}; one file {})",
+            alone["std"]
+        );
+    }
+    for name in ["plane.table.height", "fixed_point.a.x"] {
+        param(&both, name);
+    }
     let (code, _, err) = crate::cli::armcomp(&[
         "simulate",
         "--robot",

@@ -197,7 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if let Some(e) = &run.evidence {
             print_evidence(e);
         }
-        print_report(report);
+        print_report(report, &samples_in_words(&data.samples));
         print_gross_errors(&outlier_rows, report, args.exclude_outliers);
         if report.loss == Loss::Huber {
             println!(
@@ -310,7 +310,29 @@ fn display(q: Quantity, v: f64) -> (f64, &'static str) {
     }
 }
 
-fn print_report(r: &CalibrationReport) {
+/// How many samples of each kind: `61 measured positions`, or for mixed data `40 samples (20
+/// measured positions, 10 plane contacts, 10 fixed-point contacts)`.
+fn samples_in_words(samples: &[armcomp_core::data::measurement::Sample]) -> String {
+    let count = |f: &dyn Fn(&armcomp_core::data::measurement::Sample) -> bool| samples.iter().filter(|s| f(s)).count();
+    let parts: Vec<String> = [
+        (
+            count(&|s| s.fixed_point.is_none() && s.plane.is_none()),
+            "measured positions",
+        ),
+        (count(&|s| s.plane.is_some()), "plane contacts"),
+        (count(&|s| s.fixed_point.is_some()), "fixed-point contacts"),
+    ]
+    .into_iter()
+    .filter(|(n, _)| *n > 0)
+    .map(|(n, what)| format!("{n} {what}"))
+    .collect();
+    match parts.as_slice() {
+        [one] => one.clone(),
+        _ => format!("{} samples ({})", samples.len(), parts.join(", ")),
+    }
+}
+
+fn print_report(r: &CalibrationReport, samples: &str) {
     let id = &r.identifiability;
     println!(
         "measured chain: {} moving joint(s) from the base to the markers: {}",
@@ -325,8 +347,8 @@ fn print_report(r: &CalibrationReport) {
         println!("measurement frame registered in closed form before the fit");
     }
     println!(
-        "{} measured positions, {} parameters selected, rank {} of {}, condition number {:.3e} ({:.3e} with priors and fixes)",
-        r.n_samples, id.n_params, id.rank, id.n_params, id.condition_number, id.condition_number_free
+        "{samples}, {} parameters selected, rank {} of {}, condition number {:.3e} ({:.3e} with priors and fixes)",
+        id.n_params, id.rank, id.n_params, id.condition_number, id.condition_number_free
     );
     if !id.message.is_empty() {
         println!("identifiability: {}", id.message);

@@ -75,14 +75,18 @@ pub fn robust_noise(errors: &[Vector3<f64>]) -> f64 {
     scaled_median(errors.iter().flat_map(|e| e.iter().map(|v| v.abs())).collect())
 }
 
-/// The samples whose residual `sizes[i]` (m) exceeds [`GROSS_ERROR`] times `noise`, largest
-/// first.
+/// A residual below this (m) is no gross error whatever the noise: noise-free rows (a
+/// simulation without noise) leave residuals of round-off, some of them many times the others.
+const NOT_GROSS: f64 = 1e-6;
+
+/// The samples whose residual `sizes[i]` (m) exceeds [`GROSS_ERROR`] times `noise` (and
+/// [`NOT_GROSS`]), largest first.
 fn beyond(sizes: &[f64], noise: f64) -> Vec<Outlier> {
     if noise <= 0.0 {
         return Vec::new();
     }
     let mut out: Vec<Outlier> = (sizes.iter().enumerate())
-        .filter(|&(_, &e)| e > GROSS_ERROR * noise)
+        .filter(|&(_, &e)| e > GROSS_ERROR * noise && e > NOT_GROSS)
         .map(|(i, &e)| Outlier {
             sample: i,
             residual_mm: e * 1e3,
