@@ -699,9 +699,10 @@ fn simulate_calibrate_and_evaluate_planes_on_the_command_line() {
 
 /// `simulate` of a truth that measures positions, given planes: the tracker's rows, then the
 /// contacts' naming their plane, in one file that `calibrate` fits together (the truth's
-/// changes recovered) and `evaluate` scores per kind.
+/// changes recovered) and `evaluate` scores per kind; with a second file of positions and
+/// socket contacts, every kind in one fit.
 #[test]
-fn simulate_writes_positions_and_plane_contacts_in_one_file() {
+fn simulate_writes_mixed_files_that_fit_and_score_together() {
     let s = crate::common::Scratch::new("mixed-planes");
     let nominal = robot_from_toml(&panda_text("").replace("kind = \"plane\"", "kind = \"point\""));
     let write = |name: &str, robot: &Robot| {
@@ -798,6 +799,20 @@ fn simulate_writes_positions_and_plane_contacts_in_one_file() {
     for name in ["plane.table.height", "fixed_point.a.x"] {
         param(&both, name);
     }
+    // Each station's figures are its measured positions', the contacts have their own.
+    let scores = run(&[
+        "evaluate", "--model", model, "--data", data, "--data", sockets, "--json",
+    ]);
+    let scores: serde_json::Value = serde_json::from_str(&scores).unwrap();
+    let per_station: Vec<(&str, u64)> = (scores["per_station"].as_array().unwrap().iter())
+        .map(|s| (s["station"].as_str().unwrap(), s["n"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(per_station, [("data", 15), ("sockets", 15)], "{scores}");
+    assert_eq!(scores["n"], 30);
+    assert!(
+        scores["planes"].is_object() && scores["fixed_points"].is_object(),
+        "{scores}"
+    );
     let (code, _, err) = crate::cli::armcomp(&[
         "simulate",
         "--robot",

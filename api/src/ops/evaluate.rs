@@ -40,12 +40,19 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<Evaluation
     let planes = evaluate_planes(robot, samples, &mut errors)?;
     // Data mixing measured positions with fixed points or plane contacts: the figures are the
     // measured positions', the contacts have their own.
-    let measured: Vec<Vector3<f64>> = (errors.iter().zip(samples))
-        .filter(|(_, s)| fixed_points.is_none() || s.fixed_point.is_none())
-        .filter(|(_, s)| planes.is_none() || s.plane.is_none())
-        .map(|(e, _)| *e)
-        .collect();
-    let stats = ErrorStats::from_errors(if measured.is_empty() { &errors } else { &measured });
+    let is_measured =
+        |s: &Sample| (fixed_points.is_none() || s.fixed_point.is_none()) && (planes.is_none() || s.plane.is_none());
+    // Per point and per station too, when there are measured positions to give them.
+    let (kept_samples, kept_errors): (Vec<Sample>, Vec<Vector3<f64>>) = (samples.iter().zip(&errors))
+        .filter(|(s, _)| is_measured(s))
+        .map(|(s, e)| (s.clone(), *e))
+        .unzip();
+    let (samples, measured) = if kept_errors.is_empty() {
+        (samples, errors.as_slice())
+    } else {
+        (kept_samples.as_slice(), kept_errors.as_slice())
+    };
+    let stats = ErrorStats::from_errors(measured);
     let mut points: Vec<usize> = samples.iter().map(|s| s.point).collect();
     points.sort_unstable();
     points.dedup();
@@ -53,7 +60,7 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<Evaluation
         points
             .iter()
             .map(|&p| {
-                let e: Vec<_> = errors
+                let e: Vec<_> = measured
                     .iter()
                     .zip(samples)
                     .filter(|(_, s)| s.point == p)
@@ -65,6 +72,7 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<Evaluation
     } else {
         BTreeMap::new()
     };
+    let per_station = per_station(robot, samples, measured);
     let angles: Vec<f64> = if robot.measures_pose() {
         orientation_errors(robot, samples).into_iter().flatten().collect()
     } else {
@@ -74,7 +82,7 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<Evaluation
         stats,
         per_point,
         orientation: (!angles.is_empty()).then(|| AngleStats::from_angles(&angles)),
-        per_station: per_station(robot, samples, &errors),
+        per_station,
         registered: Vec::new(),
         errors,
         fixed_points,
