@@ -143,9 +143,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    if !args.planes.is_empty() && !args.fixed_points.is_empty() {
-        anyhow::bail!("--fixed-point and --plane together: a file mixes measured positions with one kind of contact");
-    }
     if let Some(k) = args.stations {
         // A stream of its own: the same seed draws the same poses whatever the stations.
         let stations = armcomp_core::algorithms::simulate::random_stations(
@@ -203,10 +200,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 " and {} configurations at {} {} (joint noise {} deg)",
                 args.n * contacts.len(),
                 contacts.len(),
-                if args.planes.is_empty() {
-                    "fixed points"
-                } else {
-                    "planes"
+                match (args.fixed_points.is_empty(), args.planes.is_empty()) {
+                    (false, false) => "fixed points and planes",
+                    (false, true) => "fixed points",
+                    _ => "planes",
                 },
                 args.joint_noise_deg
             )

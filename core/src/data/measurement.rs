@@ -699,7 +699,8 @@ pub fn write_csv_with_sensor(
         .find(|s| s.fixed_point.is_none() && s.plane.is_none());
     if fixed_points {
         header.push("fixed_point".into());
-    } else if planes {
+    }
+    if planes {
         header.push("plane".into());
     }
     if measured.is_some() {
@@ -733,11 +734,11 @@ pub fn write_csv_with_sensor(
         if with_station {
             row.push(set.stations[s.station].clone());
         }
-        match (&s.fixed_point, &s.plane) {
-            (Some(name), _) => row.push(name.clone()),
-            (_, Some(name)) => row.push(name.clone()),
-            _ if fixed_points || planes => row.push(String::new()),
-            _ => {}
+        if fixed_points {
+            row.push(s.fixed_point.clone().unwrap_or_default());
+        }
+        if planes {
+            row.push(s.plane.clone().unwrap_or_default());
         }
         if measured.is_some() {
             match s.fixed_point.is_some() || s.plane.is_some() {

@@ -68,17 +68,22 @@ struct Header<'t> {
     /// The gravity sensor whose columns the table has.
     sensor: Option<&'t GravitySensor>,
     has_torque: bool,
-    /// In data that mix measured positions with fixed points, the column naming a row's fixed
-    /// point (a robot of fixed points only has a group column of its own).
-    mixed_group: Option<usize>,
+    /// In data that mix measured positions with contacts, the columns naming a row's fixed
+    /// point or plane (a robot of fixed points or planes only has a group column of its own).
+    mixed_groups: Vec<usize>,
 }
 
 impl Header<'_> {
-    /// The column and kind of the contacts among measured positions: `fixed_point` rows or
-    /// `plane` rows.
+    /// The column and kind of the contacts among measured positions: `fixed_point` rows,
+    /// `plane` rows, or both.
     fn mixed_kind(&self) -> (&'static str, &'static str) {
-        match self.mixed_group.map(|k| &self.columns[k]) {
-            Some(Column::Group { plane: true }) => ("plane", "plane"),
+        let planes = self
+            .mixed_groups
+            .iter()
+            .map(|&k| self.columns[k] == Column::Group { plane: true });
+        match (planes.clone().any(|p| p), planes.clone().any(|p| !p)) {
+            (true, true) => ("fixed_point` or `plane", "fixed point or plane"),
+            (true, false) => ("plane", "plane"),
             _ => ("fixed_point", "fixed point"),
         }
     }
@@ -183,29 +188,18 @@ impl<'t> Table<'t, '_> {
             spelling: None,
             sensor: None,
             has_torque: false,
-            mixed_group: None,
+            mixed_groups: Vec::new(),
         };
         self.check_joint_columns(&header)?;
         header.slots = self.position_slots(&header)?;
         header.spelling = self.orientation_spelling(&header)?;
         header.sensor = self.sensor_columns(&header)?;
         header.has_torque = header.has(|k| matches!(k, Column::Torque(_)));
-        header.mixed_group = (header.columns.iter())
-            .position(|c| matches!(c, Column::Group { .. }))
-            .filter(|_| self.with_positions && self.layout.group_column().is_none());
-        if header
-            .columns
-            .iter()
-            .filter(|c| matches!(c, Column::Group { .. }))
-            .count()
-            > 1
-        {
-            return Err(self.err(
-                Some(line),
-                "columns `fixed_point` and `plane` together: a file mixes measured positions with one kind of \
-                 contact; give the other kind in a file of its own"
-                    .into(),
-            ));
+        if self.with_positions && self.layout.group_column().is_none() {
+            header.mixed_groups = (header.columns.iter().enumerate())
+                .filter(|(_, c)| matches!(c, Column::Group { .. }))
+                .map(|(k, _)| k)
+                .collect();
         }
         Ok(header)
     }
@@ -576,7 +570,7 @@ impl<'t> Table<'t, '_> {
                 gravity: None,
                 station: 0,
             },
-            fixed_row: header.mixed_group.is_some_and(|k| !record[k].is_empty()),
+            fixed_row: header.mixed_groups.iter().any(|&k| !record[k].is_empty()),
             kind_cell: None,
             angles: [0.0; 4],
             sensor_reading: Vector4::zeros(),
@@ -630,7 +624,8 @@ impl<'t> Table<'t, '_> {
                 })?;
             }
             Column::Kind => row.kind_cell = Some(field),
-            Column::Group { .. } if field.is_empty() && header.mixed_group.is_some() && !header.slots.is_empty() => {}
+            Column::Group { .. } if field.is_empty() && !header.mixed_groups.is_empty() && !header.slots.is_empty() => {
+            }
             Column::Group { plane } => {
                 let (column, what) = if *plane {
                     ("plane", "plane")
@@ -641,6 +636,12 @@ impl<'t> Table<'t, '_> {
                     return err(
                         column,
                         format!("column `{column}` is empty; every row names the {what} it was measured at"),
+                    );
+                }
+                if row.sample.fixed_point.is_some() || row.sample.plane.is_some() {
+                    return err(
+                        column,
+                        "the row names both a fixed point and a plane; a contact is made at one of them".into(),
                     );
                 }
                 if *plane {
@@ -676,7 +677,7 @@ impl<'t> Table<'t, '_> {
                     );
                 }
             }
-            Column::Position { slot: None, .. } if field.is_empty() && header.mixed_group.is_some() => {
+            Column::Position { slot: None, .. } if field.is_empty() && !header.mixed_groups.is_empty() => {
                 let (column, what) = header.mixed_kind();
                 return err(
                     head,
