@@ -353,6 +353,46 @@ fn contacts_off_their_plane_are_named_as_gross_errors() {
     assert!(report.drift.is_none(), "{:?}", report.drift);
 }
 
+/// `plan` chooses among plane contacts with each candidate's own rows (its height and its
+/// tilts, which calibration lays out after every height): the chosen contacts' posterior
+/// standard deviations equal those computed directly from their own Jacobian and the priors.
+#[test]
+fn plans_among_plane_contacts_use_each_contacts_own_rows() {
+    use armcomp_core::analysis::design::{SelectionParams, select_poses};
+    let robot = panda(NOMINAL_PLANES);
+    let pool: Vec<Vec<Sample>> = simulated(&robot, 12, 0.0, 7).into_iter().map(|s| vec![s]).collect();
+    let params = SelectionParams {
+        identify: vec!["offsets".into()],
+        ..SelectionParams::default()
+    };
+    let report = select_poses(&robot, &pool, 6, &[], &[], &params).unwrap();
+    let chosen: Vec<Sample> = report.chosen.iter().map(|&i| pool[i][0].clone()).collect();
+    let (jac, names) = armcomp_core::calibrate::samples_jacobian(&robot, &chosen, &params.identify).unwrap();
+    assert_eq!(names, report.params);
+    assert_eq!(jac.nrows(), 3 * chosen.len(), "a height and two tilts a contact");
+    let mut information = jac.transpose() * &jac / params.measurement_std.powi(2);
+    // The planes have no prior: the plan holds each by a vanishing one, 1e-6 in units of what
+    // gives a unit RMS sensitivity per residual row over the pool.
+    let flat: Vec<Sample> = pool.iter().flatten().cloned().collect();
+    let (all, _) = armcomp_core::calibrate::samples_jacobian(&robot, &flat, &params.identify).unwrap();
+    for (c, prior) in report.prior_std.iter().enumerate() {
+        let scale = match prior.is_finite() {
+            true => *prior,
+            false => params.measurement_std * (all.nrows() as f64).sqrt() / all.column(c).norm(),
+        };
+        information[(c, c)] += if prior.is_finite() { 1.0 } else { 1e-6 } / (scale * scale);
+    }
+    assert!(names.iter().any(|n| n == "plane.table.height"), "{names:?}");
+    let covariance = information.try_inverse().unwrap();
+    for (c, name) in names.iter().enumerate() {
+        let (direct, planned) = (covariance[(c, c)].sqrt(), report.std_after[c]);
+        assert!(
+            (direct - planned).abs() < 1e-4 * direct,
+            "{name}: {direct} directly, {planned} planned"
+        );
+    }
+}
+
 /// Residuals as the problem states them (σ = 1): heights, then roll and pitch per sample.
 fn residuals(robot: &Robot, space: &ParameterSpace, theta: &[f64], samples: &[Sample], link: Option<&str>) -> Vec<f64> {
     let model = space.apply(robot, theta).unwrap();

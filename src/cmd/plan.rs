@@ -84,7 +84,10 @@ fn read_pool(robot: &armcomp_core::Robot, text: Option<&str>) -> anyhow::Result<
         Err(_) => {
             let path = Path::new(t);
             let text = armcomp_core::support::io::read_text(path, super::input_limits())?;
-            Ok(if has_positions(&text) {
+            // A robot measured by contacts reads its rows as contacts (a configuration alone
+            // says not which fixed point or plane it touches).
+            let contacts = robot.measures_fixed_points() || robot.measures_planes();
+            Ok(if has_positions(&text) || contacts {
                 PlanPool::Measured(super::read_measurements(robot, path, None)?)
             } else {
                 PlanPool::Configurations(parse_poses(&text, path, &robot.csv_layout())?)

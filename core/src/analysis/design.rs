@@ -25,7 +25,10 @@
 use nalgebra::{Cholesky, DMatrix};
 use serde::Serialize;
 
-use crate::calibrate::{CalibrationParams, IdentifiabilityReport, ParameterSpace, identifiability, samples_jacobian};
+use crate::calibrate::{
+    CalibrationParams, IdentifiabilityReport, ParameterSpace, identifiability, samples_jacobian,
+    samples_jacobian_by_sample,
+};
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
 use crate::robot::Robot;
@@ -353,9 +356,10 @@ pub fn select_poses(
         });
     }
     let flat: Vec<Sample> = pool.iter().flatten().cloned().collect();
-    let (jac, names) = samples_jacobian(robot, &flat, &params.identify)?;
+    let (jac, names, widths) = samples_jacobian_by_sample(robot, &flat, &params.identify)?;
     let p = names.len();
-    let space = ParameterSpace::new(robot);
+    // The contacts' fixed points and planes are parameters too.
+    let space = ParameterSpace::for_samples(robot, &flat);
     let info: Vec<_> = names
         .iter()
         .map(|name| {
@@ -382,9 +386,13 @@ pub fn select_poses(
         .collect();
     let scale = |m: DMatrix<f64>, noise: f64| DMatrix::from_fn(m.nrows(), p, |r, c| m[(r, c)] * scales[c] / noise);
     let rows = scale(jac, sigma);
+    // A candidate's rows: its samples', as wide as each sample's kind (a position's three, a
+    // pose's six, a plane contact's height and tilts).
     let mut offsets = vec![0];
+    let mut width = widths.iter();
     for c in pool {
-        offsets.push(offsets.last().copied().unwrap_or(0) + 3 * c.len());
+        let rows: usize = width.by_ref().take(c.len()).sum();
+        offsets.push(offsets.last().copied().unwrap_or(0) + rows);
     }
     let mut start = DMatrix::from_fn(p, p, |i, k| {
         if i != k {
@@ -405,7 +413,14 @@ pub fn select_poses(
     } else {
         workspace.iter().flatten().cloned().collect()
     };
-    let g = scale(samples_jacobian(robot, &work_flat, &params.identify)?.0, 1.0);
+    let mut g = scale(samples_jacobian(robot, &work_flat, &params.identify)?.0, 1.0);
+    // Contact rows (a socket's distance, a plane's height) move with the robot's parameters as
+    // its point does; the contacts' own unknowns (fixed points, planes) are not the robot's.
+    for (c, name) in names.iter().enumerate() {
+        if name.starts_with("fixed_point.") || name.starts_with("plane.") {
+            g.column_mut(c).fill(0.0);
+        }
+    }
     let per_position = (g.transpose() * &g) / work_flat.len().max(1) as f64;
     let design = Design {
         rows,

@@ -157,8 +157,7 @@ pub(super) fn analyse(
     let n_equations = jac.nrows();
     if n_equations < free.len() {
         message.push_str(&format!(
-            "{} measured positions give {n_equations} equations for {} parameters, too few to determine them all. ",
-            n_equations / 3,
+            "The data give {n_equations} equations for {} parameters, too few to determine them all. ",
             free.len()
         ));
     }

@@ -700,9 +700,37 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
 }
 
 /// [`identification_jacobian`] at the configurations, points and conditions (payload,
-/// temperature) of `samples`: three rows per sample, in sample order; their measured
-/// positions are not used.
+/// temperature) of `samples`, the rows as calibration lays them out: each sample's position
+/// rows (three, or a plane contact's height) in sample order, then the orientation rows of the
+/// samples that have them (a pose's three, a contact's tilts), then one per known distance;
+/// their measured values are not used.
 pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) -> Result<(DMatrix<f64>, Vec<String>)> {
+    let (jac, names, _) = jacobian_and_sample_rows(robot, samples, identify)?;
+    Ok((jac, names))
+}
+
+/// [`samples_jacobian`] with each sample's rows together, in sample order, and how many rows
+/// each sample has: what choosing among candidate samples needs. Rows of no sample (known
+/// distances) are left out.
+pub fn samples_jacobian_by_sample(
+    robot: &Robot,
+    samples: &[Sample],
+    identify: &[String],
+) -> Result<(DMatrix<f64>, Vec<String>, Vec<usize>)> {
+    let (jac, names, rows) = jacobian_and_sample_rows(robot, samples, identify)?;
+    let order: Vec<usize> = rows.iter().flatten().copied().collect();
+    Ok((
+        jac.select_rows(order.iter()),
+        names,
+        rows.iter().map(Vec::len).collect(),
+    ))
+}
+
+/// A Jacobian, its columns' parameter names and each sample's rows.
+type SampleJacobian = (DMatrix<f64>, Vec<String>, Vec<Vec<usize>>);
+
+/// [`samples_jacobian`] and the rows of each sample.
+fn jacobian_and_sample_rows(robot: &Robot, samples: &[Sample], identify: &[String]) -> Result<SampleJacobian> {
     for s in samples {
         robot.tree().check_q(&s.q)?;
     }
@@ -715,6 +743,7 @@ pub fn samples_jacobian(robot: &Robot, samples: &[Sample], identify: &[String]) 
     Ok((
         jac,
         selected.iter().map(|&k| space.params[k].info.name.clone()).collect(),
+        (0..samples.len()).map(|i| problem.rows_of_sample(i)).collect(),
     ))
 }
 

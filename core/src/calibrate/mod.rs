@@ -46,7 +46,7 @@ mod space;
 pub use driver::calibrate;
 pub use identifiability::identifiability;
 use jacobian::to_meas;
-pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian};
+pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian, samples_jacobian_by_sample};
 pub use registration::{register_held_out_stations, register_stations};
 pub use robust::{Drift, GROSS_ERROR, HUBER_K, Loss, Outlier, drift, gross_errors, robust_noise};
 pub use score::{ScoreTest, score_test};
@@ -727,6 +727,12 @@ impl<'a> Problem<'a> {
     /// Sample `i`'s position rows.
     fn position_range(&self, i: usize) -> std::ops::Range<usize> {
         self.position_start[i]..self.position_start[i + 1]
+    }
+
+    /// Every residual row of sample `i`: its position rows, then its orientation rows.
+    fn rows_of_sample(&self, i: usize) -> Vec<usize> {
+        let turns = self.oriented.binary_search(&i).map(|k| self.turn_range(k));
+        self.position_range(i).chain(turns.into_iter().flatten()).collect()
     }
 
     /// The `k`-th oriented sample's orientation rows.
