@@ -1,7 +1,7 @@
 //! Which poses are worth measuring: optimal subsets of a pool of candidate poses for
 //! identifying a robot's parameters (optimal experiment design).
 //!
-//! The identification Jacobian of every candidate ([`samples_jacobian`], error models through
+//! The identification Jacobian of every candidate ([`samples_jacobian_by_sample`], error models through
 //! the deformed kinematics) is expressed in units of the tracker noise per parameter unit,
 //! each parameter scaled by its prior standard deviation so that neither millimetres against
 //! radians nor compliances against lengths dominate (parameters without a prior, such as the
@@ -26,8 +26,7 @@ use nalgebra::{Cholesky, DMatrix};
 use serde::Serialize;
 
 use crate::calibrate::{
-    CalibrationParams, IdentifiabilityReport, ParameterSpace, identifiability, samples_jacobian,
-    samples_jacobian_by_sample,
+    CalibrationParams, IdentifiabilityReport, ParameterSpace, identifiability, samples_jacobian_by_sample,
 };
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
@@ -356,10 +355,21 @@ pub fn select_poses(
         });
     }
     let flat: Vec<Sample> = pool.iter().flatten().cloned().collect();
-    let (jac, names, widths) = samples_jacobian_by_sample(robot, &flat, &params.identify)?;
+    let work: Vec<Sample> = workspace.iter().flatten().cloned().collect();
+    // One Jacobian of the measured samples, the pool's and the workspace's, so that they share
+    // their columns: the contacts' fixed points and planes are parameters too.
+    let all: Vec<Sample> = measured.iter().chain(&flat).chain(&work).cloned().collect();
+    let (jac_all, names, widths) = samples_jacobian_by_sample(robot, &all, &params.identify)?;
+    // The rows of `n` samples from sample `from` on.
+    let block = |from: usize, n: usize| {
+        let r0: usize = widths[..from].iter().sum();
+        let r: usize = widths[from..from + n].iter().sum();
+        jac_all.rows(r0, r).into_owned()
+    };
+    let jac = block(measured.len(), flat.len());
+    let widths = &widths[measured.len()..measured.len() + flat.len()];
     let p = names.len();
-    // The contacts' fixed points and planes are parameters too.
-    let space = ParameterSpace::for_samples(robot, &flat);
+    let space = ParameterSpace::for_samples(robot, &all);
     let info: Vec<_> = names
         .iter()
         .map(|name| {
@@ -404,16 +414,15 @@ pub fn select_poses(
         }
     });
     if !measured.is_empty() {
-        let m = scale(samples_jacobian(robot, measured, &params.identify)?.0, sigma);
+        let m = scale(block(0, measured.len()), sigma);
         start += m.transpose() * m;
     }
     // The workspace's position sensitivities (m per scaled unit), per measured position.
-    let work_flat: Vec<Sample> = if workspace.is_empty() {
-        flat
-    } else {
-        workspace.iter().flatten().cloned().collect()
+    let (work_from, n_work) = match work.is_empty() {
+        true => (measured.len(), flat.len()),
+        false => (measured.len() + flat.len(), work.len()),
     };
-    let mut g = scale(samples_jacobian(robot, &work_flat, &params.identify)?.0, 1.0);
+    let mut g = scale(block(work_from, n_work), 1.0);
     // Contact rows (a socket's distance, a plane's height) move with the robot's parameters as
     // its point does; the contacts' own unknowns (fixed points, planes) are not the robot's.
     for (c, name) in names.iter().enumerate() {
@@ -421,7 +430,7 @@ pub fn select_poses(
             g.column_mut(c).fill(0.0);
         }
     }
-    let per_position = (g.transpose() * &g) / work_flat.len().max(1) as f64;
+    let per_position = (g.transpose() * &g) / n_work.max(1) as f64;
     let design = Design {
         rows,
         offsets,
