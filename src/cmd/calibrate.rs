@@ -313,19 +313,16 @@ fn display(q: Quantity, v: f64) -> (f64, &'static str) {
 /// How many samples of each kind: `61 measured positions`, or for mixed data `40 samples (20
 /// measured positions, 10 plane contacts, 10 fixed-point contacts)`.
 fn samples_in_words(samples: &[armcomp_core::data::measurement::Sample]) -> String {
-    let count = |f: &dyn Fn(&armcomp_core::data::measurement::Sample) -> bool| samples.iter().filter(|s| f(s)).count();
-    let parts: Vec<String> = [
-        (
-            count(&|s| s.fixed_point.is_none() && s.plane.is_none()),
-            "measured positions",
-        ),
-        (count(&|s| s.plane.is_some()), "plane contacts"),
-        (count(&|s| s.fixed_point.is_some()), "fixed-point contacts"),
-    ]
-    .into_iter()
-    .filter(|(n, _)| *n > 0)
-    .map(|(n, what)| format!("{n} {what}"))
-    .collect();
+    use armcomp_core::data::measurement::SampleKind;
+    let parts: Vec<String> = (SampleKind::ALL.into_iter())
+        .map(|kind| (samples.iter().filter(|s| s.kind() == kind).count(), kind))
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, kind)| match kind {
+            SampleKind::Position => format!("{n} measured positions"),
+            SampleKind::Plane => format!("{n} plane contacts"),
+            SampleKind::FixedPoint => format!("{n} fixed-point contacts"),
+        })
+        .collect();
     match parts.as_slice() {
         [one] => one.clone(),
         _ => format!("{} samples ({})", samples.len(), parts.join(", ")),

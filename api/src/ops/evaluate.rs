@@ -8,7 +8,7 @@ use armcomp_core::algorithms::evaluate::{
     position_errors,
 };
 use armcomp_core::calibrate::{PlaneEvaluation, evaluate_planes};
-use armcomp_core::data::measurement::{Sample, csv_text, joint_header, joint_row};
+use armcomp_core::data::measurement::{Sample, SampleKind, csv_text, joint_header, joint_row};
 use nalgebra::Vector3;
 
 /// How far a model is from measurements.
@@ -40,11 +40,9 @@ pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<Evaluation
     let planes = evaluate_planes(robot, samples, &mut errors)?;
     // Data mixing measured positions with fixed points or plane contacts: the figures are the
     // measured positions', the contacts have their own.
-    let is_measured =
-        |s: &Sample| (fixed_points.is_none() || s.fixed_point.is_none()) && (planes.is_none() || s.plane.is_none());
     // Per point and per station too, when there are measured positions to give them.
     let (kept_samples, kept_errors): (Vec<Sample>, Vec<Vector3<f64>>) = (samples.iter().zip(&errors))
-        .filter(|(s, _)| is_measured(s))
+        .filter(|(s, _)| s.kind() == SampleKind::Position)
         .map(|(s, e)| (s.clone(), *e))
         .unzip();
     let (samples, measured) = if kept_errors.is_empty() {

@@ -26,7 +26,7 @@ use nalgebra::{Cholesky, DMatrix};
 use serde::Serialize;
 
 use crate::calibrate::{
-    CalibrationParams, IdentifiabilityReport, ParameterSpace, identifiability, samples_jacobian_by_sample,
+    CalibrationParams, IdentifiabilityReport, ParamGroup, ParameterSpace, identifiability, samples_jacobian_by_sample,
 };
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
@@ -370,15 +370,16 @@ pub fn select_poses(
     let widths = &widths[measured.len()..measured.len() + flat.len()];
     let p = names.len();
     let space = ParameterSpace::for_samples(robot, &all);
-    let info: Vec<_> = names
+    let selected: Vec<_> = names
         .iter()
         .map(|name| {
             space
                 .index(name)
-                .map(|k| &space.params[k].info)
+                .map(|k| &space.params[k])
                 .expect("selected parameters are in the space")
         })
         .collect();
+    let info: Vec<_> = selected.iter().map(|p| &p.info).collect();
     // Scale: the prior's standard deviation, or what gives a unit RMS sensitivity per
     // measured coordinate over the pool.
     let sigma = params.measurement_std;
@@ -425,8 +426,8 @@ pub fn select_poses(
     let mut g = scale(block(work_from, n_work), 1.0);
     // Contact rows (a socket's distance, a plane's height) move with the robot's parameters as
     // its point does; the contacts' own unknowns (fixed points, planes) are not the robot's.
-    for (c, name) in names.iter().enumerate() {
-        if name.starts_with("fixed_point.") || name.starts_with("plane.") {
+    for (c, param) in selected.iter().enumerate() {
+        if matches!(param.group, ParamGroup::FixedPoint(_) | ParamGroup::Plane(_)) {
             g.column_mut(c).fill(0.0);
         }
     }

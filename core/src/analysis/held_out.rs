@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 
 use crate::algorithms::evaluate::position_errors;
 use crate::calibrate::contact_gaps;
-use crate::data::measurement::Sample;
+use crate::data::measurement::{Sample, SampleKind};
 use crate::error::Result;
 use crate::robot::Robot;
 
@@ -111,10 +111,15 @@ pub fn contacts_as_positions(model: &Robot, samples: &[Sample]) -> Result<Vec<Sa
 /// The kind of held-out error [`held_out_errors`] gives sample `s`: `position`, `plane height`
 /// or `fixed-point distance`.
 pub fn kind_of(s: &Sample) -> &'static str {
-    match (&s.fixed_point, &s.plane) {
-        (Some(_), _) => "fixed-point distance",
-        (None, Some(_)) => "plane height",
-        (None, None) => "position",
+    scored_as(s.kind())
+}
+
+/// What a held-out row of `kind` is scored by.
+fn scored_as(kind: SampleKind) -> &'static str {
+    match kind {
+        SampleKind::Position => "position",
+        SampleKind::Plane => "plane height",
+        SampleKind::FixedPoint => "fixed-point distance",
     }
 }
 
@@ -126,14 +131,14 @@ pub fn scored_by(samples: &[Sample]) -> String {
 
 /// The kinds of `samples` ([`kind_of`]), each once, positions first.
 pub fn kinds(samples: &[Sample]) -> Vec<&'static str> {
-    ["position", "plane height", "fixed-point distance"]
-        .into_iter()
-        .filter(|k| samples.iter().any(|s| kind_of(s) == *k))
+    (SampleKind::ALL.into_iter())
+        .filter(|&k| samples.iter().any(|s| s.kind() == k))
+        .map(scored_as)
         .collect()
 }
 
 /// Whether every sample measures a position (no fixed-point or plane contacts): the rows a
 /// residual predictor, which learns 3-D errors, can learn from.
 pub fn measures_positions(samples: &[Sample]) -> bool {
-    samples.iter().all(|s| kind_of(s) == "position")
+    samples.iter().all(|s| s.kind() == SampleKind::Position)
 }

@@ -13,9 +13,9 @@ use super::jacobian::to_meas;
 use super::jacobian::typical_size;
 use super::registration::register_base;
 use super::registration::unit_mistake;
+use super::robust::gross_errors_by_kind;
 use super::robust::{Drift, Loss, Outlier, drift};
 use super::robust::{MAX_REWEIGHTS, WEIGHT_TOLERANCE};
-use super::robust::{ResidualKind, gross_errors_by_kind};
 use super::space::apply;
 use super::space::prior_space;
 use super::{
@@ -24,7 +24,7 @@ use super::{
     PredictorCarried, Problem, RESTART_ABOVE_NOISE, RestartMoves, Stage, StageOutcome, mixes_fixed_points,
 };
 use crate::algorithms::evaluate::{AngleStats, ErrorStats, per_station};
-use crate::data::measurement::Sample;
+use crate::data::measurement::{Sample, SampleKind};
 use crate::error::{Error, Result};
 use crate::model::param::Quantity;
 use crate::robot::Robot;
@@ -522,16 +522,10 @@ impl Problem<'_> {
     /// The rows far beyond their kind's noise, and a trend with row order of the measured
     /// positions.
     fn gross_errors_and_drift(&self, residuals: &[Vector3<f64>]) -> (Vec<Outlier>, Option<Drift>) {
-        let kinds: Vec<ResidualKind> = (self.fixed.iter().zip(&self.plane))
-            .map(|kind| match kind {
-                (Some(_), _) => ResidualKind::FixedPoint,
-                (_, Some(_)) => ResidualKind::PlaneHeight,
-                _ => ResidualKind::Position,
-            })
-            .collect();
+        let kinds: Vec<SampleKind> = self.samples.iter().map(Sample::kind).collect();
         // A drift is the tracker's: the measured positions' alone.
         let measured: Vec<Vector3<f64>> = (residuals.iter().zip(&kinds))
-            .filter(|(_, k)| **k == ResidualKind::Position)
+            .filter(|(_, k)| **k == SampleKind::Position)
             .map(|(e, _)| *e)
             .collect();
         (gross_errors_by_kind(residuals, &kinds), drift(&measured))

@@ -3,7 +3,7 @@
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
 use super::{Noise, ParameterSpace, Problem};
-use crate::data::measurement::Sample;
+use crate::data::measurement::{Sample, SampleKind};
 use crate::error::Result;
 use crate::robot::Robot;
 
@@ -26,7 +26,7 @@ pub(super) fn register_base(
         .iter()
         .zip(measured_now)
         // Fixed-point and plane samples measure no position to register on.
-        .filter(|(s, _)| s.station == station && s.fixed_point.is_none() && s.plane.is_none())
+        .filter(|(s, _)| s.station == station && s.kind() == SampleKind::Position)
         .map(|(s, p)| (t_now.inverse_transform_point(&(*p).into()).coords, s.position))
         .unzip();
     if model.is_empty() {

@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use super::driver::measured_minus_modelled;
 use super::{Problem, Stage, to_meas};
+use crate::data::measurement::SampleKind;
 
 /// How each sample's residual enters the fit's cost.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -104,44 +105,28 @@ pub fn gross_errors(errors: &[Vector3<f64>]) -> Vec<Outlier> {
     beyond(&sizes, robust_noise(errors))
 }
 
-/// What a sample's residual is, for the checks that judge each kind against its own noise.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum ResidualKind {
-    /// A measured position's 3-D residual.
-    Position,
-    /// A fixed-point contact's 3-D distance from its point.
-    FixedPoint,
-    /// A plane contact's height above its plane: one component, along the plane's normal.
-    PlaneHeight,
-}
-
 /// [`gross_errors`] judged within each kind of sample: in mixed data the sockets' residuals
 /// are a tracker's tenth, and one robust noise of both would call every tracker row a gross
 /// error. A plane contact's residual has one component, so its noise is the heights' own
 /// (the robust noise per axis of a 3-D check would be that of two zero components).
-pub(super) fn gross_errors_by_kind(errors: &[Vector3<f64>], kinds: &[ResidualKind]) -> Vec<Outlier> {
-    let mut out: Vec<Outlier> = [
-        ResidualKind::Position,
-        ResidualKind::FixedPoint,
-        ResidualKind::PlaneHeight,
-    ]
-    .into_iter()
-    .flat_map(|kind| {
-        let index: Vec<usize> = (0..errors.len()).filter(|&i| kinds[i] == kind).collect();
-        let own: Vec<Vector3<f64>> = index.iter().map(|&i| errors[i]).collect();
-        let found = match kind {
-            ResidualKind::PlaneHeight => {
-                let heights: Vec<f64> = own.iter().map(|e| e.norm()).collect();
-                beyond(&heights, scaled_median(heights.clone()))
-            }
-            _ => gross_errors(&own),
-        };
-        found.into_iter().map(move |o| Outlier {
-            sample: index[o.sample],
-            ..o
+pub(super) fn gross_errors_by_kind(errors: &[Vector3<f64>], kinds: &[SampleKind]) -> Vec<Outlier> {
+    let mut out: Vec<Outlier> = (SampleKind::ALL.into_iter())
+        .flat_map(|kind| {
+            let index: Vec<usize> = (0..errors.len()).filter(|&i| kinds[i] == kind).collect();
+            let own: Vec<Vector3<f64>> = index.iter().map(|&i| errors[i]).collect();
+            let found = match kind {
+                SampleKind::Plane => {
+                    let heights: Vec<f64> = own.iter().map(|e| e.norm()).collect();
+                    beyond(&heights, scaled_median(heights.clone()))
+                }
+                _ => gross_errors(&own),
+            };
+            found.into_iter().map(move |o| Outlier {
+                sample: index[o.sample],
+                ..o
+            })
         })
-    })
-    .collect();
+        .collect();
     out.sort_by(|a, b| b.residual_mm.total_cmp(&a.residual_mm));
     out
 }

@@ -66,6 +66,33 @@ pub struct Sample {
     pub station: usize,
 }
 
+/// What a sample measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SampleKind {
+    /// A measured position (and orientation, for a pose).
+    Position,
+    /// A contact with an unknown fixed point, by name ([`Sample::fixed_point`]).
+    FixedPoint,
+    /// A contact with an unknown plane, by name ([`Sample::plane`]).
+    Plane,
+}
+
+impl SampleKind {
+    /// Every kind, positions first.
+    pub const ALL: [SampleKind; 3] = [SampleKind::Position, SampleKind::Plane, SampleKind::FixedPoint];
+}
+
+impl Sample {
+    /// What the sample measures.
+    pub fn kind(&self) -> SampleKind {
+        match (&self.fixed_point, &self.plane) {
+            (Some(_), _) => SampleKind::FixedPoint,
+            (None, Some(_)) => SampleKind::Plane,
+            (None, None) => SampleKind::Position,
+        }
+    }
+}
+
 /// A set of measured poses, with the warnings raised while reading it.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct MeasurementSet {
@@ -693,10 +720,7 @@ pub fn write_csv_with_sensor(
     // Mixed data give positions, and fixed points or planes in a column of their own.
     let fixed_points = set.samples.iter().any(|s| s.fixed_point.is_some());
     let planes = set.samples.iter().any(|s| s.plane.is_some());
-    let measured = set
-        .samples
-        .iter()
-        .find(|s| s.fixed_point.is_none() && s.plane.is_none());
+    let measured = set.samples.iter().find(|s| s.kind() == SampleKind::Position);
     if fixed_points {
         header.push("fixed_point".into());
     }
