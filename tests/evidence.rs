@@ -16,7 +16,7 @@ use crate::common::robot;
 
 /// The nominal robot with every chain parameter of group `g` moved by a normal draw of its prior
 /// standard deviation times `scales(g)`, and the base moved off the origin.
-fn truth(nominal: &Robot, scales: impl Fn(PriorGroup) -> f64, seed: u64) -> Robot {
+pub fn truth(nominal: &Robot, scales: impl Fn(PriorGroup) -> f64, seed: u64) -> Robot {
     let space = ParameterSpace::new(nominal);
     let mut theta = space.initial();
     let mut rng = StdRng::seed_from_u64(seed);
@@ -33,7 +33,7 @@ fn truth(nominal: &Robot, scales: impl Fn(PriorGroup) -> f64, seed: u64) -> Robo
     space.apply(nominal, &theta).unwrap()
 }
 
-fn measure(truth: &Robot, n: usize, noise: f64, seed: u64) -> Vec<Sample> {
+pub fn measure(truth: &Robot, n: usize, noise: f64, seed: u64) -> Vec<Sample> {
     let poses = configurations(truth.tree(), Sampler::Sobol, n, seed).unwrap();
     simulate(truth, &poses, SimulateParams { noise_std: noise, seed })
         .unwrap()
@@ -189,24 +189,24 @@ fn nested_scores_never_fit_the_rows_that_score_them() {
     let planted_mm = planted.sqrt() * 1e3;
     assert!(planted_mm > 2.0, "the planted signal is {planted_mm} mm");
     let params = LadderParams {
-        calibration: CalibrationParams::default(),
-        noise_declared: false,
         folds: groups,
         seed: 3,
         fold_groups: Some(fold_groups),
-        predictor: None,
+        ..LadderParams::new(CalibrationParams::default(), false)
     };
     let ladder = climb(&nominal, &samples, &params, &|_| {}).unwrap();
-    for rung in &ladder.report.rungs {
+    for c in &ladder.report.candidates {
         // One group per fold: the fold whose held-out error is the largest holds group 0.
-        let worst = rung.fold_rms_mm.iter().copied().fold(0.0, f64::max);
+        let worst = c.fold_rms_mm.iter().copied().fold(0.0, f64::max);
         assert!(
             worst > 0.8 * planted_mm,
             "{}: the worst fold's held-out RMS {worst} mm is below the planted {planted_mm} mm",
-            rung.label
+            c.label
         );
     }
-    assert!(ladder.report.rungs.iter().any(|r| r.rung == Rung::JointOffsets));
+    // One group per fold leaves nothing to draw again.
+    assert_eq!(ladder.report.repeats, 1);
+    assert!(ladder.report.candidates.iter().any(|c| c.candidate.rung == Rung::JointOffsets));
 }
 
 /// Agile Justin's 250 / 250 split of the published data (seed 1, as the step table): the
@@ -223,18 +223,11 @@ fn agile_justin_ladder() {
     let samples = parse_measurements(MEASUREMENTS, std::path::Path::new("m.csv"), &justin).unwrap();
     let split = half_split(&samples, 1).unwrap();
     let (train, test) = (subset(&samples, &split.train), subset(&samples, &split.test));
-    let params = LadderParams {
-        calibration: CalibrationParams::default(),
-        noise_declared: false,
-        folds: 5,
-        seed: 0,
-        fold_groups: None,
-        predictor: None,
-    };
+    let params = LadderParams::new(CalibrationParams::default(), false);
     let started = std::time::Instant::now();
     let ladder = climb(&justin, &train, &params, &|_| {}).unwrap();
-    for r in &ladder.report.rungs {
-        println!("{:<28} {:.3} mm  {:.1} s  {}", r.label, r.rms_mm, r.seconds, r.reason);
+    for c in &ladder.report.candidates {
+        println!("{:<52} {:.3} mm  {:.1} s  {:?}", c.label, c.rms_mm, c.seconds, c.not_sound);
     }
     let held = ErrorStats::from_errors(&position_errors(&ladder.robot, &test));
     println!(

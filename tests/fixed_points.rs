@@ -96,15 +96,15 @@ fn the_ladder_scores_fixed_points_by_their_held_out_distance() {
         let samples = simulate_fixed_points(&truth, &sockets(), params).unwrap().samples;
         let report = crate::planes::climb_contacts(&nominal, &samples, seed);
         assert_eq!(report.scored_by, "fixed-point distance");
-        let registration = report.rungs[0].rms_mm;
+        let registration = report.candidates[0].rms_mm;
         assert!(
-            report.chosen != Rung::Registration && registration > 5.0 * report.expected_rms_mm,
+            report.chosen.rung != Rung::Registration && registration > 5.0 * report.expected_rms_mm,
             "seed {seed}: {:?}",
-            report.rungs
+            report.candidates
         );
         // Joint noise of 2e-5 rad moves the ball by about 2e-5 × 0.5 m per joint: a few
         // hundredths of a millimetre, which the held-out distance comes down to.
-        assert!(report.expected_rms_mm < 0.1, "seed {seed}: {:?}", report.rungs);
+        assert!(report.expected_rms_mm < 0.1, "seed {seed}: {:?}", report.candidates);
     }
 }
 

@@ -18,6 +18,7 @@ mod evidence;
 mod fixed_points;
 mod fk;
 mod jacobian;
+mod ladder;
 mod learning_curve;
 mod malformed;
 mod measurement;

@@ -934,17 +934,18 @@ fn the_prior_choice_scores_plane_contacts_by_their_held_out_height() {
 /// The ladder of `robot` on contacts alone (`samples`), each rung scored by what those rows
 /// measure, with a GP asked for; returns the ladder's report.
 pub fn climb_contacts(robot: &Robot, samples: &[Sample], seed: u64) -> armcomp_core::analysis::ladder::LadderReport {
+    let calibration = CalibrationParams {
+        measurement_std: 3e-5,
+        orientation_std: 6e-5,
+        ..CalibrationParams::default()
+    };
+    // One draw of the folds: what is checked is how a held-out contact is scored.
     let params = armcomp_core::analysis::ladder::LadderParams {
-        calibration: CalibrationParams {
-            measurement_std: 3e-5,
-            orientation_std: 6e-5,
-            ..CalibrationParams::default()
-        },
-        noise_declared: true,
         folds: 4,
+        repeats: 1,
         seed,
-        fold_groups: None,
         predictor: Some(Box::new(armcomp_learn::GpSpec::default())),
+        ..armcomp_core::analysis::ladder::LadderParams::new(calibration, true)
     };
     armcomp_core::analysis::ladder::climb(robot, samples, &params, &|_| {})
         .unwrap()
@@ -965,18 +966,18 @@ fn the_ladder_scores_plane_contacts_by_their_held_out_height() {
         assert_eq!(report.scored_by, "plane height");
         // The truth's joint offsets move the contacts by millimetres: registration alone
         // (the planes' poses and the ball) leaves them, a rung with the offsets does not.
-        let registration = report.rungs[0].rms_mm;
+        let registration = report.candidates[0].rms_mm;
         assert!(
-            report.chosen != Rung::Registration && registration > 10.0 * report.expected_rms_mm,
+            report.chosen.rung != Rung::Registration && registration > 10.0 * report.expected_rms_mm,
             "seed {seed}: {:?}",
-            report.rungs
+            report.candidates
         );
         assert!(
             report.expected_rms_mm > 0.8 * noise && report.expected_rms_mm < 2.0 * noise,
             "seed {seed}: expected held-out height {} mm, the truth's own {noise} mm",
             report.expected_rms_mm
         );
-        assert!(report.predictor_not_tried.is_some() && report.rungs.iter().all(|r| r.rung != Rung::Predictor));
+        assert!(report.predictor_not_tried.is_some() && report.candidates.iter().all(|c| !c.candidate.predictor));
     }
 }
 

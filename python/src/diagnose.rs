@@ -10,13 +10,15 @@ use crate::measurements::PyMeasurements;
 use crate::robot::PyRobot;
 
 /// Diagnoses `robot` on `data`; returns the improved model (found effects added, calibrated
-/// on all the data) and the report as JSON text (what `armcomp diagnose --json` prints).
+/// on all the data; the model as given when none is, its predictor kept or fitted again) and
+/// the report as JSON text (what `armcomp diagnose --json` prints). Without `noise_mm` the
+/// noise is the model's fit record's, else estimated for the model as given.
 /// `progress`, when given, is called as `progress(stage, done, total)` after every fold
 /// calibration (`stage`: "model as given", "effect N", "learnable residual"). When the final
 /// model leaves rows far beyond the noise, the search is made again without them
 /// (`keep_outliers=True` keeps them); the report lists them (`gross_errors`) either way.
 #[pyfunction]
-#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = 0.1, identify = None, predictor = "gp", progress = None, keep_outliers = false))]
+#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = None, identify = None, predictor = "gp", progress = None, keep_outliers = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
@@ -26,7 +28,7 @@ pub fn diagnose(
     folds: usize,
     max_steps: usize,
     min_reduction_percent: f64,
-    noise_mm: f64,
+    noise_mm: Option<f64>,
     identify: Option<Vec<String>>,
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
@@ -47,14 +49,17 @@ pub fn diagnose(
     };
     let robot = robot.robot.clone();
     let set = data.resolve(&robot)?;
+    let given = CalibrationParams {
+        identify: identify.unwrap_or_default(),
+        measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,
+        ..CalibrationParams::default()
+    };
+    let (calibration, _) = armcomp_api::ops::diagnose::calibration_for(&robot, &set.samples, given, noise_mm.is_some())
+        .py()?;
     let params = DiagnoseParams {
         folds,
         seed,
-        calibration: CalibrationParams {
-            identify: identify.unwrap_or_default(),
-            measurement_std: noise_mm * 1e-3,
-            ..CalibrationParams::default()
-        },
+        calibration,
         min_rms_reduction: min_reduction_percent / 100.0,
         max_steps,
         exclude_gross_errors: !keep_outliers,
@@ -74,5 +79,10 @@ pub fn diagnose(
     })?
     .py()?;
     let json = armcomp_api::ops::diagnose::to_json(&diagnosis.report, &set.rows).to_string();
-    Ok((PyRobot::wrap(diagnosis.robot), json))
+    let control = armcomp_core::FitControl {
+        progress: None,
+        cancel: Default::default(),
+    };
+    let (model, _) = armcomp_api::ops::diagnose::output_model(&robot, &diagnosis, &set.samples, &control).py()?;
+    Ok((model.map_or_else(|| PyRobot::shared(robot.clone()), PyRobot::wrap), json))
 }

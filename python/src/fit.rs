@@ -6,12 +6,12 @@ use crate::errors::{IntoPy, input_error};
 use crate::measurements::PyMeasurements;
 use crate::robot::PyRobot;
 
-/// Chooses the model of `robot` from `data` by nested cross-validation and fits it on all of
-/// `data`; returns the model and the report as JSON text (what `armcomp fit --json` prints).
+/// Chooses the model of `robot` from `data` by repeated cross-validation (`folds` drawn
+/// `repeats` times) and fits it on all of `data`; returns the model and the report as JSON text (what `armcomp fit --json` prints).
 /// `groups`: one label per data row; folds then hold out whole groups. `progress`, when given,
 /// is called as `progress("model choice", done, total)` after every fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None))]
+#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = 3))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
@@ -24,6 +24,7 @@ pub fn fit(
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
     noise_deg: Option<f64>,
+    repeats: usize,
 ) -> PyResult<(PyRobot, String)> {
     let robot = robot.robot.clone();
     let set = data.resolve(&robot)?;
@@ -48,6 +49,7 @@ pub fn fit(
             noise_mm,
             noise_deg,
             folds,
+            repeats,
             seed,
             fold_groups,
             predictor,

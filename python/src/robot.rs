@@ -50,9 +50,14 @@ impl Scratch {
 impl PyRobot {
     /// Wraps a robot an operation built (its reading warnings were issued when it was loaded).
     pub fn wrap(robot: Robot) -> Self {
+        PyRobot::shared(Arc::new(robot))
+    }
+
+    /// Wraps a robot shared with another Python object.
+    pub fn shared(robot: Arc<Robot>) -> Self {
         PyRobot {
             scratch: Mutex::new(Scratch::new(&robot)),
-            robot: Arc::new(robot),
+            robot,
         }
     }
 

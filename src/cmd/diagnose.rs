@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use armcomp_api::ops::diagnose::LearnableBy;
+use armcomp_api::ops::diagnose::{LearnableBy, NoiseFrom};
 use armcomp_core::calibrate::CalibrationParams;
 
 use armcomp_core::algorithms::evaluate::ErrorStats;
@@ -54,9 +54,11 @@ pub struct Args {
     /// Smallest held-out RMS reduction, in percent, that an effect must bring to be added.
     #[arg(long, default_value_t = 5.0)]
     min_reduction_percent: f64,
-    /// Standard deviation of the tracker noise per axis, in mm (weighs data against priors).
-    #[arg(long, default_value_t = 0.1)]
-    noise_mm: f64,
+    /// Standard deviation of the tracker noise per axis, in mm: weighs data against priors, and
+    /// candidates are judged against the held-out error above the floor it gives. Default: the
+    /// model's fit record's, else estimated from the data for the model as given.
+    #[arg(long)]
+    noise_mm: Option<f64>,
     /// Refit every candidate on the folds, also those the score test at the current fit shows
     /// cannot earn their parameters (slower; for checking the screening).
     #[arg(long)]
@@ -100,15 +102,18 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         armcomp_api::diagnosis_report::check(dir, &inputs(&robot, &read))?;
     }
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
+    let given = CalibrationParams {
+        identify: args.identify.clone(),
+        measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
+        ..CalibrationParams::default()
+    };
+    let (calibration, noise_from) =
+        armcomp_api::ops::diagnose::calibration_for(&robot, &data.samples, given, args.noise_mm.is_some())?;
     let params = DiagnoseParams {
         fold_groups: args.group.groups(&[&args.data], &data.rows)?,
         folds: args.folds,
         seed: args.seed,
-        calibration: CalibrationParams {
-            identify: args.identify.clone(),
-            measurement_std: args.noise_mm * 1e-3,
-            ..CalibrationParams::default()
-        },
+        calibration,
         min_rms_reduction: args.min_reduction_percent / 100.0,
         max_steps: args.max_steps,
         exhaustive: args.exhaustive,
@@ -146,8 +151,23 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     bar.finish_and_clear();
     let diagnosis = result?;
     let report = &diagnosis.report;
+    let mut notes = vec![format!(
+        "noise {:.4} mm per axis ({}): candidates are judged against the held-out error above its floor",
+        params.calibration.measurement_std * 1e3,
+        match noise_from {
+            NoiseFrom::Declared => "--noise-mm",
+            NoiseFrom::FitRecord => "the model's fit record",
+            NoiseFrom::Estimated => "estimated from the data for the model as given",
+        }
+    )];
     if let Some(out) = &args.out {
-        let text = diagnosis.robot.to_file().to_text_for(out)?;
+        let control = armcomp_core::FitControl {
+            progress: None,
+            cancel: armcomp_core::support::cancel::Cancel::default(),
+        };
+        let (model, note) = armcomp_api::ops::diagnose::output_model(&robot, &diagnosis, &data.samples, &control)?;
+        notes.extend(note);
+        let text = model.as_ref().unwrap_or(&robot).to_text_for(out)?;
         write_atomic(out, text.as_bytes())?;
     }
     if let Some(dir) = &args.report {
@@ -159,6 +179,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let value = armcomp_api::ops::diagnose::to_json(report, &data.rows);
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
+        for n in &notes {
+            println!("{n}");
+        }
         print_report(report, &gross_rows);
         if let Some(out) = &args.out {
             println!("wrote {}", out.display());

@@ -28,9 +28,14 @@ pub struct Args {
     /// (or the robot measures no poses); default 0.1 where it is not estimated.
     #[arg(long)]
     noise_deg: Option<f64>,
-    /// Outer cross-validation folds that score the rungs.
+    /// Outer cross-validation folds that score the candidates.
     #[arg(long, default_value_t = 5)]
     folds: usize,
+    /// How many times the folds are drawn, each with its own seed: every candidate is scored
+    /// on every draw, and the draws' spread is the noise within which the simpler candidate
+    /// is preferred.
+    #[arg(long, default_value_t = 3, value_parser = super::at_least_one)]
+    repeats: usize,
     #[command(flatten)]
     group: super::GroupBy,
     /// The residual predictor tried on top of the best physical model (gp, mlp, ssa_bp,
@@ -49,7 +54,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = super::load_robot(&args.robot)?;
     check_output(&args.out, &robot, &[&args.data])?;
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
-    let fold_groups = args.group.groups(&[&args.data], &data.rows)?.map(|(_, g)| g);
+    let grouping = args.group.groups(&[&args.data], &data.rows)?;
+    let group_column = grouping.as_ref().map(|(c, _)| c.clone());
+    let fold_groups = grouping.map(|(_, g)| g);
     let predictor = (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string());
     let bar = Mutex::new(indicatif::ProgressBar::new(0));
     if let Ok(b) = bar.lock() {
@@ -67,6 +74,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             noise_mm: args.noise_mm,
             noise_deg: args.noise_deg,
             folds: args.folds,
+            repeats: args.repeats,
             seed: args.seed,
             fold_groups,
             predictor,
@@ -92,50 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             serde_json::to_string_pretty(&armcomp_api::ops::fit::to_json(&ladder))?
         );
     } else {
-        println!(
-            "{} rows, nested cross-validation (folds: {}, grouped by {}); every choice made inside the training folds",
-            data.samples.len(),
-            r.folds,
-            args.group
-                .group_by
-                .as_deref()
-                .map_or(r.folds_by.clone(), |c| format!("`{c}`"))
-        );
-        if r.scored_by != "position" {
-            println!("a held-out row's error: {}", r.scored_by);
-        }
-        println!(
-            "{:<26} {:>14} {:>12} {:>9}  verdict",
-            "rung", "held-out RMS", "± spread", "time"
-        );
-        for s in &r.rungs {
-            let mean = s.fold_rms_mm.iter().sum::<f64>() / s.fold_rms_mm.len().max(1) as f64;
-            let spread = (s.fold_rms_mm.iter().map(|v| (v - mean).powi(2)).sum::<f64>()
-                / (s.fold_rms_mm.len().max(2) - 1) as f64)
-                .sqrt();
-            println!(
-                "{:<26} {:>11.3} mm {:>9.3} mm {:>7.1} s  {}: {}",
-                s.label,
-                s.rms_mm,
-                spread,
-                s.seconds,
-                if s.kept { "kept" } else { "not kept" },
-                s.reason
-            );
-        }
-        if let Some(why) = &r.predictor_not_tried {
-            println!("residual predictor not tried: {why}");
-        }
-        let e = &r.evidence;
-        println!(
-            "chosen: {} (expected held-out RMS {:.3} mm); on all rows the noise is {:.4} ± {:.4} mm per axis, {:.1} of {} parameters determined",
-            r.chosen.label(),
-            r.expected_rms_mm,
-            e.noise_mm,
-            e.noise_std_mm,
-            e.determined,
-            e.n_free
-        );
+        print_ladder(r, data.samples.len(), group_column.as_deref());
         println!("wrote {}", args.out.display());
     }
     for w in &ladder.calibration.report.warnings {
@@ -143,8 +108,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if r.interrupted {
         eprintln!(
-            "interrupted: the model was chosen among the {} rung(s) whose folds were all fitted before the stop",
-            r.rungs.len()
+            "interrupted: the model was chosen among the {} candidate(s) whose folds were all fitted before the stop",
+            r.candidates.len()
         );
         return Ok(ExitCode::from(130));
     }
@@ -157,4 +122,58 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         ExitCode::from(2)
     })
+}
+
+/// The ladder as `fit` prints it: a warning first when the choice is not sound, then every
+/// candidate with its score and spread, then the choice and its reason.
+fn print_ladder(r: &armcomp_core::analysis::ladder::LadderReport, rows: usize, group_by: Option<&str>) {
+    if let Some(w) = &r.warning {
+        println!("warning: {w}");
+    }
+    println!(
+        "{rows} rows, cross-validation (folds: {}, drawn {} time(s), grouped by {}); every choice made inside the training folds",
+        r.folds,
+        r.repeats,
+        group_by.map_or(r.folds_by.clone(), |c| format!("`{c}`"))
+    );
+    if r.scored_by != "position" {
+        println!("a held-out row's error: {}", r.scored_by);
+    }
+    println!(
+        "  {:<52} {:>12} {:>10} {:>10} {:>7} {:>8}",
+        "candidate", "held-out RMS", "± spread", "excess", "params", "time"
+    );
+    for c in &r.candidates {
+        let mark = if c.candidate == r.chosen {
+            '*'
+        } else if c.within_noise {
+            '~'
+        } else {
+            ' '
+        };
+        println!(
+            "{mark} {:<52} {:>9.3} mm {:>7.3} mm {:>7.3} mm {:>7.1} {:>6.1} s{}",
+            c.label,
+            c.rms_mm,
+            c.spread_mm,
+            c.excess_mm,
+            c.effective_params,
+            c.seconds,
+            c.not_sound.as_deref().map_or(String::new(), |w| format!("  not sound: {w}"))
+        );
+    }
+    if let Some(why) = &r.predictor_not_tried {
+        println!("residual predictor not tried: {why}");
+    }
+    let e = &r.evidence;
+    println!(
+        "chosen (*): {}: {} (expected held-out RMS {:.3} mm; ~ within the noise of the best); on all rows the noise is {:.4} ± {:.4} mm per axis, {:.1} of {} parameters determined",
+        r.chosen.label(),
+        r.reason,
+        r.expected_rms_mm,
+        e.noise_mm,
+        e.noise_std_mm,
+        e.determined,
+        e.n_free
+    );
 }

@@ -72,24 +72,43 @@ pub struct Rows {
 pub struct GroupBy {
     /// Hold out whole groups of this CSV column (a session, a day, a station) in each fold of
     /// the cross-validation rather than single poses: folds over clustered poses are
-    /// optimistic. Default: by station for data from several, else by pose.
+    /// optimistic. Default: a set-up column the data have (`session`, `setup`, `set_up`,
+    /// `ground`, `day`), else by station for data from several, else by pose.
     #[arg(long, value_name = "COLUMN")]
     pub group_by: Option<String>,
 }
 
 impl GroupBy {
     /// The column's name and each selected row's group (`rows`: the data rows, numbered on
-    /// across `files`), or `None` without `--group-by`.
+    /// across `files`): `--group-by`'s, else the first set-up column (`session`, `setup`, ...)
+    /// every file has, else `None`.
     pub fn groups(&self, files: &[&Path], rows: &[usize]) -> anyhow::Result<Option<(String, Vec<usize>)>> {
-        let Some(column) = &self.group_by else {
-            return Ok(None);
+        let mut texts = Vec::new();
+        for file in files {
+            texts.push(armcomp_core::support::io::read_text(file, input_limits())?);
+        }
+        let column = match &self.group_by {
+            Some(c) => c.clone(),
+            None => {
+                let mut found = None;
+                for (text, file) in texts.iter().zip(files) {
+                    let c = armcomp_core::data::measurement::set_up_column(text, file)?;
+                    if c.is_none() || (found.is_some() && found != c) {
+                        return Ok(None);
+                    }
+                    found = c;
+                }
+                match found {
+                    Some(c) => c.to_string(),
+                    None => return Ok(None),
+                }
+            }
         };
         let mut values = Vec::new();
-        for file in files {
-            let text = armcomp_core::support::io::read_text(file, input_limits())?;
-            values.extend(armcomp_core::data::measurement::column_values(&text, file, column)?);
+        for (text, file) in texts.iter().zip(files) {
+            values.extend(armcomp_core::data::measurement::column_values(text, file, &column)?);
         }
-        Ok(Some((column.clone(), armcomp_api::ops::fit::groups_of(&values, rows))))
+        Ok(Some((column, armcomp_api::ops::fit::groups_of(&values, rows))))
     }
 }
 

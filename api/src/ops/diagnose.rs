@@ -2,8 +2,10 @@
 //! [`armcomp_core::analysis::diagnose::diagnose`].
 
 use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, DiagnosisReport, diagnose};
+use armcomp_core::calibrate::CalibrationParams;
+use armcomp_core::calibrate::evidence::{EvidenceParams, calibrate_with_evidence};
 use armcomp_core::data::measurement::Sample;
-use armcomp_core::{PredictorSpec, Robot};
+use armcomp_core::{FitControl, PredictorSpec, Robot};
 
 /// The predictor that scores the learnable residual.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,4 +52,73 @@ pub fn to_json(report: &DiagnosisReport, rows: &[usize]) -> serde_json::Value {
     let mut value = serde_json::to_value(report).expect("the report serialises");
     value["gross_error_rows"] = gross_error_rows(report, rows).into();
     value
+}
+
+/// Where the diagnosis' noise (the floor candidates are judged against) came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseFrom {
+    /// `--noise-mm`.
+    Declared,
+    /// The model's fit record.
+    FitRecord,
+    /// The evidence of the model as given, fitted on all rows.
+    Estimated,
+}
+
+/// The calibration settings the diagnosis of `robot` on `samples` uses: continued from the
+/// model's fit record (its identified set, priors and noise, unless `calibration` sets them:
+/// `noise_declared`), and without a declared or recorded noise the noise the evidence
+/// estimates for the model as given on all rows.
+pub fn calibration_for(
+    robot: &Robot,
+    samples: &[Sample],
+    calibration: CalibrationParams,
+    noise_declared: bool,
+) -> armcomp_core::Result<(CalibrationParams, NoiseFrom)> {
+    let recorded = robot.built_from().fitted.is_some();
+    let mut calibration = calibration.continued_from(robot, samples, noise_declared, false);
+    let from = match (noise_declared, recorded) {
+        (true, _) => NoiseFrom::Declared,
+        (false, true) => NoiseFrom::FitRecord,
+        (false, false) => {
+            let evidence = EvidenceParams {
+                estimate_priors: false,
+                ..EvidenceParams::default()
+            };
+            let (fit, _) = calibrate_with_evidence(robot, samples, &calibration, &evidence, &mut |_| {})?;
+            calibration.measurement_std = fit.linearisation.noise;
+            calibration.orientation_std = fit.linearisation.orientation_noise;
+            NoiseFrom::Estimated
+        }
+    };
+    Ok((calibration, from))
+}
+
+/// The model `diagnose --out` writes, and what became of the given model's predictor: `None`
+/// for the model as given (with its predictor and fit record) when no effect was added; else
+/// the diagnosed model, with the given model's predictor fitted again on what it leaves on
+/// `samples`, so that a predictor is never dropped without a word.
+pub fn output_model(
+    given: &Robot,
+    diagnosis: &Diagnosis,
+    samples: &[Sample],
+    control: &FitControl<'_>,
+) -> armcomp_core::Result<(Option<Robot>, Option<String>)> {
+    if diagnosis.report.steps.is_empty() {
+        let note = given
+            .predictor()
+            .is_some()
+            .then(|| "no effect was added: the model is written as given, its fitted predictor kept".to_string());
+        return Ok((None, note));
+    }
+    let diagnosed = &diagnosis.robot;
+    if given.predictor().is_none() || diagnosed.predictor_spec().is_none() {
+        return Ok((Some(diagnosed.rebuild(diagnosed.to_file())?), None));
+    }
+    let run = crate::ops::learn::run(diagnosed, diagnosed.to_file(), samples, None, None, control)?;
+    let note = format!(
+        "the given model's predictor was fitted again on what the diagnosed model leaves (training RMS {:.4} mm)",
+        run.after.rms_mm
+    );
+    Ok((Some(run.robot), Some(note)))
 }

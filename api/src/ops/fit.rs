@@ -19,6 +19,8 @@ pub struct FitParams {
     pub noise_deg: Option<f64>,
     /// Outer folds.
     pub folds: usize,
+    /// How many times the folds are drawn (each draw with its own seed).
+    pub repeats: usize,
     /// Seed of the folds.
     pub seed: u64,
     /// A group per sample: folds hold out whole groups (`None`: whole poses).
@@ -42,19 +44,21 @@ pub fn run(
         .as_deref()
         .map(crate::ops::learn::default_predictor)
         .transpose()?;
+    let calibration = CalibrationParams {
+        measurement_std: params.noise_mm.unwrap_or(0.1) * 1e-3,
+        orientation_std: params.noise_deg.unwrap_or(0.1).to_radians(),
+        seed: params.seed,
+        cancel: params.cancel,
+        ..CalibrationParams::default()
+    };
+    let noise_declared = params.noise_mm.is_some() && (params.noise_deg.is_some() || !robot.measures_pose());
     let ladder = LadderParams {
-        calibration: CalibrationParams {
-            measurement_std: params.noise_mm.unwrap_or(0.1) * 1e-3,
-            orientation_std: params.noise_deg.unwrap_or(0.1).to_radians(),
-            seed: params.seed,
-            cancel: params.cancel,
-            ..CalibrationParams::default()
-        },
-        noise_declared: params.noise_mm.is_some() && (params.noise_deg.is_some() || !robot.measures_pose()),
         folds: params.folds,
+        repeats: params.repeats,
         seed: params.seed,
         fold_groups: params.fold_groups,
         predictor,
+        ..LadderParams::new(calibration, noise_declared)
     };
     climb(robot, samples, &ladder, progress)
 }

@@ -14,10 +14,12 @@
 //! candidates that explain the data equally well the one needing fewer parameters comes
 //! first. The best is accepted when it *earns its parameters*:
 //!
-//! - it lowers the pooled held-out RMS by at least [`DiagnoseParams::min_rms_reduction`]
-//!   (5 % by default): held-out scores already punish over-fitting, but a gain of a few percent
-//!   is within what the choice of folds moves a score by on a hundred poses, so it is not
-//!   evidence of a missing effect;
+//! - it removes at least [`DiagnoseParams::min_rms_reduction`] (5 % by default) of the pooled
+//!   held-out error that lies above the noise floor (the RMS the calibration's noise alone
+//!   gives): held-out scores already punish over-fitting, but a gain of a few percent is within
+//!   what the choice of folds moves a score by on a hundred poses, so it is not evidence of a
+//!   missing effect; judged against the total, a model close to the floor could never name
+//!   the effect that takes it there;
 //! - and the held-out Gaussian log-likelihood gain `n·ln(SSE₀/SSE₁)` exceeds the BIC penalty
 //!   `k·ln n`, so that a candidate with many parameters needs a proportionally larger gain;
 //! - and its calibrations moved it: a candidate left at its neutral value (within
@@ -157,6 +159,11 @@ pub struct RankedCandidate {
     pub heldout_bic: f64,
     /// Share of the held-out RMS before the round that it removes (negative when worse).
     pub share_removed: f64,
+    /// Share of the held-out error above the noise floor (the RMS the calibration's noise
+    /// alone gives, `√3 σ`) that it removes: `1 − √((MSE₁ − f)/(MSE₀ − f))` with the floor's
+    /// mean square `f`, what the acceptance rule judges. The total share when the model
+    /// before already reaches the floor, or for contacts.
+    pub share_above_floor: f64,
     /// Share of the training RMS the score test at the current fit predicts it removes (see
     /// [`crate::calibrate::score_test`]); `None` when the test could not be computed.
     pub predicted_share: Option<f64>,
@@ -465,6 +472,11 @@ fn search(
         samples,
         splits,
         given: robot.error_models().len(),
+        floor: if samples.iter().all(|s| s.kind() == crate::data::measurement::SampleKind::Position) {
+            3.0 * params.calibration.measurement_std.powi(2)
+        } else {
+            0.0
+        },
         params,
         progress,
     };
@@ -594,6 +606,9 @@ struct Search<'a> {
     samples: &'a [Sample],
     splits: Vec<Split>,
     given: usize,
+    /// The mean squared held-out error per sample the noise alone gives (`3σ²`, m²) for
+    /// measured positions; 0 for contacts, whose held-out errors are not 3-D tracker errors.
+    floor: f64,
     params: &'a DiagnoseParams,
     progress: &'a (dyn Fn(DiagnoseProgress) + Sync),
 }
@@ -627,6 +642,7 @@ impl Search<'_> {
                 !steps
                     .iter()
                     .any(|s| s.effect == o.effect && s.location == o.candidate.location)
+                    && !duplicates_a_parameter(fitted, o)
             })
             .collect();
         let predicted: Vec<Option<f64>> = offers.par_iter().map(|o| self.predicted_share(fitted, o)).collect();
@@ -728,7 +744,7 @@ impl Search<'_> {
         })();
         match evaluated {
             Err(e) => out.error = Some(e.to_string()),
-            Ok((names, evaluation)) => judge(&mut out, &names, evaluation, current, self.samples.len(), self.params),
+            Ok((names, evaluation)) => judge(&mut out, &names, evaluation, current, self.floor, self.params),
         }
         out
     }
@@ -905,6 +921,22 @@ fn offers(robot: &Robot, plugins: &[PluginInfo]) -> Vec<Offer> {
         .collect()
 }
 
+/// Whether the offered effect would give `model` a parameter it already has (the robot file
+/// models that effect there already): such a candidate adds nothing and cannot be built.
+fn duplicates_a_parameter(model: &Robot, offer: &Offer) -> bool {
+    let Ok(spec) = serde_json::from_value::<Box<dyn ErrorModelSpec>>(offer.candidate.spec.clone()) else {
+        return false;
+    };
+    let Ok(names) = model.error_model_param_names(spec.as_ref()) else {
+        return false;
+    };
+    model
+        .error_models()
+        .iter()
+        .flat_map(|m| m.params())
+        .any(|p| names.contains(&p.name))
+}
+
 /// `model` with the offered effect added.
 fn with_effect(model: &Robot, offer: &Offer) -> Result<Robot> {
     let spec: Box<dyn ErrorModelSpec> =
@@ -1014,6 +1046,7 @@ fn unscored(offer: &Offer, predicted_share: Option<f64>) -> RankedCandidate {
         // Candidates that could not be evaluated go last.
         heldout_bic: f64::INFINITY,
         share_removed: 0.0,
+        share_above_floor: 0.0,
         predicted_share,
         refitted: false,
         at_neutral: false,
@@ -1047,16 +1080,17 @@ fn added_params(model: &Robot) -> Vec<String> {
 }
 
 /// Applies the acceptance rule to `out`, a candidate whose parameters `names` were refitted
-/// to `evaluation`, against the held-out evaluation `current` of the model without it over
-/// `n_samples` samples.
+/// to `evaluation`, against the held-out evaluation `current` of the model without it; `floor`
+/// is the mean squared held-out error per sample the noise alone gives (m², 0 for none).
 fn judge(
     out: &mut RankedCandidate,
     names: &[String],
     evaluation: Heldout,
     current: &Heldout,
-    n_samples: usize,
+    floor: f64,
     params: &DiagnoseParams,
 ) {
+    let n_samples = current.errors.len();
     let n_params = names.len();
     let k = evaluation
         .fixed
@@ -1069,6 +1103,12 @@ fn judge(
     out.n_params = n_params;
     out.identified_params = k;
     out.share_removed = 1.0 - (sse1 / sse0).sqrt();
+    let floor_sse = floor * n_samples as f64;
+    out.share_above_floor = if sse0 > floor_sse && floor_sse > 0.0 {
+        1.0 - ((sse1 - floor_sse).max(0.0) / (sse0 - floor_sse)).sqrt()
+    } else {
+        out.share_removed
+    };
     let neutral_folds = evaluation
         .params
         .iter()
@@ -1088,7 +1128,7 @@ fn judge(
     let (gain, penalty) = (n * (sse0 / sse1).ln(), k as f64 * n.ln());
     out.verdict = verdict(out, gain, penalty, params);
     out.earns_parameters =
-        !out.at_neutral && !out.implausible_values && out.share_removed >= params.min_rms_reduction && gain > penalty;
+        !out.at_neutral && !out.implausible_values && out.share_above_floor >= params.min_rms_reduction && gain > penalty;
     out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
     out.heldout_bic = bic(&evaluation.errors, k);
     out.evaluation = Some(evaluation);
@@ -1109,18 +1149,20 @@ fn verdict(c: &RankedCandidate, gain: f64, penalty: f64, params: &DiagnoseParams
             "removes {:.0}%, but only with values its model calls physically implausible in most folds",
             100.0 * c.share_removed
         )
-    } else if c.share_removed < params.min_rms_reduction {
+    } else if c.share_above_floor < params.min_rms_reduction {
         format!(
-            "removes {:.1}% of the held-out RMS, less than the {:.0}% that folds alone can move a score by",
-            100.0 * c.share_removed,
+            "removes {:.1}% of the held-out RMS above the noise floor, less than the {:.0}% that folds alone can \
+             move a score by",
+            100.0 * c.share_above_floor,
             100.0 * params.min_rms_reduction
         )
     } else if gain <= penalty {
         format!("its held-out likelihood gain {gain:.1} does not pay its {k} parameter(s) (BIC penalty {penalty:.1})")
     } else {
         format!(
-            "earns its parameters: removes {:.0}% of the held-out RMS",
-            100.0 * c.share_removed
+            "earns its parameters: removes {:.0}% of the held-out RMS ({:.0}% of what lies above the noise floor)",
+            100.0 * c.share_removed,
+            100.0 * c.share_above_floor
         )
     }
 }

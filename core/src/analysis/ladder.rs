@@ -1,14 +1,23 @@
-//! Choosing the model from the training rows alone: the ladder registration → joint offsets →
-//! geometry → residual predictor, every rung scored by nested cross-validation.
+//! Choosing the model from the training rows alone: a grid of candidates — the levels
+//! registration → joint offsets → geometry → error models, each under several prior schemes,
+//! each with and without a residual predictor — every one scored by the same repeated, grouped
+//! cross-validation.
 //!
-//! Each rung is fitted on the training part of every outer fold exactly as it will be fitted on
-//! all the rows, its choices (noise, prior scales, the predictor's hyper-parameters) made
-//! inside that part by the evidence, and scored on the fold left out; a choice never sees the
-//! rows that score it. A rung is kept only when it beats the last rung kept by more than the
-//! standard error of the paired difference, so a richer model must earn its parameters on rows
-//! it has not seen. The folds hold out whole pose groups, or whole groups of a named column
-//! (a session, a station) when the caller gives them, since random folds over clustered poses
-//! are optimistic.
+//! Each candidate is fitted on the training part of every outer fold exactly as it will be
+//! fitted on all the rows, its own choices (the noise, the evidence's prior scales, the
+//! predictor's hyper-parameters) made inside that part, and scored on the fold left out; no
+//! choice sees the rows that score it. The folds hold out whole pose groups, or whole groups
+//! of a named column (a session, a station), since random folds over clustered poses are
+//! optimistic. They are drawn [`LadderParams::repeats`] times with different seeds, and every
+//! candidate is scored on the same draws, so two candidates are compared on equal folds and
+//! the seeds' spread of their difference measures how far the folds alone move it.
+//!
+//! The choice is the simplest level (lowest level, no predictor before a predictor) with a
+//! candidate whose score is within that noise of the best, among those whose every fold fit
+//! converged to physically plausible values; within it, the first prior scheme (the evidence
+//! first) whose paired difference from the level's best lies within its standard error over the
+//! held-out groups. A candidate that is not sound is chosen only when no sound one is within
+//! the noise, and the report says so.
 
 use std::time::Instant;
 
@@ -16,17 +25,18 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::algorithms::evaluate::fit_residual_predictor;
-use crate::calibrate::evidence::{EvidenceParams, EvidenceReport, calibrate_with_evidence};
+use crate::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
 use crate::calibrate::{Calibration, CalibrationParams, FitsProgress, register_held_out_stations};
 use crate::data::measurement::Sample;
 use crate::data::split::{FoldBy, Split, subset};
 use crate::error::{Error, Result};
 use crate::plugin::{FitControl, PredictorSpec};
 use crate::robot::Robot;
+use crate::robot::robot_file::{FitRecord, RobotFile};
 use crate::support::cancel::Cancel;
 
-/// A rung of the ladder.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// A physical level of the ladder: what is identified.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Rung {
     /// The measurement frame and the markers.
@@ -37,18 +47,16 @@ pub enum Rung {
     Geometry,
     /// Plus the robot file's error models (when it has any).
     ErrorModels,
-    /// The best physical rung with a residual predictor on what it leaves.
-    Predictor,
 }
 
 impl Rung {
     /// What the rung identifies, as `--identify` words.
-    fn identify(self) -> &'static [&'static str] {
+    pub fn identify(self) -> &'static [&'static str] {
         match self {
             Rung::Registration => &["base", "markers"],
             Rung::JointOffsets => &["base", "markers", "offsets"],
             Rung::Geometry => &["base", "markers", "geometry"],
-            Rung::ErrorModels | Rung::Predictor => &["base", "markers", "geometry", "errors"],
+            Rung::ErrorModels => &["base", "markers", "geometry", "errors"],
         }
     }
 
@@ -59,66 +67,163 @@ impl Rung {
             Rung::JointOffsets => "joint offsets",
             Rung::Geometry => "geometry",
             Rung::ErrorModels => "geometry + error models",
-            Rung::Predictor => "+ residual predictor",
         }
+    }
+}
+
+/// How a candidate holds its parameters towards the robot file's values.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PriorScheme {
+    /// The file's priors with scales chosen by the evidence (one per parameter of the chain, or
+    /// one per group of parameters), the noise estimated with them.
+    Evidence(Grouping),
+    /// The file's prior standard deviations times this factor.
+    File(f64),
+    /// No priors: every direction the data cannot determine is fixed (the base parameters a
+    /// QR decomposition of the Jacobian keeps), the rest fitted freely.
+    None,
+}
+
+impl PriorScheme {
+    /// Its name in reports: `evidence per parameter`, `evidence per group`, `file ×0.3`, `no
+    /// priors`.
+    pub fn label(&self) -> String {
+        match self {
+            PriorScheme::Evidence(Grouping::PerParameter) => "evidence per parameter".into(),
+            PriorScheme::Evidence(Grouping::Groups) => "evidence per group".into(),
+            PriorScheme::File(s) => format!("file ×{s}"),
+            PriorScheme::None => "no priors".into(),
+        }
+    }
+
+    /// The schemes `armcomp fit` tries: the evidence both ways, the file's priors at five
+    /// scales, and none.
+    pub fn defaults() -> Vec<PriorScheme> {
+        let mut schemes = vec![
+            PriorScheme::Evidence(Grouping::PerParameter),
+            PriorScheme::Evidence(Grouping::Groups),
+        ];
+        schemes.extend([0.1, 0.3, 1.0, 3.0, 10.0].map(PriorScheme::File));
+        schemes.push(PriorScheme::None);
+        schemes
+    }
+}
+
+/// One candidate model: a level, a prior scheme, and whether a residual predictor learns what
+/// it leaves.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Candidate {
+    /// What is identified.
+    pub rung: Rung,
+    /// How the priors are set.
+    pub prior: PriorScheme,
+    /// Whether a residual predictor is fitted on what the physical model leaves.
+    pub predictor: bool,
+}
+
+impl Candidate {
+    /// Its name in reports: `geometry, file ×0.3 + predictor`.
+    pub fn label(&self) -> String {
+        format!(
+            "{}, {}{}",
+            self.rung.label(),
+            self.prior.label(),
+            if self.predictor { " + predictor" } else { "" }
+        )
     }
 }
 
 /// Settings of [`climb`].
 #[derive(Debug)]
 pub struct LadderParams {
-    /// How each rung calibrates (its `identify` is the rung's; its `measurement_std` is the
-    /// declared noise when `noise_declared`, else the first guess).
+    /// How each candidate calibrates (its `identify` and priors are the candidate's; its
+    /// `measurement_std` is the declared noise when `noise_declared`, else the first guess).
     pub calibration: CalibrationParams,
     /// Whether the noise is declared (otherwise estimated with every fit).
     pub noise_declared: bool,
     /// Outer folds.
     pub folds: usize,
+    /// How many times the folds are drawn, each with its own seed derived from `seed`.
+    pub repeats: usize,
     /// Seed of the folds.
     pub seed: u64,
     /// A group per sample (a session, a station): folds hold out whole groups. `None` holds
     /// out whole poses.
     pub fold_groups: Option<Vec<usize>>,
-    /// The residual predictor to try on top of the best physical rung (none: no such rung).
+    /// The prior schemes every level is fitted under ([`PriorScheme::defaults`]).
+    pub schemes: Vec<PriorScheme>,
+    /// The residual predictor tried on every physical candidate (none: no such candidates).
     pub predictor: Option<Box<dyn PredictorSpec>>,
 }
 
-/// One rung's nested cross-validated score.
+impl LadderParams {
+    /// The settings `armcomp fit` uses by default around `calibration`: 5 folds drawn 3 times,
+    /// every default prior scheme, no predictor.
+    pub fn new(calibration: CalibrationParams, noise_declared: bool) -> LadderParams {
+        LadderParams {
+            calibration,
+            noise_declared,
+            folds: 5,
+            repeats: 3,
+            seed: 0,
+            fold_groups: None,
+            schemes: PriorScheme::defaults(),
+            predictor: None,
+        }
+    }
+}
+
+/// One candidate's cross-validated score.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct RungScore {
-    /// The rung.
-    pub rung: Rung,
+pub struct CandidateScore {
+    /// The candidate.
+    pub candidate: Candidate,
     /// Its name in reports.
     pub label: String,
-    /// Pooled held-out RMS over the outer folds of the error [`LadderReport::scored_by`] names
-    /// (mm).
+    /// Pooled held-out RMS over every outer fold of every repeat, of the error
+    /// [`LadderReport::scored_by`] names (mm).
     pub rms_mm: f64,
-    /// Held-out RMS of each outer fold (mm).
+    /// The pooled held-out RMS of each repeat of the folds (mm).
+    pub repeat_rms_mm: Vec<f64>,
+    /// Held-out RMS of each outer fold, repeat after repeat (mm).
     pub fold_rms_mm: Vec<f64>,
-    /// Mean held-out squared error gained over the last rung kept (mm², positive is better;
-    /// 0 for the first rung).
-    pub gain_mm2: f64,
-    /// The standard error of that gain (mm²) over the held-out pose groups.
-    pub gain_std_error_mm2: f64,
-    /// Whether it was kept (it beats the last rung kept by more than the standard error).
-    pub kept: bool,
-    /// Why it was or was not kept.
-    pub reason: String,
-    /// Wall-clock time of its fits (s).
+    /// The standard deviation of the folds' RMS (mm).
+    pub spread_mm: f64,
+    /// How far its score lies above the best candidate's, on equal folds (mm; mean over the
+    /// repeats).
+    pub excess_mm: f64,
+    /// The standard error of that excess over the repeats (mm): how far the draw of the folds
+    /// alone moves it (0 with one repeat).
+    pub excess_std_error_mm: f64,
+    /// Whether its score is within the noise of the best (see the module documentation).
+    pub within_noise: bool,
+    /// The parameters its fits determine (the mean over the folds of `γ`, the trace of the
+    /// data's share of the posterior).
+    pub effective_params: f64,
+    /// Why it is not sound (a fold fit did not converge, or holds implausible values), if so.
+    pub not_sound: Option<String>,
+    /// Wall-clock time of its fits (s); the prior schemes of a level share their fits' time.
     pub seconds: f64,
 }
 
 /// What the ladder chose and how.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct LadderReport {
-    /// Every rung tried, in order.
-    pub rungs: Vec<RungScore>,
-    /// The rung chosen.
-    pub chosen: Rung,
-    /// Its nested cross-validated RMS: the held-out error to expect from the model (mm).
+    /// Every candidate scored, level by level.
+    pub candidates: Vec<CandidateScore>,
+    /// The candidate chosen.
+    pub chosen: Candidate,
+    /// Why, in words.
+    pub reason: String,
+    /// Said first when the chosen candidate is not sound (no sound one scored within the noise).
+    pub warning: Option<String>,
+    /// Its cross-validated RMS: the held-out error to expect from the model (mm).
     pub expected_rms_mm: f64,
     /// Outer folds.
     pub folds: usize,
+    /// Repeats of the folds scored (fewer than asked after a stop request).
+    pub repeats: usize,
     /// What each fold held out together: `pose`, `station` (data from several), or `groups`
     /// (the caller's).
     pub folds_by: String,
@@ -128,26 +233,26 @@ pub struct LadderReport {
     pub scored_by: String,
     /// Why the residual predictor was not tried although one was asked for, if so.
     pub predictor_not_tried: Option<String>,
-    /// The noise and priors the evidence chose for the chosen rung on all rows.
+    /// The noise and priors chosen for the chosen candidate on all rows.
     pub evidence: EvidenceReport,
-    /// Whether a stop request ([`CalibrationParams::cancel`]) ended the cross-validation: the rungs
-    /// are those whose every fold was fitted before it (the predictor's is not tried), and the
-    /// choice among them was fitted on all rows after it.
+    /// Whether a stop request ([`CalibrationParams::cancel`]) ended the cross-validation: the
+    /// candidates are scored on the repeats and levels whose every fold was fitted before it,
+    /// and the choice among them was fitted on all rows after it.
     pub interrupted: bool,
 }
 
 /// The chosen model, fitted on all rows.
 #[derive(Debug)]
 pub struct Ladder {
-    /// The model (with its fitted predictor when that rung was chosen).
+    /// The model (with its fitted predictor when the chosen candidate has one).
     pub robot: Robot,
-    /// The calibration of the chosen physical rung on all rows.
+    /// The calibration of the chosen physical model on all rows.
     pub calibration: Calibration,
     /// The ladder.
     pub report: LadderReport,
 }
 
-/// The rungs [`climb`] fits for `robot`: registration, joint offsets, geometry, and the error
+/// The levels [`climb`] fits for `robot`: registration, joint offsets, geometry, and the error
 /// models when the robot has any.
 fn physical_rungs(robot: &Robot) -> Vec<Rung> {
     let mut rungs = vec![Rung::Registration, Rung::JointOffsets, Rung::Geometry];
@@ -157,32 +262,100 @@ fn physical_rungs(robot: &Robot) -> Vec<Rung> {
     rungs
 }
 
-fn calibration_params(params: &LadderParams, rung: Rung) -> (CalibrationParams, EvidenceParams) {
-    let calibration = CalibrationParams {
-        identify: rung.identify().iter().map(|w| w.to_string()).collect(),
-        ..params.calibration.clone()
-    };
-    let evidence = EvidenceParams {
-        estimate_noise: !params.noise_declared,
-        ..EvidenceParams::default()
-    };
-    (calibration, evidence)
+/// One fit of a level under one prior scheme.
+struct SchemeFit {
+    calibration: Calibration,
+    evidence: EvidenceReport,
 }
 
-fn fit_rung(
+/// Fits `rung` on `samples` under each of `schemes`, in that order. The evidence with one scale
+/// per parameter is fitted first whatever the list: the others start where it ended, from its
+/// noise (each still estimates its own unless the noise is declared), since a fit of the same
+/// level under other priors lies close by.
+fn fit_schemes(
     robot: &Robot,
     samples: &[Sample],
     params: &LadderParams,
     rung: Rung,
+    schemes: &[PriorScheme],
     cancel: &Cancel,
-) -> Result<(Calibration, EvidenceReport)> {
-    let (mut calibration, evidence) = calibration_params(params, rung);
-    calibration.cancel = cancel.clone();
-    calibrate_with_evidence(robot, samples, &calibration, &evidence, &mut |_| {})
+) -> Result<Vec<SchemeFit>> {
+    let base = CalibrationParams {
+        identify: rung.identify().iter().map(|w| w.to_string()).collect(),
+        cancel: cancel.clone(),
+        ..params.calibration.clone()
+    };
+    let evidence = |grouping, estimate_priors| EvidenceParams {
+        grouping,
+        estimate_noise: !params.noise_declared,
+        estimate_priors,
+        ..EvidenceParams::default()
+    };
+    let fit = |p: &CalibrationParams, e: &EvidenceParams| -> Result<SchemeFit> {
+        let (calibration, evidence) = calibrate_with_evidence(robot, samples, p, e, &mut |_| {})?;
+        Ok(SchemeFit { calibration, evidence })
+    };
+    let first = fit(&base, &evidence(Grouping::PerParameter, true))?;
+    let lin = &first.calibration.linearisation;
+    let warm = CalibrationParams {
+        start: Some(lin.theta.clone()),
+        measurement_std: lin.noise,
+        orientation_std: lin.orientation_noise,
+        fixed_point_std: lin.fixed_point_noise.or(base.fixed_point_std),
+        restarts: 0,
+        ..base.clone()
+    };
+    let mut first = Some(first);
+    let mut fits = Vec::with_capacity(schemes.len());
+    for &scheme in schemes {
+        fits.push(match scheme {
+            PriorScheme::Evidence(Grouping::PerParameter) => match first.take() {
+                Some(f) => f,
+                None => fit(&base, &evidence(Grouping::PerParameter, true))?,
+            },
+            PriorScheme::Evidence(grouping) => fit(&warm, &evidence(grouping, true))?,
+            PriorScheme::File(scale) => fit(
+                &CalibrationParams {
+                    prior_scale: base.prior_scale * scale,
+                    ..warm.clone()
+                },
+                &evidence(Grouping::PerParameter, false),
+            )?,
+            PriorScheme::None => fit(
+                &CalibrationParams {
+                    use_priors: false,
+                    ..warm.clone()
+                },
+                &evidence(Grouping::PerParameter, false),
+            )?,
+        });
+    }
+    Ok(fits)
+}
+
+/// Why a fit cannot be stood behind, if it cannot: it did not converge, or a free parameter
+/// ended outside its physically plausible range.
+fn not_sound(calibration: &Calibration) -> Option<String> {
+    let r = &calibration.report;
+    if !r.converged {
+        return Some(format!("a fit did not converge ({})", r.stop_reason));
+    }
+    let implausible: Vec<&str> = r
+        .params
+        .iter()
+        .filter(|p| !p.fixed && !p.plausible)
+        .map(|p| p.name.as_str())
+        .collect();
+    (!implausible.is_empty()).then(|| format!("implausible values: {}", implausible.join(", ")))
 }
 
 /// `robot` with `spec` fitted on what it leaves on `samples`.
 fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], cancel: &Cancel) -> Result<Robot> {
+    robot.rebuild(file_with_predictor(robot, spec, samples, cancel)?)
+}
+
+/// `robot`'s file with `spec` fitted on what it leaves on `samples`.
+fn file_with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], cancel: &Cancel) -> Result<RobotFile> {
     let control = FitControl {
         progress: None,
         cancel: cancel.clone(),
@@ -192,7 +365,32 @@ fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], c
     file.predictor = Some(serde_json::from_value(serde_json::to_value(spec).map_err(json_error)?).map_err(json_error)?);
     file.fitted_predictor = Some(fitted);
     file.predictor_frame = Some(crate::robot::robot_file::PredictorFrame::Base);
-    robot.rebuild(file)
+    Ok(file)
+}
+
+/// The record of how the chosen candidate was fitted on all rows (`fit`), for the commands that
+/// continue from the model.
+fn fit_record(robot: &Robot, samples: &[Sample], params: &LadderParams, chosen: Candidate, fit: &SchemeFit, expected_rms_mm: f64) -> FitRecord {
+    let lin = &fit.calibration.linearisation;
+    let space = crate::calibrate::ParameterSpace::for_samples(robot, samples);
+    let prior_scales = lin
+        .free
+        .iter()
+        .zip(&lin.prior_sigma)
+        .filter(|(_, sigma)| sigma.is_finite())
+        .map(|(&k, sigma)| (space.params[k].info.name.clone(), sigma / space.params[k].info.sigma))
+        .collect();
+    FitRecord {
+        identify: chosen.rung.identify().iter().map(|w| w.to_string()).collect(),
+        prior: chosen.prior.label(),
+        use_priors: chosen.prior != PriorScheme::None,
+        prior_scales,
+        noise_mm: lin.noise * 1e3,
+        noise_estimated: !params.noise_declared,
+        noise_deg: robot.measures_pose().then(|| lin.orientation_noise.to_degrees()),
+        expected_rms_mm: Some(expected_rms_mm),
+        predictor: chosen.predictor,
+    }
 }
 
 fn json_error(e: serde_json::Error) -> Error {
@@ -202,39 +400,396 @@ fn json_error(e: serde_json::Error) -> Error {
     }
 }
 
-/// Squared held-out error of every sample (m²), in sample order, from the folds' models
-/// ([`held_out_errors`](crate::analysis::held_out::held_out_errors)); NaN for a sample its fold
-/// cannot score.
-fn held_out_errors(samples: &[Sample], splits: &[Split], models: &[Robot]) -> Result<Vec<f64>> {
-    let mut out = vec![f64::NAN; samples.len()];
-    for (split, model) in splits.iter().zip(models) {
-        let errors = crate::analysis::held_out::held_out_errors(
-            model,
-            &subset(samples, &split.train),
-            &subset(samples, &split.test),
-        )?;
-        for (&i, e) in split.test.iter().zip(errors) {
-            out[i] = e.map_or(f64::NAN, |e| e.norm_squared());
-        }
-    }
-    Ok(out)
+/// What one outer fold says of one scheme of a level.
+struct SchemeScore {
+    /// Squared held-out error of each of the fold's test samples (m², NaN where its fold
+    /// cannot score it), without and with the predictor.
+    errors: Vec<f64>,
+    with_predictor: Option<Vec<f64>>,
+    not_sound: Option<String>,
+    effective_params: f64,
 }
 
-/// Chooses among the rungs by nested cross-validation on `samples` and fits the choice on all
-/// of them (see the module documentation). `progress` sees every fit done. Deterministic for
-/// a seed; folds and rungs run in parallel.
+/// Fits `rung` under every scheme on `split`'s training rows and scores each on its test rows.
+fn score_fold(
+    robot: &Robot,
+    samples: &[Sample],
+    split: &Split,
+    params: &LadderParams,
+    rung: Rung,
+    predictor: Option<&dyn PredictorSpec>,
+    cancel: &Cancel,
+) -> Result<Vec<SchemeScore>> {
+    let train = subset(samples, &split.train);
+    let test = subset(samples, &split.test);
+    let squared = |model: &Robot| -> Result<Vec<f64>> {
+        Ok(crate::analysis::held_out::held_out_errors(model, &train, &test)?
+            .into_iter()
+            .map(|e| e.map_or(f64::NAN, |e| e.norm_squared()))
+            .collect())
+    };
+    fit_schemes(robot, &train, params, rung, &params.schemes, cancel)?
+        .into_iter()
+        .map(|fit| {
+            let not_sound = not_sound(&fit.calibration);
+            let effective_params = crate::calibrate::evidence::effective_parameters(&fit.calibration.linearisation);
+            let mut model = fit.calibration.robot;
+            register_held_out_stations(&mut model, &train, &test)?;
+            let errors = squared(&model)?;
+            let with_predictor = predictor
+                .map(|spec| squared(&with_predictor(&model, spec, &train, cancel)?))
+                .transpose()?;
+            Ok(SchemeScore {
+                errors,
+                with_predictor,
+                not_sound,
+                effective_params,
+            })
+        })
+        .collect()
+}
+
+/// The fold draws of [`climb`]: `repeats` seeds derived from `seed`, a draw that repeats an
+/// earlier one (one group per fold leaves nothing to draw) left out.
+fn draws(samples: &[Sample], params: &LadderParams, by: &FoldBy) -> Result<(Vec<Vec<Split>>, String)> {
+    let repeats = params.repeats.max(1) as u64;
+    let mut out: Vec<Vec<Split>> = Vec::new();
+    let mut grouped_by = String::new();
+    for k in 0..repeats {
+        let seed = params.seed.wrapping_mul(repeats).wrapping_add(k);
+        let (splits, folding) = crate::data::split::folds(samples, params.folds, seed, by)?;
+        grouped_by = folding.grouped_by;
+        let key = |s: &[Split]| {
+            let mut tests: Vec<Vec<usize>> = s.iter().map(|s| s.test.clone()).collect();
+            tests.sort();
+            tests
+        };
+        if !out.iter().any(|o| key(o) == key(&splits)) {
+            out.push(splits);
+        }
+    }
+    Ok((out, grouped_by))
+}
+
+/// A level's fold scores in one repeat: per fold, per scheme; `None` when a stop request left
+/// one of its folds unfitted.
+type LevelScores = Option<Vec<Vec<SchemeScore>>>;
+
+/// Chooses among the candidates by repeated cross-validation on `samples` and fits the choice
+/// on all of them (see the module documentation). `progress` sees every fold's fits done.
+/// Deterministic for a seed; the folds and levels of a repeat run in parallel.
 pub fn climb(
     robot: &Robot,
     samples: &[Sample],
     params: &LadderParams,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<Ladder> {
-    // By the caller's groups, else by station for data from several, else by pose; `groups`
-    // is what the spread of the scores is judged over.
+    // By the caller's groups, else by station for data from several, else by pose.
     let by = FoldBy::choose(samples, params.fold_groups.clone().map(|g| ("groups".to_string(), g)));
-    let (splits, folding) = crate::data::split::folds(samples, params.folds, params.seed, &by)?;
-    let groups: Vec<usize> = match by {
-        FoldBy::Column { groups, .. } => groups,
+    let (draws, folds_by) = draws(samples, params, &by)?;
+    let cancel = &params.calibration.cancel;
+    let rungs = physical_rungs(robot);
+    // A residual predictor learns 3-D errors, which fixed-point and plane rows do not give.
+    let positions_only = crate::analysis::held_out::measures_positions(samples);
+    let predictor = params.predictor.as_deref().filter(|_| positions_only);
+    let predictor_not_tried = (params.predictor.is_some() && !positions_only)
+        .then(|| "fixed-point and plane rows give no 3-D error for a residual predictor to learn".to_string());
+    let total = draws.iter().map(|d| d.len() * rungs.len()).sum::<usize>() + 1 + usize::from(predictor.is_some());
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let tick = || {
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(FitsProgress { done: d, total });
+    };
+    let mut seconds = vec![0.0; rungs.len()];
+    let mut results: Vec<Vec<LevelScores>> = Vec::new();
+    // Repeat after repeat, so that a stop request leaves whole repeats scored.
+    for splits in &draws {
+        let jobs: Vec<(usize, usize)> = (0..rungs.len())
+            .flat_map(|r| (0..splits.len()).map(move |f| (r, f)))
+            .collect();
+        let fitted: Vec<Option<(Vec<SchemeScore>, f64)>> = jobs
+            .par_iter()
+            .map(|&(r, f)| {
+                if cancel.is_cancelled() {
+                    return Ok(None);
+                }
+                let start = Instant::now();
+                let scored = score_fold(robot, samples, &splits[f], params, rungs[r], predictor, cancel);
+                let Some(scores) = crate::support::cancel::finished(scored)? else {
+                    return Ok(None);
+                };
+                tick();
+                Ok(Some((scores, start.elapsed().as_secs_f64())))
+            })
+            .collect::<Result<_>>()?;
+        let mut it = fitted.into_iter();
+        let mut level = Vec::with_capacity(rungs.len());
+        for secs in seconds.iter_mut() {
+            let folds: Option<Vec<_>> = it.by_ref().take(splits.len()).collect();
+            level.push(folds.map(|folds| {
+                folds
+                    .into_iter()
+                    .map(|(scores, s)| {
+                        *secs += s;
+                        scores
+                    })
+                    .collect()
+            }));
+        }
+        results.push(level);
+        if cancel.is_cancelled() {
+            break;
+        }
+    }
+    let interrupted = cancel.is_cancelled();
+    let mut gathered = gather(samples.len(), &rungs, params, predictor.is_some(), &draws, &results, &seconds);
+    if gathered.candidates.is_empty() {
+        return Err(Error::Interrupted);
+    }
+    let choice = choose(&mut gathered, &held_out_groups(samples, &by));
+    let candidates = gathered.candidates;
+    let chosen = candidates[choice.index].candidate;
+    // The choice is still fitted on all rows after a stop request; only a further one stops it.
+    let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
+    let fit = fit_schemes(robot, samples, params, chosen.rung, &[chosen.prior], &final_cancel)?
+        .pop()
+        .expect("one scheme asked, one fit");
+    tick();
+    let fitted = &fit.calibration.robot;
+    let mut file = match predictor.filter(|_| chosen.predictor) {
+        Some(spec) => file_with_predictor(fitted, spec, samples, &final_cancel)?,
+        None => fitted.to_file(),
+    };
+    if predictor.is_some() {
+        tick();
+    }
+    let expected_rms_mm = candidates[choice.index].rms_mm;
+    file.fitted = Some(fit_record(robot, samples, params, chosen, &fit, expected_rms_mm));
+    let model = fitted.rebuild(file)?;
+    Ok(Ladder {
+        robot: model,
+        calibration: fit.calibration,
+        report: LadderReport {
+            expected_rms_mm,
+            candidates,
+            chosen,
+            reason: choice.reason,
+            warning: choice.warning,
+            folds: draws.first().map_or(0, Vec::len),
+            repeats: results.iter().filter(|l| l.iter().all(Option::is_some)).count(),
+            folds_by,
+            scored_by: crate::analysis::held_out::scored_by(samples),
+            predictor_not_tried,
+            evidence: fit.evidence,
+            interrupted,
+        },
+    })
+}
+
+/// Every candidate's score from the fold scores of every repeat (`results[repeat][level]`),
+/// with each candidate's RMS per repeat (`None` for a repeat a stop left unscored). Levels with
+/// no repeat scored are left out.
+fn gather(
+    n: usize,
+    rungs: &[Rung],
+    params: &LadderParams,
+    with_predictor: bool,
+    draws: &[Vec<Split>],
+    results: &[Vec<LevelScores>],
+    seconds: &[f64],
+) -> Gathered {
+    let rms = |e: &mut dyn Iterator<Item = f64>| {
+        let (sum, count) = e.filter(|v| !v.is_nan()).fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
+        if count == 0 { f64::NAN } else { (sum / count as f64).sqrt() * 1e3 }
+    };
+    let mut out = Gathered::default();
+    for (r, &rung) in rungs.iter().enumerate() {
+        for (s, &prior) in params.schemes.iter().enumerate() {
+            for predictor in [false, true].into_iter().filter(|&p| !p || with_predictor) {
+                let (mut sum, mut count) = (vec![0.0; n], vec![0usize; n]);
+                let (mut per_repeat, mut fold_rms_mm) = (Vec::new(), Vec::new());
+                let (mut not_sound, mut effective, mut fits) = (None, 0.0, 0usize);
+                for (k, level) in results.iter().enumerate() {
+                    let Some(folds) = &level[r] else {
+                        per_repeat.push(None);
+                        continue;
+                    };
+                    let mut errors = vec![f64::NAN; n];
+                    for (split, fold) in draws[k].iter().zip(folds) {
+                        let score = &fold[s];
+                        let e = if predictor { score.with_predictor.as_ref().unwrap_or(&score.errors) } else { &score.errors };
+                        for (&i, &v) in split.test.iter().zip(e) {
+                            errors[i] = v;
+                        }
+                        fold_rms_mm.push(rms(&mut e.iter().copied()));
+                        not_sound = not_sound.or_else(|| score.not_sound.clone());
+                        effective += score.effective_params;
+                        fits += 1;
+                    }
+                    for (i, &v) in errors.iter().enumerate().filter(|(_, v)| !v.is_nan()) {
+                        sum[i] += v;
+                        count[i] += 1;
+                    }
+                    per_repeat.push(Some(rms(&mut errors.into_iter())));
+                }
+                if fits == 0 {
+                    continue;
+                }
+                let candidate = Candidate { rung, prior, predictor };
+                let fold_rms_mm: Vec<f64> = fold_rms_mm.into_iter().filter(|v| !v.is_nan()).collect();
+                let mean: Vec<f64> = sum
+                    .iter()
+                    .zip(&count)
+                    .map(|(s, &c)| if c == 0 { f64::NAN } else { s / c as f64 })
+                    .collect();
+                out.candidates.push(CandidateScore {
+                    candidate,
+                    label: candidate.label(),
+                    rms_mm: rms(&mut mean.iter().copied()),
+                    repeat_rms_mm: per_repeat.iter().flatten().copied().collect(),
+                    spread_mm: std_dev(&fold_rms_mm),
+                    fold_rms_mm,
+                    excess_mm: 0.0,
+                    excess_std_error_mm: 0.0,
+                    within_noise: false,
+                    effective_params: effective / fits as f64,
+                    not_sound,
+                    seconds: seconds[r],
+                });
+                out.repeat_rms.push(per_repeat);
+                out.sample_errors.push(mean);
+            }
+        }
+    }
+    out
+}
+
+/// What [`gather`] collects, per candidate: its score, its RMS per repeat (`None` for a repeat
+/// a stop left unscored), and each sample's held-out squared error averaged over the repeats
+/// (m², NaN where unscored).
+#[derive(Default)]
+struct Gathered {
+    candidates: Vec<CandidateScore>,
+    repeat_rms: Vec<Vec<Option<f64>>>,
+    sample_errors: Vec<Vec<f64>>,
+}
+
+/// The standard error of the mean paired difference `a − b` of per-sample squared errors over
+/// the held-out groups (each group's mean over its samples; the samples of one pose or session
+/// are not independent), and that mean.
+fn paired_difference(a: &[f64], b: &[f64], groups: &[usize]) -> (f64, f64) {
+    let n_groups = groups.iter().max().map_or(0, |m| m + 1);
+    let (mut sum, mut count) = (vec![0.0; n_groups], vec![0usize; n_groups]);
+    for i in (0..a.len()).filter(|&i| !a[i].is_nan() && !b[i].is_nan()) {
+        sum[groups[i]] += a[i] - b[i];
+        count[groups[i]] += 1;
+    }
+    let d: Vec<f64> = sum
+        .iter()
+        .zip(&count)
+        .filter(|(_, c)| **c > 0)
+        .map(|(s, &c)| s / c as f64)
+        .collect();
+    let mean = d.iter().sum::<f64>() / d.len().max(1) as f64;
+    (mean, std_dev(&d) / (d.len().max(1) as f64).sqrt())
+}
+
+/// The sample standard deviation of `v` (0 for fewer than two values).
+fn std_dev(v: &[f64]) -> f64 {
+    if v.len() < 2 {
+        return 0.0;
+    }
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+}
+
+/// The smallest excess over the best score that still counts as noise when the repeats cannot
+/// measure it (one repeat, or repeats that agree exactly): half a percent.
+const MIN_SCORE_NOISE: f64 = 0.005;
+
+struct Choice {
+    index: usize,
+    reason: String,
+    warning: Option<String>,
+}
+
+/// Marks which candidates score within the noise of the best and picks the choice (see the
+/// module documentation); `groups` gives each sample's held-out group.
+fn choose(gathered: &mut Gathered, groups: &[usize]) -> Choice {
+    let Gathered {
+        candidates,
+        repeat_rms,
+        sample_errors,
+    } = gathered;
+    let best = (0..candidates.len())
+        .filter(|&c| candidates[c].rms_mm.is_finite())
+        .min_by(|&a, &b| candidates[a].rms_mm.total_cmp(&candidates[b].rms_mm))
+        .unwrap_or(0);
+    let best_rms = candidates[best].rms_mm;
+    for (c, score) in candidates.iter_mut().enumerate() {
+        // Paired on the repeats both were scored on: equal folds.
+        let d: Vec<f64> = repeat_rms[c]
+            .iter()
+            .zip(&repeat_rms[best])
+            .filter_map(|(a, b)| Some(a.as_ref()? - b.as_ref()?))
+            .collect();
+        score.excess_mm = if d.is_empty() { f64::NAN } else { d.iter().sum::<f64>() / d.len() as f64 };
+        score.excess_std_error_mm = std_dev(&d) / (d.len().max(1) as f64).sqrt();
+        score.within_noise = score.excess_mm <= score.excess_std_error_mm.max(MIN_SCORE_NOISE * best_rms);
+    }
+    // The simplest level and predictor with a candidate within the noise of the best: the
+    // lowest level, no predictor before one; among the sound ones while there are any.
+    let level = |c: usize| (candidates[c].candidate.rung, candidates[c].candidate.predictor);
+    let eligible = |c: usize, sound: bool| candidates[c].within_noise && (!sound || candidates[c].not_sound.is_none());
+    let simplest = |sound: bool| (0..candidates.len()).filter(|&c| eligible(c, sound)).map(level).min();
+    let (chosen_level, sound) = match simplest(true) {
+        Some(l) => (l, true),
+        None => (simplest(false).unwrap_or(level(best)), false),
+    };
+    // Within it, the schemes score alike when their paired difference from the level's best is
+    // within its standard error over the held-out groups: the first of them in the order of
+    // the schemes (the evidence first), so that the choice does not follow the folds' noise.
+    let members: Vec<usize> = (0..candidates.len())
+        .filter(|&c| level(c) == chosen_level && (!sound || candidates[c].not_sound.is_none()))
+        .collect();
+    let lead = members
+        .iter()
+        .copied()
+        .min_by(|&a, &b| candidates[a].rms_mm.total_cmp(&candidates[b].rms_mm))
+        .unwrap_or(best);
+    let index = members
+        .iter()
+        .copied()
+        .find(|&c| {
+            let (mean, se) = paired_difference(&sample_errors[c], &sample_errors[lead], groups);
+            mean <= se
+        })
+        .unwrap_or(lead);
+    let warning = (!sound).then(|| {
+        format!(
+            "no candidate whose fits converged to plausible values scored within the noise of the best; the chosen \
+             one is not sound: {}",
+            candidates[index].not_sound.clone().unwrap_or_default()
+        )
+    });
+    let reason = if index == best {
+        "the best score".to_string()
+    } else {
+        format!(
+            "the simplest {}candidate within the folds' noise of the best ({}, {:.3} mm), the first prior scheme \
+             within the standard error of its level's best",
+            if sound { "sound " } else { "" },
+            candidates[best].label,
+            best_rms
+        )
+    };
+    Choice { index, reason, warning }
+}
+
+/// Each sample's held-out group under `by`: its column value, station or pose.
+fn held_out_groups(samples: &[Sample], by: &FoldBy) -> Vec<usize> {
+    match by {
+        FoldBy::Column { groups, .. } => groups.clone(),
         FoldBy::Stations => samples.iter().map(|s| s.station).collect(),
         FoldBy::Poses => {
             let mut g = vec![0; samples.len()];
@@ -245,215 +800,5 @@ pub fn climb(
             }
             g
         }
-    };
-    let folds_by = folding.grouped_by;
-    let cancel = &params.calibration.cancel;
-    let rungs = physical_rungs(robot);
-    // Every rung on every fold, the choice on all rows, the predictor on every fold and on all rows.
-    // A residual predictor learns 3-D errors, which fixed-point and plane rows do not give.
-    let positions_only = crate::analysis::held_out::measures_positions(samples);
-    let predictor = params.predictor.as_ref().filter(|_| positions_only);
-    let total = rungs.len() * splits.len() + 1 + predictor.map_or(0, |_| splits.len() + 1);
-    let done = std::sync::atomic::AtomicUsize::new(0);
-    let tick = || {
-        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        progress(FitsProgress { done: d, total });
-    };
-    // Every rung on every fold, in parallel.
-    let jobs: Vec<(usize, usize)> = (0..rungs.len())
-        .flat_map(|r| (0..splits.len()).map(move |f| (r, f)))
-        .collect();
-    let timed: Vec<Option<(Robot, f64)>> = jobs
-        .par_iter()
-        .map(|&(r, f)| {
-            if cancel.is_cancelled() {
-                return Ok(None);
-            }
-            let start = Instant::now();
-            let train = subset(samples, &splits[f].train);
-            let Some((cal, _)) = crate::support::cancel::finished(fit_rung(robot, &train, params, rungs[r], cancel))?
-            else {
-                return Ok(None);
-            };
-            let mut model = cal.robot;
-            register_held_out_stations(&mut model, &train, &subset(samples, &splits[f].test))?;
-            tick();
-            Ok(Some((model, start.elapsed().as_secs_f64())))
-        })
-        .collect::<Result<_>>()?;
-    let interrupted = timed.iter().any(Option::is_none);
-    // The rungs whose every fold was fitted, up to the first a stop left unfinished.
-    let mut fold_models: Vec<Vec<Robot>> = Vec::new();
-    let mut seconds = Vec::new();
-    let mut it = timed.into_iter();
-    for _ in &rungs {
-        let Some(fits) = it.by_ref().take(splits.len()).collect::<Option<Vec<_>>>() else {
-            break;
-        };
-        let (models, secs): (Vec<Robot>, Vec<f64>) = fits.into_iter().unzip();
-        fold_models.push(models);
-        seconds.push(secs.iter().sum::<f64>());
-    }
-    if fold_models.is_empty() {
-        return Err(Error::Interrupted);
-    }
-    let rungs = &rungs[..fold_models.len()];
-    let mut scores = Vec::new();
-    let mut kept_errors: Option<Vec<f64>> = None;
-    let mut chosen = 0;
-    for (r, &rung) in rungs.iter().enumerate() {
-        let errors = held_out_errors(samples, &splits, &fold_models[r])?;
-        let score = score_rung(rung, &errors, kept_errors.as_deref(), &groups, &splits, seconds[r]);
-        if score.kept {
-            kept_errors = Some(errors);
-            chosen = r;
-        }
-        scores.push(score);
-    }
-    let mut chosen_rung = rungs[chosen];
-    let mut predictor_models = None;
-    // The choice is still fitted on all rows after a stop request; only a further one stops it.
-    let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
-    let predictor_not_tried = (params.predictor.is_some() && !positions_only)
-        .then(|| "fixed-point and plane rows give no 3-D error for a residual predictor to learn".to_string());
-    if let Some(spec) = predictor.filter(|_| !interrupted) {
-        let start = Instant::now();
-        let models: Vec<Robot> = splits
-            .par_iter()
-            .zip(&fold_models[chosen])
-            .map(|(split, model)| {
-                let m = with_predictor(model, spec.as_ref(), &subset(samples, &split.train), cancel);
-                tick();
-                m
-            })
-            .collect::<Result<_>>()?;
-        let errors = held_out_errors(samples, &splits, &models)?;
-        let score = score_rung(
-            Rung::Predictor,
-            &errors,
-            kept_errors.as_deref(),
-            &groups,
-            &splits,
-            start.elapsed().as_secs_f64(),
-        );
-        if score.kept {
-            chosen_rung = Rung::Predictor;
-            predictor_models = Some(models);
-        }
-        scores.push(score);
-    }
-    let expected_rms_mm = scores.iter().rev().find(|s| s.kept).map_or(f64::NAN, |s| s.rms_mm);
-    // The choice fitted on all rows.
-    let (calibration, evidence) = fit_rung(robot, samples, params, rungs[chosen], &final_cancel)?;
-    tick();
-    let model = match (&params.predictor, predictor_models) {
-        (Some(spec), Some(_)) => {
-            let m = with_predictor(&calibration.robot, spec.as_ref(), samples, &final_cancel)?;
-            tick();
-            m
-        }
-        _ => {
-            if predictor.is_some() && !interrupted {
-                // Not kept: its fit on all rows is not needed, and the count is complete.
-                tick();
-            }
-            calibration.robot.rebuild(calibration.robot.to_file())?
-        }
-    };
-    Ok(Ladder {
-        robot: model,
-        calibration,
-        report: LadderReport {
-            rungs: scores,
-            chosen: chosen_rung,
-            expected_rms_mm,
-            folds: splits.len(),
-            folds_by,
-            scored_by: crate::analysis::held_out::scored_by(samples),
-            predictor_not_tried,
-            evidence,
-            interrupted,
-        },
-    })
-}
-
-/// Scores a rung's held-out squared errors `errors` (m², per sample; NaN for unscored samples,
-/// the same for every rung) against those of the last rung kept: the pooled RMS, and the
-/// paired gain over the held-out groups with its standard error.
-fn score_rung(
-    rung: Rung,
-    errors: &[f64],
-    kept: Option<&[f64]>,
-    groups: &[usize],
-    splits: &[Split],
-    seconds: f64,
-) -> RungScore {
-    let rms_of = |indices: &mut dyn Iterator<Item = usize>| {
-        let (sum, n) = indices
-            .map(|i| errors[i])
-            .filter(|e| !e.is_nan())
-            .fold((0.0, 0usize), |(s, n), e| (s + e, n + 1));
-        if n == 0 {
-            f64::NAN
-        } else {
-            (sum / n as f64).sqrt() * 1e3
-        }
-    };
-    let rms_mm = rms_of(&mut (0..errors.len()));
-    // A fold none of whose rows is scored has no RMS.
-    let fold_rms_mm = splits
-        .iter()
-        .map(|s| rms_of(&mut s.test.iter().copied()))
-        .filter(|r| !r.is_nan())
-        .collect();
-    let Some(kept) = kept else {
-        return RungScore {
-            rung,
-            label: rung.label().into(),
-            rms_mm,
-            fold_rms_mm,
-            gain_mm2: 0.0,
-            gain_std_error_mm2: 0.0,
-            kept: true,
-            reason: "the first rung".into(),
-            seconds,
-        };
-    };
-    // Paired differences per held-out group (the samples of one pose or session are not
-    // independent), each group's the mean over its samples.
-    let n_groups = groups.iter().max().map_or(0, |m| m + 1);
-    let (mut sum, mut count) = (vec![0.0; n_groups], vec![0usize; n_groups]);
-    for i in (0..errors.len()).filter(|&i| !errors[i].is_nan()) {
-        sum[groups[i]] += (kept[i] - errors[i]) * 1e6;
-        count[groups[i]] += 1;
-    }
-    let d: Vec<f64> = sum
-        .iter()
-        .zip(&count)
-        .filter(|(_, c)| **c > 0)
-        .map(|(s, &c)| s / c as f64)
-        .collect();
-    let m = d.len() as f64;
-    let mean = d.iter().sum::<f64>() / m;
-    let var = d.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (m - 1.0).max(1.0);
-    let se = (var / m).sqrt();
-    let kept_flag = mean > se;
-    let reason = if kept_flag {
-        format!("beats the last rung kept by {mean:.3} mm² per row, more than its standard error {se:.3}")
-    } else if mean > 0.0 {
-        format!("gains {mean:.3} mm² per row, within its standard error {se:.3}: not earned")
-    } else {
-        format!("does worse on held-out rows ({mean:.3} mm² per row)")
-    };
-    RungScore {
-        rung,
-        label: rung.label().into(),
-        rms_mm,
-        fold_rms_mm,
-        gain_mm2: mean,
-        gain_std_error_mm2: se,
-        kept: kept_flag,
-        reason,
-        seconds,
     }
 }

@@ -244,6 +244,13 @@ fn update(lin: &Linearisation) -> Update {
     }
 }
 
+/// The number of parameters the data determine at the linearisation `lin` under the priors
+/// it was fitted with (`γ = Σₖ γₖ`, the effective number of parameters): each free parameter
+/// without a prior counts one, one its prior holds where it starts counts none.
+pub fn effective_parameters(lin: &Linearisation) -> f64 {
+    update(lin).gamma.iter().sum()
+}
+
 /// Calibrates `robot` on `samples` as `params` says, with the noise and the prior scale of
 /// every group of selected parameters chosen by the evidence (see the module documentation).
 /// `params.measurement_std` is the first guess of the noise, and its value when

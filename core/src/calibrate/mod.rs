@@ -248,6 +248,39 @@ pub struct CalibrationParams {
     pub cancel: Cancel,
 }
 
+impl CalibrationParams {
+    /// These settings continued from `robot`'s fit record ([`FitRecord`](crate::robot::robot_file::FitRecord)),
+    /// so that a command on a fitted model fits it again the way it was fitted: its identified
+    /// set when `identify` is empty, its priors (each parameter's recorded factor on the file's
+    /// prior, or none) unless `priors_given`, and its noise unless `noise_declared`. Unchanged
+    /// for a robot without a record.
+    pub fn continued_from(mut self, robot: &Robot, samples: &[Sample], noise_declared: bool, priors_given: bool) -> Self {
+        let Some(record) = &robot.built_from().fitted else {
+            return self;
+        };
+        if self.identify.is_empty() {
+            self.identify = record.identify.clone();
+        }
+        if !noise_declared {
+            self.measurement_std = record.noise_mm * 1e-3;
+            if let Some(deg) = record.noise_deg {
+                self.orientation_std = deg.to_radians();
+            }
+        }
+        if !priors_given {
+            let space = ParameterSpace::for_samples(robot, samples);
+            self.use_priors = record.use_priors;
+            self.prior_scale = 1.0;
+            self.group_prior_scales = record
+                .prior_scales
+                .iter()
+                .filter_map(|(name, scale)| Some((PriorGroup::Parameter(space.index(name)?), *scale)))
+                .collect();
+        }
+        self
+    }
+}
+
 /// Which free parameters a restart of [`calibrate`] moves from where the fit ended.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum RestartMoves {

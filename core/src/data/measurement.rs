@@ -383,6 +383,19 @@ fn open_table<'t>(text: &'t str, path: &Path) -> Result<(csv::Reader<&'t [u8]>, 
     Ok((reader, headers))
 }
 
+/// Columns that name a set-up of the measurement (a session, a ground, a day): folds hold out
+/// whole values of the first of them a file has when the user names no column, since rows of
+/// one set-up share what changed between set-ups.
+pub const SET_UP_COLUMNS: [&str; 5] = ["session", "setup", "set_up", "ground", "day"];
+
+/// The first of [`SET_UP_COLUMNS`] the header of measurement CSV `text` has, if any.
+pub fn set_up_column(text: &str, path: &Path) -> Result<Option<&'static str>> {
+    let (_, headers) = open_table(text, path)?;
+    Ok(SET_UP_COLUMNS
+        .into_iter()
+        .find(|c| headers.iter().any(|h| split_header(h).0 == *c)))
+}
+
 /// The values of column `name` of measurement CSV `text`, one per data row (header and
 /// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
 /// into sessions or stations. `path` is used in messages.

@@ -14,7 +14,7 @@ use crate::model::mass::{BeamRigidity, MassModel, Payload};
 use crate::model::shape::{Geometry, Shape};
 use crate::model::tree::KinematicTree;
 use crate::model::units::Units;
-use crate::plugin::{BuildContext, Chain, ErrorModel, ModelContext};
+use crate::plugin::{BuildContext, Chain, ErrorModel, ErrorModelSpec, ModelContext};
 use crate::robot::robot_file::{BeamSpec, RobotFile, SourceFile};
 use crate::robot::{ResolvedPoint, Robot, Station};
 use crate::support::io::InputLimits;
@@ -766,6 +766,26 @@ fn implausible_values(robot: &Robot) -> Issues {
         }
     }
     found
+}
+
+impl Robot {
+    /// The names of the parameters `spec` would have as an error model of this robot (built
+    /// against its tree and mass model, not added to it): what tells a candidate effect that
+    /// duplicates a parameter the robot already has.
+    pub fn error_model_param_names(&self, spec: &dyn ErrorModelSpec) -> std::result::Result<Vec<String>, Issues> {
+        let base_dir = self.base_dir();
+        let ctx = ModelContext {
+            build: BuildContext {
+                units: self.units(),
+                base_dir: &base_dir,
+                path: "error_models",
+                limits: self.limits,
+            },
+            tree: &self.tree,
+            mass: &self.mass,
+        };
+        Ok(spec.build(&ctx)?.params().iter().map(|p| p.name.clone()).collect())
+    }
 }
 
 /// The file's error models built against the finished tree and mass model of `robot`, with

@@ -92,6 +92,42 @@ pub struct RobotFile {
     /// (`joint_compliance.j5`, `j2.*`, `base.*`, `marker.tool.z`).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub fixed: Vec<String>,
+    /// How this model was fitted (`armcomp fit` and `calibrate` write it): what later commands
+    /// on the model continue from unless told otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted: Option<FitRecord>,
+}
+
+/// How a model was fitted: the identified set, the priors, the noise, and what
+/// cross-validation expected of it. `diagnose`, `learn` and `calibrate` on the model fit
+/// again the same way unless their flags say otherwise.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FitRecord {
+    /// What was identified, as `calibrate --identify` words.
+    pub identify: Vec<String>,
+    /// The prior scheme in words (`evidence per parameter`, `file ×0.3`, `no priors`, ...).
+    pub prior: String,
+    /// Whether the parameters had priors (`false`: every direction the data could not
+    /// determine was fixed).
+    pub use_priors: bool,
+    /// Per free parameter with a prior, the factor the fit put on this file's prior standard
+    /// deviation (parameter names as calibration reports them).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub prior_scales: BTreeMap<String, f64>,
+    /// The tracker noise per axis the fit weighed the rows by (mm).
+    pub noise_mm: f64,
+    /// Whether that noise was estimated from the rows (else declared).
+    pub noise_estimated: bool,
+    /// The orientation noise per axis (degrees), when the robot measures poses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_deg: Option<f64>,
+    /// The held-out RMS cross-validation expected of the model (mm), when it was chosen by it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub expected_rms_mm: Option<f64>,
+    /// Whether the choice included the residual predictor the model carries.
+    #[serde(default)]
+    pub predictor: bool,
 }
 
 /// Mass properties and beam section of one link.

@@ -20,7 +20,10 @@ impl Robot {
         if self.predictor().is_some() {
             self.file.to_text_for(path)
         } else {
-            self.to_file().to_text_for(path)
+            // The values are the file's unless changed since the build; its fit record stays.
+            let mut file = self.to_file();
+            file.fitted = self.file.fitted.clone();
+            file.to_text_for(path)
         }
     }
 
@@ -50,6 +53,8 @@ impl Robot {
             fixtures: self.file.fixtures.clone(),
             collision: self.file.collision.clone(),
             fixed: self.file.fixed.clone(),
+            // New values are a new fit: its record is the caller's to write.
+            fitted: None,
         };
         // Predictor specs are not clonable trait objects; round-trip through JSON keeps them.
         if let Some(p) = &self.file.predictor {

@@ -57,6 +57,7 @@ pub fn robot_file_for_urdf(path: &Path, limits: InputLimits) -> armcomp_core::Re
         fixtures: Vec::new(),
         collision: None,
         fixed: Vec::new(),
+        fitted: None,
     })
 }
 

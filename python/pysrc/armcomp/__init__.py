@@ -47,7 +47,8 @@ from ._reports import (
     PriorChoice,
     PriorScaleScore,
     RankedCandidate,
-    RungScore,
+    CandidateScore,
+    Candidate,
 )
 
 __all__ = [
@@ -78,7 +79,8 @@ __all__ = [
     "PriorChoice",
     "PriorScaleScore",
     "RankedCandidate",
-    "RungScore",
+    "CandidateScore",
+    "Candidate",
     "Robot",
     "calibrate",
     "compensate",
@@ -197,7 +199,7 @@ def diagnose(
     folds: int = 3,
     max_steps: int = 5,
     min_reduction_percent: float = 5.0,
-    noise_mm: float = 0.1,
+    noise_mm: Optional[float] = None,
     identify: Union[None, str, Sequence[str]] = None,
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
@@ -206,7 +208,9 @@ def diagnose(
     """Finds the effects ``robot`` misses, one by one, scored on held-out poses, as
     ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
     are the accepted effects. ``predictor`` (gp, ridge or None) scores what remains
-    learnable. ``progress(stage, done, total)`` is called after every fold calibration
+    learnable; without ``noise_mm`` the noise is the model's fit record's (``fit`` writes one),
+    else estimated for the model as given, and candidates are judged against the held-out
+    error above its floor. ``progress(stage, done, total)`` is called after every fold calibration
     (stage: "model as given", "effect N", "learnable residual"). When the final model leaves
     samples far beyond the noise (a broken line of sight), the search is made again without
     them unless ``keep_outliers``; ``report.gross_errors`` lists them either way, ``report.drift`` a
@@ -237,11 +241,13 @@ def fit(
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
     noise_deg: Optional[float] = None,
+    repeats: int = 3,
 ) -> Tuple[Robot, FitReport]:
     """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
-    offsets, geometry, the robot file's error models and ``predictor`` (None for none), each
-    with the noise and prior scales the evidence chooses, scored by nested cross-validation
-    over ``folds`` folds (whole groups held out when ``groups`` gives a label per data row);
+    offsets, geometry and the robot file's error models, each under several prior schemes
+    (the evidence, the file's priors at five scales, none) and each with and without
+    ``predictor`` (None for none), scored by cross-validation over ``folds`` folds drawn
+    ``repeats`` times (whole groups held out when ``groups`` gives a label per data row);
     returns the chosen model fitted on all of ``data`` and the ladder.
     ``progress("model choice", done, total)`` is called after every fit. ``noise_mm`` and
     ``noise_deg`` (orientation noise of poses and plane contacts' tilts, degrees) declare the
@@ -252,6 +258,7 @@ def fit(
         noise_mm=noise_mm,
         noise_deg=noise_deg,
         folds=folds,
+        repeats=repeats,
         seed=seed,
         groups=None if groups is None else [str(g) for g in groups],
         predictor=predictor,

@@ -111,6 +111,8 @@ def fit(
     groups: Optional[List[str]] = None,
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
+    noise_deg: Optional[float] = None,
+    repeats: int = 3,
 ) -> Tuple[Robot, str]: ...
 def simulate(
     truth: Robot,
@@ -127,7 +129,7 @@ def diagnose(
     folds: int = 3,
     max_steps: int = 5,
     min_reduction_percent: float = 5.0,
-    noise_mm: float = 0.1,
+    noise_mm: Optional[float] = None,
     identify: Optional[List[str]] = None,
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,

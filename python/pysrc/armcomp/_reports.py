@@ -157,30 +157,51 @@ class CalibrationReport(Report):
 
 
 @dataclass(frozen=True)
-class RungScore:
-    """One rung of the model ladder: its nested cross-validated held-out RMS (mm), per fold,
-    the gain over the last rung kept (mm² per row) with its standard error, and the verdict."""
+class Candidate:
+    """One candidate model of the ladder: the level (``registration``, ``joint_offsets``,
+    ``geometry``, ``error_models``), the prior scheme (``{"evidence": "per_parameter"}``,
+    ``{"evidence": "groups"}``, ``{"file": 0.3}`` or ``"none"``) and whether a residual
+    predictor learns what it leaves."""
 
     rung: str
+    prior: Any
+    predictor: bool
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """One candidate's cross-validated held-out RMS (mm, pooled over every fold of every
+    repeat), per repeat and per fold, its excess over the best on equal folds with that
+    excess's standard error over the repeats, whether it is within the noise of the best, its
+    effective parameters and why it is not sound (None when it is)."""
+
+    candidate: Candidate
     label: str
     rms_mm: float
+    repeat_rms_mm: List[float]
     fold_rms_mm: List[float]
-    gain_mm2: float
-    gain_std_error_mm2: float
-    kept: bool
-    reason: str
+    spread_mm: float
+    excess_mm: float
+    excess_std_error_mm: float
+    within_noise: bool
+    effective_params: float
+    not_sound: Optional[str]
     seconds: float
 
 
 @dataclass(frozen=True, repr=False)
 class FitReport(Report):
-    """The model ladder (``armcomp fit --json``): every rung's nested score, the rung chosen,
-    the held-out error to expect, and the chosen rung's evidence and calibration on all rows."""
+    """The model ladder (``armcomp fit --json``): every candidate's score, the candidate chosen
+    and why (``warning`` when it is not sound), the held-out error to expect, and the chosen
+    candidate's evidence and calibration on all rows."""
 
-    rungs: List[RungScore]
-    chosen: str
+    candidates: List[CandidateScore]
+    chosen: Candidate
+    reason: str
+    warning: Optional[str]
     expected_rms_mm: float
     folds: int
+    repeats: int
     folds_by: str
     evidence: Evidence
     calibration: CalibrationReport

@@ -1,0 +1,101 @@
+//! `armcomp fit`'s choice among levels, prior schemes and predictors, against simulated truths
+//! whose best choice is known: a truth whose parameters lie well inside their priors is fitted
+//! with tight priors, one far outside them with loose ones, and a clear case gets the same
+//! choice on every fold seed.
+
+use armcomp_core::Robot;
+use armcomp_core::analysis::ladder::{Ladder, LadderParams, PriorScheme, Rung, climb};
+use armcomp_core::calibrate::{CalibrationParams, PriorGroup};
+
+use crate::common::robot;
+use crate::evidence::{measure, truth};
+
+fn ladder(nominal: &Robot, samples: &[armcomp_core::data::measurement::Sample], seed: u64) -> Ladder {
+    let params = LadderParams {
+        seed,
+        ..LadderParams::new(CalibrationParams::default(), false)
+    };
+    climb(nominal, samples, &params, &|_| {}).unwrap()
+}
+
+/// Geometry errors of a twentieth of the file's prior standard deviations (tight) and of five
+/// times them (loose), 40 rows at 0.05 mm, on three seeds: a tight truth is never fitted with
+/// the file's priors widened or dropped, a loose one never with them at or below the file's;
+/// the choice adapts (the evidence) or follows the truth, and the model records it.
+#[test]
+fn tight_and_loose_truths_get_tight_and_loose_priors() {
+    let nominal = robot("industrial-6dof.toml");
+    let chain = |scale: f64| {
+        move |g: PriorGroup| match g {
+            PriorGroup::JointOffsets | PriorGroup::Lengths | PriorGroup::Angles => scale,
+            _ => 0.0,
+        }
+    };
+    for seed in 1..=3 {
+        for (scale, tight) in [(0.05, true), (5.0, false)] {
+            let truth = truth(&nominal, chain(scale), seed);
+            let samples = measure(&truth, 40, 0.05e-3, 10 + seed);
+            let fit = ladder(&nominal, &samples, seed);
+            let chosen = fit.report.chosen;
+            let what = format!("seed {seed}, truth at ×{scale}: chose {}", chosen.label());
+            assert!(chosen.rung >= Rung::JointOffsets, "{what}");
+            let wrong = match chosen.prior {
+                PriorScheme::Evidence(_) => false,
+                PriorScheme::File(s) => (tight && s > 1.0) || (!tight && s <= 1.0),
+                PriorScheme::None => tight,
+            };
+            assert!(!wrong, "{what}");
+            let record = fit.robot.built_from().fitted.as_ref().expect("fit writes a record");
+            assert_eq!(record.prior, chosen.prior.label(), "{what}");
+            assert_eq!(record.use_priors, chosen.prior != PriorScheme::None, "{what}");
+        }
+    }
+}
+
+/// Joint offsets of half a degree and an exact geometry otherwise, 60 rows: the same
+/// candidate is chosen on five fold seeds, the joint offsets without a predictor.
+#[test]
+fn a_clear_case_gets_the_same_choice_on_every_fold_seed() {
+    let nominal = robot("industrial-6dof.toml");
+    let offsets = |g: PriorGroup| if g == PriorGroup::JointOffsets { 0.5 } else { 0.0 };
+    let truth = truth(&nominal, offsets, 4);
+    let samples = measure(&truth, 60, 0.05e-3, 5);
+    let choices: Vec<_> = (0..5).map(|seed| ladder(&nominal, &samples, seed).report.chosen).collect();
+    assert!(choices.iter().all(|c| *c == choices[0]), "{choices:?}");
+    assert_eq!(choices[0].rung, Rung::JointOffsets, "{choices:?}");
+}
+
+/// A fit stopped early (three iterations, far from converged), with the noise and priors of
+/// the evidence and with the file's priors: the model it writes, read back, gives on the same
+/// rows the RMS its report prints (to 1e-6 mm).
+#[test]
+fn a_fit_that_stops_early_writes_the_model_it_reports() {
+    use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+    use armcomp_core::calibrate::evidence::{EvidenceParams, calibrate_with_evidence};
+    let nominal = robot("industrial-6dof.toml");
+    let truth = truth(&nominal, |_| 3.0, 2);
+    let samples = measure(&truth, 40, 0.05e-3, 3);
+    let dir = tempfile::tempdir().unwrap();
+    for estimate_priors in [true, false] {
+        let params = CalibrationParams {
+            identify: vec!["base".into(), "markers".into(), "geometry".into()],
+            max_iterations: 3,
+            ..CalibrationParams::default()
+        };
+        let evidence = EvidenceParams {
+            estimate_priors,
+            ..EvidenceParams::default()
+        };
+        let (fit, _) = calibrate_with_evidence(&nominal, &samples, &params, &evidence, &mut |_| {}).unwrap();
+        assert!(!fit.report.converged, "the case is meant to stop early");
+        let path = dir.path().join("model.toml");
+        std::fs::write(&path, fit.robot.to_text_for(&path).unwrap()).unwrap();
+        let written = Robot::from_path(&path).unwrap();
+        let rms = ErrorStats::from_errors(&position_errors(&written, &samples)).rms_mm;
+        assert!(
+            (rms - fit.report.after.rms_mm).abs() < 1e-6,
+            "priors estimated: {estimate_priors}: the file gives {rms} mm, the report {} mm",
+            fit.report.after.rms_mm
+        );
+    }
+}
