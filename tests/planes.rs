@@ -974,8 +974,9 @@ fn the_ladder_scores_plane_contacts_by_their_held_out_height() {
         );
         assert!(
             report.expected_rms_mm > 0.8 * noise && report.expected_rms_mm < 2.0 * noise,
-            "seed {seed}: expected held-out height {} mm, the truth's own {noise} mm",
-            report.expected_rms_mm
+            "seed {seed}: expected held-out height {} mm, the truth's own {noise} mm ({})",
+            report.expected_rms_mm,
+            report.chosen.label()
         );
         assert!(report.predictor_not_tried.is_some() && report.candidates.iter().all(|c| !c.candidate.predictor));
     }

@@ -13,7 +13,7 @@
 //! the seeds' spread of their difference measures how far the folds alone move it.
 //!
 //! The choice is the simplest level (lowest level, no predictor before a predictor) with a
-//! candidate whose score is within that noise of the best, among those whose every fold fit
+//! candidate whose score is within that noise of the best, among those most of whose fold fits
 //! converged to physically plausible values; within it, the first prior scheme (the evidence
 //! first) whose paired difference from the level's best lies within its standard error over the
 //! held-out groups. A candidate that is not sound is chosen only when no sound one is within
@@ -201,7 +201,8 @@ pub struct CandidateScore {
     /// The parameters its fits determine (the mean over the folds of `γ`, the trace of the
     /// data's share of the posterior).
     pub effective_params: f64,
-    /// Why it is not sound (a fold fit did not converge, or holds implausible values), if so.
+    /// Why it is not sound (most of its fold fits did not converge, or hold implausible
+    /// values), if so.
     pub not_sound: Option<String>,
     /// Wall-clock time of its fits (s); the prior schemes of a level share their fits' time.
     pub seconds: f64,
@@ -608,7 +609,7 @@ fn gather(
             for predictor in [false, true].into_iter().filter(|&p| !p || with_predictor) {
                 let (mut sum, mut count) = (vec![0.0; n], vec![0usize; n]);
                 let (mut per_repeat, mut fold_rms_mm) = (Vec::new(), Vec::new());
-                let (mut not_sound, mut effective, mut fits) = (None, 0.0, 0usize);
+                let (mut first_flaw, mut flawed, mut effective, mut fits) = (None, 0usize, 0.0, 0usize);
                 for (k, level) in results.iter().enumerate() {
                     let Some(folds) = &level[r] else {
                         per_repeat.push(None);
@@ -622,7 +623,10 @@ fn gather(
                             errors[i] = v;
                         }
                         fold_rms_mm.push(rms(&mut e.iter().copied()));
-                        not_sound = not_sound.or_else(|| score.not_sound.clone());
+                        if let Some(why) = &score.not_sound {
+                            flawed += 1;
+                            first_flaw.get_or_insert_with(|| why.clone());
+                        }
                         effective += score.effective_params;
                         fits += 1;
                     }
@@ -653,7 +657,9 @@ fn gather(
                     excess_std_error_mm: 0.0,
                     within_noise: false,
                     effective_params: effective / fits as f64,
-                    not_sound,
+                    // A fold fit that stalls now and then is the folds' luck; most of them is the model's.
+                    not_sound: (2 * flawed > fits)
+                        .then(|| format!("{flawed} of {fits} fold fits: {}", first_flaw.unwrap_or_default())),
                     seconds: seconds[r],
                 });
                 out.repeat_rms.push(per_repeat);
