@@ -52,6 +52,7 @@ fn pose_samples(truth: &Robot, n: usize, sigma_p: f64, sigma_r: f64, seed: u64) 
                 gravity: None,
                 station: 0,
                 q,
+                position_std: None,
             }
         })
         .collect()

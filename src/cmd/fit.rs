@@ -51,15 +51,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
     let fold_groups = args.group.groups(&[&args.data], &data.rows)?.map(|(_, g)| g);
     let predictor = (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string());
-    let bar = Mutex::new(indicatif::ProgressBar::new(0));
-    if let Ok(b) = bar.lock() {
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
-            )
-            .expect("the template is valid"),
-        );
-    }
+    let bar = Mutex::new(crate::progress::bar(
+        Some(0),
+        "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
+    ));
     // Ctrl-C ends the cross-validation with the rungs fitted so far, the choice among them
     // fitted on all rows.
     let ladder = crate::stoppable(|cancel| {
