@@ -162,7 +162,7 @@ fn rows_weighed_by_their_own_standard_deviations_recover_the_truth_better() {
         let mut rows = measure(&truth, 300, 0.0, 800 + seed);
         for (i, s) in rows.iter_mut().enumerate() {
             let sigma = if i % 3 == 0 { 1e-3 } else { 0.05e-3 };
-            s.position += Vector3::from_fn(|_, _| sigma * StandardNormal.sample(&mut rng));
+            s.position += Vector3::from_fn(|_, _| sigma * Distribution::<f64>::sample(&StandardNormal, &mut rng));
             s.position_std = Some(Vector3::repeat(sigma));
         }
         let unweighted: Vec<Sample> = rows

@@ -47,7 +47,7 @@ pub use driver::calibrate;
 pub use identifiability::identifiability;
 use jacobian::to_meas;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian, samples_jacobian_by_sample};
-pub use registration::{register_held_out_stations, register_stations};
+pub use registration::{register_held_out_stations, register_stations, register_stations_on_poses};
 pub use robust::{Drift, GROSS_ERROR, HUBER_K, Loss, Outlier, drift, gross_errors, robust_noise};
 pub use score::{ScoreTest, score_test};
 
