@@ -253,7 +253,14 @@ fn register_on_poses(robot: &mut Robot, samples: &[Sample], stations: &[usize], 
         ..EvidenceParams::default()
     };
     let (fit, _) = calibrate_with_evidence(robot, samples, &params, &evidence, &mut |_| {})?;
-    robot.set_stations(fit.robot.stations().to_vec());
+    // A robot of one station keeps its frame outside its (empty) list of stations.
+    let frames = (0..robot.n_stations())
+        .map(|k| crate::robot::Station {
+            name: robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()),
+            frame: fit.robot.station_frame(k),
+        })
+        .collect();
+    robot.set_stations(frames);
     Ok(())
 }
 
