@@ -89,6 +89,7 @@ fn bench(c: &mut Criterion) {
             plane: None,
             gravity: None,
             station: 0,
+            position_std: None,
         })
         .collect();
     let identify = vec!["all".to_string()];

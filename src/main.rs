@@ -3,6 +3,7 @@
 #![forbid(unsafe_code)]
 
 mod cmd;
+mod progress;
 
 use std::process::ExitCode;
 use std::sync::{Mutex, PoisonError};

@@ -113,6 +113,7 @@ fn sample(q: &[f64], point: usize, k: usize) -> Sample {
         plane: None,
         gravity: None,
         station: 0,
+        position_std: None,
     }
 }
 

@@ -962,6 +962,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                     plane: None,
                     gravity: None,
                     station: 0,
+                    position_std: None,
                 }
             })
             .collect();

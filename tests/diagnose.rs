@@ -69,6 +69,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
                 plane: None,
                 gravity: None,
                 station: 0,
+                position_std: None,
             }
         })
         .collect()
@@ -710,6 +711,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             plane: None,
             gravity: None,
             station: 0,
+            position_std: None,
         })
         .collect();
     let loads = armcomp_core::algorithms::residuals::gravity_loads(&robot, &samples);

@@ -43,6 +43,7 @@ fn write_then_read_gives_the_same_samples() {
             plane: None,
             gravity: None,
             station: 0,
+            position_std: None,
         })
         .collect();
     let set = MeasurementSet {
@@ -220,6 +221,7 @@ fn point_names_with_commas_and_quotes_round_trip() {
         plane: None,
         gravity: None,
         station: 0,
+        position_std: None,
     };
     let set = MeasurementSet {
         samples: vec![sample(r.tool(), 1.0), sample(nest, 0.25)],
@@ -242,4 +244,89 @@ fn point_names_with_commas_and_quotes_round_trip() {
     let points: Vec<usize> = back.samples.iter().map(|s| s.point).collect();
     assert_eq!(points, [r.tool(), nest]);
     assert_eq!(back.samples[1].position, Vector3::new(0.25, 0.5, 0.0));
+}
+
+/// `sx, sy, sz` are read in their unit as each row's standard deviations; a row leaving all
+/// three empty has none; a partial triple, a deviation of zero or a lone `sx` is refused at its
+/// line.
+#[test]
+fn position_standard_deviations_are_read_per_row() {
+    let header = format!("{HEADER},sx[mm],sy[mm],sz[um]");
+    let header = header.replace("sz[um]", "sz[cm]");
+    let set = parse(&format!(
+        "{header}\n10,20,50,0,-10,5,30,1000,-20,300,0.1,0.2,0.03\n10,20,50,0,-10,5,30,1000,-20,300,,,\n"
+    ))
+    .unwrap();
+    let std = set.samples[0].position_std.expect("the first row gives its deviations");
+    assert!((std - Vector3::new(0.1e-3, 0.2e-3, 0.3e-3)).norm() < 1e-15, "{std:?}");
+    assert_eq!(set.samples[1].position_std, None);
+    assert!(set.warnings.iter().all(|w| !w.contains("sx")), "{:?}", set.warnings);
+    assert_err(
+        &format!("{header}\n10,20,50,0,-10,5,30,1000,-20,300,0.1,,0.03\n"),
+        &["m.csv:2", "some of sx, sy, sz are empty"],
+    );
+    assert_err(
+        &format!("{header}\n10,20,50,0,-10,5,30,1000,-20,300,0.1,0,0.03\n"),
+        &["m.csv:2", "sy[mm]", "above zero"],
+    );
+    assert_err(
+        &format!("{HEADER},sx[mm]\n10,20,50,0,-10,5,30,1000,-20,300,0.1\n"),
+        &["m.csv:1", "sx, sy, sz"],
+    );
+}
+
+/// The rotation about `axis` (0 x, 1 y, 2 z) by `a`, written out.
+fn turn(axis: usize, a: f64) -> nalgebra::Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    match axis {
+        0 => nalgebra::Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
+        1 => nalgebra::Matrix3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c),
+        _ => nalgebra::Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0),
+    }
+}
+
+/// Euler angles named by their order against the hand-multiplied matrices: intrinsic turns
+/// compose left to right, extrinsic ones right to left, for a Tait–Bryan and a proper order;
+/// intrinsic zyx and extrinsic xyz are roll-pitch-yaw.
+#[test]
+fn euler_angles_are_read_in_their_named_order() {
+    let angles = [30.0f64, -50.0, 70.0];
+    let [a, b, c] = angles.map(f64::to_radians);
+    let cases = [
+        ("intrinsic_zyx", turn(2, a) * turn(1, b) * turn(0, c)),
+        ("extrinsic_zyx", turn(0, c) * turn(1, b) * turn(2, a)),
+        ("intrinsic_zyz", turn(2, a) * turn(1, b) * turn(2, c)),
+        ("extrinsic_xyz", turn(2, c) * turn(1, b) * turn(0, a)),
+    ];
+    for (order, want) in cases {
+        let header = format!("{HEADER},{order}_1[deg],{order}_2[deg],{order}_3[deg]");
+        let set = parse(&format!("{header}\n10,20,50,0,-10,5,30,1000,-20,300,30,-50,70\n")).unwrap();
+        let got = set.samples[0].orientation.expect("an orientation").to_rotation_matrix();
+        assert!((got.matrix() - want).norm() < 1e-12, "{order}: {got} against {want}");
+    }
+    let rpy = parse(&format!(
+        "{HEADER},roll[deg],pitch[deg],yaw[deg]\n10,20,50,0,-10,5,30,1000,-20,300,70,-50,30\n"
+    ))
+    .unwrap();
+    let zyx = turn(2, a) * turn(1, b) * turn(0, c);
+    let got = rpy.samples[0].orientation.unwrap().to_rotation_matrix();
+    assert!((got.matrix() - zyx).norm() < 1e-12);
+    assert_err(
+        &format!("{HEADER},intrinsic_zyx_1,intrinsic_zyx_2\n10,20,50,0,-10,5,30,1000,-20,300,1,2\n"),
+        &["m.csv:1", "intrinsic_zyx_1, intrinsic_zyx_2, intrinsic_zyx_3"],
+    );
+}
+
+/// Three Euler angles typed into rotation-vector columns: a vector longer than half a turn is
+/// refused at its line, naming the Euler spellings; one within it is read.
+#[test]
+fn a_rotation_vector_longer_than_half_a_turn_is_refused() {
+    let header = format!("{HEADER},rx[deg],ry[deg],rz[deg]");
+    assert_err(
+        &format!("{header}\n10,20,50,0,-10,5,30,1000,-20,300,10,20,30\n10,20,50,0,-10,5,30,1000,-20,300,170,-40,95\n"),
+        &["m.csv:3", "rotation vector", "at most 180°", "intrinsic_xyz_1"],
+    );
+    let set = parse(&format!("{header}\n10,20,50,0,-10,5,30,1000,-20,300,0,0,179.9\n")).unwrap();
+    let angle = set.samples[0].orientation.unwrap().angle().to_degrees();
+    assert!((angle - 179.9).abs() < 1e-9, "{angle}");
 }

@@ -563,6 +563,7 @@ fn the_frame_link_jacobian_covers_both_paths() {
             plane: Some("table".into()),
             gravity: None,
             station: 0,
+            position_std: None,
         })
         .collect();
     check_jacobian(

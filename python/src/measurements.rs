@@ -277,6 +277,7 @@ impl PyMeasurements {
                 plane: None,
                 gravity: None,
                 station: 0,
+                position_std: None,
             })
             .collect::<Vec<_>>();
         let rows = (0..samples.len()).collect();

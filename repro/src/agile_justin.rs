@@ -165,6 +165,7 @@ pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<
                 plane: None,
                 gravity: None,
                 station: 0,
+                position_std: None,
             });
         }
     }

@@ -98,10 +98,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         },
         ..CalibrationParams::default()
     };
-    let bar = indicatif::ProgressBar::new(params.max_iterations as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("calibrating {bar:30} {pos}/{len} iterations  {msg}")
-            .expect("the template is valid"),
+    let bar = crate::progress::bar(
+        Some(params.max_iterations as u64),
+        "calibrating {bar:30} {pos}/{len} iterations  {msg}",
     );
     let mut observer = |it: &armcomp_core::calibrate::IterationInfo| {
         bar.set_position(it.iteration as u64);
@@ -117,14 +116,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let fits = |p: armcomp_core::calibrate::FitsProgress| {
         let Ok(mut slot) = fits_bar.lock() else { return };
         let b = slot.get_or_insert_with(|| {
-            let b = indicatif::ProgressBar::new(p.total as u64);
-            b.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "choosing the prior scale {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
-                )
-                .expect("the template is valid"),
-            );
-            b
+            crate::progress::bar(
+                Some(p.total as u64),
+                "choosing the prior scale {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
+            )
         });
         b.set_position(p.done as u64);
         if p.done == p.total {
@@ -265,6 +260,12 @@ fn print_evidence(e: &armcomp_core::calibrate::evidence::EvidenceReport) {
              equations)",
             e.noise_mm, e.noise_std_mm, e.determined, e.n_free, e.n_equations
         );
+        if !e.fit_converged {
+            println!(
+                "  (from the residuals of a fit that did not converge, not at a minimum: the figure is an upper \
+                 bound; declare the instrument's noise with --noise-mm, or see why the fit stopped below)"
+            );
+        }
         if let Some(deg) = e.orientation_noise_deg {
             println!("orientation noise estimated from the data: {deg:.4}° per axis");
         }

@@ -119,10 +119,7 @@ fn sweep(config: &armcomp_repro::demos::rock_drill::Config, n: usize, args: &Arg
     if args.report.is_some() {
         bail!("--report draws one seed's run; leave out --seeds, or --report");
     }
-    let bar = indicatif::ProgressBar::new(n as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("seeds {bar:30} {pos}/{len}  {msg}").expect("the template is valid"),
-    );
+    let bar = crate::progress::bar(Some(n as u64), "seeds {bar:30} {pos}/{len}  {msg}");
     let sweep = armcomp_repro::demos::rock_drill::sweep(config, n, &|seed| {
         bar.set_message(format!("seed {seed} done"));
         bar.inc(1);

@@ -43,12 +43,7 @@ fn default_hint<T>(result: anyhow::Result<T>, defaulted: bool, path: &str, flag:
 
 /// A progress display counting fits (the fits of all curves run one curve after another).
 fn progress() -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new_spinner();
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("learning curves {spinner} {pos} fits  {elapsed}")
-            .expect("the template is valid"),
-    );
-    bar
+    crate::progress::bar(None, "learning curves {spinner} {pos} fits  {elapsed}")
 }
 
 /// `armcomp demo agile-justin --learning-curve`.

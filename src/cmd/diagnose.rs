@@ -124,12 +124,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Predictor::Ridge => LearnableBy::Ridge,
         Predictor::None => LearnableBy::None,
     };
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{msg} {bar:30} {pos}/{len} fold calibrations  {elapsed} (about {eta} left)",
-        )
-        .expect("the template is valid"),
+    let bar = crate::progress::bar(
+        Some(0),
+        "{msg} {bar:30} {pos}/{len} fold calibrations  {elapsed} (about {eta} left)",
     );
     let result = crate::stoppable(|cancel| {
         let mut params = params.clone();

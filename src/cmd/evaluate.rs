@@ -4,7 +4,7 @@ use std::process::ExitCode;
 use armcomp_core::algorithms::evaluate::ErrorStats;
 use armcomp_core::support::io::write_atomic;
 
-use armcomp_core::calibrate::register_stations;
+use armcomp_core::calibrate::register_stations_on_poses;
 
 use super::{check_output, read_stations};
 
@@ -20,7 +20,9 @@ pub struct Args {
     data: Vec<PathBuf>,
     /// Register every station's measurement frame in closed form on these data before
     /// evaluating, known ones too (data from a new set-up of a station the model knows, or
-    /// without a `station` column). The geometry, error models and predictor stay the model's.
+    /// without a `station` column). With pose measurements the frames are then fitted to the
+    /// positions and orientations together, each weighed by the noise its residuals give. The
+    /// geometry, error models and predictor stay the model's.
     #[arg(long)]
     register: bool,
     #[command(flatten)]
@@ -55,7 +57,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         new
     };
-    let failed = register_stations(&mut robot, &data.samples, &register)?;
+    let failed = register_stations_on_poses(&mut robot, &data.samples, &register)?;
     if let Some(&k) = failed.first() {
         anyhow::bail!(
             "station {} cannot be registered: its measured points do not span a plane (measure at least three poses \

@@ -58,15 +58,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let group_column = grouping.as_ref().map(|(c, _)| c.clone());
     let fold_groups = grouping.map(|(_, g)| g);
     let predictor = (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string());
-    let bar = Mutex::new(indicatif::ProgressBar::new(0));
-    if let Ok(b) = bar.lock() {
-        b.set_style(
-            indicatif::ProgressStyle::with_template(
-                "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
-            )
-            .expect("the template is valid"),
-        );
-    }
+    let bar = Mutex::new(crate::progress::bar(
+        Some(0),
+        "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
+    ));
     // Ctrl-C ends the cross-validation with the rungs fitted so far, the choice among them
     // fitted on all rows.
     let ladder = crate::stoppable(|cancel| {

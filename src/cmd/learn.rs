@@ -48,10 +48,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let (file, _) =
         RobotFile::read(&args.model, super::input_limits()).with_context(|| format!("{}", args.model.display()))?;
     let groups = args.group.groups(&[&args.data], &data.rows)?;
-    let bar = indicatif::ProgressBar::new(0);
-    if let Ok(style) = indicatif::ProgressStyle::with_template("{msg:>12} [{bar:30}] {pos}/{len} {elapsed_precise}") {
-        bar.set_style(style.progress_chars("=> "));
-    }
+    let bar = crate::progress::bar(Some(0), "{msg:>12} {bar:30} {pos}/{len} {elapsed_precise}");
     // Each optimiser, then the cross-validation's folds, restarts the bar.
     let progress = |p: TrainingProgress| {
         if bar.message() != p.stage || bar.length() != Some(p.total as u64) {
@@ -70,17 +67,21 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let run = run?;
     let (seconds, before, after) = (run.seconds, run.before, run.after);
     write_atomic(&args.out, run.robot.to_text_for(&args.out)?.as_bytes())?;
-    println!(
-        "fitted in {seconds:.2} s on {} measurements; training error: mean {:.4} mm (model alone) -> {:.4} mm (with the predictor)",
-        data.samples.len(),
-        before.mean_mm,
-        after.mean_mm
-    );
+    println!("fitted in {seconds:.2} s on {} measurements", data.samples.len());
+    // One footing for every line: the same rows, measured minus modelled position, mean and RMS
+    // of its length; only whether the predictor saw the row differs.
+    println!("position error on these rows (mm)              mean      RMS");
+    let line = |what: &str, s: &armcomp_core::algorithms::evaluate::ErrorStats| {
+        println!("  {what:<44} {:>8.4} {:>8.4}", s.mean_mm, s.rms_mm);
+    };
+    line("model alone", &before);
+    line("with the predictor, rows it was fitted on", &after);
     if let Some((cv, folding)) = &run.cross_validated {
+        line("with the predictor, rows it was not fitted on", cv);
         println!(
-            "on rows it was not fitted on (cross-validation, {folding}): RMS {:.4} mm with the predictor, {:.4} mm \
-             without (training RMS {:.4} mm)",
-            cv.rms_mm, before.rms_mm, after.rms_mm
+            "  (the model alone was not fitted here: its figure holds for any rows; the predictor's on its own \
+             rows is optimistic, on rows it did not see, each predicted by a fit on the other folds of \
+             cross-validation, {folding}, it is what to expect of new rows)"
         );
     }
     println!("wrote {}", args.out.display());

@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use armcomp_core::algorithms::evaluate::{
-    ErrorStats, cross_validated_predictor_errors, fit_residual_predictor, model_errors, position_errors,
+    ErrorStats, cross_validated_predictor_errors, fit_residual_predictor, model_errors, predictor_errors,
 };
 use armcomp_core::analysis::held_out::{contacts_as_positions, measures_positions};
 use armcomp_core::data::measurement::Sample;
@@ -14,13 +14,16 @@ use armcomp_core::{Error, FitControl, PredictorSpec, Robot, RobotFile, Role};
 pub struct LearnRun {
     /// The model with the fitted predictor (built from the model file; `to_text_for` writes it).
     pub robot: Robot,
-    /// Training errors of the model alone.
+    /// Errors of the model alone on these rows (nothing of it was fitted here, so they are
+    /// its errors on any rows).
     pub before: ErrorStats,
-    /// Training errors with the predictor.
+    /// Errors with the predictor on the rows it was fitted on (optimistic: it has seen them).
     pub after: ErrorStats,
     /// Errors with the predictor on poses it was not fitted on (every pose held out once in
     /// [`CV_FOLDS`]-fold cross-validation, whole stations for data from several), and how the
-    /// folds were drawn; `None` with too few poses for that.
+    /// folds were drawn; `None` with too few poses for that. The same rows, the same errors
+    /// (measured minus modelled position, the predictions in the base frame) and the same
+    /// statistics as `after`: only whether the predictor saw the row differs.
     pub cross_validated: Option<(ErrorStats, armcomp_core::data::split::Folding)>,
     /// Fitting time (s).
     pub seconds: f64,
@@ -116,6 +119,7 @@ pub fn run(
     let fitted = fit_residual_predictor(robot, spec, samples, control)?;
     let seconds = start.elapsed().as_secs_f64();
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
+    let after = ErrorStats::from_errors(&predictor_errors(robot, fitted.as_ref(), samples));
     let poses = armcomp_core::data::split::pose_groups(samples).len();
     let cross_validated = if poses >= CV_FOLDS {
         let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups);
@@ -131,7 +135,6 @@ pub fn run(
     file.fitted_predictor = Some(fitted);
     file.predictor_frame = Some(armcomp_core::robot::robot_file::PredictorFrame::Base);
     let written = Robot::build(file, &robot.base_dir(), robot.input_limits()).map_err(Error::InvalidModel)?;
-    let after = ErrorStats::from_errors(&position_errors(&written, samples));
     Ok(LearnRun {
         robot: written,
         before,

@@ -183,6 +183,15 @@ fn subtract_predictions(
     }
 }
 
+/// The errors `robot`'s physical model and `predictor` (fitted on what that model leaves, its
+/// outputs in the base frame) leave together at `samples`: the one footing of a predictor's
+/// training error and of its cross-validated one ([`cross_validated_predictor_errors`]).
+pub fn predictor_errors(robot: &Robot, predictor: &dyn FittedPredictor, samples: &[Sample]) -> Vec<Vector3<f64>> {
+    let mut errors = model_errors(robot, samples);
+    subtract_predictions(robot, predictor, PredictorFrame::Base, samples, &mut errors);
+    errors
+}
+
 /// How well `spec`, fitted on what `robot`'s physical model leaves, predicts poses it was not
 /// fitted on: every sample held out once in `folds`-fold cross-validation, folded as `by`
 /// says (by pose, by station, by a column; shuffled by `seed`), the errors after the held-out
@@ -213,9 +222,7 @@ pub fn cross_validated_predictor_errors(
             let fitted = fit_residual_predictor(robot, spec, &train, &fold_control)?;
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             control.report("folds", d, splits.len());
-            let mut errors = model_errors(robot, &test);
-            subtract_predictions(robot, fitted.as_ref(), PredictorFrame::Base, &test, &mut errors);
-            Ok(errors)
+            Ok(predictor_errors(robot, fitted.as_ref(), &test))
         })
         .collect::<Result<_>>()?;
     Ok((ErrorStats::from_errors(&parts.concat()), folding))

@@ -155,6 +155,7 @@ pub fn simulate_tilted(
                 plane: None,
                 gravity: readings.get(i).copied(),
                 station,
+                position_std: None,
             });
         }
     }
@@ -302,6 +303,7 @@ pub fn simulate_contacts(
                 plane: matches!(contact, Contact::Plane { .. }).then(|| name.clone()),
                 gravity: None,
                 station: 0,
+                position_std: None,
             });
             found += 1;
         }

@@ -437,6 +437,7 @@ impl Problem<'_> {
             orientation_noise: params.orientation_std,
             fixed_point_noise: mixes_fixed_points(samples).then_some(self.sigma_fixed),
             fixed_point_samples: self.fixed.iter().map(Option::is_some).collect(),
+            own_std_samples: (0..samples.len()).map(|i| self.own_std(i).is_some()).collect(),
             position_rows: self.position_rows(),
             position_row_of: (0..samples.len())
                 .flat_map(|i| {

@@ -95,7 +95,8 @@ pub struct ParameterScale {
 /// What the evidence iterations chose.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EvidenceReport {
-    /// Whether the noise was estimated (otherwise it is the declared one).
+    /// Whether the noise was estimated (otherwise it is the declared one, or every measured
+    /// position carries its own standard deviations and none is shared).
     pub noise_estimated: bool,
     /// The noise standard deviation per axis (mm).
     pub noise_mm: f64,
@@ -139,16 +140,21 @@ pub struct EvidenceReport {
     pub rounds: usize,
     /// Whether the hyper-parameters settled within the tolerance.
     pub converged: bool,
+    /// Whether the last fit converged. When it did not, the noise is the residuals' at the
+    /// best parameters found, not at a minimum, and the priors' scales are the last
+    /// converged fit's (or the first guesses).
+    pub fit_converged: bool,
 }
 
 /// Quantities of one linearisation at given hyper-parameters.
 struct Update {
     /// Per free parameter, how much the data determine it (`γₖ`).
     gamma: Vec<f64>,
-    /// Per residual kind (measured positions, orientations, fixed points of mixed data): the
+    /// Per residual kind (measured positions, orientations, fixed points of mixed data, and
+    /// positions weighed by their own standard deviations, whose noise is not estimated): the
     /// squared residuals in SI units, the equations, and the share of the determined
     /// parameters (`γ`) its rows carry.
-    kinds: [Kind; 3],
+    kinds: [Kind; 4],
     log_evidence: f64,
 }
 
@@ -167,10 +173,13 @@ impl Kind {
 }
 
 /// Residual row `i`'s kind (0 measured positions, 1 orientations, 2 fixed points of mixed
-/// data) and the noise it was whitened by.
+/// data, 3 positions with their own standard deviations) and the noise it was whitened by.
 fn row_kind(lin: &Linearisation, i: usize) -> (usize, f64) {
     if i >= lin.position_rows {
         return (1, lin.orientation_noise);
+    }
+    if lin.own_std_samples[lin.position_row_of[i].0] {
+        return (3, lin.noise);
     }
     match lin.fixed_point_noise {
         Some(sigma) if lin.fixed_point_samples[lin.position_row_of[i].0] => (2, sigma),
@@ -204,7 +213,7 @@ fn update(lin: &Linearisation) -> Update {
     let chi2 = lin.residuals.norm_squared();
     // Each kind's share of γ is the sum of its rows' leverages (J A⁻¹ Jᵀ)ᵢᵢ, so the kinds'
     // noises follow MacKay's update each over its own equations.
-    let mut kinds = [Kind::default(); 3];
+    let mut kinds = [Kind::default(); 4];
     let scaled = &lin.jacobian * &eig.eigenvectors;
     let measured_rows = lin.residuals.len() - lin.distance_rows;
     for (i, r) in lin.residuals.iter().take(measured_rows).enumerate() {
@@ -269,17 +278,28 @@ pub fn calibrate_with_evidence(
     let mut fit = calibrate(robot, samples, &p, observer)?;
     let mut rounds = 1;
     let mut converged = false;
-    // A fit that did not converge (its iteration budget spent) ends the rounds: its
-    // linearisation is not at a minimum, and the report says it did not converge.
-    while fit.report.converged {
+    // A fit that did not converge still updates the noise from its residuals: a first guess
+    // far below the noise is what most often keeps it from converging (every residual many
+    // times its noise makes the convergence test, in standard deviations, as many times
+    // stricter, and more so the more rows there are), and the next fit, weighed by the
+    // estimate, then converges. The priors' scales need a minimum and wait for one. A round
+    // that changes nothing ends the rounds, converged or not; the report says which.
+    loop {
+        let at_minimum = fit.report.converged;
+        if !at_minimum && !evidence.estimate_noise {
+            break;
+        }
         let lin = &fit.linearisation;
         let u = update(lin);
         let mut changed: f64 = 0.0;
         let mut next = p.clone();
         if evidence.estimate_noise {
-            let noise = u.kinds[0].noise().max(1e-9);
-            changed = changed.max((noise / p.measurement_std).ln().abs());
-            next.measurement_std = noise;
+            // Rows that all carry their own standard deviations leave the shared noise unused.
+            if u.kinds[0].n > 0.0 {
+                let noise = u.kinds[0].noise().max(1e-9);
+                changed = changed.max((noise / p.measurement_std).ln().abs());
+                next.measurement_std = noise;
+            }
             if u.kinds[1].n > 0.0 {
                 let noise = u.kinds[1].noise().max(1e-9);
                 changed = changed.max((noise / p.orientation_std).ln().abs());
@@ -291,7 +311,7 @@ pub fn calibrate_with_evidence(
                 next.fixed_point_std = Some(noise);
             }
         }
-        if estimate_priors {
+        if estimate_priors && at_minimum {
             let scales = scale_updates(lin, &u, &p, evidence);
             for (g, s, determined) in &scales {
                 // A scale the data hardly see (a pruned parameter on its way to the smallest
@@ -303,7 +323,7 @@ pub fn calibrate_with_evidence(
             next.group_prior_scales = scales.into_iter().map(|(g, s, _)| (g, s)).collect();
         }
         if changed <= evidence.tolerance.ln_1p() {
-            converged = true;
+            converged = at_minimum;
             break;
         }
         if rounds >= evidence.max_rounds {
@@ -317,8 +337,8 @@ pub fn calibrate_with_evidence(
         p = next;
         rounds += 1;
     }
-    let report = report(robot, samples, &fit.linearisation, &p, evidence, rounds, converged);
-    if evidence.estimate_noise && report.noise_dof < 1.0 {
+    let report = report(robot, samples, &fit, &p, evidence, rounds, converged);
+    if report.noise_estimated && report.noise_dof < 1.0 {
         fit.report.warnings.push(format!(
             "the noise is not determined by these rows: the parameters fit all but {:.2} of the position \
              equations, so its estimate ({:.4} mm) only follows the residuals towards zero; declare the \
@@ -333,12 +353,13 @@ pub fn calibrate_with_evidence(
 fn report(
     robot: &Robot,
     samples: &[Sample],
-    lin: &Linearisation,
+    fit: &Calibration,
     p: &CalibrationParams,
     evidence: &EvidenceParams,
     rounds: usize,
     converged: bool,
 ) -> EvidenceReport {
+    let lin = &fit.linearisation;
     let u = update(lin);
     let dof = (u.kinds[0].n - u.kinds[0].gamma).max(1.0);
     let space = ParameterSpace::for_samples(robot, samples);
@@ -394,7 +415,7 @@ fn report(
     // The samples whose residuals count (every axis has one row of each).
     let n = rows[0].max(1) as f64;
     EvidenceReport {
-        noise_estimated: evidence.estimate_noise,
+        noise_estimated: evidence.estimate_noise && u.kinds[0].n > 0.0,
         noise_mm: lin.noise * 1e3,
         noise_std_mm: lin.noise * 1e3 / (2.0 * dof).sqrt(),
         noise_dof: u.kinds[0].n - u.kinds[0].gamma,
@@ -404,6 +425,7 @@ fn report(
             .fixed_point_noise
             .map(|s| s * 1e3 / (2.0 * (u.kinds[2].n - u.kinds[2].gamma).max(1.0)).sqrt()),
         rms_per_axis_mm: axis.map(|s| (s / n).sqrt() * 1e3),
+        fit_converged: fit.report.converged,
         determined: u.gamma.iter().sum(),
         n_free: lin.free.len(),
         n_equations: lin.residuals.len(),

@@ -695,6 +695,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             plane: None,
             gravity: None,
             station: 0,
+            position_std: None,
         })
         .collect()
 }

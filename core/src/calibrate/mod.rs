@@ -26,7 +26,7 @@ use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Ve
 use serde::Serialize;
 
 use crate::algorithms::evaluate::{AngleStats, ErrorStats, StationStats};
-use crate::data::measurement::Sample;
+use crate::data::measurement::{Sample, SampleKind};
 use crate::error::Result;
 use crate::model::param::{ParamInfo, Quantity};
 use crate::model::tree::KinematicTree;
@@ -47,7 +47,7 @@ pub use driver::calibrate;
 pub use identifiability::identifiability;
 use jacobian::to_meas;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian, samples_jacobian_by_sample};
-pub use registration::{register_held_out_stations, register_stations};
+pub use registration::{register_held_out_stations, register_stations, register_stations_on_poses};
 pub use robust::{Drift, GROSS_ERROR, HUBER_K, Loss, Outlier, drift, gross_errors, robust_noise};
 pub use score::{ScoreTest, score_test};
 
@@ -542,6 +542,9 @@ pub struct Linearisation {
     pub fixed_point_noise: Option<f64>,
     /// Per sample, whether it was measured in a fixed point.
     pub fixed_point_samples: Vec<bool>,
+    /// Per sample, whether its position rows were weighed by its own standard deviations
+    /// ([`Sample::position_std`]) rather than by `noise`.
+    pub own_std_samples: Vec<bool>,
     /// How many leading residuals are positions; the rest are orientations, then the
     /// `distance_rows` known distances.
     pub position_rows: usize,
@@ -592,6 +595,8 @@ struct Problem<'a> {
     distances: Vec<KnownDistance>,
     /// Per sample, the square root of its robust weight ([`Loss::Huber`]); empty: all 1.
     weights: Vec<f64>,
+    /// Whether some measured position carries its own standard deviations.
+    own_std: bool,
 }
 
 /// Whether `samples` mix fixed-point samples with measured positions.
@@ -721,7 +726,15 @@ impl<'a> Problem<'a> {
             turn_start,
             distances,
             weights: Vec::new(),
+            own_std: samples.iter().any(|s| s.position_std.is_some()),
         }
+    }
+
+    /// The standard deviations per axis sample `i`'s position rows are weighed by instead of
+    /// `sigma`: its own, for a measured position that carries them.
+    fn own_std(&self, i: usize) -> Option<Vector3<f64>> {
+        let s = &self.samples[i];
+        s.position_std.filter(|_| s.kind() == SampleKind::Position)
     }
 
     /// The noise it weighs residuals by.

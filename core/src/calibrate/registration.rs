@@ -2,7 +2,8 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-use super::{Noise, ParameterSpace, Problem};
+use super::evidence::{EvidenceParams, calibrate_with_evidence};
+use super::{CalibrationParams, Noise, ParameterSpace, Problem};
 use crate::data::measurement::{Sample, SampleKind};
 use crate::error::Result;
 use crate::robot::Robot;
@@ -172,8 +173,8 @@ pub(super) fn unit_mistake(problem: &Problem<'_>, theta0: &[f64]) -> Result<Opti
 /// Registers the measurement frames of `stations` (indices into the robot's stations, 0 for a
 /// robot with one) in closed form on `samples`, the rest of the model as it is (without its
 /// residual predictor), and writes them into `robot`: what `armcomp evaluate` does for data
-/// from a station the model does not know. Returns the stations whose points did not span a
-/// plane, which keep their frame.
+/// from a station the model does not know (with [`register_stations_on_poses`]). Returns the
+/// stations whose points did not span a plane, which keep their frame.
 pub fn register_stations(robot: &mut Robot, samples: &[Sample], stations: &[usize]) -> Result<Vec<usize>> {
     if let Some((i, s)) = samples
         .iter()
@@ -213,6 +214,54 @@ pub fn register_stations(robot: &mut Robot, samples: &[Sample], stations: &[usiz
         .collect();
     robot.set_stations(frames);
     Ok(failed)
+}
+
+/// [`register_stations`], and for a robot that measures poses the frames registered then
+/// fitted to the positions and orientations together, each kind weighed by the noise its own
+/// residuals give (the evidence): the closed form sees the positions only, and a frame's turn
+/// is often better seen by the orientations (poses measured in a small region). What
+/// `armcomp evaluate --register` does, so that poses are scored as poses.
+pub fn register_stations_on_poses(robot: &mut Robot, samples: &[Sample], stations: &[usize]) -> Result<Vec<usize>> {
+    let failed = register_stations(robot, samples, stations)?;
+    register_on_poses(robot, samples, stations, &failed)?;
+    Ok(failed)
+}
+
+/// For a robot that measures poses, fits the frames of `stations` (but those in `failed`) to
+/// the positions and orientations together, from where they are: a calibration of the frames
+/// alone.
+fn register_on_poses(robot: &mut Robot, samples: &[Sample], stations: &[usize], failed: &[usize]) -> Result<()> {
+    let registered: Vec<usize> = stations.iter().copied().filter(|k| !failed.contains(k)).collect();
+    let oriented = samples
+        .iter()
+        .any(|s| registered.contains(&s.station) && s.kind() == SampleKind::Position && s.orientation.is_some());
+    if !robot.measures_pose() || !oriented {
+        return Ok(());
+    }
+    let space = ParameterSpace::new(robot);
+    let params = CalibrationParams {
+        identify: (registered.iter())
+            .flat_map(|&k| space.station_params(k))
+            .map(|i| space.params[i].info.name.clone())
+            .collect(),
+        // The frame's cost has one minimum near the closed form.
+        restarts: 0,
+        ..CalibrationParams::default()
+    };
+    let evidence = EvidenceParams {
+        estimate_priors: false,
+        ..EvidenceParams::default()
+    };
+    let (fit, _) = calibrate_with_evidence(robot, samples, &params, &evidence, &mut |_| {})?;
+    // A robot of one station keeps its frame outside its (empty) list of stations.
+    let frames = (0..robot.n_stations())
+        .map(|k| crate::robot::Station {
+            name: robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()),
+            frame: fit.robot.station_frame(k),
+        })
+        .collect();
+    robot.set_stations(frames);
+    Ok(())
 }
 
 /// Registers in closed form the frames of the stations of held-out `test` that `train` has no

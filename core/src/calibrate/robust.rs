@@ -205,16 +205,21 @@ impl Problem<'_> {
 
     /// Calls `scale(row, w)` for every residual row of a sample whose weight is not 1 (its
     /// position rows and its orientation rows), `w` the square root of the product of its
-    /// robust weight and the weight its kind's noise gives it.
+    /// robust weight and the weight its kind's noise gives it: for a position row with its
+    /// own standard deviation `s`, `σ / s` (the row whitened by `s` instead of `σ`).
     pub(super) fn weigh_rows(&self, mut scale: impl FnMut(usize, f64)) {
-        if self.weights.is_empty() && self.kind_weights.is_empty() {
+        if self.weights.is_empty() && self.kind_weights.is_empty() && !self.own_std {
             return;
         }
         let weight = |i: usize| self.weights.get(i).unwrap_or(&1.0) * self.kind_weights.get(i).unwrap_or(&1.0);
         for i in 0..self.samples.len() {
-            let w = weight(i);
-            if w != 1.0 {
-                self.position_range(i).for_each(|row| scale(row, w));
+            let own = self.own_std(i);
+            let robust = self.weights.get(i).unwrap_or(&1.0);
+            for (axis, row) in self.position_range(i).enumerate() {
+                let w = own.map_or_else(|| weight(i), |s| robust * self.sigma / s[axis]);
+                if w != 1.0 {
+                    scale(row, w);
+                }
             }
         }
         for (k, &i) in self.oriented.iter().enumerate() {

@@ -7,11 +7,16 @@
 //! optional `point` (the measured point's name; default: the first marker), or numbered
 //! triples `x1, y1, z1`, `x2, ...` for several points measured at once (the robot file's
 //! markers in order; all three cells of a point left empty when it was not seen); optional
-//! orientation in one of three spellings: a unit quaternion `qw, qx, qy, qz` (either sign), a
-//! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`), or URDF roll-pitch-yaw
-//! `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`, as
-//! Pinocchio's `rpyToMatrix`); optional `payload[kg]`, `temperature[C]`, and joint torques
-//! `tau_<joint>[Nm]`; optional `station` (a name: the instrument set-up that measured the row,
+//! orientation in one of four spellings: a unit quaternion `qw, qx, qy, qz` (either sign), a
+//! rotation vector `rx, ry, rz` (axis times angle, `rx[deg]`, at most 180° long), URDF
+//! roll-pitch-yaw `roll, pitch, yaw` (fixed axes x, then y, then z: `R = Rz(yaw)·Ry(pitch)·Rx(roll)`,
+//! as Pinocchio's `rpyToMatrix`), or Euler angles named by their order,
+//! `intrinsic_<axes>_1, _2, _3` (about the moving axes: `intrinsic_zyx` is
+//! `R = Rz(θ₁)·Ry(θ₂)·Rx(θ₃)`) or `extrinsic_<axes>_1, _2, _3` (about the fixed axes:
+//! `extrinsic_xyz` is `R = Rz(θ₃)·Ry(θ₂)·Rx(θ₁)`, roll-pitch-yaw's); optional `payload[kg]`, `temperature[C]`, and joint torques
+//! `tau_<joint>[Nm]`; optional `sx, sy, sz` (`sx[mm]`), the standard deviation of each axis of
+//! the row's position as the instrument gave it, all three or none, empty in a row without;
+//! optional `station` (a name: the instrument set-up that measured the row,
 //! each its own measurement frame); the columns of the robot file's sensor (`[[sensors]]`: an
 //! accelerometer's reading, an inclinometer's roll and pitch), which give the direction of
 //! gravity per row. A robot file of `kind = "fixed_point"` reads rows without a position: a
@@ -64,6 +69,10 @@ pub struct Sample {
     /// ([`Robot::with_stations`](crate::Robot::with_stations)), into the robot's; 0 when the
     /// data have one station.
     pub station: usize,
+    /// The standard deviation of each axis of `position` (m) the instrument gave for this row
+    /// (the `sx, sy, sz` columns), when it did: calibration then divides the row's residual by
+    /// it instead of the noise all other rows share.
+    pub position_std: Option<Vector3<f64>>,
 }
 
 /// What a sample measures.
@@ -133,6 +142,11 @@ enum Column {
     /// An orientation cell: its spelling, which of its cells, and the angle unit's scale
     /// (1 for a quaternion).
     Orientation(Spelling, usize, f64),
+    /// `sx`, `sy`, `sz`: the standard deviation of the row's position along an axis.
+    PositionStd {
+        axis: usize,
+        scale: f64,
+    },
     Payload(f64),
     Temperature(f64),
     Torque(usize),
@@ -151,7 +165,7 @@ impl Column {
         match *self {
             // A thousand turns, or 10 km of travel.
             Column::Joint { scale, .. } => Some((v * scale, 1e4, "10000 rad (or m for a prismatic joint)")),
-            Column::Position { scale, .. } => Some((v * scale, 1e4, "10 km")),
+            Column::Position { scale, .. } | Column::PositionStd { scale, .. } => Some((v * scale, 1e4, "10 km")),
             Column::Payload(scale) => Some((v * scale, 1e6, "1000 t")),
             Column::Temperature(offset) => Some((v + offset, 1e4, "10000 °C")),
             Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
@@ -172,7 +186,19 @@ enum Spelling {
     Quaternion,
     RotationVector,
     RollPitchYaw,
+    /// Euler angles about `axes` (0 x, 1 y, 2 z) in turn: the moving frame's axes
+    /// (`intrinsic_<axes>_1, _2, _3`) or the fixed frame's (`extrinsic_<axes>_1, _2, _3`).
+    Euler {
+        intrinsic: bool,
+        axes: [usize; 3],
+    },
 }
+
+/// The largest norm a rotation vector's cells may have: π, with room for the rounding of a
+/// half turn written in degrees. A larger one is no rotation vector a tracker writes (its
+/// rotation is that of a shorter vector the other way), but three Euler angles in the wrong
+/// columns often are.
+const MAX_ROTATION_VECTOR_NORM: f64 = std::f64::consts::PI + 1e-4;
 
 impl Spelling {
     const ALL: [(Spelling, [&'static str; 4]); 3] = [
@@ -186,22 +212,59 @@ impl Spelling {
         Spelling::ALL
             .iter()
             .find_map(|(s, cells)| cells.iter().position(|c| !c.is_empty() && *c == name).map(|k| (*s, k)))
+            .or_else(|| Spelling::euler_cell(name))
     }
 
-    fn cells(self) -> &'static [&'static str] {
+    /// `intrinsic_zyx_2` → Euler angles about z, y, x of the moving frame, cell 1; consecutive
+    /// axes must differ (`zyz` is an order, `zzy` is not).
+    fn euler_cell(name: &str) -> Option<(Spelling, usize)> {
+        let (frame, rest) = name.split_once('_')?;
+        let intrinsic = match frame {
+            "intrinsic" => true,
+            "extrinsic" => false,
+            _ => return None,
+        };
+        let (order, cell) = rest.split_once('_')?;
+        let cell = match cell {
+            "1" => 0,
+            "2" => 1,
+            "3" => 2,
+            _ => return None,
+        };
+        let mut axes = [0; 3];
+        let letters = order.as_bytes();
+        if letters.len() != 3 {
+            return None;
+        }
+        for (a, l) in axes.iter_mut().zip(letters) {
+            *a = match l {
+                b'x' => 0,
+                b'y' => 1,
+                b'z' => 2,
+                _ => return None,
+            };
+        }
+        (axes[0] != axes[1] && axes[1] != axes[2]).then_some((Spelling::Euler { intrinsic, axes }, cell))
+    }
+
+    /// The spelling's column names, in cell order.
+    fn cells(self) -> Vec<String> {
+        if let Spelling::Euler { intrinsic, axes } = self {
+            let frame = if intrinsic { "intrinsic" } else { "extrinsic" };
+            let order: String = axes.iter().map(|&a| ['x', 'y', 'z'][a]).collect();
+            return (1..=3).map(|k| format!("{frame}_{order}_{k}")).collect();
+        }
         let cells = &Spelling::ALL
             .iter()
             .find(|(s, _)| *s == self)
-            .expect("every spelling is listed")
+            .expect("every other spelling is listed")
             .1;
-        if self == Spelling::Quaternion {
-            cells
-        } else {
-            &cells[..3]
-        }
+        let n = if self == Spelling::Quaternion { 4 } else { 3 };
+        cells[..n].iter().map(|c| c.to_string()).collect()
     }
 
-    /// The rotation of cells `v` (angles in rad); an error for a quaternion whose norm is not 1.
+    /// The rotation of cells `v` (angles in rad); an error for a quaternion whose norm is not 1
+    /// and for a rotation vector longer than half a turn.
     fn rotation(self, v: [f64; 4]) -> std::result::Result<UnitQuaternion<f64>, String> {
         match self {
             Spelling::Quaternion => {
@@ -211,8 +274,29 @@ impl Spelling {
                 }
                 Ok(UnitQuaternion::from_quaternion(q))
             }
-            Spelling::RotationVector => Ok(UnitQuaternion::from_scaled_axis(Vector3::new(v[0], v[1], v[2]))),
+            Spelling::RotationVector => {
+                let r = Vector3::new(v[0], v[1], v[2]);
+                if r.norm() > MAX_ROTATION_VECTOR_NORM {
+                    return Err(format!(
+                        "rotation vector rx, ry, rz has norm {:.2}°, but a rotation vector (axis times angle) is at \
+                         most 180° long: are these Euler angles? Name their columns by their order, e.g. \
+                         intrinsic_xyz_1, intrinsic_xyz_2, intrinsic_xyz_3 (or extrinsic_…, or roll, pitch, yaw)",
+                        r.norm().to_degrees()
+                    ));
+                }
+                Ok(UnitQuaternion::from_scaled_axis(r))
+            }
             Spelling::RollPitchYaw => Ok(UnitQuaternion::from_euler_angles(v[0], v[1], v[2])),
+            Spelling::Euler { intrinsic, axes } => {
+                let turn = |k: usize| UnitQuaternion::from_axis_angle(&Vector3::ith_axis(axes[k]), v[k]);
+                // Intrinsic turns compose to the right (each about the axes the last left),
+                // extrinsic ones to the left (each about the fixed axes).
+                Ok(if intrinsic {
+                    turn(0) * turn(1) * turn(2)
+                } else {
+                    turn(2) * turn(1) * turn(0)
+                })
+            }
         }
     }
 }

@@ -207,3 +207,57 @@ fn fits_boom_residual() {
         }
     }
 }
+
+/// Reading a model file's fitted GP (7 inputs, 3 outputs), as every command that loads the
+/// model does, at 3,000 and 12,000 rows (0.6 and 2.4 MB of TOML), and at 3,000 rows the first
+/// standard deviation, which factorises the kernel matrix as every read did before (its cost
+/// grows as the cube of the rows). A measurement for BENCHMARKS.md, not a check:
+/// `cargo test -p armcomp-learn --test predictors -- --ignored stored_gp_load_time --nocapture`.
+#[test]
+#[ignore = "a measurement; the first standard deviation factorises 3,000 rows"]
+fn stored_gp_load_time() {
+    use armcomp_core::FittedPredictor;
+    #[derive(serde::Deserialize)]
+    struct File {
+        fitted_predictor: Box<dyn FittedPredictor>,
+    }
+    let d = 7;
+    for n in [3_000, 12_000] {
+        let mut rng = StdRng::seed_from_u64(1);
+        let inputs: Vec<f64> = (0..n * d).map(|_| rng.random_range(-2.0..2.0)).collect();
+        let alpha: Vec<f64> = (0..n * 3).map(|_| rng.random_range(-1e-3..1e-3)).collect();
+        let model = serde_json::json!({
+            "type": "gp_fitted",
+            "inputs": { "mean": vec![0.0; d], "scale": vec![1.0; d] },
+            "outputs": { "mean": vec![0.0; 3], "scale": vec![1e-3; 3] },
+            "train_inputs": inputs,
+            "kernels": [{
+                "outputs": [0, 1, 2],
+                "hyper": { "length_scales": vec![1.5; d], "signal_std": 1.0, "noise_std": 0.1 },
+                "jitter": 0.0,
+                "alpha": alpha,
+            }],
+        });
+        let text = toml::to_string(&serde_json::json!({ "fitted_predictor": model })).unwrap();
+        let started = std::time::Instant::now();
+        let file: File = toml::from_str(&text).unwrap();
+        let loaded = started.elapsed().as_secs_f64();
+        let (mut out, mut scratch) = ([0.0; 3], Vec::new());
+        let started = std::time::Instant::now();
+        file.fitted_predictor.predict_into(&[0.1; 7], &mut out, &mut scratch);
+        let mean = started.elapsed().as_secs_f64();
+        print!(
+            "{n} rows, {:.2} MB of TOML: read {loaded:.3} s, first mean {mean:.4} s",
+            text.len() as f64 / 1e6
+        );
+        if n == 3_000 {
+            let started = std::time::Instant::now();
+            assert!(
+                file.fitted_predictor
+                    .predict_std_into(&[0.1; 7], &mut out, &mut scratch)
+            );
+            print!(", first standard deviation {:.2} s", started.elapsed().as_secs_f64());
+        }
+        println!();
+    }
+}

@@ -68,6 +68,8 @@ struct Header<'t> {
     /// The gravity sensor whose columns the table has.
     sensor: Option<&'t GravitySensor>,
     has_torque: bool,
+    /// Whether the rows give their positions' standard deviations (`sx, sy, sz`).
+    has_position_std: bool,
     /// In data that mix measured positions with contacts, the columns naming a row's fixed
     /// point or plane (a robot of fixed points or planes only has a group column of its own).
     mixed_groups: Vec<usize>,
@@ -103,6 +105,8 @@ struct Row<'c> {
     sensor_reading: Vector4<f64>,
     /// Per slot, the position and how many of its cells were empty.
     positions: Vec<(Vector3<f64>, usize)>,
+    /// The position's standard deviations, and how many of their cells were empty.
+    position_std: (Vector3<f64>, usize),
 }
 
 /// One cell of a row: its text, its column, the column's header and the row's line.
@@ -188,6 +192,7 @@ impl<'t> Table<'t, '_> {
             spelling: None,
             sensor: None,
             has_torque: false,
+            has_position_std: false,
             mixed_groups: Vec::new(),
         };
         self.check_joint_columns(&header)?;
@@ -195,6 +200,7 @@ impl<'t> Table<'t, '_> {
         header.spelling = self.orientation_spelling(&header)?;
         header.sensor = self.sensor_columns(&header)?;
         header.has_torque = header.has(|k| matches!(k, Column::Torque(_)));
+        header.has_position_std = self.position_std_columns(&header)?;
         if self.with_positions && self.layout.group_column().is_none() {
             header.mixed_groups = (header.columns.iter().enumerate())
                 .filter(|(_, c)| matches!(c, Column::Group { .. }))
@@ -313,6 +319,10 @@ impl<'t> Table<'t, '_> {
             "x" | "y" | "z" => Column::Position {
                 slot: None,
                 axis: (name.as_bytes()[0] - b'x') as usize,
+                scale: length(unit)?,
+            },
+            "sx" | "sy" | "sz" if self.layout.group_column().is_none() => Column::PositionStd {
+                axis: (name.as_bytes()[1] - b'x') as usize,
                 scale: length(unit)?,
             },
             "payload" => Column::Payload(match unit {
@@ -441,7 +451,8 @@ impl<'t> Table<'t, '_> {
             _ => {
                 return err(
                     "the orientation is given in several spellings; keep one of qw, qx, qy, qz (quaternion), rx, ry, \
-                     rz (rotation vector) or roll, pitch, yaw"
+                     rz (rotation vector), roll, pitch, yaw or Euler angles by their order (intrinsic_xyz_1, _2, _3; \
+                     extrinsic_zyx_1, ...)"
                         .into(),
                 );
             }
@@ -450,6 +461,26 @@ impl<'t> Table<'t, '_> {
             return err("an orientation goes with one measured point, not several".into());
         }
         Ok(spelling)
+    }
+
+    /// Whether the table gives its positions' standard deviations: all of `sx, sy, sz` or
+    /// none, beside plain `x, y, z`.
+    fn position_std_columns(&self, header: &Header<'_>) -> Result<bool> {
+        let given: Vec<usize> = (header.columns.iter())
+            .filter_map(|c| match c {
+                Column::PositionStd { axis, .. } => Some(*axis),
+                _ => None,
+            })
+            .collect();
+        let err = |message: String| Err(self.err(Some(header.line), message));
+        match given.len() {
+            0 => Ok(false),
+            3 if header.slots.iter().any(Option::is_some) => {
+                err("`sx, sy, sz` go with plain `x, y, z`, one measured point per row, not numbered columns".into())
+            }
+            3 => Ok(true),
+            _ => err("the positions' standard deviations need all three columns: sx, sy, sz (e.g. `sx[mm]`)".into()),
+        }
     }
 
     /// The gravity sensor the table gives readings of: all its columns or none.
@@ -569,12 +600,14 @@ impl<'t> Table<'t, '_> {
                 plane: None,
                 gravity: None,
                 station: 0,
+                position_std: None,
             },
             fixed_row: header.mixed_groups.iter().any(|&k| !record[k].is_empty()),
             kind_cell: None,
             angles: [0.0; 4],
             sensor_reading: Vector4::zeros(),
             positions: vec![(Vector3::zeros(), 0); header.slots.len()],
+            position_std: (Vector3::zeros(), 0),
         };
         for (field, (col, head)) in record.iter().zip(header.columns.iter().zip(header.record.iter())) {
             let cell = Cell { field, col, head, line };
@@ -665,7 +698,7 @@ impl<'t> Table<'t, '_> {
                     }
                 };
             }
-            Column::Position { .. } | Column::Orientation(..) if row.fixed_row => {
+            Column::Position { .. } | Column::Orientation(..) | Column::PositionStd { .. } if row.fixed_row => {
                 if !field.is_empty() {
                     let (column, what) = header.mixed_kind();
                     return err(
@@ -693,6 +726,7 @@ impl<'t> Table<'t, '_> {
                 let k = header.slots.iter().position(|s| s == slot).unwrap_or(0);
                 row.positions[k].1 += 1;
             }
+            Column::PositionStd { .. } if field.is_empty() => row.position_std.1 += 1,
             Column::Sensor(..) if field.trim().is_empty() => {
                 return err(
                     head,
@@ -715,6 +749,14 @@ impl<'t> Table<'t, '_> {
                 row.positions[k].0[axis] = v * scale;
             }
             Column::Orientation(_, k, scale) => row.angles[k] = v * scale,
+            Column::PositionStd { .. } if v <= 0.0 => {
+                return Err(self.err_in(
+                    line,
+                    head,
+                    format!("column `{head}`: a standard deviation is above zero, got {field}"),
+                ));
+            }
+            Column::PositionStd { axis, scale } => row.position_std.0[axis] = v * scale,
             Column::Payload(_) if v < 0.0 => {
                 return Err(self.err_in(
                     line,
@@ -742,6 +784,20 @@ impl<'t> Table<'t, '_> {
         }
         if let Some(kind) = row.kind_cell {
             check_kind_cell(kind, &row.sample).map_err(|m| self.err_in(line, "kind", m))?;
+        }
+        if header.has_position_std && !row.fixed_row {
+            row.sample.position_std = match row.position_std {
+                (std, 0) => Some(std),
+                (_, 3) => None,
+                _ => {
+                    return Err(self.err(
+                        Some(line),
+                        "some of sx, sy, sz are empty; give all three (the row's standard deviations) or none (the \
+                         row is weighed by the noise the others share)"
+                            .into(),
+                    ));
+                }
+            };
         }
         if let Some(g) = header.sensor {
             let direction = g.kind.gravity_direction(&row.sensor_reading).map_err(|m| {

@@ -184,7 +184,7 @@ impl PredictorSpec for GpSpec {
                 .flat_map(|i| (0..group.len()).map(move |c| (i, c)))
                 .map(|(i, c)| a[(i, c)])
                 .collect();
-            caches.push(KernelCache::new(&scaled, d, &alpha, group.len(), chol));
+            caches.push(KernelCache::new(&scaled, d, &alpha, group.len(), Some(chol)));
             kernels.push(GpKernelModel {
                 outputs: group,
                 hyper,

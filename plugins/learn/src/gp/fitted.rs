@@ -23,8 +23,10 @@ pub struct GpKernelModel {
     pub alpha: Vec<f64>,
 }
 
-/// What a fitted GP is made of, as stored in model files. The Cholesky factor is not stored (it
-/// would be n² numbers); it is recomputed, bit for bit, when the model is read.
+/// What a fitted GP is made of, as stored in model files: what the predictive mean needs (the
+/// training inputs and the weights α), linear in the rows. The Cholesky factor is not stored
+/// (it would be n² numbers); the predictive standard deviation recomputes it, bit for bit, on
+/// its first use.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GpModel {
@@ -41,24 +43,44 @@ pub struct GpModel {
 /// Per-kernel data derived from the model, laid out for prediction: the length-scaled training
 /// inputs and the weights α stored column by column (one contiguous run of n values per input
 /// dimension and per output), so that the per-query loops run along the training rows and
-/// vectorise; and the Cholesky factor of the kernel matrix.
+/// vectorise; and the Cholesky factor of the kernel matrix, once the predictive standard
+/// deviation has needed it.
 #[derive(Debug, Clone)]
 pub(super) struct KernelCache {
     /// `d × n`: run `j` holds the `j`-th length-scaled input of every training row.
     pub(super) columns: Vec<f64>,
     /// `m × n`: run `l` holds the weights of the kernel's `l`-th output.
     pub(super) alpha: Vec<f64>,
-    pub(super) chol: DMatrix<f64>,
+    /// The lower Cholesky factor, `None` inside when the stored hyper-parameters and jitter do
+    /// not give a positive definite matrix. Factorising is O(n³) in time and O(n²) in memory
+    /// (minutes and a gigabyte at 12,000 rows), which reading a model file, copying a
+    /// predictor or predicting the mean must not pay: only the standard deviation does.
+    chol: std::sync::OnceLock<Option<DMatrix<f64>>>,
 }
 
 impl KernelCache {
-    /// From the row-major length-scaled inputs (`n × d`) and weights (`n × m`).
-    pub(super) fn new(scaled: &[f64], d: usize, alpha: &[f64], m: usize, chol: DMatrix<f64>) -> Self {
+    /// From the row-major length-scaled inputs (`n × d`) and weights (`n × m`), with the
+    /// factor when the caller has it (the fit).
+    pub(super) fn new(scaled: &[f64], d: usize, alpha: &[f64], m: usize, chol: Option<DMatrix<f64>>) -> Self {
         KernelCache {
             columns: transpose(scaled, d),
             alpha: transpose(alpha, m),
-            chol,
+            chol: chol.map(|c| Some(c).into()).unwrap_or_default(),
         }
+    }
+
+    /// The Cholesky factor of the kernel matrix of `kernel`, computed on first use from the
+    /// length-scaled inputs (`d` of them per row); `None` when it is not positive definite.
+    fn chol(&self, kernel: &GpKernelModel, d: usize) -> Option<&DMatrix<f64>> {
+        self.chol
+            .get_or_init(|| {
+                let n = self.columns.len() / d;
+                // Back to row-major, the layout the fit factorised, so the factor is the fit's
+                // bit for bit.
+                let scaled = transpose(&self.columns, n);
+                factor(&scaled, d, &kernel.hyper, kernel.jitter)
+            })
+            .as_ref()
     }
 }
 
@@ -132,10 +154,17 @@ impl TryFrom<GpModel> for FittedGp {
                     got: kernel.alpha.len(),
                 });
             }
+            if !(kernel.jitter.is_finite() && kernel.jitter >= 0.0) {
+                return Err(invalid(
+                    "gp_fitted",
+                    format!("jitter must be finite and non-negative, got {}", kernel.jitter),
+                ));
+            }
+            if let Some(i) = kernel.alpha.iter().position(|a| !a.is_finite()) {
+                return Err(invalid("gp_fitted", format!("alpha[{i}] is not finite")));
+            }
             let scaled = scale_inputs(&model.train_inputs, &kernel.hyper.length_scales);
-            let chol =
-                factor(&scaled, d, &kernel.hyper, kernel.jitter).ok_or_else(|| not_positive_definite("gp_fitted"))?;
-            caches.push(KernelCache::new(&scaled, d, &kernel.alpha, kernel.outputs.len(), chol));
+            caches.push(KernelCache::new(&scaled, d, &kernel.alpha, kernel.outputs.len(), None));
         }
         if covered.contains(&false) {
             return Err(invalid("gp_fitted", "some outputs have no kernel".into()));
@@ -261,9 +290,13 @@ impl FittedPredictor for FittedGp {
         for ((kernel, cache), uk) in self.model.kernels.iter().zip(&self.caches).zip(u.chunks_exact(d)) {
             let sf2 = kernel.hyper.signal_std * kernel.hyper.signal_std;
             kernel_row(&cache.columns, uk, sf2, kstar);
+            // A stored model whose matrix is not positive definite has no standard deviation.
+            let Some(chol) = cache.chol(kernel, d) else {
+                return false;
+            };
             // v = L⁻¹ k*, var = σ_f² − vᵀv.
             let mut v = DVectorViewMut::from_slice(kstar, n);
-            cache.chol.solve_lower_triangular_mut(&mut v);
+            chol.solve_lower_triangular_mut(&mut v);
             let std = (sf2 - v.norm_squared()).max(0.0).sqrt();
             for &o in &kernel.outputs {
                 out[o] = std;
