@@ -1,5 +1,5 @@
 /* Latency per armcomp_compensate call: loads a model, then times ROUNDS passes (default 200)
- * over 27 point targets on a 10 cm grid centred on x y z (m, measurement frame), each call from
+ * over 27 point targets on a 4 cm grid centred on x y z (m, measurement frame), each call from
  * the default start, and prints the median, 99th percentile and largest time per call in
  * microseconds:
  *
@@ -33,9 +33,9 @@ int main(int argc, char **argv) {
     enum { TARGETS = 27 };
     double targets[TARGETS][3];
     for (int i = 0; i < TARGETS; i++) {
-        targets[i][0] = atof(argv[2]) + 0.05 * (i % 3 - 1);
-        targets[i][1] = atof(argv[3]) + 0.05 * (i / 3 % 3 - 1);
-        targets[i][2] = atof(argv[4]) + 0.05 * (i / 9 - 1);
+        targets[i][0] = atof(argv[2]) + 0.02 * (i % 3 - 1);
+        targets[i][1] = atof(argv[3]) + 0.02 * (i / 3 % 3 - 1);
+        targets[i][2] = atof(argv[4]) + 0.02 * (i / 9 - 1);
     }
     double *q = calloc(nq, sizeof *q);
     size_t calls = (size_t)rounds * TARGETS;
