@@ -254,10 +254,10 @@ fn largest_distance(
         }
     }
     for (b, body) in tree.bodies().iter().enumerate() {
-        if offsets.is_empty() || carrying.contains(&b) {
-            if let Some(o) = point_of(other, &body.name) {
-                compared.push((Compared::Body(b), o));
-            }
+        if (offsets.is_empty() || carrying.contains(&b))
+            && let Some(o) = point_of(other, &body.name)
+        {
+            compared.push((Compared::Body(b), o));
         }
     }
     let mut largest = 0.0f64;
