@@ -56,6 +56,9 @@ enum Command {
     Plugins(cmd::plugins::Args),
     /// Write a model's identified URDF geometry back as a URDF.
     ExportUrdf(cmd::export_urdf::Args),
+    /// Write what a ROS 2 robot reads of a model: calibrated URDF, joint offsets, measurement
+    /// frame, manifest.
+    ExportRos(cmd::export_ros::Args),
     /// Report self-collisions and collisions with fixtures at a configuration.
     CheckPose(cmd::check_pose::Args),
 }
@@ -111,6 +114,7 @@ fn main() -> ExitCode {
         Command::Schema(a) => cmd::schema::run(a),
         Command::Plugins(a) => cmd::plugins::run(a),
         Command::ExportUrdf(a) => cmd::export_urdf::run(a),
+        Command::ExportRos(a) => cmd::export_ros::run(a),
         Command::CheckPose(a) => cmd::check_pose::run(a),
     };
     match result {

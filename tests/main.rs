@@ -15,6 +15,8 @@ mod demo_report;
 mod diagnose;
 mod docs;
 mod evidence;
+mod export_ros;
+mod ffi_examples;
 mod fixed_points;
 mod fk;
 mod jacobian;

@@ -47,6 +47,18 @@ pub enum Error {
         /// the closest configuration would make every result of the operations large).
         source: Box<IkError>,
     },
+    /// An exported URDF, read back, does not put the links and points where the model does.
+    #[error(
+        "the exported URDF, read back, puts a link or point {deviation:.3e} m from the model over {configurations} configurations (tolerance {tolerance:.0e} m); nothing was written"
+    )]
+    ReloadMismatch {
+        /// The largest distance (m).
+        deviation: f64,
+        /// What it may be (m).
+        tolerance: f64,
+        /// How many configurations were compared.
+        configurations: usize,
+    },
 }
 
 /// Why a joint cannot be locked.

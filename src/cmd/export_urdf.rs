@@ -25,16 +25,23 @@ pub struct Args {
     data: Option<PathBuf>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    let robot = super::load_robot(&args.model)?;
-    let dropped = armcomp_api::ops::export_urdf::inexpressible(&robot);
-    if !dropped.is_empty() && !args.rigid_only {
+/// Refuses an export of `model` that would drop the models URDF cannot express, unless
+/// `rigid_only` asks for that.
+pub fn refuse_inexpressible(model: &std::path::Path, dropped: &[String], rigid_only: bool) -> anyhow::Result<()> {
+    if !dropped.is_empty() && !rigid_only {
         bail!(
             "{}: URDF cannot express {}; the exported URDF would not be this model. Pass --rigid-only --data <measurements.csv> to export the rigid geometry anyway and see how far the dropped models move the measured points",
-            args.model.display(),
+            model.display(),
             dropped.join(", ")
         );
     }
+    Ok(())
+}
+
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let robot = super::load_robot(&args.model)?;
+    let dropped = armcomp_api::ops::export_urdf::inexpressible(&robot);
+    refuse_inexpressible(&args.model, &dropped, args.rigid_only)?;
     let urdf = armcomp_urdf::calibrated_urdf(&robot)?;
     let data: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
     super::check_output(&args.out, &robot, &[&[urdf.source.as_path()], data.as_slice()].concat())?;

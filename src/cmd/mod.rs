@@ -9,6 +9,7 @@ pub mod demo_justin;
 pub mod demo_output;
 pub mod diagnose;
 pub mod evaluate;
+pub mod export_ros;
 pub mod export_urdf;
 pub mod fit;
 pub mod fk;

@@ -173,13 +173,8 @@ pub fn run(
     };
     for (i, t) in targets.iter().enumerate() {
         cancel.check()?;
-        let position = to_base.transform_point(&Point3::from(t.position)).coords;
-        let target = match t.orientation {
-            Some(r) => IkTarget::Pose(Isometry3::from_parts(position.into(), to_base.rotation * r)),
-            None => IkTarget::Position(position),
-        };
         let c = comp
-            .compensate_target(&target, &starts[i.min(starts.len() - 1)], mode)
+            .compensate_target(&ik_target(t, &to_base), &starts[i.min(starts.len() - 1)], mode)
             .map_err(|source| Error::Target {
                 target: describe(i),
                 source: Box::new(source),
@@ -195,6 +190,16 @@ pub fn run(
         run.std.push(comp.residual_std());
     }
     Ok(run)
+}
+
+/// `target` as the inverse kinematics takes it: moved into the base frame by `to_base` (the
+/// identity for targets in the base frame).
+pub fn ik_target(target: &Target, to_base: &Isometry3<f64>) -> IkTarget {
+    let position = to_base.transform_point(&Point3::from(target.position)).coords;
+    match target.orientation {
+        Some(r) => IkTarget::Pose(Isometry3::from_parts(position.into(), to_base.rotation * r)),
+        None => IkTarget::Position(position),
+    }
 }
 
 impl CompensationRun {

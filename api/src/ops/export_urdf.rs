@@ -18,11 +18,7 @@ pub fn inexpressible(robot: &Robot) -> Vec<String> {
 /// How far (m, largest over `samples`) dropping the error models and predictor moves the
 /// measured points: what a rigid-only export loses.
 pub fn rigid_deviation(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<f64> {
-    let mut rigid_file = robot.to_file();
-    rigid_file.error_models.clear();
-    rigid_file.fitted_predictor = None;
-    rigid_file.predictor = None;
-    let rigid = robot.rebuild(rigid_file)?;
+    let rigid = rigid(robot)?;
     let full = position_errors(robot, samples);
     let without = position_errors(&rigid, samples);
     Ok(full
@@ -30,6 +26,15 @@ pub fn rigid_deviation(robot: &Robot, samples: &[Sample]) -> armcomp_core::Resul
         .zip(&without)
         .map(|(a, b)| (a - b).norm())
         .fold(0.0, f64::max))
+}
+
+/// `robot` without its error models and predictor: what a URDF of it holds.
+pub fn rigid(robot: &Robot) -> armcomp_core::Result<Robot> {
+    let mut rigid_file = robot.to_file();
+    rigid_file.error_models.clear();
+    rigid_file.fitted_predictor = None;
+    rigid_file.predictor = None;
+    robot.rebuild(rigid_file)
 }
 
 /// What an export wrote and what it left out, one `[status, item, details]` row each, values in

@@ -6,6 +6,7 @@ pub mod calibrate;
 pub mod compensate;
 pub mod diagnose;
 pub mod evaluate;
+pub mod export_ros;
 pub mod export_urdf;
 pub mod fit;
 pub mod learn;

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use armcomp_core::{Error, KinematicTree, Motion, Result, Robot};
-use nalgebra::Isometry3;
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::chain::UrdfSpec;
 use crate::document::{UrdfDocument, UrdfJointType};
@@ -33,6 +33,24 @@ pub struct CalibratedUrdf {
     pub markers: Vec<MarkerJoint>,
     /// How many written values were below [`ZERO_BELOW`] and written as 0.
     pub zeroed: usize,
+    /// Every moving joint that mimics no other, in file order, with its identified value
+    /// offset relative to the source URDF ([`JointOffset`]).
+    pub offsets: Vec<JointOffset>,
+}
+
+/// What a joint's identified origin turns about (or slides along) its axis relative to the
+/// source URDF's: the model at joint value `q` stands where the source URDF puts the joint's
+/// child at `q + offset`, as far as that turn (slide) goes; the origin's other changes (tilts,
+/// shifts across the axis) only the calibrated URDF holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointOffset {
+    /// The URDF joint's name.
+    pub joint: String,
+    /// The offset: rad about the axis for a revolute or continuous joint, m along it for a
+    /// prismatic one.
+    pub offset: f64,
+    /// Whether the joint is prismatic (the offset in m).
+    pub prismatic: bool,
 }
 
 /// A marker written as a fixed joint from its link to a new link named as the marker.
@@ -103,13 +121,45 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
         reason: "no closing `</robot>` to add the markers before".into(),
     })?;
     text.insert_str(end, &added);
+    let offsets = joint_offsets(&doc, robot.tree());
     Ok(CalibratedUrdf {
         text,
         source: path,
         identified,
         markers,
         zeroed,
+        offsets,
     })
+}
+
+/// The value offsets of `tree`'s joints relative to `doc`, the URDF it was built from: the
+/// chain writes a revolute joint's origin rotation as `R_urdf · exp(s)` with `s` along the
+/// axis and two directions across it, and a prismatic joint's origin translation as
+/// `xyz_urdf + R_urdf · d`, so the offset is the axis' component of `s` (of `d`).
+fn joint_offsets(doc: &UrdfDocument, tree: &KinematicTree) -> Vec<JointOffset> {
+    doc.joints
+        .iter()
+        .filter(|j| j.kind != UrdfJointType::Fixed && j.mimic.is_none())
+        .filter_map(|j| {
+            let t = &tree.joints()[tree.joint_index(&j.name)?];
+            let nominal = UnitQuaternion::from_euler_angles(j.rpy[0], j.rpy[1], j.rpy[2]);
+            let (axis, prismatic) = match t.motion {
+                Motion::Revolute(a) => (a, false),
+                Motion::Prismatic(a) => (a, true),
+                Motion::Fixed => return None,
+            };
+            let along = if prismatic {
+                nominal.inverse() * (t.placement.translation.vector - Vector3::from(j.xyz))
+            } else {
+                (nominal.inverse() * t.placement.rotation).scaled_axis()
+            };
+            Some(JointOffset {
+                joint: j.name.clone(),
+                offset: along.dot(&axis),
+                prismatic,
+            })
+        })
+        .collect()
 }
 
 /// The markers of `robot` (its tool when it names none) as fixed joints to links of their own;

@@ -13,7 +13,7 @@ mod mesh;
 pub use bare::{robot_file_for_urdf, robot_from_urdf};
 pub use chain::{UrdfChain, UrdfJointOverride, UrdfSpec};
 pub use document::{UrdfDocument, UrdfJoint, UrdfJointType, UrdfLink};
-pub use export::{CalibratedUrdf, MarkerJoint, ZERO_BELOW, calibrated_urdf, rewrite};
+pub use export::{CalibratedUrdf, JointOffset, MarkerJoint, ZERO_BELOW, calibrated_urdf, rewrite};
 
 use armcomp_core::{PluginInfo, Role};
 
