@@ -12,6 +12,7 @@ pub mod evaluate;
 pub mod export_urdf;
 pub mod fit;
 pub mod fk;
+pub mod import_bag;
 pub mod learn;
 pub mod plan;
 pub mod plugins;
