@@ -210,7 +210,7 @@ fn write_mcap(path: &Path, messages: &[Written]) {
     let mut w = mcap::Writer::new(file).unwrap();
     let mut channels: BTreeMap<&str, u16> = BTreeMap::new();
     for (k, (t, topic, data)) in messages.iter().enumerate() {
-        let channel = *channels.entry(topic).or_insert_with(|| {
+        let channel = *channels.entry(*topic).or_insert_with(|| {
             let schema = w.add_schema(type_of(topic), "ros2msg", b"").unwrap();
             w.add_channel(schema, topic, "cdr", &BTreeMap::new()).unwrap()
         });
@@ -240,7 +240,7 @@ fn write_sqlite(path: &Path, messages: &[Written]) {
     let tx = conn.unchecked_transaction().unwrap();
     for (t, topic, data) in messages {
         let next = ids.len() as i64 + 1;
-        let id = *ids.entry(topic).or_insert_with(|| {
+        let id = *ids.entry(*topic).or_insert_with(|| {
             tx.execute(
                 "INSERT INTO topics VALUES (?1, ?2, ?3, 'cdr', '')",
                 rusqlite::params![next, topic, type_of(topic)],

@@ -4,8 +4,9 @@
 //!
 //! The bag is streamed twice, never held whole. The first pass decodes both streams, finds the
 //! joints' rests (every coordinate slower than its threshold for at least the rest time, speeds
-//! from consecutive positions) and puts both streams' speeds on a common time grid; between
-//! the passes the clock offset is the lag that best lines the two speeds up. The second pass
+//! from consecutive positions) and puts two speeds of the tracked point on a common time grid,
+//! the tracker's and the one the robot model predicts from the joints; between the passes the
+//! clock offset is the lag that best lines the two up. The second pass
 //! shifts the tracker's stamps by that offset and averages its samples inside each rest. What
 //! the import holds grows with the recording's duration (8 bytes per grid step and stream) and
 //! its number of rests, not with its messages or their size.
@@ -19,8 +20,8 @@ pub mod source;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use armcomp_core::Robot;
 use armcomp_core::data::measurement::{MeasurementSet, Sample};
+use armcomp_core::{Conditions, Robot};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 pub use motion::ClockOffset;
@@ -429,7 +430,8 @@ pub fn import_bag(
     let mut rests = RestDetector::new(thresholds, settings.rest_time);
     let (mut joint_speed, mut tracker_speed) = (GridSignal::default(), GridSignal::default());
     let mut origin: Option<i64> = None;
-    let mut last_joint: Option<(i64, Vec<f64>)> = None;
+    let mut last_joint: Option<(i64, Vector3<f64>)> = None;
+    let mut ws = robot.workspace();
     let mut last_tracked: Option<(i64, Vector3<f64>)> = None;
     let (mut joint_messages, mut measurement_messages) = (0u64, 0u64);
     let mut q = Vec::with_capacity(tree.nq());
@@ -476,23 +478,18 @@ pub fn import_bag(
                 let t0 = *origin.get_or_insert(stamp);
                 let t = seconds(stamp - t0);
                 rests.push(t, &q);
-                if let Some((prev, q0)) = &mut last_joint {
+                // The marker's speed as the robot model predicts it from the joints: the same
+                // quantity as the tracker's, whatever the measurement frame (a rigid motion
+                // keeps speeds), so that the two speeds line up without a bias from their
+                // shapes.
+                let predicted = robot.measured_position(&q, point, Conditions::default(), &mut ws);
+                if let Some((prev, p0)) = &last_joint {
                     let dt = seconds(stamp - *prev);
-                    let speed = q
-                        .iter()
-                        .zip(q0.iter())
-                        .map(|(a, b)| (a - b).powi(2))
-                        .sum::<f64>()
-                        .sqrt()
-                        / dt;
                     joint_speed
-                        .push(t - 0.5 * dt, speed, step, max_points)
+                        .push(t - 0.5 * dt, (predicted - *p0).norm() / dt, step, max_points)
                         .map_err(grid_error)?;
-                    *prev = stamp;
-                    q0.copy_from_slice(&q);
-                } else {
-                    last_joint = Some((stamp, q.clone()));
                 }
+                last_joint = Some((stamp, predicted));
             } else {
                 measurement_messages += 1;
                 let tracked = match tracked_of(&m, settings)? {

@@ -98,7 +98,8 @@ const BLOCKS: usize = 8;
 /// recording's.
 const BLOCK_WINDOW: i64 = 50;
 
-/// The lag (s) by which `tracker` trails `joints`, from the peak of the normalized
+/// The lag (s) by which `tracker` trails `joints` (the same speed from the joints' stream),
+/// from the peak of the normalized
 /// cross-correlation of the two speed signals (computed for every lag at once by FFT, each
 /// lag's sum divided by its number of overlapping grid points, lags whose overlap is less than
 /// half the shorter signal left out), refined between grid points by the parabola through the
@@ -312,12 +313,15 @@ impl RestDetector {
 mod tests {
     use super::*;
 
-    /// A speed profile with distinct moves: rests, then bumps of several lengths.
+    /// A speed profile of moves every 3.7 s whose lengths and heights follow the golden
+    /// ratio's multiples: no shift but zero lines it up with itself.
     fn profile(t: f64) -> f64 {
-        let phase = t.rem_euclid(3.7);
-        let len = 0.6 + 0.4 * (t / 3.7).floor().rem_euclid(3.0);
+        let k = (t / 3.7).floor();
+        let phase = t - 3.7 * k;
+        let len = 0.5 + 0.8 * (k * 0.618_034).fract();
+        let height = 0.5 + (k * 0.381_966).fract();
         if phase < len {
-            (std::f64::consts::PI * phase / len).sin().powi(2)
+            height * (std::f64::consts::PI * phase / len).sin().powi(2)
         } else {
             0.0
         }

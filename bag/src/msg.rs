@@ -147,8 +147,8 @@ mod tests {
         // By hand, little-endian CDR of a JointState stamped 3 s + 5 ns in frame "" with one
         // joint "a" at 0.5 rad, no velocity or effort: sec, nanosec, frame_id (length 1, the
         // terminator, 3 bytes of padding), one name (length 2: "a" and the terminator, 2
-        // bytes of padding), one position (aligned to 8 from the body's start), two empty
-        // sequences.
+        // bytes of padding), one position (its count ends at byte 32 of the body, aligned to 8
+        // from the body's start, so no padding before the double), two empty sequences.
         let msg = JointState {
             header: Header {
                 stamp: Time { sec: 3, nanosec: 5 },
@@ -168,7 +168,6 @@ mod tests {
         expected.extend(2u32.to_le_bytes());
         expected.extend([b'a', 0, 0, 0]);
         expected.extend(1u32.to_le_bytes());
-        expected.extend([0, 0, 0, 0]);
         expected.extend(0.5f64.to_le_bytes());
         expected.extend(0u32.to_le_bytes());
         expected.extend(0u32.to_le_bytes());

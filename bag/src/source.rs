@@ -73,7 +73,7 @@ impl Bag {
             message,
         };
         let meta = std::fs::metadata(path).map_err(|e| input(format!("cannot be read: {e}")))?;
-        let mut paths = if meta.is_dir() {
+        let paths = if meta.is_dir() {
             let entries = std::fs::read_dir(path).map_err(|e| input(format!("cannot be listed: {e}")))?;
             let mut files: Vec<PathBuf> = entries
                 .filter_map(|e| e.ok().map(|e| e.path()))
@@ -88,7 +88,7 @@ impl Bag {
             vec![path.to_path_buf()]
         };
         let files = paths
-            .drain(..)
+            .into_iter()
             .map(|p| {
                 armcomp_core::support::io::check_input_file(&p).map_err(|m| BagError::Input {
                     path: p.clone(),
