@@ -5,6 +5,7 @@
 //! named and nothing is written.
 
 use std::collections::BTreeMap;
+use std::ffi::{OsStr, OsString};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -283,7 +284,7 @@ fn pose_messages(rec: &Recording, truth: &Robot, offset: f64) -> Vec<Written> {
     out
 }
 
-fn import_cli(args: &[&std::ffi::OsStr]) -> std::process::Output {
+fn import_cli(args: &[OsString]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_armcomp"))
         .arg("import-bag")
         .args(args)
@@ -291,8 +292,12 @@ fn import_cli(args: &[&std::ffi::OsStr]) -> std::process::Output {
         .unwrap()
 }
 
-fn os<'a>(items: &'a [&'a dyn AsRef<std::ffi::OsStr>]) -> Vec<&'a std::ffi::OsStr> {
-    items.iter().map(|s| s.as_ref()).collect()
+/// Command-line arguments of strings and paths alike.
+fn args(items: &[&dyn AsRef<OsStr>]) -> Vec<OsString> {
+    items
+        .iter()
+        .map(|s| AsRef::<OsStr>::as_ref(*s).to_os_string())
+        .collect()
 }
 
 /// A truth: the nominal robot with the named parameters moved (SI).
@@ -328,7 +333,7 @@ fn an_mcap_bag_of_tf_gives_the_postures_the_offset_and_through_calibration_the_t
     let bag = dir.0.join("session.mcap");
     write_mcap(&bag, &messages);
     let out = dir.0.join("rows.csv");
-    let base: Vec<&dyn AsRef<std::ffi::OsStr>> = vec![
+    let base = args(&[
         &"--bag",
         &bag,
         &"--robot",
@@ -341,22 +346,18 @@ fn an_mcap_bag_of_tf_gives_the_postures_the_offset_and_through_calibration_the_t
         &"tool_marker",
         &"--out",
         &out,
-    ];
+    ]);
     // The gripper's joint is not the robot's: refused, named.
-    let refused = import_cli(&os(&base));
+    let refused = import_cli(&base);
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(
         !refused.status.success() && stderr.contains("`gripper_finger`") && stderr.contains("--ignore-joint"),
         "{stderr}"
     );
     assert!(!out.exists());
-    let mut args = base.clone();
-    args.extend([
-        &"--ignore-joint" as &dyn AsRef<std::ffi::OsStr>,
-        &"gripper_finger",
-        &"--json",
-    ]);
-    let run = import_cli(&os(&args));
+    let mut with_gripper = base.clone();
+    with_gripper.extend(args(&[&"--ignore-joint", &"gripper_finger", &"--json"]));
+    let run = import_cli(&with_gripper);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
 
@@ -460,7 +461,7 @@ fn a_sqlite_bag_folder_with_a_3_9_s_offset_is_lined_up_and_one_beyond_the_bound_
     assert!(err.contains("the tracked point does not move"), "{err}");
     // Beyond the bound: refused with the estimate, nothing written.
     let out = dir.0.join("rows.csv");
-    let run = import_cli(&os(&[
+    let run = import_cli(&args(&[
         &"--bag",
         &folder,
         &"--robot",
@@ -485,7 +486,7 @@ fn a_sqlite_bag_folder_with_a_3_9_s_offset_is_lined_up_and_one_beyond_the_bound_
 /// Runs the import of `bag` into a fresh output and returns its error text, checking that
 /// nothing was written.
 fn refused(bag: &Path, topic: &str, out: &PathBuf) -> String {
-    let run = import_cli(&os(&[
+    let run = import_cli(&args(&[
         &"--bag",
         &bag,
         &"--robot",

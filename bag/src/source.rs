@@ -338,7 +338,10 @@ fn sqlite_count(path: &Path, topics: &[&str]) -> Result<u64, BagError> {
     let conn = open_sqlite(path)?;
     let check: String = conn
         .query_row("PRAGMA quick_check", [], |r| r.get(0))
-        .map_err(|e| sqlite_error(path, e))?;
+        .map_err(|e| BagError::Input {
+            path: path.to_path_buf(),
+            message: format!("is corrupt or truncated: sqlite cannot check its pages ({e})"),
+        })?;
     if check != "ok" {
         return Err(BagError::Input {
             path: path.to_path_buf(),
