@@ -418,12 +418,37 @@ fn an_mcap_bag_of_tf_gives_the_postures_the_offset_and_through_calibration_the_t
         let p = cal.report.params.iter().find(|p| p.name == name).unwrap();
         let t = theta[space.index(name).unwrap()];
         assert!(
-            (p.value - t).abs() < 4.0 * p.std + 1e-9 && p.std < 1e-4,
+            (p.value - t).abs() < 4.0 * p.std + 1e-9,
             "{name}: identified {} ± {}, truth {t}",
             p.value,
             p.std
         );
     }
+    // Some of these are loosely determined by fifty postures (their std is large), so the
+    // calibrated model is also checked where it matters: it puts the point where the truth
+    // does, at poses not measured.
+    let fresh = configurations(truth.tree(), Sampler::Sobol, 40, 77).unwrap();
+    let exact = |r: &Robot| {
+        simulate(
+            r,
+            &fresh,
+            SimulateParams {
+                noise_std: 0.0,
+                seed: 0,
+            },
+        )
+        .unwrap()
+        .samples
+    };
+    let worst = exact(&truth)
+        .iter()
+        .zip(exact(&cal.robot))
+        .map(|(a, b)| (a.position - b.position).norm())
+        .fold(0.0, f64::max);
+    assert!(
+        worst < 0.1e-3,
+        "calibrated model off the truth by up to {worst} m at new poses"
+    );
 }
 
 #[test]
