@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 use std::ffi::{OsStr, OsString};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use armcomp_bag::msg::{
@@ -510,7 +510,7 @@ fn a_sqlite_bag_folder_with_a_3_9_s_offset_is_lined_up_and_one_beyond_the_bound_
 
 /// Runs the import of `bag` into a fresh output and returns its error text, checking that
 /// nothing was written.
-fn refused(bag: &Path, topic: &str, out: &PathBuf) -> String {
+fn refused(bag: &Path, topic: &str, out: &Path) -> String {
     let run = import_cli(&args(&[
         &"--bag",
         &bag,
@@ -521,7 +521,7 @@ fn refused(bag: &Path, topic: &str, out: &PathBuf) -> String {
         &"--ignore-joint",
         &"gripper_finger",
         &"--out",
-        out,
+        &out,
     ]));
     assert!(!run.status.success());
     assert!(!out.exists(), "an output was written for {}", bag.display());
