@@ -33,6 +33,9 @@ enum Command {
     Fk(cmd::fk::Args),
     /// Simulated measurements of a truth robot file, with tracker noise.
     Simulate(cmd::simulate::Args),
+    /// A ROS 2 bag (MCAP or sqlite3) of joint states and a tracker as a measurement CSV: its
+    /// static postures, with the clock offset between the streams estimated and applied.
+    ImportBag(cmd::import_bag::Args),
     /// Identify a model from measurements (Levenberg–Marquardt with priors).
     Calibrate(cmd::calibrate::Args),
     /// Choose the model from the data: registration, joint offsets, geometry, error models and a
@@ -103,6 +106,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Fk(a) => cmd::fk::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
+        Command::ImportBag(a) => cmd::import_bag::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Fit(a) => cmd::fit::run(a),
         Command::Diagnose(a) => cmd::diagnose::run(a),

@@ -30,6 +30,7 @@ mod plan;
 mod planes;
 mod point_kinematics;
 mod robot_files;
+mod ros_bag;
 mod runtime_plugins;
 mod sensors;
 mod simulate;

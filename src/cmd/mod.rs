@@ -13,6 +13,7 @@ pub mod export_ros;
 pub mod export_urdf;
 pub mod fit;
 pub mod fk;
+pub mod import_bag;
 pub mod learn;
 pub mod plan;
 pub mod plugins;
