@@ -115,6 +115,31 @@ pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f
         ..robot.csv_layout()
     };
     let starts = parse_poses(&text, path, &layout)?;
+    // A start file holds joint values only: a column of another name is a misspelt joint,
+    // which would leave that joint at its default start without a word.
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    if let Ok(header) = reader.headers() {
+        let joints = robot.tree().coordinate_names();
+        if let Some(h) = header.iter().find(|h| !joints.iter().any(|j| j == split_header(h).0)) {
+            let line = armcomp_core::data::measurement::line_at(&text, header.position());
+            let names: Vec<&str> = joints.iter().map(String::as_str).collect();
+            return Err(armcomp_core::Error::input_at(
+                path,
+                Some(line),
+                Some(h),
+                format!(
+                    "column `{}` is not a joint of `{}`; a start file has a column per joint it sets, of {}",
+                    shown(h),
+                    robot.name(),
+                    armcomp_core::data::measurement::listed(&names)
+                ),
+            ));
+        }
+    }
     if starts.is_empty() {
         return Err(armcomp_core::Error::input_at(
             path,
