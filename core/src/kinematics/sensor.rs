@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::kinematics::workspace::TreeWorkspace;
 use crate::model::tree::KinematicTree;
 use crate::model::units::AngleUnit;
+use crate::support::text::shown;
 
 /// What a sensor measures, and so what its columns hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
@@ -61,12 +62,13 @@ impl SensorKind {
             (SensorKind::Accelerometer, None | Some("m/s2" | "m/s^2" | "m/s²")) => Ok(1.0),
             (SensorKind::Accelerometer, Some("g")) => Ok(STANDARD_GRAVITY),
             (SensorKind::Accelerometer, Some(u)) => Err(format!(
-                "an accelerometer column reads an acceleration (g or m/s2, or no unit), got `{u}`"
+                "an accelerometer column reads an acceleration (g or m/s2, or no unit), got `{}`",
+                shown(u)
             )),
             (SensorKind::Inclinometer, None) => Ok(default.to_si()),
             (SensorKind::Inclinometer, Some(u)) => AngleUnit::parse(u)
                 .map(AngleUnit::to_si)
-                .ok_or_else(|| format!("an inclinometer column reads an angle (rad or deg), got `{u}`")),
+                .ok_or_else(|| format!("an inclinometer column reads an angle (rad or deg), got `{}`", shown(u))),
         }
     }
 
