@@ -264,7 +264,7 @@ fn export_urdf_writes_names_as_xml() {
     s.file("arm.urdf", &urdf);
     let model = s.file(
         "arm.toml",
-        "name = \"arm\"\n\n[kinematics]\ntype = \"urdf\"\npath = \"arm.urdf\"\n\n[[points]]\nname = \"a&b<c>\"\nlink = \"fore\"\nxyz = [0.2, 0.0, 0.0]\n",
+        "name = \"arm\"\ntool = \"a&b<c>\"\n\n[kinematics]\ntype = \"urdf\"\npath = \"arm.urdf\"\n\n[[points]]\nname = \"a&b<c>\"\nlink = \"fore\"\nxyz = [0.2, 0.0, 0.0]\n",
     );
     let out = s.0.join("out.urdf");
     let (code, _, err) = crate::cli::armcomp(&[
