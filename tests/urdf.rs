@@ -201,6 +201,90 @@ fn mimic_joints_follow_with_multiplier_and_offset() {
     assert!((b - Vector3::new(0.0, -0.04, 0.0)).norm() < 1e-15);
 }
 
+/// A chain of `n` revolute joints about z, `j{k}` mimicking `j{k-1}` with `mimic` (XML
+/// attributes) when given, each 1 mm along x.
+fn chain_urdf(n: usize, mimic: Option<&str>) -> String {
+    let mut text = String::from("<robot name=\"chain\">\n<link name=\"l0\"/>\n");
+    for k in 1..=n {
+        let m = match mimic {
+            Some(attrs) if k > 1 => format!("<mimic joint=\"j{}\" {attrs}/>", k - 1),
+            _ => String::new(),
+        };
+        text.push_str(&format!(
+            "<link name=\"l{k}\"/>\n<joint name=\"j{k}\" type=\"revolute\"><parent link=\"l{}\"/><child link=\"l{k}\"/>\
+             <origin xyz=\"0.001 0 0\"/><axis xyz=\"0 0 1\"/><limit lower=\"-1\" upper=\"1\" effort=\"1\" \
+             velocity=\"1\"/>{m}</joint>\n",
+            k - 1
+        ));
+    }
+    text + "</robot>\n"
+}
+
+#[test]
+fn a_long_mimic_chain_composes_to_its_first_joint() {
+    // j_k = j_(k-1) + 1 mrad, so j_k = q + (k - 1) mrad: with q = 0 the last of n links points
+    // at (n - 1) mrad, and the chain's end sits at Σ_k (cos, sin)((k - 1) mrad) mm.
+    let n = 3000;
+    let s = Scratch::new("urdf-mimic-chain");
+    let r = urdf_text(
+        &s,
+        "chain.urdf",
+        &chain_urdf(n, Some("multiplier=\"1\" offset=\"0.001\"")),
+    )
+    .unwrap();
+    assert_eq!(r.tree().coordinate_names(), ["j1"]);
+    // Body l_k sits at the end of joint k's origin, turned by the joints before it.
+    let end: Vector3<f64> = (1..=n)
+        .map(|k| {
+            let turned: f64 = (1..k).map(|i| (i - 1) as f64 * 1e-3).sum();
+            Vector3::new(turned.cos(), turned.sin(), 0.0) * 1e-3
+        })
+        .sum();
+    let got = body_position(&r, &[0.0], &format!("l{n}"));
+    assert!((got - end).norm() < 1e-9, "{got} vs {end}");
+}
+
+#[test]
+fn a_urdf_of_more_joints_than_a_request_may_hold_is_refused_before_reading_them() {
+    let s = Scratch::new("urdf-joint-count");
+    let started = std::time::Instant::now();
+    let err = urdf_text(&s, "huge.urdf", &chain_urdf(20_000, None)).unwrap_err();
+    assert!(err.contains("huge.urdf:1: joints of the URDF 20000: at most "), "{err}");
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(15),
+        "{:?}",
+        started.elapsed()
+    );
+}
+
+#[test]
+fn export_urdf_writes_names_as_xml() {
+    let s = Scratch::new("urdf-export-names");
+    let urdf = std::fs::read_to_string(root().join("tests/bad_inputs/arm.urdf")).unwrap();
+    s.file("arm.urdf", &urdf);
+    let model = s.file(
+        "arm.toml",
+        "name = \"arm\"\ntool = \"a&b<c>\"\n\n[kinematics]\ntype = \"urdf\"\npath = \"arm.urdf\"\n\n[[points]]\nname = \"a&b<c>\"\nlink = \"fore\"\nxyz = [0.2, 0.0, 0.0]\n",
+    );
+    let out = s.0.join("out.urdf");
+    let (code, _, err) = crate::cli::armcomp(&[
+        "export-urdf",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let xml = roxmltree::Document::parse(&text).unwrap_or_else(|e| panic!("not well-formed: {e}\n{text}"));
+    let names: Vec<&str> = xml
+        .descendants()
+        .filter(|n| n.has_tag_name("link"))
+        .filter_map(|n| n.attribute("name"))
+        .collect();
+    assert!(names.contains(&"a&b<c>"), "{names:?}");
+}
+
 #[test]
 fn origin_rotation_parameters_stay_identifiable_at_ninety_degrees_pitch() {
     // rock-drill's j2 origin has pitch -90°, where roll and yaw coincide; the small-rotation

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 
 use armcomp_core::Robot;
 use armcomp_core::data::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
+use armcomp_core::support::io::{check_output, write_atomic};
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
 use pyo3::exceptions::PyValueError;
@@ -15,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyType;
 
 use crate::errors::{IntoPy, file_error, input_error, warn_all};
-use crate::robot::{PyRobot, write_output};
+use crate::robot::PyRobot;
 
 /// Names given with arrays, when they were.
 type Names<'a> = Option<&'a [String]>;
@@ -43,6 +44,8 @@ enum Source {
 #[pyclass(name = "Measurements", module = "armcomp", frozen)]
 pub struct PyMeasurements {
     source: Source,
+    /// The CSV file the samples were read from, which `save` never replaces.
+    read_from: Option<PathBuf>,
 }
 
 impl PyMeasurements {
@@ -55,6 +58,15 @@ impl PyMeasurements {
                 joint_names: Some(tree.coordinate_names().to_vec()),
                 point_names: Some(tree.points().iter().map(|p| p.name.clone()).collect()),
             },
+            read_from: None,
+        }
+    }
+
+    /// The same samples, remembered as read from `path`.
+    fn read_from(self, path: Option<PathBuf>) -> Self {
+        PyMeasurements {
+            read_from: path,
+            ..self
         }
     }
 
@@ -292,6 +304,7 @@ impl PyMeasurements {
                 joint_names,
                 point_names,
             },
+            read_from: None,
         })
     }
 
@@ -313,17 +326,22 @@ impl PyMeasurements {
             .transpose()
             .map_err(|m| input_error(&format!("rows: {m}"), None, None, Some("rows")))?;
         let data = PyMeasurements {
-            source: Source::Csv { path, text, rows },
+            source: Source::Csv {
+                path: path.clone(),
+                text,
+                rows,
+            },
+            read_from: Some(path.clone()),
         };
         match robot {
-            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?)),
+            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?).read_from(Some(path))),
             None => Ok(data),
         }
     }
 
     /// These measurements read against `robot` (joint values in its order, its points).
     fn for_robot(&self, robot: PyRef<'_, PyRobot>) -> PyResult<Self> {
-        Ok(PyMeasurements::from_set(&robot.robot, self.resolve(&robot.robot)?))
+        Ok(PyMeasurements::from_set(&robot.robot, self.resolve(&robot.robot)?).read_from(self.read_from.clone()))
     }
 
     /// Joint values, one row per sample (SI), in the order of `joint_names`.
@@ -357,11 +375,14 @@ impl PyMeasurements {
     }
 
     /// Writes the measurements as a measurement CSV for `robot` (its joints and units),
-    /// atomically, never over a file the robot was read from.
+    /// atomically, never over the CSV they were read from or a file the robot was read from.
     fn save(&self, path: PathBuf, robot: PyRef<'_, PyRobot>) -> PyResult<()> {
+        let mut inputs = robot.robot.inputs();
+        inputs.extend(self.read_from.clone());
+        check_output(&path, &inputs).py()?;
         let set = self.resolve(&robot.robot)?;
         let text = write_csv(&set, robot.robot.tree(), robot.robot.units());
-        write_output(&robot.robot, &path, &text)
+        write_atomic(&path, text.as_bytes()).py()
     }
 
     fn __len__(&self) -> PyResult<usize> {

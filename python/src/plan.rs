@@ -72,8 +72,8 @@ pub fn plan<'py>(
         }
     };
     let measured = match measured {
-        Some(m) => m.resolve(&r)?.samples,
-        None => Vec::new(),
+        Some(m) => m.resolve(&r)?,
+        None => Default::default(),
     };
     let params = PlanParams {
         n,

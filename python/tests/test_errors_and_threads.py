@@ -240,3 +240,54 @@ def test_an_unreachable_orientation_is_armcomps_own_error():
     with pytest.raises(armcomp.ArmcompError) as e:
         armcomp.compensate(robot, [[0.8, 0.3, 0.0, half, half, 0.0, 0.0]], frame="base")
     assert not isinstance(e.value, armcomp.InputError)
+
+
+def test_measurements_never_replace_the_file_they_were_read_from(tmp_path, talos):
+    robot, _ = talos
+    source = tmp_path / "m.csv"
+    text = TALOS_DATA.read_text()
+    source.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for data in (
+            armcomp.Measurements.read(source, robot),
+            armcomp.Measurements.read(source),
+            armcomp.Measurements.read(source).for_robot(robot),
+        ):
+            with pytest.raises(OSError, match="refusing to overwrite an input"):
+                data.save(source, robot)
+            assert source.read_text() == text
+        # Elsewhere it writes.
+        armcomp.Measurements.read(source, robot).save(tmp_path / "copy.csv", robot)
+    assert (tmp_path / "copy.csv").exists()
+
+
+def _calibrate_in_child(queue):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = armcomp.Robot.load(TALOS)
+        data = armcomp.Measurements.read(TALOS_DATA, robot, rows="even")
+        _, report = armcomp.calibrate(robot, data, identify="base,markers,offsets", restarts=0)
+    queue.put(report.converged)
+
+
+def test_a_forked_child_calibrates_after_its_parent_did(talos):
+    # A fork copies one thread: a pool the parent's calibration started has no workers in
+    # the child, which must not wait for them.
+    import multiprocessing
+
+    robot, data = talos
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        armcomp.calibrate(robot, data, identify="base,markers,offsets", restarts=0)
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+    child = context.Process(target=_calibrate_in_child, args=(queue,))
+    child.start()
+    child.join(120)
+    hung = child.is_alive()
+    if hung:
+        child.kill()
+    assert not hung, "the forked child did not return from calibrate"
+    assert child.exitcode == 0
+    assert queue.get(timeout=5) is True

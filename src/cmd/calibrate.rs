@@ -81,6 +81,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    armcomp_api::ops::calibrate::check_noises(args.noise_mm, args.noise_deg)?;
     let mut robot = super::load_robot(&args.robot)?;
     let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
     check_output(&args.out, &robot, &data_files)?;
@@ -226,8 +227,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     // Far above the noise or mislabelled units say more than not converged: the data or the
     // model is wrong.
+    if let Some(why) = &report.implausible {
+        eprintln!("error: {why}");
+    }
     Ok(if report.suspect() {
-        eprintln!("warning: the model was written, but check the data and the model (see the warnings above)");
+        eprintln!("warning: the model was written, but check the data and the model (see the messages above)");
         ExitCode::from(3)
     } else if !report.converged {
         ExitCode::from(2)

@@ -108,6 +108,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::from(130));
     }
+    // As `calibrate`: far above a declared noise, mislabelled units or a fit that describes
+    // no robot say the data or the model is wrong.
+    let chosen = &ladder.calibration.report;
+    if let Some(why) = &chosen.implausible {
+        eprintln!("error: {why}");
+    }
+    if chosen.suspect() {
+        eprintln!("warning: the model was written, but check the data and the model (see the messages above)");
+        return Ok(ExitCode::from(3));
+    }
     Ok(if ladder.calibration.report.converged {
         ExitCode::SUCCESS
     } else {

@@ -129,8 +129,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         identify: args.identify.clone(),
         next: args.next,
         measured: match &args.measured {
-            Some(path) => super::read_measurements(&robot, path, None)?.samples,
-            None => Vec::new(),
+            Some(path) => super::read_measurements(&robot, path, None)?,
+            None => Default::default(),
         },
         measurement_std: args.noise_mm * 1e-3,
         exchange_passes: args.exchange_passes,
@@ -158,7 +158,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         if args.json {
             println!("{}", serde_json::to_string_pretty(&run.selection_json())?);
         } else {
-            print_report(report, params.measured.len(), run.rows.as_deref());
+            print_report(report, params.measured.samples.len(), run.rows.as_deref());
         }
     }
     let source = pool_file.map(|f| format!(" of {f}")).unwrap_or_default();

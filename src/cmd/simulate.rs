@@ -143,15 +143,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::SUCCESS);
     }
-    if let Some(k) = args.stations {
-        // A stream of its own: the same seed draws the same poses whatever the stations.
-        let stations = armcomp_core::algorithms::simulate::random_stations(
-            &truth,
-            k,
-            args.seed.wrapping_add(0x5851_f42d_4c95_7f2d),
-        );
-        truth.set_stations(stations);
-    }
     let poses_file: Vec<&std::path::Path> = args.poses.iter().map(|p| p.as_path()).collect();
     super::check_output(&args.out, &truth, &poses_file)?;
     let poses = match &args.poses {
@@ -161,6 +152,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => armcomp_api::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
+    if let Some(k) = args.stations {
+        // A stream of its own: the same seed draws the same poses whatever the stations.
+        let seed = args.seed.wrapping_add(0x5851_f42d_4c95_7f2d);
+        truth.set_stations(armcomp_api::ops::simulate::stations(&truth, k, poses.len(), seed)?);
+    }
     let draw = match args.tilt_per.as_str() {
         "station" => armcomp_core::algorithms::simulate::TiltDraw::PerStation,
         _ => armcomp_core::algorithms::simulate::TiltDraw::PerRow,

@@ -3,6 +3,7 @@
 use armcomp_core::Robot;
 use armcomp_core::analysis::prior_choice::{DEFAULT_GRID, PriorChoice, choose_prior_scale};
 use armcomp_core::calibrate::evidence::{EvidenceParams, EvidenceReport, Grouping, calibrate_with_evidence};
+use armcomp_core::calibrate::plausibility::implausibility;
 use armcomp_core::calibrate::{Calibration, CalibrationParams, FitsProgress, IterationInfo, calibrate};
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::data::split::{FoldBy, FoldPlan};
@@ -38,6 +39,22 @@ impl std::str::FromStr for Prior {
             },
         }
     }
+}
+
+/// Refuses a declared noise no tracker has: per axis from a nanometre to a metre, and an
+/// orientation noise from a micro-degree to 90°. Beyond, the number is in another unit or a
+/// slip: a noise of 10⁸ mm leaves no parameter determined, one of 0 or NaN weighs the data
+/// without bound.
+pub fn check_noises(noise_mm: Option<f64>, noise_deg: Option<f64>) -> armcomp_core::Result<()> {
+    let check = |what: &str, value: Option<f64>, (low, high): (f64, f64), unit: &str| match value {
+        Some(v) if !(low..=high).contains(&v) => Err(armcomp_core::Error::InvalidArgument {
+            what: what.into(),
+            reason: format!("expected a noise per axis from {low:e} to {high} {unit}, got {v}"),
+        }),
+        _ => Ok(()),
+    };
+    check("--noise-mm", noise_mm, (1e-6, 1e3), "mm")?;
+    check("--noise-deg", noise_deg, (1e-6, 90.0), "degrees")
 }
 
 /// A calibration and, for [`Prior::Auto`], the cross-validation that chose its prior scale.
@@ -134,12 +151,13 @@ pub fn run(
         },
         ..EvidenceParams::default()
     };
-    let (calibration, evidence) = if evidence.estimate_noise || evidence.estimate_priors {
+    let (mut calibration, evidence) = if evidence.estimate_noise || evidence.estimate_priors {
         let (c, e) = calibrate_with_evidence(robot, samples, &params, &evidence, observer)?;
         (c, Some(e))
     } else {
         (calibrate(robot, samples, &params, observer)?, None)
     };
+    calibration.report.implausible = implausibility(&calibration.robot, samples, evidence.as_ref());
     Ok(CalibrationRun {
         calibration,
         prior_choice,

@@ -10,6 +10,7 @@ use armcomp_core::model::tree::Coordinate;
 use armcomp_core::model::units::LengthUnit;
 use armcomp_core::support::cancel::Cancel;
 use armcomp_core::support::io::InputLimits;
+use armcomp_core::support::text::shown;
 use armcomp_core::{Robot, Units};
 use nalgebra::{Isometry3, Point3, Quaternion, UnitQuaternion, Vector3};
 
@@ -114,6 +115,31 @@ pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f
         ..robot.csv_layout()
     };
     let starts = parse_poses(&text, path, &layout)?;
+    // A start file holds joint values only: a column of another name is a misspelt joint,
+    // which would leave that joint at its default start without a word.
+    let mut reader = csv::ReaderBuilder::new()
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    if let Ok(header) = reader.headers() {
+        let joints = robot.tree().coordinate_names();
+        if let Some(h) = header.iter().find(|h| !joints.iter().any(|j| j == split_header(h).0)) {
+            let line = armcomp_core::data::measurement::line_at(&text, header.position());
+            let names: Vec<&str> = joints.iter().map(String::as_str).collect();
+            return Err(armcomp_core::Error::input_at(
+                path,
+                Some(line),
+                Some(h),
+                format!(
+                    "column `{}` is not a joint of `{}`; a start file has a column per joint it sets, of {}",
+                    shown(h),
+                    robot.name(),
+                    armcomp_core::data::measurement::listed(&names)
+                ),
+            ));
+        }
+    }
     if starts.is_empty() {
         return Err(armcomp_core::Error::input_at(
             path,
@@ -278,8 +304,9 @@ pub fn read_targets(path: &Path, units: Units, limits: InputLimits) -> armcomp_c
             return Err(at_header(
                 h,
                 format!(
-                    "column {}: unexpected `{h}`; expected x, y, z with a length unit, e.g. `x[mm]`, and optionally qw, qx, qy, qz",
-                    c + 1
+                    "column {}: unexpected `{}`; expected x, y, z with a length unit, e.g. `x[mm]`, and optionally qw, qx, qy, qz",
+                    c + 1,
+                    shown(h)
                 ),
             ));
         };
@@ -288,19 +315,27 @@ pub fn read_targets(path: &Path, units: Units, limits: InputLimits) -> armcomp_c
             (0..3, Some(u)) => LengthUnit::parse(u).map(LengthUnit::to_si).ok_or_else(|| {
                 at_header(
                     h,
-                    format!("column {}: unknown length unit `{u}` (expected m, cm, mm or in)", c + 1),
+                    format!(
+                        "column {}: unknown length unit `{}` (expected m, cm, mm or in)",
+                        c + 1,
+                        shown(u)
+                    ),
                 )
             })?,
             (_, None) => 1.0,
             (_, Some(u)) => {
                 return Err(at_header(
                     h,
-                    format!("column {}: a quaternion component has no unit, found `[{u}]`", c + 1),
+                    format!(
+                        "column {}: a quaternion component has no unit, found `[{}]`",
+                        c + 1,
+                        shown(u)
+                    ),
                 ));
             }
         };
         if columns[slot].replace((c, scale)).is_some() {
-            return Err(at_header(name, format!("column `{name}` appears twice")));
+            return Err(at_header(name, format!("column `{}` appears twice", shown(name))));
         }
     }
     if columns[..3].iter().any(Option::is_none) {
@@ -348,7 +383,7 @@ pub fn read_targets(path: &Path, units: Units, limits: InputLimits) -> armcomp_c
                     path,
                     Some(line),
                     Some(&header[c]),
-                    format!("column {}: `{}` is not a finite number", c + 1, cells[c]),
+                    format!("column {}: `{}` is not a finite number", c + 1, shown(cells[c])),
                 )
             })?;
             *value = v * scale;

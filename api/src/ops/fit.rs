@@ -5,6 +5,7 @@ use armcomp_core::Robot;
 use armcomp_core::analysis::ladder::{Ladder, LadderParams, climb};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::FitsProgress;
+use armcomp_core::calibrate::plausibility::implausibility;
 use armcomp_core::data::measurement::Sample;
 use armcomp_core::support::cancel::Cancel;
 
@@ -39,6 +40,7 @@ pub fn run(
     params: FitParams,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> armcomp_core::Result<Ladder> {
+    crate::ops::calibrate::check_noises(params.noise_mm, params.noise_deg)?;
     let predictor = params
         .predictor
         .as_deref()
@@ -60,7 +62,10 @@ pub fn run(
         predictor,
         ..LadderParams::new(calibration, noise_declared)
     };
-    climb(robot, samples, &ladder, progress)
+    let mut ladder = climb(robot, samples, &ladder, progress)?;
+    ladder.calibration.report.implausible =
+        implausibility(&ladder.calibration.robot, samples, Some(&ladder.report.evidence));
+    Ok(ladder)
 }
 
 /// The report as `armcomp fit --json` prints it: the ladder with the chosen rung's calibration

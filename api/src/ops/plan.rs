@@ -6,10 +6,11 @@ use std::cell::RefCell;
 
 use armcomp_core::algorithms::plan::{Space, spread, trajectory_similar};
 use armcomp_core::analysis::design::{Criterion, SelectionParams, SelectionReport, pose_candidates, select_poses};
-use armcomp_core::data::measurement::{MeasurementSet, Sample};
+use armcomp_core::data::measurement::{MeasurementSet, Sample, listed};
 use armcomp_core::kinematics::collision::CollisionModel;
 use armcomp_core::model::sampling::Sampler;
 use armcomp_core::support::limits::{self, Cost};
+use armcomp_core::support::text::shown;
 use armcomp_core::{Error, Result, Robot};
 
 /// Where the optimal and trajectory methods pick from.
@@ -43,7 +44,7 @@ pub struct PlanParams {
     /// Propose this many poses to measure after `measured` (replaces `n`).
     pub next: Option<usize>,
     /// Samples measured so far: their information counts as known.
-    pub measured: Vec<Sample>,
+    pub measured: MeasurementSet,
     /// Standard deviation of the tracker noise per axis (m).
     pub measurement_std: f64,
     /// Most exchange passes refining the greedy choice of the optimal methods.
@@ -68,7 +69,7 @@ impl Default for PlanParams {
             pool_sampler: "sobol".into(),
             identify: Vec::new(),
             next: None,
-            measured: Vec::new(),
+            measured: MeasurementSet::default(),
             measurement_std: 1e-4,
             exchange_passes: 10,
             trajectory: None,
@@ -128,7 +129,7 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
             ));
         }
     };
-    if p.next.is_some() && p.measured.is_empty() {
+    if p.next.is_some() && p.measured.samples.is_empty() {
         return Err(invalid(
             "next",
             "proposing the next poses needs the poses measured so far".into(),
@@ -148,7 +149,7 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
     let sampled = |n: usize| spread(robot, space, pool_sampler, n, p.seed, &accept);
     if let Ok(criterion) = method.parse::<Criterion>() {
         let candidates = match &p.pool {
-            PlanPool::Measured(set) => measured_candidates(set, &accept),
+            PlanPool::Measured(set) => measured_candidates(robot, set, &accept)?,
             PlanPool::Configurations(poses) => {
                 let total = poses.len();
                 let poses: Vec<Vec<f64>> = poses.iter().filter(|q| accept(q)).cloned().collect();
@@ -178,7 +179,7 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
         };
         return optimal(robot, p, criterion, n, candidates);
     }
-    if p.next.is_some() || !p.measured.is_empty() {
+    if p.next.is_some() || !p.measured.samples.is_empty() {
         return Err(invalid(
             "method",
             format!(
@@ -320,17 +321,17 @@ struct Candidates {
 
 /// The measured rows of `set` as candidates (one per data row, its markers together), the
 /// colliding ones left out.
-fn measured_candidates(set: &MeasurementSet, accept: &dyn Fn(&[f64]) -> bool) -> Candidates {
+fn measured_candidates(robot: &Robot, set: &MeasurementSet, accept: &dyn Fn(&[f64]) -> bool) -> Result<Candidates> {
     let mut groups: Vec<(usize, Vec<Sample>)> = Vec::new();
-    for (s, &row) in set.samples.iter().zip(&set.rows) {
+    for (s, &row) in on_robot_stations(robot, set, "pool")?.into_iter().zip(&set.rows) {
         match groups.last_mut() {
             Some((r, g)) if *r == row => g.push(s.clone()),
-            _ => groups.push((row, vec![s.clone()])),
+            _ => groups.push((row, vec![s])),
         }
     }
     let total = groups.len();
     let (rows, samples): (Vec<usize>, Vec<Vec<Sample>>) = groups.into_iter().filter(|(_, g)| accept(&g[0].q)).unzip();
-    Candidates {
+    Ok(Candidates {
         note: format!(
             "picked from {} measured rows{}",
             rows.len(),
@@ -338,7 +339,40 @@ fn measured_candidates(set: &MeasurementSet, accept: &dyn Fn(&[f64]) -> bool) ->
         ),
         samples,
         rows: Some(rows),
-    }
+    })
+}
+
+/// The samples of `set` with their stations renumbered to the robot's, by name: a file
+/// numbers the stations of its `station` column in its own order. A station the robot does
+/// not know has no measurement frame to plan with.
+fn on_robot_stations(robot: &Robot, set: &MeasurementSet, what: &str) -> Result<Vec<Sample>> {
+    let known = robot.stations();
+    let index: Vec<usize> = match set.stations.as_slice() {
+        [] => Vec::new(),
+        [_] if known.is_empty() => vec![0],
+        names => (names.iter())
+            .map(|name| {
+                known.iter().position(|s| &s.name == name).ok_or_else(|| {
+                    let robot_has: Vec<&str> = known.iter().map(|s| s.name.as_str()).collect();
+                    invalid(
+                        what,
+                        format!(
+                            "its station `{}` is not a station of the robot (it has {}); plan with the model calibrated \
+                             on those stations, or without the `station` column",
+                            shown(name),
+                            if robot_has.is_empty() { "one measurement frame".to_string() } else { listed(&robot_has) }
+                        ),
+                    )
+                })
+            })
+            .collect::<Result<_>>()?,
+    };
+    Ok((set.samples.iter())
+        .map(|s| Sample {
+            station: index.get(s.station).copied().unwrap_or(0),
+            ..s.clone()
+        })
+        .collect())
 }
 
 fn skipped(colliding: usize) -> String {
@@ -367,7 +401,7 @@ fn optimal(robot: &Robot, p: &PlanParams, criterion: Criterion, n: usize, candid
         robot,
         &candidates.samples,
         n.min(candidates.samples.len()),
-        &p.measured,
+        &on_robot_stations(robot, &p.measured, "measured")?,
         &[],
         &params,
     )?;

@@ -1,9 +1,10 @@
 //! `simulate`: measurements of a truth robot at drawn or given poses, with tracker noise.
 
 use armcomp_core::Robot;
-use armcomp_core::algorithms::simulate::{SimulateParams, TiltDraw, simulate_tilted};
+use armcomp_core::algorithms::simulate::{SimulateParams, TiltDraw, random_stations, simulate_tilted};
 use armcomp_core::data::measurement::MeasurementSet;
 use armcomp_core::model::sampling::{Sampler, configurations};
+use armcomp_core::robot::Station;
 use armcomp_core::support::limits::{self, Cost};
 
 /// `n` poses drawn inside the joint limits of `truth` by `sampler` (sobol, halton, random or
@@ -13,6 +14,27 @@ pub fn draw_poses(truth: &Robot, sampler: &str, n: usize, seed: u64) -> armcomp_
     let pose = truth.pose_cost();
     limits::check("--n", n, "poses", &|n| Cost::per_unit(n, pose.bytes, pose.flops))?;
     configurations(truth.tree(), sampler, n, seed)
+}
+
+/// `k` stations drawn from `seed` around `truth`'s measurement frame (see [`random_stations`])
+/// to measure `n_poses` poses in blocks: at most one station per pose, each held to the cost of
+/// its frame, name and the six unknowns it brings to a calibration, before any is drawn.
+pub fn stations(truth: &Robot, k: usize, n_poses: usize, seed: u64) -> armcomp_core::Result<Vec<Station>> {
+    // A station's frame and name, its entry in the robot's description and the measurement
+    // file, and its six frame columns over its rows in a calibration's Jacobian.
+    limits::check("--stations", k, "stations", &|k| {
+        Cost::per_unit(k, 512.0, 6.0 * 6.0 * 100.0)
+    })?;
+    if k > n_poses {
+        return Err(armcomp_core::Error::InvalidArgument {
+            what: "--stations".into(),
+            reason: format!(
+                "{k} stations for {n_poses} poses; each station measures a block of the poses, so give at most one \
+                 station per pose"
+            ),
+        });
+    }
+    Ok(random_stations(truth, k, seed))
 }
 
 /// Measures `truth` at `poses` with `noise_mm` of noise per axis, the noise drawn from `seed`.

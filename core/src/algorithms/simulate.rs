@@ -222,10 +222,25 @@ pub fn simulate_contacts(
         });
     }
     let flush = truth.plane_constraints().tilts() > 0;
-    if !(params.joint_noise_std.is_finite() && params.joint_noise_std >= 0.0) {
+    // No encoder is off by more than a quarter turn: a larger noise is another unit or a slip.
+    if !(0.0..=std::f64::consts::FRAC_PI_2).contains(&params.joint_noise_std) {
         return Err(Error::InvalidArgument {
             what: "joint noise".into(),
-            reason: format!("must be zero or positive, got {}", params.joint_noise_std),
+            reason: format!(
+                "expected from 0 to 90 degrees, got {:e} degrees",
+                params.joint_noise_std.to_degrees()
+            ),
+        });
+    }
+    if let Some((k, (name, _))) =
+        (contacts.iter().enumerate()).find(|(k, (n, _))| contacts[..*k].iter().any(|(m, _)| m == n))
+    {
+        return Err(Error::InvalidArgument {
+            what: format!("contact {}", k + 1),
+            reason: format!(
+                "`{}` names two contacts; each fixed point or plane has a name of its own",
+                crate::support::text::shown(name)
+            ),
         });
     }
     let normal = Normal::new(0.0, params.joint_noise_std).map_err(|e| Error::InvalidArgument {

@@ -97,6 +97,15 @@ fn check_inputs(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -
             format!("must be positive, got {} m", params.measurement_std),
         );
     }
+    if !(params.orientation_std.is_finite() && params.orientation_std > 0.0) {
+        return invalid(
+            "orientation noise".into(),
+            format!("must be positive, got {} rad", params.orientation_std),
+        );
+    }
+    if let Some(s) = params.fixed_point_std.filter(|s| !(s.is_finite() && *s > 0.0)) {
+        return invalid("fixed-point noise".into(), format!("must be positive, got {s} m"));
+    }
     if params.identify.iter().any(|w| w.trim().is_empty()) {
         return invalid(
             "what to identify".into(),
@@ -473,6 +482,7 @@ impl Problem<'_> {
                 after_orientation: self.orientation_stats(&d, &e),
                 rms_over_noise,
                 units_mislabelled,
+                implausible: None,
                 warnings,
                 outliers,
                 drift: trend,

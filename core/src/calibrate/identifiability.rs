@@ -281,6 +281,14 @@ pub(super) fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usi
 /// diagonal, and the diagonal of its inverse (infinite when singular).
 pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
     let n = a.nrows();
+    // No parameter left free: nothing is ill-conditioned. A non-finite entry (a noise of
+    // zero or NaN upstream) would stall the eigen-solver, which iterates until convergence.
+    if n == 0 {
+        return (1.0, Vec::new());
+    }
+    if a.iter().any(|v| !v.is_finite()) {
+        return (f64::INFINITY, vec![f64::INFINITY; n]);
+    }
     let scale = DVector::from_iterator(n, (0..n).map(|c| a[(c, c)].sqrt().max(1e-300)));
     let scaled = DMatrix::from_fn(n, n, |i, k| a[(i, k)] / (scale[i] * scale[k]));
     let eig = scaled.clone().symmetric_eigen();
@@ -336,4 +344,26 @@ pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationPa
     }
     report.condition_number_free = normal_equations(&a).0;
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normal_equations_match_a_hand_calculation() {
+        // Scaled to a unit diagonal, [[2, 1], [1, 2]] is [[1, ½], [½, 1]]: eigenvalues 3/2 and
+        // 1/2, so the condition number is √3; the inverse is [[2, -1], [-1, 2]] / 3.
+        let (condition, inv_diag) = normal_equations(&DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 2.0]));
+        assert!((condition - 3f64.sqrt()).abs() < 1e-12, "{condition}");
+        assert!(inv_diag.iter().all(|v| (v - 2.0 / 3.0).abs() < 1e-12), "{inv_diag:?}");
+    }
+
+    #[test]
+    fn normal_equations_of_no_parameter_or_of_non_finite_values_do_not_panic() {
+        assert_eq!(normal_equations(&DMatrix::zeros(0, 0)), (1.0, Vec::new()));
+        let (condition, inv_diag) = normal_equations(&DMatrix::from_row_slice(2, 2, &[f64::NAN, 0.0, 0.0, 1.0]));
+        assert_eq!(condition, f64::INFINITY);
+        assert_eq!(inv_diag, vec![f64::INFINITY; 2]);
+    }
 }

@@ -37,6 +37,7 @@ mod driver;
 pub mod evidence;
 mod identifiability;
 mod jacobian;
+pub mod plausibility;
 mod registration;
 mod robust;
 mod score;
@@ -464,6 +465,10 @@ pub struct CalibrationReport {
     /// What the fit suggests is wrong when it ends far above the noise or the units look
     /// mislabelled, most likely first.
     pub warnings: Vec<String>,
+    /// Why the fit describes no robot, with the likely cause, when it does not: an estimated
+    /// noise beyond any instrument's or a model that explains almost none of the data (see
+    /// [`plausibility::implausibility`]; set by the callers that estimate the noise).
+    pub implausible: Option<String>,
     /// Samples whose residual is far beyond the noise (see [`gross_errors`]), largest first.
     pub outliers: Vec<Outlier>,
     /// A residual that changes steadily with the sample order (a tracker drifting), when
@@ -499,10 +504,10 @@ impl CalibrationReport {
         self.rms_over_noise.is_nan() || self.rms_over_noise > FAR_ABOVE_NOISE
     }
 
-    /// Whether the data or the model is wrong, not just noisy: far above the noise, or units
-    /// that look mislabelled.
+    /// Whether the data or the model is wrong, not just noisy: far above the noise, units
+    /// that look mislabelled, or a fit that describes no robot.
     pub fn suspect(&self) -> bool {
-        self.far_above_noise() || self.units_mislabelled
+        self.far_above_noise() || self.units_mislabelled || self.implausible.is_some()
     }
 }
 

@@ -38,6 +38,7 @@ use crate::kinematics::sensor::{GravityReading, GravitySensor, SensorKind};
 use crate::model::tree::KinematicTree;
 use crate::model::units::Units;
 use crate::support::io::InputLimits;
+use crate::support::text::{check_name, shown};
 
 /// One measured pose.
 #[derive(Debug, Clone, PartialEq)]
@@ -446,9 +447,31 @@ fn input_error(path: &Path, line: Option<usize>, message: String) -> Error {
     Error::input_at(path, line, None, message)
 }
 
+/// Most cells a line of a measurement file may hold: far more than the columns of any robot's
+/// file (joints, markers, sensors), and few enough that a record of them is small.
+pub const MAX_COLUMNS: usize = 1 << 20;
+
+/// Refuses, in one pass over the bytes and before any is parsed, a line of more than
+/// [`MAX_COLUMNS`] cells: the CSV reader keeps a record's cell boundaries, so a file that is a
+/// line of commas would fill the memory many times its size.
+fn check_line_widths(text: &str, path: &Path) -> Result<()> {
+    for (k, line) in text.lines().enumerate() {
+        let cells = line.bytes().filter(|b| *b == b',').count() + 1;
+        if cells > MAX_COLUMNS {
+            return Err(input_error(
+                path,
+                Some(k + 1),
+                format!("{cells} cells in one line; a measurement file has at most {MAX_COLUMNS} columns"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// A reader of measurement CSV `text` (comments `#`, cells trimmed, rows of any length) and its
 /// header; `path` is used in messages.
 fn open_table<'t>(text: &'t str, path: &Path) -> Result<(csv::Reader<&'t [u8]>, csv::StringRecord)> {
+    check_line_widths(text, path)?;
     let mut reader = csv::ReaderBuilder::new()
         .flexible(true)
         .trim(csv::Trim::All)
@@ -490,8 +513,9 @@ pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>>
         return Err(err(
             Some(line_at(text, headers.position())),
             format!(
-                "no column `{name}` to group the rows by; the header has {}",
-                headers.iter().collect::<Vec<_>>().join(", ")
+                "no column `{}` to group the rows by; the header has {}",
+                shown(name),
+                listed(&headers.iter().collect::<Vec<_>>())
             ),
         ));
     };
@@ -507,10 +531,18 @@ pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>>
                 )
             })?;
             match r.get(col) {
-                Some(v) if !v.is_empty() => Ok(v.to_string()),
+                Some(v) if !v.is_empty() => check_name(v).map(|()| v.to_string()).map_err(|m| {
+                    err(
+                        Some(lines.line_at(r.position())),
+                        format!("column `{}`: {m}", shown(name)),
+                    )
+                }),
                 _ => Err(err(
                     Some(lines.line_at(r.position())),
-                    format!("column `{name}` is empty in this row; every row needs its group"),
+                    format!(
+                        "column `{}` is empty in this row; every row needs its group",
+                        shown(name)
+                    ),
                 )),
             }
         })
@@ -520,6 +552,13 @@ pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>>
 /// Whether the header of CSV `text` has a measured-position column (`x`, `y`, `z` or numbered
 /// `x1`, ...): measurements rather than joint configurations alone.
 pub fn has_positions(text: &str) -> bool {
+    // A header too wide to read is not looked into: the reader of measurements refuses it.
+    let first = text
+        .lines()
+        .find(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    if first.is_some_and(|l| l.bytes().filter(|b| *b == b',').count() >= MAX_COLUMNS) {
+        return true;
+    }
     let mut reader = csv::ReaderBuilder::new()
         .flexible(true)
         .trim(csv::Trim::All)
@@ -565,17 +604,18 @@ fn check_kind_cell(kind: &str, s: &Sample) -> std::result::Result<(), String> {
             gives(k)
         )),
         k => Err(format!(
-            "column `kind`: `{k}` is not a measurement kind; expected point, pose, fixed_point or plane"
+            "column `kind`: `{}` is not a measurement kind; expected point, pose, fixed_point or plane",
+            shown(k)
         )),
     }
 }
 
-/// `` `a`, `b` `` ..., the first ten of `names` and how many more there are.
+/// `` `a`, `b` `` ..., the first ten of `names` (each as [`shown`]) and how many more there are.
 pub fn listed(names: &[&str]) -> String {
     let mut text = names
         .iter()
         .take(10)
-        .map(|c| format!("`{c}`"))
+        .map(|c| format!("`{}`", shown(c)))
         .collect::<Vec<_>>()
         .join(", ");
     if names.len() > 10 {
@@ -770,7 +810,8 @@ fn check_magnitudes(
                     location: Location::file(path),
                     column: Some(head.to_string()),
                     message: format!(
-                        "column `{head}` is in radians but reaches {max:.1}; it looks like degrees (write `[deg]`)"
+                        "column `{}` is in radians but reaches {max:.1}; it looks like degrees (write `[deg]`)",
+                        shown(head)
                     ),
                 });
             }
@@ -779,7 +820,8 @@ fn check_magnitudes(
                     location: Location::file(path),
                     column: Some(head.to_string()),
                     message: format!(
-                        "column `{head}` is in metres but reaches {max:.1}; it looks like millimetres (write `[mm]`)"
+                        "column `{}` is in metres but reaches {max:.1}; it looks like millimetres (write `[mm]`)",
+                        shown(head)
                     ),
                 });
             }

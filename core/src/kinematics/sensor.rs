@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::kinematics::workspace::TreeWorkspace;
 use crate::model::tree::KinematicTree;
 use crate::model::units::AngleUnit;
+use crate::support::text::shown;
 
 /// What a sensor measures, and so what its columns hold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
@@ -23,6 +24,9 @@ pub enum SensorKind {
     /// frame, as URDF roll-pitch-yaw with any yaw (which gravity does not see).
     Inclinometer,
 }
+
+/// One g (m/s²), the standard acceleration of gravity.
+pub const STANDARD_GRAVITY: f64 = 9.80665;
 
 impl SensorKind {
     /// The kind as the robot file spells it.
@@ -53,15 +57,18 @@ impl SensorKind {
     /// `default` is the file's angle unit, used by inclinometer columns without one.
     pub fn column_scale(self, unit: Option<&str>, default: AngleUnit) -> Result<f64, String> {
         match (self, unit) {
-            // Only the direction of an accelerometer's reading is used: its scale is free.
-            (SensorKind::Accelerometer, None | Some("g" | "m/s2" | "m/s^2" | "m/s²")) => Ok(1.0),
+            // Only the direction of an accelerometer's reading is used, but its columns must
+            // share a scale: each is read in m/s² (a column without a unit too).
+            (SensorKind::Accelerometer, None | Some("m/s2" | "m/s^2" | "m/s²")) => Ok(1.0),
+            (SensorKind::Accelerometer, Some("g")) => Ok(STANDARD_GRAVITY),
             (SensorKind::Accelerometer, Some(u)) => Err(format!(
-                "an accelerometer column reads an acceleration (g or m/s2, or no unit), got `{u}`"
+                "an accelerometer column reads an acceleration (g or m/s2, or no unit), got `{}`",
+                shown(u)
             )),
             (SensorKind::Inclinometer, None) => Ok(default.to_si()),
             (SensorKind::Inclinometer, Some(u)) => AngleUnit::parse(u)
                 .map(AngleUnit::to_si)
-                .ok_or_else(|| format!("an inclinometer column reads an angle (rad or deg), got `{u}`")),
+                .ok_or_else(|| format!("an inclinometer column reads an angle (rad or deg), got `{}`", shown(u))),
         }
     }
 
@@ -172,6 +179,26 @@ mod tests {
     use crate::model::geom::rz;
     use crate::model::tree::Motion;
     use nalgebra::{Isometry3, Unit};
+
+    #[test]
+    fn accelerometer_columns_in_different_units_give_one_direction() {
+        // x in g, y in m/s², z without a unit: 0.1 g, 0.980665 m/s² and 9.80665 read as one
+        // vector (0.1, 0.1, 1) g, so gravity is its opposite, normalised.
+        let scale = |u| SensorKind::Accelerometer.column_scale(u, AngleUnit::Deg).unwrap();
+        let reading = Vector4::new(
+            0.1 * scale(Some("g")),
+            0.980665 * scale(Some("m/s2")),
+            9.80665 * scale(None),
+            0.0,
+        );
+        let d = SensorKind::Accelerometer.gravity_direction(&reading).unwrap();
+        assert!((d + Vector3::new(0.1, 0.1, 1.0).normalize()).norm() < 1e-12, "{d}");
+        assert!(
+            SensorKind::Accelerometer
+                .column_scale(Some("deg"), AngleUnit::Deg)
+                .is_err()
+        );
+    }
 
     #[test]
     fn inclinometer_angles_give_the_hand_computed_direction() {

@@ -138,6 +138,22 @@ impl Robot {
             Some(Ok(None)) | None => {}
         }
 
+        if let Some(p) = file.fitted_predictor.as_deref() {
+            let nq = base_tree.nq();
+            if !(p.n_inputs() == nq || p.n_inputs() == nq + 3) || p.n_outputs() != 3 {
+                issues.push(
+                    "fitted_predictor",
+                    format!(
+                        "takes {} inputs and gives {} outputs; a predictor of this robot takes its {nq} joint values \
+                         (and the point's position, 3 more) and gives a position residual (3): the model file was \
+                         written for another robot",
+                        p.n_inputs(),
+                        p.n_outputs()
+                    ),
+                );
+            }
+        }
+
         if !issues.is_empty() {
             return Err(issues.0);
         }

@@ -20,6 +20,7 @@
 //! The joint vector `q` holds the moving joints that mimic no other, in the order the URDF file
 //! lists them.
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 
 use armcomp_chains::PriorSpec;
@@ -148,9 +149,14 @@ impl UrdfChain {
     ) -> Result<UrdfChain, Issues> {
         let units = ctx.units;
         let mut issues = Issues::default();
+        let mut doc_index: HashMap<&str, usize> = HashMap::new();
+        for (f, j) in doc.joints.iter().enumerate().rev() {
+            doc_index.insert(j.name.as_str(), f);
+        }
+        let mut overrides: HashMap<&str, &UrdfJointOverride> = HashMap::new();
         for (i, o) in spec.joints.iter().enumerate() {
             let path = format!("{}.joints[{i}]", ctx.path);
-            match doc.joints.iter().find(|j| j.name == o.name) {
+            match doc_index.get(o.name.as_str()).map(|&f| &doc.joints[f]) {
                 None => issues.push(format!("{path}.name"), format!("the URDF has no joint `{}`", o.name)),
                 Some(j) if o.axis.is_some() && j.kind == UrdfJointType::Fixed => issues.push(
                     format!("{path}.axis"),
@@ -158,7 +164,7 @@ impl UrdfChain {
                 ),
                 Some(_) => {}
             }
-            if spec.joints[..i].iter().any(|p| p.name == o.name) {
+            if overrides.insert(o.name.as_str(), o).is_some() {
                 issues.push(
                     format!("{path}.name"),
                     format!("joint `{}` is overridden twice", o.name),
@@ -171,10 +177,27 @@ impl UrdfChain {
                     issues.push(format!("{path}.{field}"), "expected three finite numbers");
                 }
             }
+            // As in the URDF itself: no origin a kilometre away or turned sixteen times.
+            for (field, si, quantity) in [
+                ("xyz", o.xyz.map(|v| units.len3(v)), Quantity::Length),
+                ("rpy", o.rpy.map(|v| units.ang3(v)), Quantity::Angle),
+            ] {
+                if let (Some(v), Some((most, words))) = (si, quantity.absurd_beyond())
+                    && v.iter().any(|x| x.abs() > most)
+                {
+                    issues.push(
+                        format!("{path}.{field}"),
+                        format!("physically absurd; expected magnitudes of at most {words}"),
+                    );
+                }
+            }
             if let Some(a) = o.axis
-                && a.iter().map(|x| x * x).sum::<f64>() < 1e-24
+                && !(1e-24..=1e24).contains(&a.iter().map(|x| x * x).sum::<f64>())
             {
-                issues.push(format!("{path}.axis"), "expected a non-zero direction");
+                issues.push(
+                    format!("{path}.axis"),
+                    "expected a non-zero direction of finite length (a unit vector)",
+                );
             }
         }
         spec.prior.check(&format!("{}.prior", ctx.path), &mut issues);
@@ -188,7 +211,7 @@ impl UrdfChain {
         let mut first_param = vec![0; doc.joints.len()];
         let mut geometry = Vec::new();
         for (f, j) in doc.joints.iter().enumerate() {
-            let o = spec.joints.iter().find(|o| o.name == j.name);
+            let o = overrides.get(j.name.as_str()).copied();
             let xyz = o.and_then(|o| o.xyz).map_or(j.xyz, |v| units.len3(v));
             let rpy = o.and_then(|o| o.rpy).map_or(j.rpy, |v| units.ang3(v));
             let axis = o.and_then(|o| o.axis).unwrap_or(j.axis);
@@ -218,7 +241,13 @@ impl UrdfChain {
 
         // Joints in placement order; bodies are numbered the same way (body p + 1 is the child
         // of the joint placed p-th).
-        let placement_of = |file_index: usize| order.iter().position(|&f| f == file_index);
+        let mut placement = vec![None; doc.joints.len()];
+        for (p, &f) in order.iter().enumerate() {
+            placement[f] = Some(p);
+        }
+        let placement_of = |file_index: usize| placement[file_index];
+        // The placement index of the joint whose child is each link (the first placed).
+        let mut child_of: HashMap<&str, usize> = HashMap::new();
         let mut joints: Vec<CompiledJoint> = Vec::new();
         let mut placed_coordinate = vec![None; doc.joints.len()];
         let mut ncoord = 0;
@@ -227,19 +256,20 @@ impl UrdfChain {
             let parent = if j.parent == doc.root {
                 0
             } else {
-                joints.iter().position(|c| c.child == j.parent).map_or(0, |p| p + 1)
+                child_of.get(j.parent.as_str()).map_or(0, |p| p + 1)
             };
             let (xyz, rpy, axis) = geometry[f];
             let axis = Unit::new_normalize(Vector3::from(axis));
             let moving = j.kind != UrdfJointType::Fixed;
             let mimic = j.mimic.as_ref().map(|(target, k, off)| {
-                let t = doc.joints.iter().position(|o| &o.name == target);
+                let t = doc_index.get(target.as_str()).copied();
                 (t.and_then(placement_of).unwrap_or(0), *k, *off)
             });
             if moving && mimic.is_none() {
                 placed_coordinate[f] = Some(ncoord);
                 ncoord += 1;
             }
+            child_of.entry(j.child.as_str()).or_insert(joints.len());
             joints.push(CompiledJoint {
                 name: j.name.clone(),
                 moving,
@@ -359,6 +389,8 @@ impl Chain for UrdfChain {
 
     fn spec_with(&self, values: &[f64]) -> Box<dyn KinematicsSpec> {
         let u = self.units;
+        let overrides: HashMap<&str, &UrdfJointOverride> =
+            self.spec.joints.iter().map(|o| (o.name.as_str(), o)).collect();
         let mut joints = Vec::new();
         for &p in &self.file_order {
             let j = &self.joints[p];
@@ -369,7 +401,7 @@ impl Chain for UrdfChain {
                 .collect();
             if v == nominal.as_slice() {
                 // Unchanged: keep what the file said, digit for digit.
-                joints.extend(self.spec.joints.iter().find(|o| o.name == j.name).cloned());
+                joints.extend(overrides.get(j.name.as_str()).map(|&o| o.clone()));
                 continue;
             }
             let origin = self.origin(j, v);
@@ -379,7 +411,7 @@ impl Chain for UrdfChain {
                 name: j.name.clone(),
                 xyz: Some([u.len_out(t.x), u.len_out(t.y), u.len_out(t.z)]),
                 rpy: Some([u.ang_out(r), u.ang_out(pi), u.ang_out(y)]),
-                axis: self.spec.joints.iter().find(|o| o.name == j.name).and_then(|o| o.axis),
+                axis: overrides.get(j.name.as_str()).and_then(|o| o.axis),
             });
         }
         Box::new(UrdfSpec {

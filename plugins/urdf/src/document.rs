@@ -9,12 +9,15 @@
 //! moves on its own, as pinocchio reads it; a mimic of a mimic joint follows the joint at the end
 //! of the chain. What was ignored or skipped is reported as warnings, one line per kind.
 
+use std::collections::{HashMap, HashSet};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use armcomp_core::Issue;
+use armcomp_core::model::param::Quantity;
 use armcomp_core::model::shape::Shape;
 use armcomp_core::support::io::InputLimits;
+use armcomp_core::support::limits::{self, Cost};
 use nalgebra::Isometry3;
 use roxmltree::Node;
 
@@ -126,8 +129,12 @@ impl UrdfDocument {
         let file = path.display().to_string();
         let xml = roxmltree::Document::parse(&text)
             .map_err(|e| vec![at_line(e.pos().row as usize, format!("malformed XML: {e}"))])?;
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(k, _)| k + 1))
+            .collect();
         let mut reading = Reading {
             xml: &xml,
+            line_starts,
             errors: Vec::new(),
             warnings: Tally::default(),
             limits,
@@ -137,16 +144,29 @@ impl UrdfDocument {
         if !reading.errors.is_empty() {
             return Err(reading.errors);
         }
+        // Each body of the tree lists the joints that move it, so a chain of n joints holds
+        // n²/2 of them, built and copied a few times (16 n² bytes at most): counted before any
+        // joint is read.
+        limits::check("joints of the URDF", joint_nodes.len(), "joints", &|k| {
+            let k = k as f64;
+            Cost {
+                bytes: 16.0 * k * k,
+                flops: 50.0 * k * k,
+            }
+        })
+        .map_err(|e| vec![at_line(reading.line_of(robot_el), e.to_string())])?;
         let robot = read_values(&text, robot_el, link_nodes.len(), joint_nodes.len())?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let mut links = Vec::new();
+        let mut link_names = HashSet::new();
         for (l, node) in robot.links.iter().zip(&link_nodes) {
-            let link = reading.link(l, *node, &links, dir);
+            let link = reading.link(l, *node, &mut link_names, dir);
             links.push(link);
         }
         let mut joints = Vec::new();
+        let mut joint_names = HashSet::new();
         for (j, node) in robot.joints.iter().zip(&joint_nodes) {
-            if let Some(joint) = reading.joint(j, *node, &links, &joints) {
+            if let Some(joint) = reading.joint(j, *node, &link_names, &mut joint_names) {
                 joints.push(joint);
             }
         }
@@ -177,17 +197,37 @@ impl UrdfDocument {
     }
 
     fn placement(&self) -> Result<Vec<usize>, Vec<Issue>> {
-        let mut placed_links = vec![self.root.as_str()];
-        let mut placed = vec![false; self.joints.len()];
-        let mut order = Vec::with_capacity(self.joints.len());
-        while order.len() < self.joints.len() {
-            let next = self.joints.iter().enumerate().position(|(i, j)| {
-                !placed[i]
-                    && placed_links.contains(&j.parent.as_str())
-                    && j.mimic.as_ref().is_none_or(|(t, _, _)| {
-                        self.joints.iter().position(|o| &o.name == t).is_some_and(|k| placed[k])
-                    })
-            });
+        // A priority topological sort: the lowest file index among the joints whose parent
+        // link and mimicked joint are placed goes next, each joint counting what it waits for.
+        let n = self.joints.len();
+        let mut by_name: HashMap<&str, usize> = HashMap::new();
+        for (i, j) in self.joints.iter().enumerate().rev() {
+            by_name.insert(j.name.as_str(), i);
+        }
+        let mut on_link: HashMap<&str, Vec<usize>> = HashMap::new();
+        let mut on_joint: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut waits = vec![0usize; n];
+        let mut ready = std::collections::BinaryHeap::new();
+        for (i, j) in self.joints.iter().enumerate() {
+            if j.parent != self.root {
+                on_link.entry(j.parent.as_str()).or_default().push(i);
+                waits[i] += 1;
+            }
+            if let Some((t, _, _)) = &j.mimic {
+                // A mimicked joint that does not exist is never placed, nor is this one.
+                if let Some(&k) = by_name.get(t.as_str()) {
+                    on_joint[k].push(i);
+                }
+                waits[i] += 1;
+            }
+            if waits[i] == 0 {
+                ready.push(std::cmp::Reverse(i));
+            }
+        }
+        let mut placed = vec![false; n];
+        let mut order = Vec::with_capacity(n);
+        while order.len() < n {
+            let next = ready.pop().map(|std::cmp::Reverse(i)| i);
             let Some(i) = next else {
                 return Err(self
                     .joints
@@ -206,17 +246,35 @@ impl UrdfDocument {
                     .collect());
             };
             placed[i] = true;
-            placed_links.push(&self.joints[i].child);
             order.push(i);
+            let freed = (on_link.remove(self.joints[i].child.as_str()).into_iter().flatten())
+                .chain(std::mem::take(&mut on_joint[i]));
+            for k in freed {
+                waits[k] -= 1;
+                if waits[k] == 0 {
+                    ready.push(std::cmp::Reverse(k));
+                }
+            }
         }
         Ok(order)
     }
 }
 
+/// The largest magnitude of a `<mimic>` multiplier: no gearing couples two joints a thousand
+/// to one.
+const ABSURD_MULTIPLIER: f64 = 1e3;
+
+/// The largest magnitude of a `<mimic>` offset (rad, or m for a prismatic joint): sixteen turns,
+/// or a hundred metres.
+const ABSURD_MIMIC_OFFSET: f64 = 100.0;
+
 /// What [`UrdfDocument::parse`] carries from one element to the next: the XML (for lines), the
 /// problems found so far and the warnings.
 struct Reading<'x, 'input> {
     xml: &'x roxmltree::Document<'input>,
+    /// The byte offset where each line of the text starts: a node's line found by bisection
+    /// (roxmltree's `text_pos_at` counts from the start of the text, quadratic over a file).
+    line_starts: Vec<usize>,
     errors: Vec<Issue>,
     warnings: Tally,
     /// How large mesh files may be.
@@ -226,7 +284,7 @@ struct Reading<'x, 'input> {
 impl<'x, 'input> Reading<'x, 'input> {
     /// 1-based line where `n` starts.
     fn line_of(&self, n: roxmltree::Node<'_, '_>) -> usize {
-        self.xml.text_pos_at(n.range().start).row as usize
+        self.line_starts.partition_point(|&start| start <= n.range().start)
     }
 
     /// The `<robot>` element at the top.
@@ -303,21 +361,37 @@ impl<'x, 'input> Reading<'x, 'input> {
         }
     }
 
-    /// The link `l` as urdf-rs read it from `node`, after the links read before it (`links`);
-    /// mesh files are found from `dir`.
-    fn link(&mut self, l: &urdf_rs::Link, node: roxmltree::Node<'_, '_>, links: &[UrdfLink], dir: &Path) -> UrdfLink {
+    /// The link `l` as urdf-rs read it from `node`, after the links read before it (their
+    /// names in `names`, which it joins); mesh files are found from `dir`.
+    fn link(
+        &mut self,
+        l: &urdf_rs::Link,
+        node: roxmltree::Node<'_, '_>,
+        names: &mut HashSet<String>,
+        dir: &Path,
+    ) -> UrdfLink {
         let line = self.line_of(node);
         let at = format!("link `{}`", l.name);
-        if links.iter().any(|k: &UrdfLink| k.name == l.name) {
+        if !names.insert(l.name.clone()) {
             self.errors
                 .push(at_line(line, format!("{at}: a link of this name is defined twice")));
         }
         let inertial = node.children().any(|n| n.has_tag_name("inertial")).then(|| {
             let m = l.inertial.mass.value;
-            if !(m.is_finite() && m >= 0.0) {
+            let (most, words) = Quantity::Mass.absurd_beyond().unwrap_or((f64::MAX, ""));
+            if !(0.0..=most).contains(&m) {
                 self.errors.push(at_line(
                     line,
-                    format!("{at}: <inertial>: expected a mass of zero or more kg, got {m}"),
+                    format!("{at}: <inertial>: expected a mass of zero or more kg, at most {words}, got {m:e} kg"),
+                ));
+            }
+            let (far, far_words) = Quantity::Length.absurd_beyond().unwrap_or((f64::MAX, ""));
+            if let Some(v) = l.inertial.origin.xyz.0.iter().find(|v| !(-far..=far).contains(*v)) {
+                self.errors.push(at_line(
+                    line,
+                    format!(
+                        "{at}: <inertial> <origin>: {v:e} m is physically absurd; expected a magnitude of at most {far_words}"
+                    ),
                 ));
             }
             (m, l.inertial.origin.xyz.0)
@@ -344,18 +418,19 @@ impl<'x, 'input> Reading<'x, 'input> {
         }
     }
 
-    /// The joint `j` as urdf-rs read it from `node`, after the joints read before it
-    /// (`joints`), its links among `links`; none for a type refused before.
+    /// The joint `j` as urdf-rs read it from `node`, after the joints read before it (their
+    /// names in `names`, which it joins), its links among `links`; none for a type refused
+    /// before.
     fn joint(
         &mut self,
         j: &urdf_rs::Joint,
         node: roxmltree::Node<'_, '_>,
-        links: &[UrdfLink],
-        joints: &[UrdfJoint],
+        links: &HashSet<String>,
+        names: &mut HashSet<String>,
     ) -> Option<UrdfJoint> {
         let line = self.line_of(node);
         let at = format!("joint `{}`", j.name);
-        if joints.iter().any(|k: &UrdfJoint| k.name == j.name) {
+        if !names.insert(j.name.clone()) {
             self.errors
                 .push(at_line(line, format!("{at}: a joint of this name is defined twice")));
         }
@@ -374,7 +449,7 @@ impl<'x, 'input> Reading<'x, 'input> {
             urdf_rs::JointType::Spherical => return None,
         };
         for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
-            if !links.iter().any(|l| &l.name == link) {
+            if !links.contains(link) {
                 self.errors.push(at_line(
                     line,
                     format!("{at}: its {role} link `{link}` is not defined in the file"),
@@ -383,10 +458,25 @@ impl<'x, 'input> Reading<'x, 'input> {
         }
         let moving = kind != UrdfJointType::Fixed;
         let axis = j.axis.xyz.0;
-        if moving && axis.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-12 {
+        let length = axis.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if moving && !(1e-12..=1e12).contains(&length) {
             self.errors.push(at_line(
                 line,
-                format!("{at}: <axis xyz>: expected a non-zero direction"),
+                format!(
+                    "{at}: <axis xyz>: expected a non-zero direction of finite length (a unit vector), got length {length:e}"
+                ),
+            ));
+        }
+        let mut origin = (j.origin.xyz.0.iter().map(|v| (v, Quantity::Length)))
+            .chain(j.origin.rpy.0.iter().map(|v| (v, Quantity::Angle)));
+        if let Some((v, q)) = origin.find(|(v, q)| q.absurd_beyond().is_some_and(|(b, _)| !(-b..=b).contains(*v))) {
+            let words = q.absurd_beyond().map_or("", |(_, w)| w);
+            self.errors.push(at_line(
+                line,
+                format!(
+                    "{at}: <origin>: {v:e} {} is physically absurd; expected a magnitude of at most {words}",
+                    q.si_unit()
+                ),
             ));
         }
         let has_limit = node.children().any(|n| n.has_tag_name("limit"));
@@ -425,8 +515,12 @@ impl<'x, 'input> Reading<'x, 'input> {
 
     /// Refuses a link that is the child of two joints: a closed loop.
     fn check_loops(&mut self, joints: &[UrdfJoint]) {
+        let mut parents_of: HashMap<&str, Vec<&UrdfJoint>> = HashMap::new();
         for j in joints {
-            if let Some(other) = joints.iter().find(|o| o.child == j.child && o.name != j.name) {
+            parents_of.entry(j.child.as_str()).or_default().push(j);
+        }
+        for j in joints {
+            if let Some(other) = parents_of[j.child.as_str()].iter().find(|o| o.name != j.name) {
                 self.errors.push(at_line(
                     j.line,
                     format!(
@@ -441,9 +535,10 @@ impl<'x, 'input> Reading<'x, 'input> {
     /// The one link that is the child of no joint (empty, with the problem recorded, when
     /// there is none or more than one).
     fn root(&mut self, links: &[UrdfLink], joints: &[UrdfJoint]) -> String {
+        let children: HashSet<&str> = joints.iter().map(|j| j.child.as_str()).collect();
         let roots: Vec<&str> = links
             .iter()
-            .filter(|l| !joints.iter().any(|j| j.child == l.name))
+            .filter(|l| !children.contains(l.name.as_str()))
             .map(|l| l.name.as_str())
             .collect();
         match roots.as_slice() {
@@ -503,28 +598,61 @@ fn read_values(
 /// chain that ends on no moving joint (a missing name, a fixed joint, a loop) loses its mimic:
 /// urdfdom accepts such a file, and pinocchio's reader moves every mimic joint on its own.
 fn resolve_mimics(joints: &mut [UrdfJoint], warnings: &mut Tally, errors: &mut Vec<Issue>) {
-    let follows: Vec<Option<(String, f64, f64)>> = joints.iter().map(|j| j.mimic.clone()).collect();
-    let moves: Vec<bool> = joints.iter().map(|j| j.kind != UrdfJointType::Fixed).collect();
-    let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
-    for (i, j) in joints.iter_mut().enumerate() {
-        let Some((mut target, mut k, mut offset)) = follows[i].clone() else {
+    type Coupling = Option<(String, f64, f64)>;
+    let follows: Vec<Coupling> = joints.iter().map(|j| j.mimic.clone()).collect();
+    let mut by_name: HashMap<&str, usize> = HashMap::new();
+    for (i, j) in joints.iter().enumerate().rev() {
+        by_name.insert(j.name.as_str(), i);
+    }
+    // The moving joint a joint's mimic names.
+    let target = |i: usize| {
+        (follows[i].as_ref())
+            .and_then(|(t, _, _)| by_name.get(t.as_str()).copied())
+            .filter(|&t| joints[t].kind != UrdfJointType::Fixed)
+    };
+    // `a = k·b + o` composed with `b`'s own coupling to its end.
+    let compose = |(_, k, o): &(String, f64, f64), end: &Coupling| -> Coupling {
+        end.as_ref()
+            .map(|(root, k_end, o_end)| (root.clone(), k * k_end, o + k * o_end))
+    };
+    // Each chain walked once: a joint's coupling is its mimic composed with that of the joint
+    // it names, kept for the joints that reach it later (quadratic in a long chain otherwise).
+    let mut resolved: Vec<Option<Coupling>> = vec![None; joints.len()];
+    let mut on_path = vec![false; joints.len()];
+    for start in 0..joints.len() {
+        if follows[start].is_none() || resolved[start].is_some() {
             continue;
-        };
-        let mut seen = vec![i];
-        j.mimic = loop {
-            match names.iter().position(|n| *n == target) {
-                Some(t) if moves[t] && !seen.contains(&t) => match &follows[t] {
-                    None => break Some((target, k, offset)),
-                    Some((next, k_next, offset_next)) => {
-                        offset += k * offset_next;
-                        k *= k_next;
-                        target = next.clone();
-                        seen.push(t);
-                    }
+        }
+        let mut path = Vec::new();
+        let mut i = start;
+        let mut end = loop {
+            path.push(i);
+            on_path[i] = true;
+            let own = follows[i].as_ref().expect("a joint on the path mimics");
+            match target(i) {
+                // No moving joint, or a loop back onto the path.
+                None => break None,
+                Some(t) if on_path[t] => break None,
+                Some(t) => match (&follows[t], &resolved[t]) {
+                    (None, _) => break Some(own.clone()),
+                    (Some(_), Some(r)) => break compose(own, r),
+                    (Some(_), None) => i = t,
                 },
-                _ => break None,
             }
         };
+        for (n, &p) in path.iter().rev().enumerate() {
+            if n > 0 {
+                end = compose(follows[p].as_ref().expect("a joint on the path mimics"), &end);
+            }
+            resolved[p] = Some(end.clone());
+            on_path[p] = false;
+        }
+    }
+    for (j, r) in joints.iter_mut().zip(resolved) {
+        let Some(coupling) = r else {
+            continue;
+        };
+        j.mimic = coupling;
         let at = format!("joint `{}`", j.name);
         match &j.mimic {
             None => warnings.add(
@@ -533,10 +661,16 @@ fn resolve_mimics(joints: &mut [UrdfJoint], warnings: &mut Tally, errors: &mut V
                 j.line,
                 &at,
             ),
-            Some((_, k, offset)) if !(k.is_finite() && offset.is_finite()) => errors.push(at_line(
-                j.line,
-                format!("{at}: <mimic>: expected finite multiplier and offset"),
-            )),
+            // NaN fails both comparisons.
+            Some((_, k, offset)) if !(k.abs() <= ABSURD_MULTIPLIER && offset.abs() <= ABSURD_MIMIC_OFFSET) => errors
+                .push(at_line(
+                    j.line,
+                    format!(
+                        "{at}: <mimic>: multiplier {k:e} and offset {offset:e} (composed along its chain) are \
+                         physically absurd; expected a multiplier of magnitude at most {ABSURD_MULTIPLIER} and an \
+                         offset of at most {ABSURD_MIMIC_OFFSET} (rad or m)"
+                    ),
+                )),
             Some(_) => {}
         }
     }

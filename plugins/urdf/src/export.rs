@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use armcomp_core::{Error, KinematicTree, Motion, Result, Robot};
 use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use quick_xml::escape::escape;
 
 use crate::chain::UrdfSpec;
 use crate::document::{UrdfDocument, UrdfJointType};
@@ -107,10 +108,10 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
         .filter_map(|m| {
             Some(format!(
                 "  <link name=\"{}\"/>\n  <joint name=\"{}\" type=\"fixed\">\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    {}\n  </joint>\n",
-                m.name,
-                m.joint.as_ref()?,
-                m.parent,
-                m.name,
+                escape(m.name.as_str()),
+                escape(m.joint.as_deref()?),
+                escape(m.parent.as_str()),
+                escape(m.name.as_str()),
                 origin(&m.offset, &mut zeroed)
             ))
         })

@@ -14,6 +14,7 @@ use crate::error::{Error, Result};
 use crate::kinematics::sensor::{GravityReading, GravitySensor};
 use crate::model::units::{AngleUnit, LengthUnit};
 use crate::support::limits::{self, Cost};
+use crate::support::text::{check_name, shown};
 
 /// Reads a measurement table against `layout`; without `with_positions` only the joint
 /// columns are read (a file of configurations).
@@ -56,6 +57,8 @@ struct Table<'t, 'l> {
 /// The header read: what each column holds and how the rows are shaped.
 struct Header<'t> {
     record: csv::StringRecord,
+    /// Its cells as messages show them (see [`shown`]).
+    shown: Vec<String>,
     /// Its 1-based line.
     line: usize,
     columns: Vec<Column>,
@@ -175,7 +178,7 @@ impl<'t> Table<'t, '_> {
         for h in record.iter() {
             let name = split_header(h).0;
             if !seen.insert(name) {
-                return Err(self.err_in(line, name, format!("column `{name}` appears twice")));
+                return Err(self.err_in(line, name, format!("column `{}` appears twice", shown(name))));
             }
             let column = self.column(h, line)?;
             if column == Column::Ignored {
@@ -184,6 +187,7 @@ impl<'t> Table<'t, '_> {
             columns.push(column);
         }
         let mut header = Header {
+            shown: record.iter().map(shown).collect(),
             record,
             line,
             columns,
@@ -214,6 +218,7 @@ impl<'t> Table<'t, '_> {
     fn column(&self, h: &str, line: usize) -> Result<Column> {
         let (layout, units) = (self.layout, self.layout.units);
         let (name, unit) = split_header(h);
+        let shown_h = shown(h);
         let length = |u: Option<&str>| -> Result<f64> {
             match u {
                 None => Ok(units.length.to_si()),
@@ -221,7 +226,10 @@ impl<'t> Table<'t, '_> {
                     self.err_in(
                         line,
                         h,
-                        format!("column `{h}`: unknown length unit `{u}` (expected m, cm, mm or in)"),
+                        format!(
+                            "column `{shown_h}`: unknown length unit `{}` (expected m, cm, mm or in)",
+                            shown(u)
+                        ),
                     )
                 }),
             }
@@ -229,7 +237,7 @@ impl<'t> Table<'t, '_> {
         let angle = |u: &str, expected: &str| {
             AngleUnit::parse(u)
                 .map(AngleUnit::to_si)
-                .ok_or_else(|| self.err_in(line, h, format!("column `{h}`: {expected}, got `{u}`")))
+                .ok_or_else(|| self.err_in(line, h, format!("column `{shown_h}`: {expected}, got `{}`", shown(u))))
         };
         if let Some(c) = layout.tree.coordinate_names().iter().position(|n| n == name) {
             let scale = match unit {
@@ -251,7 +259,7 @@ impl<'t> Table<'t, '_> {
             let scale = sensor
                 .kind
                 .column_scale(unit, units.angle)
-                .map_err(|m| self.err_in(line, h, format!("column `{h}` of sensor `{}`: {m}", sensor.name)))?;
+                .map_err(|m| self.err_in(line, h, format!("column `{shown_h}` of sensor `{}`: {m}", sensor.name)))?;
             return Ok(Column::Sensor(cell, scale));
         }
         if let Some((axis, slot)) = numbered_position(name) {
@@ -263,7 +271,7 @@ impl<'t> Table<'t, '_> {
                     line,
                     h,
                     format!(
-                        "column `{h}`: the robot measures {} point(s) ({}); numbered columns x1, x2, ... are the robot file's `[measurement] markers` in order",
+                        "column `{shown_h}`: the robot measures {} point(s) ({}); numbered columns x1, x2, ... are the robot file's `[measurement] markers` in order",
                         measured.len(),
                         measured.join(", ")
                     ),
@@ -279,7 +287,11 @@ impl<'t> Table<'t, '_> {
             let scale = match (spelling, unit) {
                 (Spelling::Quaternion, None) => 1.0,
                 (Spelling::Quaternion, Some(u)) => {
-                    return Err(self.err_in(line, h, format!("column `{h}`: a quaternion has no unit, got `{u}`")));
+                    return Err(self.err_in(
+                        line,
+                        h,
+                        format!("column `{shown_h}`: a quaternion has no unit, got `{}`", shown(u)),
+                    ));
                 }
                 (_, None) => units.angle.to_si(),
                 (_, Some(u)) => angle(u, "expected an angle unit (rad or deg)")?,
@@ -293,8 +305,14 @@ impl<'t> Table<'t, '_> {
     /// else is ignored.
     fn named_column(&self, h: &str, line: usize, length: impl Fn(Option<&str>) -> Result<f64>) -> Result<Column> {
         let (name, unit) = split_header(h);
-        let wrong_unit =
-            |expected: &str, u: &str| self.err_in(line, h, format!("column `{h}`: expected {expected}, got `{u}`"));
+        let shown_h = shown(h);
+        let wrong_unit = |expected: &str, u: &str| {
+            self.err_in(
+                line,
+                h,
+                format!("column `{shown_h}`: expected {expected}, got `{}`", shown(u)),
+            )
+        };
         Ok(match name {
             "point" => Column::Point,
             "kind" => Column::Kind,
@@ -338,7 +356,11 @@ impl<'t> Table<'t, '_> {
             n if n.starts_with("tau_") => match self.layout.tree.coordinate_names().iter().position(|j| j == &n[4..]) {
                 Some(c) => Column::Torque(c),
                 None => {
-                    return Err(self.err_in(line, h, format!("column `{h}`: `{}` is not a joint", &n[4..])));
+                    return Err(self.err_in(
+                        line,
+                        h,
+                        format!("column `{shown_h}`: `{}` is not a joint", shown(&n[4..])),
+                    ));
                 }
             },
             _ => Column::Ignored,
@@ -609,16 +631,24 @@ impl<'t> Table<'t, '_> {
             positions: vec![(Vector3::zeros(), 0); header.slots.len()],
             position_std: (Vector3::zeros(), 0),
         };
-        for (field, (col, head)) in record.iter().zip(header.columns.iter().zip(header.record.iter())) {
+        for (field, (col, head)) in record.iter().zip(header.columns.iter().zip(header.shown.iter())) {
             let cell = Cell { field, col, head, line };
             if self.text_cell(&mut row, &cell, header, stations)? {
                 continue;
             }
-            let v: f64 = field
-                .parse()
-                .map_err(|_| self.err_in(line, head, format!("column `{head}`: `{field}` is not a number")))?;
+            let v: f64 = field.parse().map_err(|_| {
+                self.err_in(
+                    line,
+                    head,
+                    format!("column `{head}`: `{}` is not a number", shown(field)),
+                )
+            })?;
             if !v.is_finite() {
-                return Err(self.err_in(line, head, format!("column `{head}`: {field} is not a finite number")));
+                return Err(self.err_in(
+                    line,
+                    head,
+                    format!("column `{head}`: {} is not a finite number", shown(field)),
+                ));
             }
             if let Some((si, bound, words)) = col.si_and_bound(v)
                 && si.abs() > bound
@@ -626,7 +656,10 @@ impl<'t> Table<'t, '_> {
                 return Err(self.err_in(
                     line,
                     head,
-                    format!("column `{head}`: {field} is not a measurement; expected a magnitude of at most {words}"),
+                    format!(
+                        "column `{head}`: {} is not a measurement; expected a magnitude of at most {words}",
+                        shown(field)
+                    ),
                 ));
             }
             self.number_cell(&mut row, v, &cell, header)?;
@@ -652,7 +685,7 @@ impl<'t> Table<'t, '_> {
                     self.err_in(
                         line,
                         "point",
-                        format!("column `point`: `{field}` is not a point of the robot"),
+                        format!("column `point`: `{}` is not a point of the robot", shown(field)),
                     )
                 })?;
             }
@@ -677,6 +710,7 @@ impl<'t> Table<'t, '_> {
                         "the row names both a fixed point and a plane; a contact is made at one of them".into(),
                     );
                 }
+                check_name(field).map_err(|m| self.err_in(line, column, format!("column `{column}`: {m}")))?;
                 if *plane {
                     row.sample.plane = Some(field.to_string());
                 } else {
@@ -690,6 +724,7 @@ impl<'t> Table<'t, '_> {
                 );
             }
             Column::Station => {
+                check_name(field).map_err(|m| self.err_in(line, "station", format!("column `station`: {m}")))?;
                 row.sample.station = match stations.iter().position(|n| n == field) {
                     Some(k) => k,
                     None => {
@@ -761,7 +796,7 @@ impl<'t> Table<'t, '_> {
                 return Err(self.err_in(
                     line,
                     head,
-                    format!("column `{head}`: expected a mass of zero or more, got {field}"),
+                    format!("column `{head}`: expected a mass of zero or more, got {}", shown(field)),
                 ));
             }
             Column::Payload(scale) => s.payload = Some(v * scale),
