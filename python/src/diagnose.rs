@@ -63,7 +63,7 @@ pub fn diagnose(
     let diagnosis = crate::interrupt::run(py, |cancel| {
         let mut params = params.clone();
         params.calibration.cancel = cancel.clone();
-        armcomp_api::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
+        armcomp_api::ops::diagnose::run(&robot, &set, &params, learnable_by, &|p| {
             let stage = match p.stage {
                 DiagnoseStage::Baseline => "model as given".to_string(),
                 DiagnoseStage::Round(n) => format!("effect {n}"),

@@ -2,7 +2,7 @@
 //! [`armcomp_core::analysis::diagnose::diagnose`].
 
 use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, DiagnosisReport, diagnose};
-use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::measurement::MeasurementSet;
 use armcomp_core::{PredictorSpec, Robot};
 
 /// The predictor that scores the learnable residual.
@@ -16,11 +16,11 @@ pub enum LearnableBy {
     None,
 }
 
-/// Diagnoses `robot` on `samples` with every registered plugin's candidates; `progress` hears
-/// of every fold calibration.
+/// Diagnoses `robot`, given the data's stations, on `data` with every registered plugin's
+/// candidates; `progress` hears of every fold calibration.
 pub fn run(
     robot: &Robot,
-    samples: &[Sample],
+    data: &MeasurementSet,
     params: &DiagnoseParams,
     learnable_by: LearnableBy,
     progress: &(dyn Fn(DiagnoseProgress) + Sync),
@@ -35,7 +35,15 @@ pub fn run(
         LearnableBy::Ridge => Some(("ridge", &ridge)),
         LearnableBy::None => None,
     };
-    diagnose(robot, samples, &crate::plugins(), predictor, params, progress)
+    let adopted = crate::with_stations(robot, data)?;
+    diagnose(
+        adopted.as_ref().unwrap_or(robot),
+        &data.samples,
+        &crate::plugins(),
+        predictor,
+        params,
+        progress,
+    )
 }
 
 /// The data rows (as `--rows` counts them) of the diagnosis' gross errors, largest first;

@@ -5,7 +5,7 @@ use armcomp_core::Robot;
 use armcomp_core::analysis::ladder::{Ladder, LadderParams, climb};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::FitsProgress;
-use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::measurement::MeasurementSet;
 use armcomp_core::support::cancel::Cancel;
 
 /// How `fit` is asked to choose.
@@ -30,10 +30,12 @@ pub struct FitParams {
     pub cancel: Cancel,
 }
 
-/// Climbs the ladder for `robot` on `samples`; `progress` sees every fit done.
+/// Climbs the ladder for `robot` on `data`, the robot given the data's stations (each
+/// station's frame registered in closed form and refined with every fit); `progress` sees
+/// every fit done.
 pub fn run(
     robot: &Robot,
-    samples: &[Sample],
+    data: &MeasurementSet,
     params: FitParams,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> armcomp_core::Result<Ladder> {
@@ -56,7 +58,8 @@ pub fn run(
         fold_groups: params.fold_groups,
         predictor,
     };
-    climb(robot, samples, &ladder, progress)
+    let adopted = crate::with_stations(robot, data)?;
+    climb(adopted.as_ref().unwrap_or(robot), &data.samples, &ladder, progress)
 }
 
 /// The report as `armcomp fit --json` prints it: the ladder with the chosen rung's calibration
