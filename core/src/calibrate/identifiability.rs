@@ -7,10 +7,11 @@ use super::jacobian::typical_scale;
 use super::space::prior_space;
 use super::{
     Assessment, CalibrationParams, Deficiency, IdentifiabilityReport, JacobianForm, Noise, PRIOR_BOX, ParameterSpace,
-    Problem,
+    Problem, Undetermined,
 };
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
+use crate::model::param::Quantity;
 use crate::robot::Robot;
 
 /// See [`analyse`]: below this many noise standard deviations over all the data, a typical
@@ -55,6 +56,72 @@ pub(super) fn barely_seen(
         })
         .map(|(_, &k)| k)
         .collect()
+}
+
+/// Takes out of `free`, one at a time, the parameter without a prior whose standard deviation
+/// with the data (linearised at the start, `jac` holding the columns of `selected`, the other
+/// free parameters' correlations included) exceeds the whole range its model calls plausible
+/// by the most, until none does; returns them with the reason. Such a parameter is seen by the
+/// data only through noise (a joint's compliance when the load's centre of mass lies on the
+/// axis), and a fit moves it to values no robot has; held at its start, the fit goes on.
+fn undetermined(
+    space: &ParameterSpace,
+    jac: &DMatrix<f64>,
+    selected: &[usize],
+    free: &mut Vec<usize>,
+) -> Vec<Undetermined> {
+    let mut held = Vec::new();
+    loop {
+        let cols: Vec<usize> = (free.iter())
+            .map(|k| {
+                selected
+                    .iter()
+                    .position(|s| s == k)
+                    .expect("free parameters are selected")
+            })
+            .collect();
+        let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+        let mut a = j.transpose() * &j;
+        for (c, &k) in free.iter().enumerate() {
+            let sigma = space.params[k].info.sigma;
+            if sigma.is_finite() {
+                a[(c, c)] += sigma.powi(-2);
+            }
+        }
+        let Some(inv) = a.cholesky().map(|chol| chol.inverse()) else {
+            return held;
+        };
+        let worst = (free.iter().enumerate())
+            .filter_map(|(c, &k)| {
+                let info = &space.params[k].info;
+                let range = info.plausible.1 - info.plausible.0;
+                let std = inv[(c, c)].sqrt();
+                (!info.sigma.is_finite() && range.is_finite() && std > range).then_some((c, std / range, std))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((c, _, std)) = worst else {
+            return held;
+        };
+        let info = &space.params[free[c]].info;
+        let why = match info.quantity {
+            Quantity::Compliance => {
+                "; no pose of the data loads its joint enough: the centre of mass it carries (the load's) lies on or \
+                 near the joint's axis"
+            }
+            _ => "",
+        };
+        held.push(Undetermined {
+            parameter: info.name.clone(),
+            reason: format!(
+                "undetermined: with these data its standard deviation would be {}, more than the whole range its model \
+                 calls plausible, {} to {}{why}",
+                info.quantity.readable(std),
+                info.quantity.readable(info.plausible.0),
+                info.quantity.readable(info.plausible.1),
+            ),
+        });
+        free.remove(c);
+    }
 }
 
 /// Finds the directions the data cannot determine and decides what to fix (see the module
@@ -200,6 +267,7 @@ pub(super) fn analyse(
         condition_number_free: f64::NAN,
         deficiencies,
         held_by_priors: Vec::new(),
+        undetermined: Vec::new(),
         message,
     };
     (report, fixed.iter().map(|&c| free[c]).collect())
@@ -262,7 +330,20 @@ pub(super) fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize
 /// and what is barely determined, with the report saying so.
 pub(super) fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], tol: f64) -> Assessment {
     let (mut report, fixed) = analyse(space, jac, selected, tol);
-    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let mut free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    report.undetermined = undetermined(space, jac, selected, &mut free);
+    if !report.undetermined.is_empty() {
+        let sep = if report.message.is_empty() { "" } else { " " };
+        let list: Vec<String> = (report.undetermined.iter())
+            .map(|u| format!("{} ({})", u.parameter, u.reason))
+            .collect();
+        report.message.push_str(&format!(
+            "{sep}{} parameter(s) the data cannot determine are held at their start value and the fit goes on \
+             without them: {}.",
+            list.len(),
+            list.join("; ")
+        ));
+    }
     let held = barely_seen(space, jac, selected, &free);
     if !held.is_empty() {
         report.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();
