@@ -58,10 +58,12 @@ pub(super) fn barely_seen(
         .collect()
 }
 
-/// Takes out of `free`, one at a time, the parameter without a prior whose standard deviation
-/// with the data (linearised at the start, `jac` holding the columns of `selected`, the other
-/// free parameters' correlations included) exceeds the whole range its model calls plausible
-/// by the most, until none does; returns them with the reason. Such a parameter is seen by the
+/// Takes out of `free`, one at a time, the parameter whose standard deviation with the data and
+/// its prior (linearised at the start, `jac` holding the columns of `selected`, the other free
+/// parameters' correlations included) exceeds the whole range its model calls plausible by the
+/// most, until none does; returns them with the reason. A prior narrower than that range never
+/// lets it: only a parameter without one, or whose prior a scale has widened past the
+/// plausible (the evidence's, or `--prior none`), is taken out. Such a parameter is seen by the
 /// data only through noise (a joint's compliance when the load's centre of mass lies on the
 /// axis), and a fit moves it to values no robot has; held at its start, the fit goes on.
 fn undetermined(
@@ -96,32 +98,40 @@ fn undetermined(
                 let info = &space.params[k].info;
                 let range = info.plausible.1 - info.plausible.0;
                 let std = inv[(c, c)].sqrt();
-                (!info.sigma.is_finite() && range.is_finite() && std > range).then_some((c, std / range, std))
+                (range.is_finite() && std > range).then_some((c, std / range, std))
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
         let Some((c, _, std)) = worst else {
             return held;
         };
         let info = &space.params[free[c]].info;
-        let why = match info.quantity {
-            Quantity::Compliance => {
-                "; no pose of the data loads its joint enough: the centre of mass it carries (the load's) lies on or \
-                 near the joint's axis"
-            }
-            _ => "",
-        };
         held.push(Undetermined {
             parameter: info.name.clone(),
-            reason: format!(
-                "undetermined: with these data its standard deviation would be {}, more than the whole range its model \
-                 calls plausible, {} to {}{why}",
-                info.quantity.readable(std),
-                info.quantity.readable(info.plausible.0),
-                info.quantity.readable(info.plausible.1),
+            reason: undetermined_reason(
+                info,
+                format!(
+                    "with these data its standard deviation would be {}, more than the whole range its model calls \
+                     plausible, {} to {}",
+                    info.quantity.readable(std),
+                    info.quantity.readable(info.plausible.0),
+                    info.quantity.readable(info.plausible.1),
+                ),
             ),
         });
         free.remove(c);
     }
+}
+
+/// Why `info` is undetermined: `detail`, and what causes it for its kind of parameter.
+fn undetermined_reason(info: &crate::model::param::ParamInfo, detail: String) -> String {
+    let cause = match info.quantity {
+        Quantity::Compliance => {
+            "; no pose of the data loads its joint enough: the centre of mass it carries (the load's) lies on or near \
+             the joint's axis"
+        }
+        _ => "",
+    };
+    format!("undetermined: {detail}{cause}")
 }
 
 /// Finds the directions the data cannot determine and decides what to fix (see the module
@@ -331,7 +341,19 @@ pub(super) fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize
 pub(super) fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], tol: f64) -> Assessment {
     let (mut report, fixed) = analyse(space, jac, selected, tol);
     let mut free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
-    report.undetermined = undetermined(space, jac, selected, &mut free);
+    // A parameter fixed alone (no other in its null direction) is one the data cannot see.
+    let unseen = (report.deficiencies.iter())
+        .filter(|d| d.combination.len() == 1)
+        .filter_map(|d| d.fixed.as_ref())
+        .filter_map(|name| space.params.iter().find(|p| &p.info.name == name))
+        .map(|p| Undetermined {
+            parameter: p.info.name.clone(),
+            reason: undetermined_reason(&p.info, "no row of the data sees it".into()),
+        });
+    report.undetermined = unseen.collect();
+    report
+        .undetermined
+        .extend(undetermined(space, jac, selected, &mut free));
     if !report.undetermined.is_empty() {
         let sep = if report.message.is_empty() { "" } else { " " };
         let list: Vec<String> = (report.undetermined.iter())
