@@ -90,14 +90,21 @@ fn undetermined(
                 a[(c, c)] += sigma.powi(-2);
             }
         }
-        let Some(inv) = a.cholesky().map(|chol| chol.inverse()) else {
+        // Scaled to a unit diagonal with a ridge far below any real information, so that a
+        // direction nothing holds (priors widened without bound) reads as a huge standard
+        // deviation instead of failing the factorisation.
+        let scale: Vec<f64> = (0..free.len()).map(|c| a[(c, c)].sqrt().max(1e-300)).collect();
+        let scaled = DMatrix::from_fn(free.len(), free.len(), |i, k| {
+            a[(i, k)] / (scale[i] * scale[k]) + if i == k { 1e-12 } else { 0.0 }
+        });
+        let Some(inv) = scaled.cholesky().map(|chol| chol.inverse()) else {
             return held;
         };
         let worst = (free.iter().enumerate())
             .filter_map(|(c, &k)| {
                 let info = &space.params[k].info;
                 let range = info.plausible.1 - info.plausible.0;
-                let std = inv[(c, c)].sqrt();
+                let std = inv[(c, c)].sqrt() / scale[c];
                 (range.is_finite() && std > range).then_some((c, std / range, std))
             })
             .max_by(|a, b| a.1.total_cmp(&b.1));
