@@ -572,3 +572,73 @@ fn ros_package_meshes_are_skipped_with_a_warning_and_stl_boxes_read() {
     );
     assert!(problems.is_empty(), "{problems:?}");
 }
+
+#[test]
+fn export_urdf_names_a_marker_whose_link_name_is_taken_with_a_free_one() {
+    // The point `right` shares its name with a URDF link, and `right_marker_joint` is a joint
+    // of the URDF too: the marker's link must become `right_marker_2`. The point `left` takes
+    // `left_marker`, which is free.
+    let s = Scratch::new("urdf-export-free-name");
+    s.file(
+        "two.urdf",
+        &TWO_ARMS.replace("<joint name=\"right_wrist\"", "<joint name=\"right_marker_joint\""),
+    );
+    let model = s.file(
+        "cell.toml",
+        r#"
+name = "cell"
+tool = "right"
+[units]
+length = "mm"
+angle = "deg"
+[kinematics]
+type = "urdf"
+path = "two.urdf"
+[[points]]
+name = "right"
+link = "right_hand"
+xyz = [10, 20, 30]
+[[points]]
+name = "left"
+link = "left_hand"
+xyz = [-5, 0, 40]
+[measurement]
+markers = ["right", "left"]
+"#,
+    );
+    let out = s.0.join("calibrated.urdf");
+    let (code, _, log) = crate::cli::armcomp(&[
+        "export-urdf",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{log}");
+    for (marker, link) in [("right", "right_marker_2"), ("left", "left_marker")] {
+        assert!(
+            log.lines().any(|l| l.contains(&format!("marker `{marker}`"))
+                && l.contains(&format!(
+                    "to a new link `{link}` (the URDF already uses the name `{marker}`)"
+                ))),
+            "{marker} → {link}: {log}"
+        );
+    }
+    // Read back as a bare URDF, each new link sits where the model puts its point: the
+    // offsets of the robot file by hand, from the URDF's fixed wrists at x = 0.3 m.
+    let model = Robot::from_path(&model).unwrap();
+    let bare = robot_from_urdf(&out, InputLimits::default()).unwrap();
+    let q = [0.4, 0.1, -0.9];
+    let (a, b) = (model.forward(&q).unwrap(), bare.forward(&q).unwrap());
+    for (point, link, local) in [
+        ("right", "right_marker_2", Vector3::new(0.31, 0.02, 0.03)),
+        ("left", "left_marker", Vector3::new(0.295, 0.0, 0.04)),
+    ] {
+        let p = a.point[model.tree().point_index(point).unwrap()].translation.vector;
+        let l = b.body[bare.tree().body_index(link).unwrap()].translation.vector;
+        assert!((p - l).norm() < 1e-12, "{point}: {p:?} vs {l:?}");
+        let arm = bare.tree().body_index(point).unwrap();
+        let by_hand = b.body[arm] * nalgebra::Point3::from(local);
+        assert!((by_hand.coords - l).norm() < 1e-12, "{link}: {by_hand:?} vs {l:?}");
+    }
+}

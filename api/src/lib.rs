@@ -15,6 +15,6 @@ pub mod registry;
 pub mod validate;
 
 pub use error::{Error, LockReason, Result};
-pub use load::read_robot;
+pub use load::{read_robot, with_stations};
 pub use registry::{plugins, robot_schema, schema_text};
 pub use validate::{Diagnostic, Validation, check_file, validate_file};

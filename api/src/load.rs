@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use armcomp_core::data::measurement::MeasurementSet;
 use armcomp_core::support::io::InputLimits;
 use armcomp_core::{Result, Robot};
 
@@ -22,4 +23,19 @@ pub fn read_robot(path: &Path, limits: InputLimits) -> Result<Robot> {
     } else {
         Robot::from_path_with(path, limits)
     }
+}
+
+/// `robot` given the stations of `data` ([`Robot::adopt_stations`]): a station the robot file
+/// names keeps its frame, a new one starts at the robot's measurement frame, which calibration
+/// then registers in closed form on the station's own samples and refines. `None` when `robot`
+/// has the data's stations already (or the data one and the robot none): use it as it is.
+pub fn with_stations(robot: &Robot, data: &MeasurementSet) -> Result<Option<Robot>> {
+    let known: Vec<&str> = robot.stations().iter().map(|s| s.name.as_str()).collect();
+    let wanted: Vec<&str> = data.stations.iter().map(String::as_str).collect();
+    if known == wanted || (known.is_empty() && wanted.len() <= 1) {
+        return Ok(None);
+    }
+    let mut adopted = robot.rebuild(robot.to_file())?;
+    adopted.adopt_stations(&data.stations);
+    Ok(Some(adopted))
 }

@@ -56,8 +56,9 @@ pub fn calibrate(
         Some(p) => self::prior(p)?,
         None => Prior::Scale(1.0),
     };
-    let robot = robot.robot.clone();
-    let set = data.resolve(&robot)?;
+    let set = data.resolve(&robot.robot)?;
+    let adopted = armcomp_api::with_stations(&robot.robot, &set).py()?;
+    let robot = adopted.as_ref().unwrap_or(&robot.robot);
     let params = CalibrationParams {
         identify: identify.unwrap_or_default(),
         measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,

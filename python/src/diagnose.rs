@@ -54,7 +54,7 @@ pub fn diagnose(
         measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,
         ..CalibrationParams::default()
     };
-    let (calibration, _) = armcomp_api::ops::diagnose::calibration_for(&robot, &set.samples, given, noise_mm.is_some())
+    let (calibration, _) = armcomp_api::ops::diagnose::calibration_for(&robot, &set, given, noise_mm.is_some())
         .py()?;
     let params = DiagnoseParams {
         folds,
@@ -68,7 +68,7 @@ pub fn diagnose(
     let diagnosis = crate::interrupt::run(py, |cancel| {
         let mut params = params.clone();
         params.calibration.cancel = cancel.clone();
-        armcomp_api::ops::diagnose::run(&robot, &set.samples, &params, learnable_by, &|p| {
+        armcomp_api::ops::diagnose::run(&robot, &set, &params, learnable_by, &|p| {
             let stage = match p.stage {
                 DiagnoseStage::Baseline => "model as given".to_string(),
                 DiagnoseStage::Round(n) => format!("effect {n}"),

@@ -55,7 +55,7 @@ pub fn fit(
             predictor,
             cancel: cancel.clone(),
         };
-        armcomp_api::ops::fit::run(&robot, &set.samples, params, &|p| {
+        armcomp_api::ops::fit::run(&robot, &set, params, &|p| {
             crate::progress::report(progress.as_ref(), "model choice", p.done, p.total)
         })
     })?

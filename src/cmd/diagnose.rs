@@ -10,7 +10,7 @@ use armcomp_core::algorithms::residuals::ResidualDescription;
 use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseStage, DiagnosisReport, RankedCandidate};
 use armcomp_core::support::io::write_atomic;
 
-use super::{check_output, inputs, read_measurements};
+use super::{check_output, inputs, read_station_files};
 
 #[derive(Clone, Copy, clap::ValueEnum)]
 enum Predictor {
@@ -27,9 +27,11 @@ pub struct Args {
     /// The robot file to diagnose (its values are the starting point and the priors' centre).
     #[arg(long)]
     robot: PathBuf,
-    /// Measurement CSV.
-    #[arg(long)]
-    data: PathBuf,
+    /// Measurement CSV; several (`--data a.csv --data b.csv`) are one station each, named by
+    /// the file name, unless they have a `station` column. Every station gets its own
+    /// measurement frame, registered in closed form and refined.
+    #[arg(long, required = true)]
+    data: Vec<PathBuf>,
     #[command(flatten)]
     rows: super::Rows,
     /// Where to write the improved robot file (found effects added, calibrated on all the
@@ -92,7 +94,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .iter()
         .map(|l| armcomp_sdk::host::platform_library_path(l))
         .collect();
-    let read: Vec<&std::path::Path> = std::iter::once(args.data.as_path())
+    let data_files: Vec<&std::path::Path> = args.data.iter().map(PathBuf::as_path).collect();
+    let read: Vec<&std::path::Path> = (data_files.iter().copied())
         .chain(libraries.iter().map(PathBuf::as_path))
         .collect();
     if let Some(out) = &args.out {
@@ -101,16 +104,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(dir) = &args.report {
         armcomp_api::diagnosis_report::check(dir, &inputs(&robot, &read))?;
     }
-    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
+    let data = read_station_files(&robot, &args.data, args.rows.rows.as_ref())?;
     let given = CalibrationParams {
         identify: args.identify.clone(),
         measurement_std: args.noise_mm.unwrap_or(0.1) * 1e-3,
         ..CalibrationParams::default()
     };
     let (calibration, noise_from) =
-        armcomp_api::ops::diagnose::calibration_for(&robot, &data.samples, given, args.noise_mm.is_some())?;
+        armcomp_api::ops::diagnose::calibration_for(&robot, &data, given, args.noise_mm.is_some())?;
     let params = DiagnoseParams {
-        fold_groups: args.group.groups(&[&args.data], &data.rows)?,
+        fold_groups: args.group.groups(&data_files, &data.rows)?,
         folds: args.folds,
         seed: args.seed,
         calibration,
@@ -131,7 +134,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let result = crate::stoppable(|cancel| {
         let mut params = params.clone();
         params.calibration.cancel = cancel.clone();
-        armcomp_api::ops::diagnose::run(&robot, &data.samples, &params, learnable_by, &|p| {
+        armcomp_api::ops::diagnose::run(&robot, &data, &params, learnable_by, &|p| {
             // A new stage restarts the bar, so that its estimate is the stage's own.
             if bar.length() != Some(p.total as u64) || p.done == 0 {
                 bar.reset();

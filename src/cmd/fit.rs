@@ -4,16 +4,18 @@ use std::sync::Mutex;
 
 use armcomp_core::support::io::write_atomic;
 
-use super::{check_output, read_measurements};
+use super::{check_output, read_station_files};
 
 #[derive(clap::Args)]
 pub struct Args {
     /// The nominal robot file (its values are the starting point and the priors' centre).
     #[arg(long)]
     robot: PathBuf,
-    /// Measurement CSV to choose and fit the model on.
-    #[arg(long)]
-    data: PathBuf,
+    /// Measurement CSV to choose and fit the model on; several (`--data a.csv --data b.csv`)
+    /// are one station each, named by the file name, unless they have a `station` column.
+    /// Every station gets its own measurement frame, registered in closed form and refined.
+    #[arg(long, required = true)]
+    data: Vec<PathBuf>,
     #[command(flatten)]
     rows: super::Rows,
     /// Where to write the chosen model (TOML, or JSON for a .json extension), atomically.
@@ -52,9 +54,10 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = super::load_robot(&args.robot)?;
-    check_output(&args.out, &robot, &[&args.data])?;
-    let data = read_measurements(&robot, &args.data, args.rows.rows.as_ref())?;
-    let grouping = args.group.groups(&[&args.data], &data.rows)?;
+    let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
+    check_output(&args.out, &robot, &data_files)?;
+    let data = read_station_files(&robot, &args.data, args.rows.rows.as_ref())?;
+    let grouping = args.group.groups(&data_files, &data.rows)?;
     let group_column = grouping.as_ref().map(|(c, _)| c.clone());
     let fold_groups = grouping.map(|(_, g)| g);
     let predictor = (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string());
@@ -75,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             predictor,
             cancel: cancel.clone(),
         };
-        armcomp_api::ops::fit::run(&robot, &data.samples, params, &|p| {
+        armcomp_api::ops::fit::run(&robot, &data, params, &|p| {
             if let Ok(b) = bar.lock() {
                 b.set_length(p.total as u64);
                 b.set_position(p.done as u64);

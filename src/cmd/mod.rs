@@ -152,6 +152,18 @@ pub fn read_stations(
     paths: &[PathBuf],
     rows: Option<&RowSelection>,
 ) -> anyhow::Result<(MeasurementSet, Vec<usize>)> {
+    let set = read_station_files(robot, paths, rows)?;
+    let new = robot.adopt_stations(&set.stations);
+    Ok((set, new))
+}
+
+/// The measurement files `paths` as one set of stations, as [`read_stations`] reads them,
+/// leaving the robot as it is (the library gives it the stations).
+pub fn read_station_files(
+    robot: &Robot,
+    paths: &[PathBuf],
+    rows: Option<&RowSelection>,
+) -> anyhow::Result<MeasurementSet> {
     let sets = paths
         .iter()
         .map(|p| read_measurements(robot, p, rows))
@@ -170,9 +182,7 @@ pub fn read_stations(
             twice.1
         );
     }
-    let set = MeasurementSet::from_files(sets, &names);
-    let new = robot.adopt_stations(&set.stations);
-    Ok((set, new))
+    Ok(MeasurementSet::from_files(sets, &names))
 }
 
 /// The data rows of gross errors (residual `whose` over 5 robust noises), then `what` became of

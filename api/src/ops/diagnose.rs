@@ -4,7 +4,7 @@
 use armcomp_core::analysis::diagnose::{DiagnoseParams, DiagnoseProgress, Diagnosis, DiagnosisReport, diagnose};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::evidence::{EvidenceParams, calibrate_with_evidence};
-use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::measurement::{MeasurementSet, Sample};
 use armcomp_core::{FitControl, PredictorSpec, Robot};
 
 /// The predictor that scores the learnable residual.
@@ -18,11 +18,11 @@ pub enum LearnableBy {
     None,
 }
 
-/// Diagnoses `robot` on `samples` with every registered plugin's candidates; `progress` hears
-/// of every fold calibration.
+/// Diagnoses `robot`, given the data's stations, on `data` with every registered plugin's
+/// candidates; `progress` hears of every fold calibration.
 pub fn run(
     robot: &Robot,
-    samples: &[Sample],
+    data: &MeasurementSet,
     params: &DiagnoseParams,
     learnable_by: LearnableBy,
     progress: &(dyn Fn(DiagnoseProgress) + Sync),
@@ -37,7 +37,15 @@ pub fn run(
         LearnableBy::Ridge => Some(("ridge", &ridge)),
         LearnableBy::None => None,
     };
-    diagnose(robot, samples, &crate::plugins(), predictor, params, progress)
+    let adopted = crate::with_stations(robot, data)?;
+    diagnose(
+        adopted.as_ref().unwrap_or(robot),
+        &data.samples,
+        &crate::plugins(),
+        predictor,
+        params,
+        progress,
+    )
 }
 
 /// The data rows (as `--rows` counts them) of the diagnosis' gross errors, largest first;
@@ -65,16 +73,19 @@ pub enum NoiseFrom {
     Estimated,
 }
 
-/// The calibration settings the diagnosis of `robot` on `samples` uses: continued from the
+/// The calibration settings the diagnosis of `robot` (given the data's stations) on `data` uses: continued from the
 /// model's fit record (its identified set, priors and noise, unless `calibration` sets them:
 /// `noise_declared`), and without a declared or recorded noise the noise the evidence
 /// estimates for the model as given on all rows.
 pub fn calibration_for(
     robot: &Robot,
-    samples: &[Sample],
+    data: &MeasurementSet,
     calibration: CalibrationParams,
     noise_declared: bool,
 ) -> armcomp_core::Result<(CalibrationParams, NoiseFrom)> {
+    let adopted = crate::with_stations(robot, data)?;
+    let robot = adopted.as_ref().unwrap_or(robot);
+    let samples = &data.samples;
     let recorded = robot.built_from().fitted.is_some();
     let mut calibration = calibration.continued_from(robot, samples, noise_declared, false);
     let from = match (noise_declared, recorded) {

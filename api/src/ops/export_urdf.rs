@@ -68,9 +68,14 @@ pub fn summary(robot: &Robot, urdf: &CalibratedUrdf, dropped: &[String]) -> Vec<
                 "written".into(),
                 format!("marker `{}`", m.name),
                 format!(
-                    "fixed joint `{joint}` from `{}` to a new link `{}`: {}",
+                    "fixed joint `{joint}` from `{}` to a new link `{}`{}: {}",
                     m.parent,
-                    m.name,
+                    m.link,
+                    if m.link == m.name {
+                        String::new()
+                    } else {
+                        format!(" (the URDF already uses the name `{}`)", m.name)
+                    },
                     pose(&m.offset)
                 ),
             ],

@@ -6,7 +6,7 @@ use armcomp_core::analysis::ladder::{Ladder, LadderParams, climb};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::FitsProgress;
 use armcomp_core::calibrate::plausibility::implausibility;
-use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::measurement::MeasurementSet;
 use armcomp_core::support::cancel::Cancel;
 
 /// How `fit` is asked to choose.
@@ -33,10 +33,12 @@ pub struct FitParams {
     pub cancel: Cancel,
 }
 
-/// Climbs the ladder for `robot` on `samples`; `progress` sees every fit done.
+/// Climbs the ladder for `robot` on `data`, the robot given the data's stations (each
+/// station's frame registered in closed form and refined with every fit); `progress` sees
+/// every fit done.
 pub fn run(
     robot: &Robot,
-    samples: &[Sample],
+    data: &MeasurementSet,
     params: FitParams,
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> armcomp_core::Result<Ladder> {
@@ -62,7 +64,9 @@ pub fn run(
         predictor,
         ..LadderParams::new(calibration, noise_declared)
     };
-    let mut ladder = climb(robot, samples, &ladder, progress)?;
+    let adopted = crate::with_stations(robot, data)?;
+    let samples = &data.samples;
+    let mut ladder = climb(adopted.as_ref().unwrap_or(robot), samples, &ladder, progress)?;
     ladder.calibration.report.implausible =
         implausibility(&ladder.calibration.robot, samples, Some(&ladder.report.evidence));
     Ok(ladder)

@@ -129,8 +129,8 @@ fn check_inputs(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -
             return invalid(
                 what,
                 format!(
-                    "it belongs to station {} but the robot has {} measurement frame(s); give the robot the data's \
-                     stations first (Robot::adopt_stations)",
+                    "it belongs to station {} but the robot has {} measurement frame(s): the data's `station` column \
+                     (or its --data files, one station each) names stations the robot was not given",
                     s.station + 1,
                     robot.n_stations()
                 ),

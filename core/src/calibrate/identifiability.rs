@@ -7,10 +7,11 @@ use super::jacobian::typical_scale;
 use super::space::prior_space;
 use super::{
     Assessment, CalibrationParams, Deficiency, IdentifiabilityReport, JacobianForm, Noise, PRIOR_BOX, ParameterSpace,
-    Problem,
+    Problem, Undetermined,
 };
 use crate::data::measurement::Sample;
 use crate::error::{Error, Result};
+use crate::model::param::Quantity;
 use crate::robot::Robot;
 
 /// See [`analyse`]: below this many noise standard deviations over all the data, a typical
@@ -55,6 +56,89 @@ pub(super) fn barely_seen(
         })
         .map(|(_, &k)| k)
         .collect()
+}
+
+/// Takes out of `free`, one at a time, the parameter whose standard deviation with the data and
+/// its prior (linearised at the start, `jac` holding the columns of `selected`, the other free
+/// parameters' correlations included) exceeds the whole range its model calls plausible by the
+/// most, until none does; returns them with the reason. A prior narrower than that range never
+/// lets it: only a parameter without one, or whose prior a scale has widened past the
+/// plausible (the evidence's, or `--prior none`), is taken out. Such a parameter is seen by the
+/// data only through noise (a joint's compliance when the load's centre of mass lies on the
+/// axis), and a fit moves it to values no robot has; held at its start, the fit goes on.
+fn undetermined(
+    space: &ParameterSpace,
+    jac: &DMatrix<f64>,
+    selected: &[usize],
+    free: &mut Vec<usize>,
+) -> Vec<Undetermined> {
+    let mut held = Vec::new();
+    loop {
+        let cols: Vec<usize> = (free.iter())
+            .map(|k| {
+                selected
+                    .iter()
+                    .position(|s| s == k)
+                    .expect("free parameters are selected")
+            })
+            .collect();
+        let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
+        let mut a = j.transpose() * &j;
+        for (c, &k) in free.iter().enumerate() {
+            let sigma = space.params[k].info.sigma;
+            if sigma.is_finite() {
+                a[(c, c)] += sigma.powi(-2);
+            }
+        }
+        // Scaled to a unit diagonal with a ridge far below any real information, so that a
+        // direction nothing holds (priors widened without bound) reads as a huge standard
+        // deviation instead of failing the factorisation.
+        let scale: Vec<f64> = (0..free.len()).map(|c| a[(c, c)].sqrt().max(1e-300)).collect();
+        let scaled = DMatrix::from_fn(free.len(), free.len(), |i, k| {
+            a[(i, k)] / (scale[i] * scale[k]) + if i == k { 1e-12 } else { 0.0 }
+        });
+        let Some(inv) = scaled.cholesky().map(|chol| chol.inverse()) else {
+            return held;
+        };
+        let worst = (free.iter().enumerate())
+            .filter_map(|(c, &k)| {
+                let info = &space.params[k].info;
+                let range = info.plausible.1 - info.plausible.0;
+                let std = inv[(c, c)].sqrt() / scale[c];
+                (range.is_finite() && std > range).then_some((c, std / range, std))
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((c, _, std)) = worst else {
+            return held;
+        };
+        let info = &space.params[free[c]].info;
+        held.push(Undetermined {
+            parameter: info.name.clone(),
+            reason: undetermined_reason(
+                info,
+                format!(
+                    "with these data its standard deviation would be {}, more than the whole range its model calls \
+                     plausible, {} to {}",
+                    info.quantity.readable(std),
+                    info.quantity.readable(info.plausible.0),
+                    info.quantity.readable(info.plausible.1),
+                ),
+            ),
+        });
+        free.remove(c);
+    }
+}
+
+/// Why `info` is undetermined: `detail`, and what causes it for its kind of parameter.
+fn undetermined_reason(info: &crate::model::param::ParamInfo, detail: String) -> String {
+    let cause = match info.quantity {
+        Quantity::Compliance => {
+            "; no pose of the data loads its joint enough: the centre of mass it carries (the load's) lies on or near \
+             the joint's axis"
+        }
+        _ => "",
+    };
+    format!("undetermined: {detail}{cause}")
 }
 
 /// Finds the directions the data cannot determine and decides what to fix (see the module
@@ -200,6 +284,7 @@ pub(super) fn analyse(
         condition_number_free: f64::NAN,
         deficiencies,
         held_by_priors: Vec::new(),
+        undetermined: Vec::new(),
         message,
     };
     (report, fixed.iter().map(|&c| free[c]).collect())
@@ -262,7 +347,32 @@ pub(super) fn combination(v: &DVector<f64>, cols: &[usize], name: &impl Fn(usize
 /// and what is barely determined, with the report saying so.
 pub(super) fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usize], tol: f64) -> Assessment {
     let (mut report, fixed) = analyse(space, jac, selected, tol);
-    let free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    let mut free: Vec<usize> = selected.iter().copied().filter(|k| !fixed.contains(k)).collect();
+    // A parameter fixed alone (no other in its null direction) is one the data cannot see.
+    let unseen = (report.deficiencies.iter())
+        .filter(|d| d.combination.len() == 1)
+        .filter_map(|d| d.fixed.as_ref())
+        .filter_map(|name| space.params.iter().find(|p| &p.info.name == name))
+        .map(|p| Undetermined {
+            parameter: p.info.name.clone(),
+            reason: undetermined_reason(&p.info, "no row of the data sees it".into()),
+        });
+    report.undetermined = unseen.collect();
+    report
+        .undetermined
+        .extend(undetermined(space, jac, selected, &mut free));
+    if !report.undetermined.is_empty() {
+        let sep = if report.message.is_empty() { "" } else { " " };
+        let list: Vec<String> = (report.undetermined.iter())
+            .map(|u| format!("{} ({})", u.parameter, u.reason))
+            .collect();
+        report.message.push_str(&format!(
+            "{sep}{} parameter(s) the data cannot determine are held at their start value and the fit goes on \
+             without them: {}.",
+            list.len(),
+            list.join("; ")
+        ));
+    }
     let held = barely_seen(space, jac, selected, &free);
     if !held.is_empty() {
         report.held_by_priors = held.iter().map(|&k| space.params[k].info.name.clone()).collect();

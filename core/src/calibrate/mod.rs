@@ -365,6 +365,16 @@ pub struct Deficiency {
     pub fixed: Option<String>,
 }
 
+/// A parameter the data cannot determine on its own, held at its start value (the robot
+/// file's, the priors' centre) while the fit goes on without it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Undetermined {
+    /// Dotted name.
+    pub parameter: String,
+    /// Why, in words.
+    pub reason: String,
+}
+
 /// How well the selected parameters are determined by the data.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct IdentifiabilityReport {
@@ -384,6 +394,9 @@ pub struct IdentifiabilityReport {
     /// above half their prior's), kept within [`PRIOR_BOX`] prior standard deviations of
     /// their start.
     pub held_by_priors: Vec<String>,
+    /// Parameters without a prior whose standard deviation with the data would exceed the
+    /// whole range their model calls plausible: held at their start value, not fitted.
+    pub undetermined: Vec<Undetermined>,
     /// Plain-language summary of any problem (empty when fully identifiable).
     pub message: String,
 }

@@ -54,13 +54,16 @@ pub struct JointOffset {
     pub prismatic: bool,
 }
 
-/// A marker written as a fixed joint from its link to a new link named as the marker.
+/// A marker written as a fixed joint from its link to a new link named as the marker, or, where
+/// the URDF already uses that name, the first free one of `<name>_marker`, `<name>_marker_2`, ….
 #[derive(Debug, Clone)]
 pub struct MarkerJoint {
-    /// The marker's (and the new link's) name.
+    /// The marker's name in the robot file.
     pub name: String,
-    /// The fixed joint's name; `None` for a marker at the origin of a link of its own name,
-    /// which the URDF already holds.
+    /// The new link's name: `name` unless the URDF already had it.
+    pub link: String,
+    /// The fixed joint's name (`<link>_joint`); `None` for a marker at the origin of a link of
+    /// its own name, which the URDF already holds.
     pub joint: Option<String>,
     /// The link the marker is on.
     pub parent: String,
@@ -102,16 +105,16 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
     let names: Vec<&str> = identified.iter().map(String::as_str).collect();
     let mut zeroed = 0;
     let mut text = rewrite_counting(&doc, robot.tree(), &names, &mut zeroed);
-    let markers = marker_joints(&doc, robot)?;
+    let markers = marker_joints(&doc, robot);
     let added: String = markers
         .iter()
         .filter_map(|m| {
             Some(format!(
                 "  <link name=\"{}\"/>\n  <joint name=\"{}\" type=\"fixed\">\n    <parent link=\"{}\"/>\n    <child link=\"{}\"/>\n    {}\n  </joint>\n",
-                escape(m.name.as_str()),
+                escape(m.link.as_str()),
                 escape(m.joint.as_deref()?),
                 escape(m.parent.as_str()),
-                escape(m.name.as_str()),
+                escape(m.link.as_str()),
                 origin(&m.offset, &mut zeroed)
             ))
         })
@@ -163,54 +166,50 @@ fn joint_offsets(doc: &UrdfDocument, tree: &KinematicTree) -> Vec<JointOffset> {
         .collect()
 }
 
-/// The markers of `robot` (its tool when it names none) as fixed joints to links of their own;
-/// refused, with the offset that would be lost, where the URDF already uses the name.
-fn marker_joints(doc: &UrdfDocument, robot: &Robot) -> Result<Vec<MarkerJoint>> {
+/// The markers of `robot` (its tool when it names none) as fixed joints to links of their own,
+/// each named as its marker where the URDF (and the markers before it) leave that link name and
+/// its `<link>_joint` free, else the first free `<name>_marker`, `<name>_marker_2`, ….
+fn marker_joints(doc: &UrdfDocument, robot: &Robot) -> Vec<MarkerJoint> {
     let tree = robot.tree();
     let markers = match robot.markers() {
         [] => vec![robot.tool()],
         m => m.to_vec(),
     };
-    markers
-        .into_iter()
-        .map(|m| {
-            let point = &tree.points()[m];
-            let parent = tree.bodies()[point.body].name.clone();
-            let joint = format!("{}_joint", point.name);
-            let at_origin = origin(&point.local, &mut 0) == origin(&Isometry3::identity(), &mut 0);
-            if parent == point.name && at_origin {
-                return Ok(MarkerJoint {
-                    name: point.name.clone(),
-                    joint: None,
-                    parent,
-                    offset: point.local,
-                });
-            }
-            let taken = if doc.links.iter().any(|l| l.name == point.name) {
-                Some(format!("a link `{}`", point.name))
-            } else if doc.joints.iter().any(|j| j.name == joint) {
-                Some(format!("a joint `{joint}`"))
-            } else {
-                None
-            };
-            if let Some(taken) = taken {
-                return Err(Error::InvalidArgument {
-                    what: format!("marker `{}`", point.name),
-                    reason: format!(
-                        "its offset on `{parent}`, {}, cannot be written as the fixed joint `{joint}` to a link `{}`: the URDF already has {taken}; rename the point in the robot file",
-                        origin(&point.local, &mut 0),
-                        point.name
-                    ),
-                });
-            }
-            Ok(MarkerJoint {
+    let mut links: std::collections::HashSet<String> = doc.links.iter().map(|l| l.name.clone()).collect();
+    let mut joints: std::collections::HashSet<String> = doc.joints.iter().map(|j| j.name.clone()).collect();
+    let mut written = Vec::with_capacity(markers.len());
+    for m in markers {
+        let point = &tree.points()[m];
+        let parent = tree.bodies()[point.body].name.clone();
+        let at_origin = origin(&point.local, &mut 0) == origin(&Isometry3::identity(), &mut 0);
+        if parent == point.name && at_origin {
+            written.push(MarkerJoint {
                 name: point.name.clone(),
-                joint: Some(joint),
+                link: point.name.clone(),
+                joint: None,
                 parent,
                 offset: point.local,
-            })
-        })
-        .collect()
+            });
+            continue;
+        }
+        let free = |link: &String| !links.contains(link) && !joints.contains(&format!("{link}_joint"));
+        let link = std::iter::once(point.name.clone())
+            .chain(std::iter::once(format!("{}_marker", point.name)))
+            .chain((2..).map(|k| format!("{}_marker_{k}", point.name)))
+            .find(free)
+            .expect("an unbounded list of names has one the finite URDF does not use");
+        let joint = format!("{link}_joint");
+        links.insert(link.clone());
+        joints.insert(joint.clone());
+        written.push(MarkerJoint {
+            name: point.name.clone(),
+            link,
+            joint: Some(joint),
+            parent,
+            offset: point.local,
+        });
+    }
+    written
 }
 
 /// `v`, or 0 below [`ZERO_BELOW`] (never `-0.0`), counting the non-zero values zeroed.
