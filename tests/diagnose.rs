@@ -918,22 +918,26 @@ fn the_score_test_predicts_what_a_refit_reaches() {
 #[test]
 fn an_effect_small_against_the_total_but_large_against_the_floor_is_named() {
     let nominal = robot("industrial-6dof.toml");
-    let truth = with_effects(&nominal, &[json!({"type": "joint_compliance", "compliance": {"j2": FLOOR_CASE_COMPLIANCE}})]);
+    let truth = with_effects(
+        &nominal,
+        &[json!({"type": "joint_compliance", "compliance": {"j2": FLOOR_CASE_COMPLIANCE}})],
+    );
     let noise = 0.05e-3;
     for seed in 1..=3 {
         let samples = measure(&truth, 300, noise, 40 + seed, Campaign::default());
         let r = run(&nominal, &samples, noise, 1);
-        let step = r
-            .steps
-            .first()
-            .unwrap_or_else(|| {
-                let c = &r.final_model.ranking[0];
-                panic!(
-                    "seed {seed}: nothing named; first {} ({}): {:.4} of the total, {:.4} above the floor; {}",
-                    c.label, c.effect, c.share_removed, c.share_above_floor, c.verdict
-                )
-            });
-        assert_eq!((step.effect.as_str(), step.location.as_str()), ("joint_compliance", "j2"), "seed {seed}");
+        let step = r.steps.first().unwrap_or_else(|| {
+            let c = &r.final_model.ranking[0];
+            panic!(
+                "seed {seed}: nothing named; first {} ({}): {:.4} of the total, {:.4} above the floor; {}",
+                c.label, c.effect, c.share_removed, c.share_above_floor, c.verdict
+            )
+        });
+        assert_eq!(
+            (step.effect.as_str(), step.location.as_str()),
+            ("joint_compliance", "j2"),
+            "seed {seed}"
+        );
         let winner = &step.ranking[0];
         // The 5 % the total would have to lose, the share above the floor does.
         assert!(
@@ -949,4 +953,3 @@ fn an_effect_small_against_the_total_but_large_against_the_floor_is_named() {
 /// The compliance of [`an_effect_small_against_the_total_but_large_against_the_floor_is_named`]
 /// (rad/(N m)).
 const FLOOR_CASE_COMPLIANCE: f64 = 2e-6;
-

@@ -315,7 +315,13 @@ fn nested_scores_never_fit_the_rows_that_score_them() {
     }
     // One group per fold leaves nothing to draw again.
     assert_eq!(ladder.report.repeats, 1);
-    assert!(ladder.report.candidates.iter().any(|c| c.candidate.rung == Rung::JointOffsets));
+    assert!(
+        ladder
+            .report
+            .candidates
+            .iter()
+            .any(|c| c.candidate.rung == Rung::JointOffsets)
+    );
 }
 
 /// Agile Justin's 250 / 250 split of the published data (seed 1, as the step table): the
@@ -336,7 +342,10 @@ fn agile_justin_ladder() {
     let started = std::time::Instant::now();
     let ladder = climb(&justin, &train, &params, &|_| {}).unwrap();
     for c in &ladder.report.candidates {
-        println!("{:<52} {:.3} mm  {:.1} s  {:?}", c.label, c.rms_mm, c.seconds, c.not_sound);
+        println!(
+            "{:<52} {:.3} mm  {:.1} s  {:?}",
+            c.label, c.rms_mm, c.seconds, c.not_sound
+        );
     }
     let held = ErrorStats::from_errors(&position_errors(&ladder.robot, &test));
     println!(

@@ -98,6 +98,7 @@ fn modelled_tool(robot: &Robot, q: &[f64]) -> Vector3<f64> {
         fixed_point: None,
         plane: None,
         gravity: None,
+        position_std: None,
         station: 0,
     };
     -position_errors(robot, &[at_origin])[0]

@@ -668,6 +668,7 @@ fn sample_of(rest: &Rest, s: &PostureSums, point: usize, pose: bool) -> Sample {
         fixed_point: None,
         plane: None,
         gravity: None,
+        position_std: None,
         station: 0,
     }
 }

@@ -54,8 +54,7 @@ pub fn diagnose(
         measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,
         ..CalibrationParams::default()
     };
-    let (calibration, _) = armcomp_api::ops::diagnose::calibration_for(&robot, &set, given, noise_mm.is_some())
-        .py()?;
+    let (calibration, _) = armcomp_api::ops::diagnose::calibration_for(&robot, &set, given, noise_mm.is_some()).py()?;
     let params = DiagnoseParams {
         folds,
         seed,
@@ -84,5 +83,8 @@ pub fn diagnose(
         cancel: Default::default(),
     };
     let (model, _) = armcomp_api::ops::diagnose::output_model(&robot, &diagnosis, &set.samples, &control).py()?;
-    Ok((model.map_or_else(|| PyRobot::shared(robot.clone()), PyRobot::wrap), json))
+    Ok((
+        model.map_or_else(|| PyRobot::shared(robot.clone()), PyRobot::wrap),
+        json,
+    ))
 }

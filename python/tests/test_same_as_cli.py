@@ -260,12 +260,13 @@ def test_fit_chooses_and_writes_what_the_command_line_does(simulated):
     assert (tmp / "fit_py.toml").read_bytes() == (tmp / "fit_cli.toml").read_bytes()
     # Everything but the run times.
     got = report.to_dict()
-    for rungs in (got["rungs"], expected["rungs"]):
-        for r in rungs:
-            r.pop("seconds")
+    for candidates in (got["candidates"], expected["candidates"]):
+        for c in candidates:
+            c.pop("seconds")
     assert got == expected
-    assert [r.label for r in report.rungs] == ["registration", "joint offsets", "geometry"]
-    assert report.rungs[0].kept and report.expected_rms_mm > 0
+    assert [c.candidate.rung for c in report.candidates[::8]] == ["registration", "joint_offsets", "geometry"]
+    assert report.candidates[0].label == "registration, evidence per parameter"
+    assert report.chosen in [c.candidate for c in report.candidates] and report.expected_rms_mm > 0
 
 
 def test_fit_and_diagnose_score_fixed_points_as_the_command_line(tmp_path):
@@ -283,9 +284,9 @@ def test_fit_and_diagnose_score_fixed_points_as_the_command_line(tmp_path):
     expected = cli_json("fit", "--robot", robot_path, "--data", data_path, "--folds", 3, "--out", tmp_path / "fit.toml")
     _, report = armcomp.fit(robot, data, folds=3)
     got = report.to_dict()
-    for rungs in (got["rungs"], expected["rungs"]):
-        for r in rungs:
-            r.pop("seconds")
+    for candidates in (got["candidates"], expected["candidates"]):
+        for c in candidates:
+            c.pop("seconds")
     assert got == expected
     assert got["scored_by"] == "fixed-point distance" and "no 3-D error" in got["predictor_not_tried"]
     # Joint noise of 0.01° moves the ball by about 0.1 mm: what a held-out contact is off by.

@@ -167,7 +167,9 @@ fn print_ladder(r: &armcomp_core::analysis::ladder::LadderReport, rows: usize, g
             c.excess_mm,
             c.effective_params,
             c.seconds,
-            c.not_sound.as_deref().map_or(String::new(), |w| format!("  not sound: {w}"))
+            c.not_sound
+                .as_deref()
+                .map_or(String::new(), |w| format!("  not sound: {w}"))
         );
     }
     if let Some(why) = &r.predictor_not_tried {

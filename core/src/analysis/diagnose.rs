@@ -472,7 +472,10 @@ fn search(
         samples,
         splits,
         given: robot.error_models().len(),
-        floor: if samples.iter().all(|s| s.kind() == crate::data::measurement::SampleKind::Position) {
+        floor: if samples
+            .iter()
+            .all(|s| s.kind() == crate::data::measurement::SampleKind::Position)
+        {
             3.0 * params.calibration.measurement_std.powi(2)
         } else {
             0.0
@@ -1127,8 +1130,10 @@ fn judge(
     out.implausible_values = 2 * implausible_folds > evaluation.params.len();
     let (gain, penalty) = (n * (sse0 / sse1).ln(), k as f64 * n.ln());
     out.verdict = verdict(out, gain, penalty, params);
-    out.earns_parameters =
-        !out.at_neutral && !out.implausible_values && out.share_above_floor >= params.min_rms_reduction && gain > penalty;
+    out.earns_parameters = !out.at_neutral
+        && !out.implausible_values
+        && out.share_above_floor >= params.min_rms_reduction
+        && gain > penalty;
     out.heldout = Some(ErrorStats::from_errors(&evaluation.errors));
     out.heldout_bic = bic(&evaluation.errors, k);
     out.evaluation = Some(evaluation);

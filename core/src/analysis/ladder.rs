@@ -356,7 +356,12 @@ fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], c
 }
 
 /// `robot`'s file with `spec` fitted on what it leaves on `samples`.
-fn file_with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], cancel: &Cancel) -> Result<RobotFile> {
+fn file_with_predictor(
+    robot: &Robot,
+    spec: &dyn PredictorSpec,
+    samples: &[Sample],
+    cancel: &Cancel,
+) -> Result<RobotFile> {
     let control = FitControl {
         progress: None,
         cancel: cancel.clone(),
@@ -371,7 +376,14 @@ fn file_with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sampl
 
 /// The record of how the chosen candidate was fitted on all rows (`fit`), for the commands that
 /// continue from the model.
-fn fit_record(robot: &Robot, samples: &[Sample], params: &LadderParams, chosen: Candidate, fit: &SchemeFit, expected_rms_mm: f64) -> FitRecord {
+fn fit_record(
+    robot: &Robot,
+    samples: &[Sample],
+    params: &LadderParams,
+    chosen: Candidate,
+    fit: &SchemeFit,
+    expected_rms_mm: f64,
+) -> FitRecord {
     let lin = &fit.calibration.linearisation;
     let space = crate::calibrate::ParameterSpace::for_samples(robot, samples);
     let prior_scales = lin
@@ -543,7 +555,15 @@ pub fn climb(
         }
     }
     let interrupted = cancel.is_cancelled();
-    let mut gathered = gather(samples.len(), &rungs, params, predictor.is_some(), &draws, &results, &seconds);
+    let mut gathered = gather(
+        samples.len(),
+        &rungs,
+        params,
+        predictor.is_some(),
+        &draws,
+        &results,
+        &seconds,
+    );
     if gathered.candidates.is_empty() {
         return Err(Error::Interrupted);
     }
@@ -600,8 +620,14 @@ fn gather(
     seconds: &[f64],
 ) -> Gathered {
     let rms = |e: &mut dyn Iterator<Item = f64>| {
-        let (sum, count) = e.filter(|v| !v.is_nan()).fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
-        if count == 0 { f64::NAN } else { (sum / count as f64).sqrt() * 1e3 }
+        let (sum, count) = e
+            .filter(|v| !v.is_nan())
+            .fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
+        if count == 0 {
+            f64::NAN
+        } else {
+            (sum / count as f64).sqrt() * 1e3
+        }
     };
     let mut out = Gathered::default();
     for (r, &rung) in rungs.iter().enumerate() {
@@ -618,7 +644,11 @@ fn gather(
                     let mut errors = vec![f64::NAN; n];
                     for (split, fold) in draws[k].iter().zip(folds) {
                         let score = &fold[s];
-                        let e = if predictor { score.with_predictor.as_ref().unwrap_or(&score.errors) } else { &score.errors };
+                        let e = if predictor {
+                            score.with_predictor.as_ref().unwrap_or(&score.errors)
+                        } else {
+                            &score.errors
+                        };
                         for (&i, &v) in split.test.iter().zip(e) {
                             errors[i] = v;
                         }
@@ -739,7 +769,11 @@ fn choose(gathered: &mut Gathered, groups: &[usize]) -> Choice {
             .zip(&repeat_rms[best])
             .filter_map(|(a, b)| Some(a.as_ref()? - b.as_ref()?))
             .collect();
-        score.excess_mm = if d.is_empty() { f64::NAN } else { d.iter().sum::<f64>() / d.len() as f64 };
+        score.excess_mm = if d.is_empty() {
+            f64::NAN
+        } else {
+            d.iter().sum::<f64>() / d.len() as f64
+        };
         score.excess_std_error_mm = std_dev(&d) / (d.len().max(1) as f64).sqrt();
         score.within_noise = score.excess_mm <= score.excess_std_error_mm.max(MIN_SCORE_NOISE * best_rms);
     }

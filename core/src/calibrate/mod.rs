@@ -255,7 +255,13 @@ impl CalibrationParams {
     /// set when `identify` is empty, its priors (each parameter's recorded factor on the file's
     /// prior, or none) unless `priors_given`, and its noise unless `noise_declared`. Unchanged
     /// for a robot without a record.
-    pub fn continued_from(mut self, robot: &Robot, samples: &[Sample], noise_declared: bool, priors_given: bool) -> Self {
+    pub fn continued_from(
+        mut self,
+        robot: &Robot,
+        samples: &[Sample],
+        noise_declared: bool,
+        priors_given: bool,
+    ) -> Self {
         let Some(record) = &robot.built_from().fitted else {
             return self;
         };
