@@ -70,7 +70,7 @@ pub fn calibrate(
     };
     let run = crate::interrupt::run(py, |cancel| {
         armcomp_api::ops::calibrate::run(
-            &robot,
+            robot,
             &set.samples,
             CalibrationParams {
                 cancel: cancel.clone(),

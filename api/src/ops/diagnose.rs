@@ -106,8 +106,8 @@ pub fn calibration_for(
 }
 
 /// The model `diagnose --out` writes, and what became of the given model's predictor: `None`
-/// for the model as given (with its predictor and fit record) when no effect was added; else
-/// the diagnosed model, with the given model's predictor fitted again on what it leaves on
+/// for the model as given (with its predictor and fit record) when it has a predictor and no
+/// effect was added; else the diagnosed model, with the given model's predictor fitted again on what it leaves on
 /// `samples`, so that a predictor is never dropped without a word.
 pub fn output_model(
     given: &Robot,
@@ -115,12 +115,9 @@ pub fn output_model(
     samples: &[Sample],
     control: &FitControl<'_>,
 ) -> armcomp_core::Result<(Option<Robot>, Option<String>)> {
-    if diagnosis.report.steps.is_empty() {
-        let note = given
-            .predictor()
-            .is_some()
-            .then(|| "no effect was added: the model is written as given, its fitted predictor kept".to_string());
-        return Ok((None, note));
+    if diagnosis.report.steps.is_empty() && given.predictor().is_some() {
+        let note = "no effect was added: the model is written as given, its fitted predictor kept".to_string();
+        return Ok((None, Some(note)));
     }
     let diagnosed = &diagnosis.robot;
     if given.predictor().is_none() || diagnosed.predictor_spec().is_none() {
