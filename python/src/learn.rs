@@ -49,6 +49,7 @@ pub fn learn(
         "after": run.after,
         "cross_validated": run.cross_validated.as_ref().map(|(stats, _)| stats),
         "cross_validation": run.cross_validated.as_ref().map(|(_, folding)| folding),
+        "refitted": run.refitted,
         "warnings": run.warnings(),
     });
     Ok((PyRobot::wrap(run.robot), json.to_string()))

@@ -152,7 +152,10 @@ fn print_ladder(r: &armcomp_core::analysis::ladder::LadderReport, rows: usize, g
         "candidate", "held-out RMS", "± spread", "excess", "params", "time"
     );
     for c in &r.candidates {
-        let mark = if c.candidate == r.chosen {
+        let in_stack = c.candidate.rung == r.chosen.rung
+            && c.candidate.predictor == r.chosen.predictor
+            && r.stack.iter().any(|m| m.prior == c.candidate.prior);
+        let mark = if c.candidate == r.chosen || in_stack {
             '*'
         } else if c.within_noise {
             '~'
@@ -176,14 +179,21 @@ fn print_ladder(r: &armcomp_core::analysis::ladder::LadderReport, rows: usize, g
         println!("residual predictor not tried: {why}");
     }
     let e = &r.evidence;
+    let chosen = if r.stack.is_empty() {
+        r.chosen.label()
+    } else {
+        format!(
+            "{}, the weighted mean of {}{}",
+            r.chosen.rung.label(),
+            (r.stack.iter())
+                .map(|m| format!("{:.2} × {}", m.weight, m.label))
+                .collect::<Vec<_>>()
+                .join(" + "),
+            if r.chosen.predictor { ", + predictor" } else { "" }
+        )
+    };
     println!(
-        "chosen (*): {}: {} (expected held-out RMS {:.3} mm; ~ within the noise of the best); on all rows the noise is {:.4} ± {:.4} mm per axis, {:.1} of {} parameters determined",
-        r.chosen.label(),
-        r.reason,
-        r.expected_rms_mm,
-        e.noise_mm,
-        e.noise_std_mm,
-        e.determined,
-        e.n_free
+        "chosen (*): {}: {} (expected held-out RMS {:.3} mm, the choice itself cross-validated; ~ within the noise of the best); on all rows the noise is {:.4} ± {:.4} mm per axis, {:.1} of {} parameters determined",
+        chosen, r.reason, r.expected_rms_mm, e.noise_mm, e.noise_std_mm, e.determined, e.n_free
     );
 }

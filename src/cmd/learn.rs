@@ -84,6 +84,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
              cross-validation, {folding}, it is what to expect of new rows)"
         );
     }
+    if let Some(r) = &run.refitted {
+        line("fitted again in every fold: the model alone", &r.model);
+        line("fitted again in every fold: with the predictor", &r.with_predictor);
+        println!(
+            "  (the model's fit record: each fold's training rows fit the physical model again, from where `fit` \
+             started and as it fitted, then the predictor; these are the figures `fit` scored the model by, and \
+             what to expect of new rows)"
+        );
+    }
     println!("wrote {}", args.out.display());
     for w in run.warnings() {
         eprintln!("warning: {w}");

@@ -38,8 +38,12 @@ pub fn run(
         LearnableBy::None => None,
     };
     let adopted = crate::with_stations(robot, data)?;
+    let robot = adopted.as_ref().unwrap_or(robot);
+    // A fitted model is fitted again from where its fit started, as `fit` scored it: from its
+    // own answer, every fold would start from values that have seen the fold's rows.
+    let restored = armcomp_core::calibrate::before_fit(robot, &data.samples)?;
     diagnose(
-        adopted.as_ref().unwrap_or(robot),
+        restored.as_ref().unwrap_or(robot),
         &data.samples,
         &crate::plugins(),
         predictor,
@@ -106,18 +110,23 @@ pub fn calibration_for(
 }
 
 /// The model `diagnose --out` writes, and what became of the given model's predictor: `None`
-/// for the model as given (with its predictor and fit record) when it has a predictor and no
-/// effect was added; else the diagnosed model, with the given model's predictor fitted again on what it leaves on
-/// `samples`, so that a predictor is never dropped without a word.
+/// for the model as given (with its predictor and fit record) when no effect was added, so
+/// that a diagnosis that finds nothing never changes the model; else the diagnosed model, with
+/// the given model's predictor fitted again on what it leaves on `samples`, so that a predictor
+/// is never dropped without a word.
 pub fn output_model(
     given: &Robot,
     diagnosis: &Diagnosis,
     samples: &[Sample],
     control: &FitControl<'_>,
 ) -> armcomp_core::Result<(Option<Robot>, Option<String>)> {
-    if diagnosis.report.steps.is_empty() && given.predictor().is_some() {
-        let note = "no effect was added: the model is written as given, its fitted predictor kept".to_string();
-        return Ok((None, Some(note)));
+    if diagnosis.report.steps.is_empty() {
+        let note = if given.predictor().is_some() {
+            "no effect was added: the model is written as given, its fitted predictor kept"
+        } else {
+            "no effect was added: the model is written as given"
+        };
+        return Ok((None, Some(note.to_string())));
     }
     let diagnosed = &diagnosis.robot;
     if given.predictor().is_none() || diagnosed.predictor_spec().is_none() {

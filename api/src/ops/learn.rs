@@ -25,8 +25,23 @@ pub struct LearnRun {
     /// (measured minus modelled position, the predictions in the base frame) and the same
     /// statistics as `after`: only whether the predictor saw the row differs.
     pub cross_validated: Option<(ErrorStats, armcomp_core::data::split::Folding)>,
+    /// For a model `fit` wrote (one with a fit record): the same folds with the physical model
+    /// fitted again on each fold's training rows too, from where its fit started and the way
+    /// it was fitted, the model alone and then with the predictor. These are the figures `fit`
+    /// scored the model by; `cross_validated` keeps the physical model fitted on every row,
+    /// which has seen the held-out rows, so it is the lower of the two.
+    pub refitted: Option<Refitted>,
     /// Fitting time (s).
     pub seconds: f64,
+}
+
+/// Held-out errors with the physical model fitted again in every fold (see [`LearnRun::refitted`]).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Refitted {
+    /// The physical model alone.
+    pub model: ErrorStats,
+    /// With the predictor fitted on what the fold's model leaves on its training rows.
+    pub with_predictor: ErrorStats,
 }
 
 /// Folds of the cross-validated error `learn` reports beside the training error.
@@ -47,6 +62,17 @@ impl LearnRun {
             )];
         };
         let mut out = Vec::new();
+        if let Some(r) = &self.refitted {
+            // The model's own figures: the training rows say nothing here (a GP interpolates them).
+            if r.with_predictor.rms_mm >= r.model.rms_mm {
+                out.push(format!(
+                    "the predictor does not help on rows it was not fitted on (RMS {:.4} mm with it, {:.4} mm without, \
+                     the physical model fitted again in every fold)",
+                    r.with_predictor.rms_mm, r.model.rms_mm
+                ));
+            }
+            return out;
+        }
         if cv.rms_mm > MEMORISING_RATIO * self.after.rms_mm {
             out.push(format!(
                 "the predictor memorises: RMS {:.4} mm on its training rows but {:.4} mm on rows it was not fitted on",
@@ -107,7 +133,9 @@ pub fn run(
                 .into(),
         });
     };
-    // Contacts become the positions they measure under the model (its fixed points and planes).
+    // Contacts become the positions they measure under the model (its fixed points and planes);
+    // a fold's model fitted again would measure them otherwise, so only positions are refitted.
+    let positions = measures_positions(samples);
     let converted;
     let samples = if measures_positions(samples) {
         samples
@@ -121,6 +149,7 @@ pub fn run(
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let after = ErrorStats::from_errors(&predictor_errors(robot, fitted.as_ref(), samples));
     let poses = armcomp_core::data::split::pose_groups(samples).len();
+    let fold_groups_again = fold_groups.clone();
     let cross_validated = if poses >= CV_FOLDS {
         let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups);
         Some(cross_validated_predictor_errors(
@@ -128,6 +157,13 @@ pub fn run(
         )?)
     } else {
         None
+    };
+    let refitted = match (&cross_validated, armcomp_core::calibrate::before_fit(robot, samples)?) {
+        (Some((_, _)), Some(start)) if positions => {
+            let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups_again.clone());
+            Some(refitted_errors(robot, &start, spec, samples, &by, control)?)
+        }
+        _ => None,
     };
     if let Some(spec) = predictor {
         file.predictor = Some(spec);
@@ -140,6 +176,47 @@ pub fn run(
         before,
         after,
         cross_validated,
+        refitted,
         seconds,
+    })
+}
+
+/// The held-out errors of [`LearnRun::refitted`]: in each of [`CV_FOLDS`] folds (seed 0, as
+/// `cross_validated`), the physical model fitted on the training rows from `start` (the model
+/// before its fit) as `model`'s fit record says, then the predictor on what it leaves.
+fn refitted_errors(
+    model: &Robot,
+    start: &Robot,
+    spec: &dyn PredictorSpec,
+    samples: &[Sample],
+    by: &armcomp_core::data::split::FoldBy,
+    control: &FitControl<'_>,
+) -> armcomp_core::Result<Refitted> {
+    use armcomp_core::calibrate::{CalibrationParams, calibrate, register_held_out_stations};
+    use armcomp_core::data::split::{folds, subset};
+    let (splits, _) = folds(samples, CV_FOLDS, 0, by)?;
+    let params = CalibrationParams {
+        cancel: control.cancel.clone(),
+        ..CalibrationParams::default()
+    }
+    .continued_from(model, samples, false, false);
+    let (mut alone, mut with) = (Vec::new(), Vec::new());
+    for (k, split) in splits.iter().enumerate() {
+        let train = subset(samples, &split.train);
+        let test = subset(samples, &split.test);
+        let mut fit = calibrate(start, &train, &params, &mut |_| {})?.robot;
+        register_held_out_stations(&mut fit, &train, &test)?;
+        let fold_control = FitControl {
+            progress: None,
+            cancel: control.cancel.clone(),
+        };
+        let fitted = fit_residual_predictor(&fit, spec, &train, &fold_control)?;
+        alone.extend(model_errors(&fit, &test));
+        with.extend(predictor_errors(&fit, fitted.as_ref(), &test));
+        control.report("refitted folds", k + 1, splits.len());
+    }
+    Ok(Refitted {
+        model: ErrorStats::from_errors(&alone),
+        with_predictor: ErrorStats::from_errors(&with),
     })
 }

@@ -17,10 +17,18 @@
 //! converged to physically plausible values; within it, the first prior scheme (the evidence
 //! first) whose paired difference from the level's best lies within its standard error over the
 //! held-out groups. A candidate that is not sound is chosen only when no sound one is within
-//! the noise, and the report says so.
+//! the noise, and the report says so. Then stacking: when a weighted mean of the level's schemes
+//! (weights on the simplex, fitted to their out-of-fold errors) beats that one by more than the
+//! standard error of the paired difference, the model is that mean, every parameter the
+//! weighted mean of the schemes' values.
+//!
+//! The expected error is the choice's own cross-validated score: each fold's rows are scored by
+//! the choice made from the other folds' rows. The best of many candidates' scores would be
+//! optimistic, since the choice among them has seen the rows that score it.
 
 use std::time::Instant;
 
+use nalgebra::{DMatrix, DVector, Vector3};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -213,13 +221,17 @@ pub struct CandidateScore {
 pub struct LadderReport {
     /// Every candidate scored, level by level.
     pub candidates: Vec<CandidateScore>,
-    /// The candidate chosen.
+    /// The candidate chosen (with a stack, its heaviest member).
     pub chosen: Candidate,
+    /// When the model is a weighted mean of the chosen level's prior schemes (stacking): each
+    /// member and its weight; empty otherwise.
+    pub stack: Vec<StackMember>,
     /// Why, in words.
     pub reason: String,
     /// Said first when the chosen candidate is not sound (no sound one scored within the noise).
     pub warning: Option<String>,
-    /// Its cross-validated RMS: the held-out error to expect from the model (mm).
+    /// The held-out error to expect from the model (mm): the cross-validated RMS of the
+    /// whole choice, each fold scored by the choice made without its rows.
     pub expected_rms_mm: f64,
     /// Outer folds.
     pub folds: usize,
@@ -240,6 +252,17 @@ pub struct LadderReport {
     /// candidates are scored on the repeats and levels whose every fold was fitted before it,
     /// and the choice among them was fitted on all rows after it.
     pub interrupted: bool,
+}
+
+/// A member of a stack: a prior scheme of the chosen level and its weight.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StackMember {
+    /// The scheme.
+    pub prior: PriorScheme,
+    /// Its name in reports.
+    pub label: String,
+    /// Its weight (the weights sum to one).
+    pub weight: f64,
 }
 
 /// The chosen model, fitted on all rows.
@@ -403,6 +426,9 @@ fn fit_record(
         noise_deg: robot.measures_pose().then(|| lin.orientation_noise.to_degrees()),
         expected_rms_mm: Some(expected_rms_mm),
         predictor: chosen.predictor,
+        nominal: (lin.free.iter())
+            .map(|&k| (space.params[k].info.name.clone(), lin.centre[k]))
+            .collect(),
     }
 }
 
@@ -415,10 +441,10 @@ fn json_error(e: serde_json::Error) -> Error {
 
 /// What one outer fold says of one scheme of a level.
 struct SchemeScore {
-    /// Squared held-out error of each of the fold's test samples (m², NaN where its fold
-    /// cannot score it), without and with the predictor.
-    errors: Vec<f64>,
-    with_predictor: Option<Vec<f64>>,
+    /// The held-out error of each of the fold's test samples (m; `None` where its fold cannot
+    /// score it), without and with the predictor.
+    errors: Vec<Option<Vector3<f64>>>,
+    with_predictor: Option<Vec<Option<Vector3<f64>>>>,
     not_sound: Option<String>,
     effective_params: f64,
 }
@@ -435,12 +461,7 @@ fn score_fold(
 ) -> Result<Vec<SchemeScore>> {
     let train = subset(samples, &split.train);
     let test = subset(samples, &split.test);
-    let squared = |model: &Robot| -> Result<Vec<f64>> {
-        Ok(crate::analysis::held_out::held_out_errors(model, &train, &test)?
-            .into_iter()
-            .map(|e| e.map_or(f64::NAN, |e| e.norm_squared()))
-            .collect())
-    };
+    let errors = |model: &Robot| crate::analysis::held_out::held_out_errors(model, &train, &test);
     fit_schemes(robot, &train, params, rung, &params.schemes, cancel)?
         .into_iter()
         .map(|fit| {
@@ -448,12 +469,11 @@ fn score_fold(
             let effective_params = crate::calibrate::evidence::effective_parameters(&fit.calibration.linearisation);
             let mut model = fit.calibration.robot;
             register_held_out_stations(&mut model, &train, &test)?;
-            let errors = squared(&model)?;
             let with_predictor = predictor
-                .map(|spec| squared(&with_predictor(&model, spec, &train, cancel)?))
+                .map(|spec| errors(&with_predictor(&model, spec, &train, cancel)?))
                 .transpose()?;
             Ok(SchemeScore {
-                errors,
+                errors: errors(&model)?,
                 with_predictor,
                 not_sound,
                 effective_params,
@@ -567,14 +587,41 @@ pub fn climb(
     if gathered.candidates.is_empty() {
         return Err(Error::Interrupted);
     }
-    let choice = choose(&mut gathered, &held_out_groups(samples, &by));
+    let groups = held_out_groups(samples, &by);
+    let choice = choose(&gathered, &groups, &vec![true; samples.len()]);
+    let expected_rms_mm = Some(nested_rms_mm(&gathered, &groups))
+        .filter(|v| v.is_finite())
+        .unwrap_or(gathered.candidates[choice.index].rms_mm);
+    for (score, excess) in gathered.candidates.iter_mut().zip(&choice.excess) {
+        score.excess_mm = excess.mean;
+        score.excess_std_error_mm = excess.std_error;
+        score.within_noise = excess.within_noise;
+    }
     let candidates = gathered.candidates;
     let chosen = candidates[choice.index].candidate;
+    let stack: Vec<StackMember> = (choice.stack.iter())
+        .map(|&(c, weight)| StackMember {
+            prior: candidates[c].candidate.prior,
+            label: candidates[c].candidate.prior.label(),
+            weight,
+        })
+        .collect();
     // The choice is still fitted on all rows after a stop request; only a further one stops it.
     let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
-    let fit = fit_schemes(robot, samples, params, chosen.rung, &[chosen.prior], &final_cancel)?
-        .pop()
-        .expect("one scheme asked, one fit");
+    let schemes: Vec<PriorScheme> = if stack.is_empty() {
+        vec![chosen.prior]
+    } else {
+        stack.iter().map(|m| m.prior).collect()
+    };
+    let mut fits = fit_schemes(robot, samples, params, chosen.rung, &schemes, &final_cancel)?;
+    let heaviest = schemes.iter().position(|&p| p == chosen.prior).unwrap_or(0);
+    let stacked = (!stack.is_empty())
+        .then(|| stacked_model(robot, samples, &fits, &stack))
+        .transpose()?;
+    let mut fit = fits.swap_remove(heaviest);
+    if let Some(model) = stacked {
+        fit.calibration.robot = model;
+    }
     tick();
     let fitted = &fit.calibration.robot;
     let mut file = match predictor.filter(|_| chosen.predictor) {
@@ -584,8 +631,17 @@ pub fn climb(
     if predictor.is_some() {
         tick();
     }
-    let expected_rms_mm = candidates[choice.index].rms_mm;
-    file.fitted = Some(fit_record(robot, samples, params, chosen, &fit, expected_rms_mm));
+    let mut record = fit_record(robot, samples, params, chosen, &fit, expected_rms_mm);
+    if !stack.is_empty() {
+        record.prior = format!(
+            "stack: {}",
+            (stack.iter())
+                .map(|m| format!("{:.3} × {}", m.weight, m.label))
+                .collect::<Vec<_>>()
+                .join(" + ")
+        );
+    }
+    file.fitted = Some(record);
     let model = fitted.rebuild(file)?;
     Ok(Ladder {
         robot: model,
@@ -594,6 +650,7 @@ pub fn climb(
             expected_rms_mm,
             candidates,
             chosen,
+            stack,
             reason: choice.reason,
             warning: choice.warning,
             folds: draws.first().map_or(0, Vec::len),
@@ -607,9 +664,30 @@ pub fn climb(
     })
 }
 
+/// The model whose every parameter is the weighted mean of the fits' values: to first order
+/// in the small corrections, the weighted mean of their predictions, as one model file that
+/// every command reads.
+fn stacked_model(robot: &Robot, samples: &[Sample], fits: &[SchemeFit], stack: &[StackMember]) -> Result<Robot> {
+    let space = crate::calibrate::ParameterSpace::for_samples(robot, samples);
+    let mut theta = vec![0.0; space.initial().len()];
+    for (fit, member) in fits.iter().zip(stack) {
+        let values = &fit.calibration.linearisation.theta;
+        if values.len() != theta.len() {
+            return Err(Error::Dimension {
+                what: "stacked calibration parameters".into(),
+                expected: theta.len(),
+                got: values.len(),
+            });
+        }
+        for (t, v) in theta.iter_mut().zip(values) {
+            *t += member.weight * v;
+        }
+    }
+    space.apply(robot, &theta)
+}
+
 /// Every candidate's score from the fold scores of every repeat (`results[repeat][level]`),
-/// with each candidate's RMS per repeat (`None` for a repeat a stop left unscored). Levels with
-/// no repeat scored are left out.
+/// with each candidate's held-out errors per repeat. Levels with no repeat scored are left out.
 fn gather(
     n: usize,
     rungs: &[Rung],
@@ -619,40 +697,42 @@ fn gather(
     results: &[Vec<LevelScores>],
     seconds: &[f64],
 ) -> Gathered {
-    let rms = |e: &mut dyn Iterator<Item = f64>| {
-        let (sum, count) = e
-            .filter(|v| !v.is_nan())
-            .fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
-        if count == 0 {
-            f64::NAN
-        } else {
-            (sum / count as f64).sqrt() * 1e3
-        }
+    let mut out = Gathered {
+        fold_of: draws
+            .iter()
+            .map(|splits| {
+                let mut of = vec![None; n];
+                for (f, split) in splits.iter().enumerate() {
+                    for &i in &split.test {
+                        of[i] = Some(f);
+                    }
+                }
+                of
+            })
+            .collect(),
+        ..Gathered::default()
     };
-    let mut out = Gathered::default();
     for (r, &rung) in rungs.iter().enumerate() {
         for (s, &prior) in params.schemes.iter().enumerate() {
             for predictor in [false, true].into_iter().filter(|&p| !p || with_predictor) {
-                let (mut sum, mut count) = (vec![0.0; n], vec![0usize; n]);
-                let (mut per_repeat, mut fold_rms_mm) = (Vec::new(), Vec::new());
+                let mut by_repeat = Vec::with_capacity(results.len());
+                let mut fold_rms_mm = Vec::new();
                 let (mut first_flaw, mut flawed, mut effective, mut fits) = (None, 0usize, 0.0, 0usize);
                 for (k, level) in results.iter().enumerate() {
-                    let Some(folds) = &level[r] else {
-                        per_repeat.push(None);
-                        continue;
-                    };
-                    let mut errors = vec![f64::NAN; n];
-                    for (split, fold) in draws[k].iter().zip(folds) {
+                    let mut errors = vec![None; n];
+                    for (split, fold) in draws[k].iter().zip(level[r].iter().flatten()) {
                         let score = &fold[s];
-                        let e = if predictor {
-                            score.with_predictor.as_ref().unwrap_or(&score.errors)
-                        } else {
-                            &score.errors
+                        let e = match (&score.with_predictor, predictor) {
+                            (Some(with), true) => with,
+                            _ => &score.errors,
                         };
-                        for (&i, &v) in split.test.iter().zip(e) {
-                            errors[i] = v;
+                        for (&i, v) in split.test.iter().zip(e) {
+                            errors[i] = *v;
                         }
-                        fold_rms_mm.push(rms(&mut e.iter().copied()));
+                        let sq: Vec<f64> = e.iter().flatten().map(|v| v.norm_squared()).collect();
+                        if !sq.is_empty() {
+                            fold_rms_mm.push(rms_mm(&sq));
+                        }
                         if let Some(why) = &score.not_sound {
                             flawed += 1;
                             first_flaw.get_or_insert_with(|| why.clone());
@@ -660,27 +740,18 @@ fn gather(
                         effective += score.effective_params;
                         fits += 1;
                     }
-                    for (i, &v) in errors.iter().enumerate().filter(|(_, v)| !v.is_nan()) {
-                        sum[i] += v;
-                        count[i] += 1;
-                    }
-                    per_repeat.push(Some(rms(&mut errors.into_iter())));
+                    by_repeat.push(errors);
                 }
                 if fits == 0 {
                     continue;
                 }
                 let candidate = Candidate { rung, prior, predictor };
-                let fold_rms_mm: Vec<f64> = fold_rms_mm.into_iter().filter(|v| !v.is_nan()).collect();
-                let mean: Vec<f64> = sum
-                    .iter()
-                    .zip(&count)
-                    .map(|(s, &c)| if c == 0 { f64::NAN } else { s / c as f64 })
-                    .collect();
+                let all = summary(&by_repeat, &vec![true; n]);
                 out.candidates.push(CandidateScore {
                     candidate,
                     label: candidate.label(),
-                    rms_mm: rms(&mut mean.iter().copied()),
-                    repeat_rms_mm: per_repeat.iter().flatten().copied().collect(),
+                    rms_mm: all.rms_mm,
+                    repeat_rms_mm: all.repeat_rms.iter().flatten().copied().collect(),
                     spread_mm: std_dev(&fold_rms_mm),
                     fold_rms_mm,
                     excess_mm: 0.0,
@@ -692,22 +763,68 @@ fn gather(
                         .then(|| format!("{flawed} of {fits} fold fits: {}", first_flaw.unwrap_or_default())),
                     seconds: seconds[r],
                 });
-                out.repeat_rms.push(per_repeat);
-                out.sample_errors.push(mean);
+                out.errors.push(by_repeat);
             }
         }
     }
     out
 }
 
-/// What [`gather`] collects, per candidate: its score, its RMS per repeat (`None` for a repeat
-/// a stop left unscored), and each sample's held-out squared error averaged over the repeats
-/// (m², NaN where unscored).
+/// What [`gather`] collects: every candidate's score, and its held-out error of every sample
+/// in every repeat (`errors[candidate][repeat][sample]`, `None` where unscored), with the fold
+/// that held each sample out in each repeat.
 #[derive(Default)]
 struct Gathered {
     candidates: Vec<CandidateScore>,
-    repeat_rms: Vec<Vec<Option<f64>>>,
-    sample_errors: Vec<Vec<f64>>,
+    errors: Vec<Vec<Vec<Option<Vector3<f64>>>>>,
+    fold_of: Vec<Vec<Option<usize>>>,
+}
+
+/// The RMS (mm) of squared errors `sq` (m²).
+fn rms_mm(sq: &[f64]) -> f64 {
+    (sq.iter().sum::<f64>() / sq.len() as f64).sqrt() * 1e3
+}
+
+/// One candidate's errors summed up over the samples `mask` keeps.
+struct Summary {
+    /// The pooled RMS (mm) of the samples' mean squared error over the repeats.
+    rms_mm: f64,
+    /// The RMS of each repeat (mm; `None` for a repeat with no kept sample scored).
+    repeat_rms: Vec<Option<f64>>,
+    /// Each sample's squared error averaged over the repeats (m²; NaN where not kept or never
+    /// scored).
+    sample_sq: Vec<f64>,
+}
+
+fn summary(by_repeat: &[Vec<Option<Vector3<f64>>>], mask: &[bool]) -> Summary {
+    let n = mask.len();
+    let (mut sum, mut count) = (vec![0.0; n], vec![0usize; n]);
+    let repeat_rms = by_repeat
+        .iter()
+        .map(|errors| {
+            let mut sq = Vec::with_capacity(n);
+            for (i, e) in errors.iter().enumerate().filter(|&(i, _)| mask[i]) {
+                if let Some(e) = e {
+                    let v = e.norm_squared();
+                    sq.push(v);
+                    sum[i] += v;
+                    count[i] += 1;
+                }
+            }
+            (!sq.is_empty()).then(|| rms_mm(&sq))
+        })
+        .collect();
+    let sample_sq: Vec<f64> = sum
+        .iter()
+        .zip(&count)
+        .map(|(s, &c)| if c == 0 { f64::NAN } else { s / c as f64 })
+        .collect();
+    let scored: Vec<f64> = sample_sq.iter().copied().filter(|v| !v.is_nan()).collect();
+    Summary {
+        rms_mm: if scored.is_empty() { f64::NAN } else { rms_mm(&scored) },
+        repeat_rms,
+        sample_sq,
+    }
 }
 
 /// The standard error of the mean paired difference `a − b` of per-sample squared errors over
@@ -743,44 +860,71 @@ fn std_dev(v: &[f64]) -> f64 {
 /// measure it (one repeat, or repeats that agree exactly): half a percent.
 const MIN_SCORE_NOISE: f64 = 0.005;
 
-struct Choice {
-    index: usize,
-    reason: String,
-    warning: Option<String>,
+/// How far a candidate's score lies above the best one's on equal folds (mm), its standard
+/// error over the repeats, and whether that is within the noise.
+#[derive(Clone, Copy)]
+struct Excess {
+    mean: f64,
+    std_error: f64,
+    within_noise: bool,
 }
 
-/// Marks which candidates score within the noise of the best and picks the choice (see the
-/// module documentation); `groups` gives each sample's held-out group.
-fn choose(gathered: &mut Gathered, groups: &[usize]) -> Choice {
-    let Gathered {
-        candidates,
-        repeat_rms,
-        sample_errors,
-    } = gathered;
-    let best = (0..candidates.len())
-        .filter(|&c| candidates[c].rms_mm.is_finite())
-        .min_by(|&a, &b| candidates[a].rms_mm.total_cmp(&candidates[b].rms_mm))
-        .unwrap_or(0);
-    let best_rms = candidates[best].rms_mm;
-    for (c, score) in candidates.iter_mut().enumerate() {
-        // Paired on the repeats both were scored on: equal folds.
-        let d: Vec<f64> = repeat_rms[c]
-            .iter()
-            .zip(&repeat_rms[best])
-            .filter_map(|(a, b)| Some(a.as_ref()? - b.as_ref()?))
-            .collect();
-        score.excess_mm = if d.is_empty() {
-            f64::NAN
-        } else {
-            d.iter().sum::<f64>() / d.len() as f64
-        };
-        score.excess_std_error_mm = std_dev(&d) / (d.len().max(1) as f64).sqrt();
-        score.within_noise = score.excess_mm <= score.excess_std_error_mm.max(MIN_SCORE_NOISE * best_rms);
+/// A choice: one candidate, or a weighted mean of some of one level's candidates.
+struct Choice {
+    /// The candidate chosen (with a stack, its heaviest member).
+    index: usize,
+    /// With a stack, its members and their weights (summing to one); empty otherwise.
+    stack: Vec<(usize, f64)>,
+    reason: String,
+    warning: Option<String>,
+    excess: Vec<Excess>,
+}
+
+impl Choice {
+    /// Its held-out error of sample `i` in repeat `k`: the candidate's, or the weighted mean of
+    /// the members' (the error of the weighted mean of their predictions).
+    fn error(&self, g: &Gathered, k: usize, i: usize) -> Option<Vector3<f64>> {
+        if self.stack.is_empty() {
+            return g.errors[self.index][k][i];
+        }
+        (self.stack.iter()).try_fold(Vector3::zeros(), |sum, &(c, w)| Some(sum + g.errors[c][k][i]? * w))
     }
+}
+
+/// Picks the choice from the samples `mask` keeps (see the module documentation); `groups`
+/// gives each sample's held-out group.
+fn choose(g: &Gathered, groups: &[usize], mask: &[bool]) -> Choice {
+    let candidates = &g.candidates;
+    let sums: Vec<Summary> = g.errors.iter().map(|e| summary(e, mask)).collect();
+    let best = (0..candidates.len())
+        .filter(|&c| sums[c].rms_mm.is_finite())
+        .min_by(|&a, &b| sums[a].rms_mm.total_cmp(&sums[b].rms_mm))
+        .unwrap_or(0);
+    let best_rms = sums[best].rms_mm;
+    let excess: Vec<Excess> = sums
+        .iter()
+        .map(|s| {
+            // Paired on the repeats both were scored on: equal folds.
+            let d: Vec<f64> = (s.repeat_rms.iter().zip(&sums[best].repeat_rms))
+                .filter_map(|(a, b)| Some((*a)? - (*b)?))
+                .collect();
+            let mean = if d.is_empty() {
+                f64::NAN
+            } else {
+                d.iter().sum::<f64>() / d.len() as f64
+            };
+            let std_error = std_dev(&d) / (d.len().max(1) as f64).sqrt();
+            Excess {
+                mean,
+                std_error,
+                within_noise: mean <= std_error.max(MIN_SCORE_NOISE * best_rms),
+            }
+        })
+        .collect();
     // The simplest level and predictor with a candidate within the noise of the best: the
     // lowest level, no predictor before one; among the sound ones while there are any.
     let level = |c: usize| (candidates[c].candidate.rung, candidates[c].candidate.predictor);
-    let eligible = |c: usize, sound: bool| candidates[c].within_noise && (!sound || candidates[c].not_sound.is_none());
+    let eligible = |c: usize, sound: bool| excess[c].within_noise && (!sound || candidates[c].not_sound.is_none());
     let simplest = |sound: bool| (0..candidates.len()).filter(|&c| eligible(c, sound)).map(level).min();
     let (chosen_level, sound) = match simplest(true) {
         Some(l) => (l, true),
@@ -791,20 +935,22 @@ fn choose(gathered: &mut Gathered, groups: &[usize]) -> Choice {
     // the schemes (the evidence first), so that the choice does not follow the folds' noise.
     let members: Vec<usize> = (0..candidates.len())
         .filter(|&c| level(c) == chosen_level && (!sound || candidates[c].not_sound.is_none()))
+        .filter(|&c| sums[c].rms_mm.is_finite())
         .collect();
     let lead = members
         .iter()
         .copied()
-        .min_by(|&a, &b| candidates[a].rms_mm.total_cmp(&candidates[b].rms_mm))
+        .min_by(|&a, &b| sums[a].rms_mm.total_cmp(&sums[b].rms_mm))
         .unwrap_or(best);
     let index = members
         .iter()
         .copied()
         .find(|&c| {
-            let (mean, se) = paired_difference(&sample_errors[c], &sample_errors[lead], groups);
+            let (mean, se) = paired_difference(&sums[c].sample_sq, &sums[lead].sample_sq, groups);
             mean <= se
         })
         .unwrap_or(lead);
+    let stack = stack_of(g, &members, &sums[index].sample_sq, groups, mask);
     let warning = (!sound).then(|| {
         format!(
             "no candidate whose fits converged to plausible values scored within the noise of the best; the chosen \
@@ -812,7 +958,7 @@ fn choose(gathered: &mut Gathered, groups: &[usize]) -> Choice {
             candidates[index].not_sound.clone().unwrap_or_default()
         )
     });
-    let reason = if index == best {
+    let single = if index == best {
         "the best score".to_string()
     } else {
         format!(
@@ -823,7 +969,152 @@ fn choose(gathered: &mut Gathered, groups: &[usize]) -> Choice {
             best_rms
         )
     };
-    Choice { index, reason, warning }
+    let (index, reason) = match stack.iter().max_by(|a, b| a.1.total_cmp(&b.1)) {
+        Some(&(heaviest, _)) => (
+            heaviest,
+            format!(
+                "{single}; then a weighted mean of its level's prior schemes, whose held-out predictions beat that \
+                 one beyond their standard error"
+            ),
+        ),
+        None => (index, single),
+    };
+    Choice {
+        index,
+        stack,
+        reason,
+        warning,
+        excess,
+    }
+}
+
+/// At most this many candidates are stacked (the best by score): the weights are found over
+/// every subset of them.
+const MAX_STACKED: usize = 10;
+
+/// The weights (on the simplex) of `members`' held-out errors whose weighted mean has the
+/// least squared error over the samples `mask` keeps, when that mean beats `single` (the
+/// single choice's per-sample squared errors) by more than the standard error of their paired
+/// difference over the held-out groups; empty otherwise. This is stacking: the weights are
+/// those of the candidates' out-of-fold predictions.
+fn stack_of(g: &Gathered, members: &[usize], single: &[f64], groups: &[usize], mask: &[bool]) -> Vec<(usize, f64)> {
+    let mut members = members.to_vec();
+    if members.len() < 2 {
+        return Vec::new();
+    }
+    members.sort_by(|&a, &b| g.candidates[a].rms_mm.total_cmp(&g.candidates[b].rms_mm));
+    members.truncate(MAX_STACKED);
+    let m = members.len();
+    let n = mask.len();
+    let mut gram = DMatrix::<f64>::zeros(m, m);
+    let mut e = vec![Vector3::zeros(); m];
+    for k in 0..g.fold_of.len() {
+        for i in (0..n).filter(|&i| mask[i]) {
+            let all = members
+                .iter()
+                .zip(e.iter_mut())
+                .all(|(&c, slot)| match g.errors[c][k][i] {
+                    Some(v) => {
+                        *slot = v;
+                        true
+                    }
+                    None => false,
+                });
+            if all {
+                for a in 0..m {
+                    for b in a..m {
+                        gram[(a, b)] += e[a].dot(&e[b]);
+                    }
+                }
+            }
+        }
+    }
+    gram.fill_lower_triangle_with_upper_triangle();
+    let weights = simplex_least_squares(&gram);
+    let kept: Vec<(usize, f64)> = (members.iter().copied().zip(weights))
+        .filter(|&(_, w)| w > 1e-3)
+        .collect();
+    if kept.len() < 2 {
+        return Vec::new();
+    }
+    let total: f64 = kept.iter().map(|(_, w)| w).sum();
+    let kept: Vec<(usize, f64)> = kept.into_iter().map(|(c, w)| (c, w / total)).collect();
+    let stacked = Choice {
+        index: kept[0].0,
+        stack: kept,
+        reason: String::new(),
+        warning: None,
+        excess: Vec::new(),
+    };
+    let (mut sum, mut count) = (vec![0.0; n], vec![0usize; n]);
+    for k in 0..g.fold_of.len() {
+        for i in (0..n).filter(|&i| mask[i]) {
+            if let Some(v) = stacked.error(g, k, i) {
+                sum[i] += v.norm_squared();
+                count[i] += 1;
+            }
+        }
+    }
+    let stacked_sq: Vec<f64> = (sum.iter().zip(&count))
+        .map(|(s, &c)| if c == 0 { f64::NAN } else { s / c as f64 })
+        .collect();
+    let (mean, se) = paired_difference(&stacked_sq, single, groups);
+    if mean < -se { stacked.stack } else { Vec::new() }
+}
+
+/// The weights `w ≥ 0`, `Σ w = 1` minimising `wᵀ G w` for a Gram matrix `G` of a few columns.
+/// Exact: the minimum lies on some support `S`, where `w_S ∝ G_SS⁻¹ 1`; every support is tried
+/// (at most [`MAX_STACKED`] columns, so at most 1023 systems of that size), simpler and surer
+/// than an iterative quadratic-programming solver for a problem this small.
+fn simplex_least_squares(gram: &DMatrix<f64>) -> Vec<f64> {
+    let m = gram.nrows();
+    let mut best = (f64::INFINITY, vec![0.0; m]);
+    for support in 1u32..(1 << m) {
+        let idx: Vec<usize> = (0..m).filter(|&j| support & (1 << j) != 0).collect();
+        let sub = DMatrix::from_fn(idx.len(), idx.len(), |a, b| gram[(idx[a], idx[b])]);
+        let Some(chol) = sub.clone().cholesky() else {
+            continue;
+        };
+        let x = chol.solve(&DVector::from_element(idx.len(), 1.0));
+        let total = x.sum();
+        if !(total > 0.0) || x.iter().any(|&v| v <= 0.0) {
+            continue;
+        }
+        let w = x / total;
+        let objective = w.dot(&(&sub * &w));
+        if objective < best.0 {
+            let mut full = vec![0.0; m];
+            for (a, &j) in idx.iter().enumerate() {
+                full[j] = w[a];
+            }
+            best = (objective, full);
+        }
+    }
+    if best.0.is_infinite() {
+        // Every support singular (identical errors): the first column alone.
+        best.1[0] = 1.0;
+    }
+    best.1
+}
+
+/// The held-out RMS of the choice itself (mm): in every repeat, each fold's samples scored by
+/// the choice [`choose`] makes from the other folds' samples, so that the choice among the
+/// candidates is cross-validated as well as their fits (NaN when nothing was scored).
+fn nested_rms_mm(g: &Gathered, groups: &[usize]) -> f64 {
+    let mut sq = Vec::new();
+    for (k, fold_of) in g.fold_of.iter().enumerate() {
+        let n_folds = fold_of.iter().flatten().max().map_or(0, |m| m + 1);
+        for f in 0..n_folds {
+            let mask: Vec<bool> = fold_of.iter().map(|&o| o != Some(f)).collect();
+            let choice = choose(g, groups, &mask);
+            for i in (0..fold_of.len()).filter(|&i| fold_of[i] == Some(f)) {
+                if let Some(e) = choice.error(g, k, i) {
+                    sq.push(e.norm_squared());
+                }
+            }
+        }
+    }
+    if sq.is_empty() { f64::NAN } else { rms_mm(&sq) }
 }
 
 /// Each sample's held-out group under `by`: its column value, station or pose.
@@ -840,5 +1131,25 @@ fn held_out_groups(samples: &[Sample], by: &FoldBy) -> Vec<usize> {
             }
             g
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn simplex_weights_match_the_hand_solution() {
+        // Uncorrelated errors of variances a and b: w₁ = b / (a + b), the inverse-variance mean.
+        let (a, b) = (1.0, 3.0);
+        let w = simplex_least_squares(&DMatrix::from_row_slice(2, 2, &[a, 0.0, 0.0, b]));
+        assert!((w[0] - 0.75).abs() < 1e-12 && (w[1] - 0.25).abs() < 1e-12, "{w:?}");
+        // G⁻¹1 ∝ (2.5, −0.5) leaves the simplex: the constrained minimum is the first alone.
+        let w = simplex_least_squares(&DMatrix::from_row_slice(2, 2, &[1.0, 1.5, 1.5, 4.0]));
+        assert_eq!(w, vec![1.0, 0.0]);
+        // Three columns, the third a copy of the first (singular Gram): the copy adds nothing.
+        let g = DMatrix::from_row_slice(3, 3, &[2.0, 0.0, 2.0, 0.0, 2.0, 0.0, 2.0, 0.0, 2.0]);
+        let w = simplex_least_squares(&g);
+        assert!((w[0] + w[2] - 0.5).abs() < 1e-12 && (w[1] - 0.5).abs() < 1e-12, "{w:?}");
     }
 }

@@ -288,6 +288,24 @@ impl CalibrationParams {
     }
 }
 
+/// `robot` with the values its fit record says its parameters had before that fit (where
+/// their priors were centred), so that fitting it again on the same rows starts where that fit
+/// started, not from its answer, which has seen every row; `None` for a robot without such a
+/// record.
+pub fn before_fit(robot: &Robot, samples: &[Sample]) -> Result<Option<Robot>> {
+    let Some(record) = robot.built_from().fitted.as_ref().filter(|r| !r.nominal.is_empty()) else {
+        return Ok(None);
+    };
+    let space = ParameterSpace::for_samples(robot, samples);
+    let mut theta = space.initial();
+    for (name, &value) in &record.nominal {
+        if let Some(k) = space.index(name) {
+            theta[k] = value;
+        }
+    }
+    space.apply(robot, &theta).map(Some)
+}
+
 /// Which free parameters a restart of [`calibrate`] moves from where the fit ended.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum RestartMoves {

@@ -128,6 +128,11 @@ pub struct FitRecord {
     /// Whether the choice included the residual predictor the model carries.
     #[serde(default)]
     pub predictor: bool,
+    /// Each identified parameter's value before the fit (SI, parameter names as calibration
+    /// reports them): where its prior was centred, so that a command fitting the model again on
+    /// the same rows starts where the fit started rather than from its answer.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub nominal: BTreeMap<String, f64>,
 }
 
 /// Mass properties and beam section of one link.

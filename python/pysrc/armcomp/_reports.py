@@ -189,14 +189,27 @@ class CandidateScore:
     seconds: float
 
 
+@dataclass(frozen=True)
+class StackMember:
+    """A member of a stacked model: a prior scheme of the chosen level and its weight (the
+    weights sum to one; every parameter of the model is their weighted mean)."""
+
+    prior: Any
+    label: str
+    weight: float
+
+
 @dataclass(frozen=True, repr=False)
 class FitReport(Report):
     """The model ladder (``armcomp fit --json``): every candidate's score, the candidate chosen
-    and why (``warning`` when it is not sound), the held-out error to expect, and the chosen
-    candidate's evidence and calibration on all rows."""
+    and why (``warning`` when it is not sound), the members of a stack when the model is a
+    weighted mean of the chosen level's prior schemes (empty otherwise), the held-out error to
+    expect (the cross-validated score of the choice itself), and the chosen candidate's
+    evidence and calibration on all rows."""
 
     candidates: List[CandidateScore]
     chosen: Candidate
+    stack: List[StackMember]
     reason: str
     warning: Optional[str]
     expected_rms_mm: float
@@ -310,16 +323,27 @@ class DiagnosisReport(Report):
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
+@dataclass(frozen=True)
+class Refitted:
+    """Held-out errors with the physical model fitted again in every fold."""
+
+    model: ErrorStats
+    with_predictor: ErrorStats
+
+
 @dataclass(frozen=True, repr=False)
 class LearnReport(Report):
     """A fitted residual predictor: fitting time (s), training errors without and with it, and
     the errors with it on rows it was not fitted on (5-fold cross-validation; None with fewer
-    than five poses)."""
+    than five poses). For a model ``fit`` wrote, ``refitted`` holds the same folds with the
+    physical model fitted again in each one, from where ``fit`` started (``model`` alone and
+    ``with_predictor``): the figures ``fit`` scored the model by."""
 
     seconds: float
     before: ErrorStats
     after: ErrorStats
     cross_validated: Optional[ErrorStats] = None
+    refitted: Optional[Refitted] = None
     warnings: List[str] = field(default_factory=list)
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
