@@ -23,18 +23,20 @@ fn target_profile_dir() -> PathBuf {
 }
 
 /// Builds the library (static and shared) once per test run, so no test links one left over
-/// from an earlier build.
+/// from an earlier build. The whole workspace's test build is asked for, not the library's
+/// alone: its features are then those `cargo test` unified, so after `cargo test` nothing is
+/// compiled again (`-p armcomp-ffi` alone rebuilt most dependencies, minutes on CI).
 fn built_library() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = target_profile_dir();
         let status = Command::new(env!("CARGO"))
-            .args(["build", "--profile", "test", "-p", "armcomp-ffi", "--lib"])
+            .args(["build", "--profile", "test", "--workspace", "--tests"])
             .env("CARGO_TARGET_DIR", dir.parent().unwrap())
             .current_dir(root())
             .status()
             .expect("cargo runs");
-        assert!(status.success(), "cargo build -p armcomp-ffi failed");
+        assert!(status.success(), "cargo build of the workspace's tests (with armcomp-ffi) failed");
         dir
     })
 }
