@@ -63,7 +63,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::algorithms::evaluate::{ErrorStats, position_errors};
+use crate::algorithms::evaluate::{ErrorStats, model_errors, position_errors};
 use crate::algorithms::residuals::{ResidualDescription, describe_residuals};
 use crate::analysis::held_out::{held_out_errors, measures_positions};
 use crate::calibrate::{
@@ -722,6 +722,13 @@ impl Search<'_> {
     /// score test.
     fn predicted_share(&self, fitted: &Robot, offer: &Offer) -> Option<f64> {
         let model = with_effect(fitted, offer).ok()?;
+        // The score test linearises at the current fit. An effect that moves the model already
+        // at its starting values (a measured tilt turning the chain by the readings) starts
+        // elsewhere: it cannot be assessed so, and is refitted.
+        let (before, after) = (model_errors(fitted, self.samples), model_errors(&model, self.samples));
+        if before.iter().zip(&after).any(|(a, b)| (a - b).norm() > 1e-9) {
+            return None;
+        }
         let added = added_params(&model);
         score_test(&model, self.samples, &self.selection(&model), &added)
             .ok()
