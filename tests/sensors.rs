@@ -764,3 +764,43 @@ fn the_diagnosis_names_a_rocking_base() {
     };
     crate::common::assert_diagnosis_names(&bare, &samples, calibration, ("measured_tilt", "base"), 0.4, 41);
 }
+
+/// Calibration's Jacobian of a robot whose chain two sensors turn (the column's top turning by
+/// what the rigid chain from the base does not explain, so that geometry below it moves the
+/// arm only through that turn) against central differences of the model, column by column.
+#[test]
+fn the_jacobian_of_measured_tilts_matches_finite_differences() {
+    use armcomp_core::algorithms::evaluate::model_errors;
+    use armcomp_core::calibrate::samples_jacobian;
+    let robot = robot("column-arm.toml");
+    let truth =
+        robot_from_toml(&std::fs::read_to_string(crate::common::root().join("robots/column-arm-truth.toml")).unwrap());
+    let samples = measure_tilted(&truth, 20, 51, ROCKING);
+    let (jac, names) = samples_jacobian(&robot, &samples, &["all".to_string()]).unwrap();
+    assert!(names.iter().any(|n| n == "measured_tilt.top_incl.x"), "{names:?}");
+    let space = ParameterSpace::new(&robot);
+    for (c, name) in names.iter().enumerate() {
+        let Some(k) = space.index(name) else { continue };
+        let h = 1e-6;
+        let at = |d: f64| {
+            let mut t = space.initial();
+            t[k] += d;
+            model_errors(&space.apply(&robot, &t).unwrap(), &samples)
+        };
+        let (p, m) = (at(h), at(-h));
+        let mut worst: f64 = 0.0;
+        let mut scale: f64 = 0.0;
+        for i in 0..samples.len() {
+            // The errors are measured minus modelled: the model's change is their opposite.
+            let fd = -(p[i] - m[i]) / (2.0 * h);
+            for a in 0..3 {
+                worst = worst.max((jac[(3 * i + a, c)] - fd[a]).abs());
+                scale = scale.max(fd[a].abs());
+            }
+        }
+        assert!(
+            worst < 1e-4 * scale.max(1e-3),
+            "{name}: off by {worst:e} (largest entry {scale:e})"
+        );
+    }
+}
