@@ -328,6 +328,46 @@ mod tests {
     }
 
     #[test]
+    fn a_simulated_reading_goes_through_the_mounting_with_its_noise_in_column_units() {
+        let sensor = |kind, noise| GravitySensor {
+            name: "s".into(),
+            kind,
+            body: 0,
+            columns: Vec::new(),
+            noise,
+        };
+        let down = Vector3::new(0.02, -0.01, -1.0).normalize();
+        // Mounted turned by 1° about x: it reads gravity turned back by that.
+        let mounting = UnitQuaternion::from_scaled_axis(Vector3::new(1f64.to_radians(), 0.0, 0.0));
+        for kind in [SensorKind::Accelerometer, SensorKind::Inclinometer] {
+            let r = sensor(kind, 0.0).simulated_reading(&down, &mounting, || 1.0).unwrap();
+            assert!((mounting * r.direction - down).norm() < 1e-14, "{kind:?}");
+        }
+        // One standard deviation on every cell: an inclinometer's 0.01° moves its roll and
+        // pitch by 0.01°; an accelerometer's 0.01 m/s² moves its cells (in g) by 0.01/g₀.
+        let incl = sensor(SensorKind::Inclinometer, 0.01f64.to_radians());
+        let r = incl
+            .simulated_reading(&down, &UnitQuaternion::identity(), || 1.0)
+            .unwrap();
+        let (a, b) = (
+            SensorKind::Inclinometer.cells_for(&down),
+            SensorKind::Inclinometer.cells_for(&r.direction),
+        );
+        assert!(((b - a).fixed_rows::<2>(0) - nalgebra::Vector2::repeat(0.01f64.to_radians())).norm() < 1e-12);
+        let acc = sensor(SensorKind::Accelerometer, 0.01);
+        let r = acc
+            .simulated_reading(&down, &UnitQuaternion::identity(), || 1.0)
+            .unwrap();
+        let shifted = -(down + Vector3::repeat(-0.01 / STANDARD_GRAVITY));
+        assert!((r.direction + shifted.normalize()).norm() < 1e-12, "{}", r.direction);
+        // Readings hold a slot per sensor.
+        let mut readings = SensorReadings::default();
+        assert!(readings.is_empty());
+        readings.set(2, Some(r));
+        assert!(readings.get(2).is_some() && readings.get(0).is_none() && readings.get(MAX_SENSORS).is_none());
+    }
+
+    #[test]
     fn a_reading_on_a_turned_link_is_carried_to_the_base_frame() {
         // Base -> link1 through a revolute joint about z at q, then a convention frame turned
         // by 90 deg about x (as an MDH alpha of 90 deg would place it).
