@@ -87,7 +87,7 @@ fn bench(c: &mut Criterion) {
             torque: None,
             fixed_point: None,
             plane: None,
-            gravity: None,
+            sensors: Default::default(),
             station: 0,
             position_std: None,
         })

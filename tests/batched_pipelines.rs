@@ -111,7 +111,7 @@ fn sample(q: &[f64], point: usize, k: usize) -> Sample {
         torque: None,
         fixed_point: None,
         plane: None,
-        gravity: None,
+        sensors: Default::default(),
         station: 0,
         position_std: None,
     }

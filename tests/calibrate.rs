@@ -947,7 +947,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                 let conditions = Conditions {
                     payload,
                     temperature: None,
-                    gravity: None,
+                    sensors: Default::default(),
                 };
                 let exact = truth.measured_position(&q, point, conditions, &mut ws);
                 Sample {
@@ -960,7 +960,7 @@ fn a_payload_declared_wrong_by_a_factor_is_a_scale_and_masses_stay_physical() {
                     torque: None,
                     fixed_point: None,
                     plane: None,
-                    gravity: None,
+                    sensors: Default::default(),
                     station: 0,
                     position_std: None,
                 }

@@ -51,7 +51,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
             let conditions = Conditions {
                 temperature: campaign.drift.then(|| 15.0 + 20.0 * i as f64 / n as f64),
                 payload: (!campaign.payloads.is_empty()).then(|| campaign.payloads[i % campaign.payloads.len()]),
-                gravity: None,
+                sensors: Default::default(),
             };
             let mut p = truth.measured_position(&q, point, conditions, &mut ws);
             for k in 0..3 {
@@ -67,7 +67,7 @@ fn measure(truth: &Robot, n: usize, noise: f64, seed: u64, campaign: Campaign) -
                 torque: None,
                 fixed_point: None,
                 plane: None,
-                gravity: None,
+                sensors: Default::default(),
                 station: 0,
                 position_std: None,
             }
@@ -709,7 +709,7 @@ fn gravity_loads_match_the_hand_calculation_with_the_measured_payload() {
             torque: None,
             fixed_point: None,
             plane: None,
-            gravity: None,
+            sensors: Default::default(),
             station: 0,
             position_std: None,
         })

@@ -41,7 +41,7 @@ fn write_then_read_gives_the_same_samples() {
             torque: None,
             fixed_point: None,
             plane: None,
-            gravity: None,
+            sensors: Default::default(),
             station: 0,
             position_std: None,
         })
@@ -219,7 +219,7 @@ fn point_names_with_commas_and_quotes_round_trip() {
         torque: None,
         fixed_point: None,
         plane: None,
-        gravity: None,
+        sensors: Default::default(),
         station: 0,
         position_std: None,
     };

@@ -49,7 +49,7 @@ fn pose_samples(truth: &Robot, n: usize, sigma_p: f64, sigma_r: f64, seed: u64) 
                 torque: None,
                 fixed_point: None,
                 plane: None,
-                gravity: None,
+                sensors: Default::default(),
                 station: 0,
                 q,
                 position_std: None,

@@ -561,7 +561,7 @@ fn the_frame_link_jacobian_covers_both_paths() {
             torque: None,
             fixed_point: None,
             plane: Some("table".into()),
-            gravity: None,
+            sensors: Default::default(),
             station: 0,
             position_std: None,
         })

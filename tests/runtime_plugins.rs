@@ -151,6 +151,7 @@ fn runtime_plugin_evaluated_from_many_threads_at_once_matches_one_thread_bit_for
             loads: &loads,
             gravity: robot.gravity(),
             temperature: (i % 2 == 1).then_some(25.0),
+            sensors: Default::default(),
         };
         let mut out = Perturbation::zeros(tree);
         robot.error_models()[0].perturb(&state, &[0.5 + 0.01 * i as f64], &mut out);

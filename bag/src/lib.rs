@@ -667,7 +667,7 @@ fn sample_of(rest: &Rest, s: &PostureSums, point: usize, pose: bool) -> Sample {
         torque: None,
         fixed_point: None,
         plane: None,
-        gravity: None,
+        sensors: Default::default(),
         position_std: None,
         station: 0,
     }

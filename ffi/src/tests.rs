@@ -118,7 +118,7 @@ fn modelled_tool(robot: &Robot, q: &[f64]) -> Vector3<f64> {
         torque: None,
         fixed_point: None,
         plane: None,
-        gravity: None,
+        sensors: Default::default(),
         position_std: None,
         station: 0,
     };

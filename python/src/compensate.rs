@@ -1,6 +1,6 @@
 //! `compensate`: joint commands for a batch of targets, as `armcomp compensate` computes them.
 
-use armcomp_api::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run};
+use armcomp_api::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run, sensor_readings};
 use armcomp_core::algorithms::compensate::CompensationMode;
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
@@ -21,9 +21,12 @@ type Commands<'py> = (
 /// Joint commands that put `model`'s tool on `targets`: n × 3 positions (m), or n × 7 with a
 /// tool orientation `qw, qx, qy, qz` to keep, in the measurement or base `frame`; from `start`
 /// (1 or n rows of joint values, SI), changing only the joints that move the tool and are not
-/// in `lock`.
+/// in `lock`. `sensors` maps a sensor's name to its reading now, as its columns hold it in SI
+/// (an accelerometer's x, y, z in m/s²; an inclinometer's roll, pitch in rad): the tilt every
+/// target is compensated at.
 #[pyfunction]
-#[pyo3(signature = (model, targets, mode = "exact", frame = "measurement", start = None, lock = Vec::new()))]
+#[pyo3(signature = (model, targets, mode = "exact", frame = "measurement", start = None, lock = Vec::new(), sensors = None))]
+#[allow(clippy::too_many_arguments)]
 pub fn compensate<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyRobot>,
@@ -32,6 +35,7 @@ pub fn compensate<'py>(
     frame: &str,
     start: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
     lock: Vec<String>,
+    sensors: Option<std::collections::BTreeMap<String, Vec<f64>>>,
 ) -> PyResult<Commands<'py>> {
     let bad = |field: &str, message: String| input_error(&message, None, None, Some(field));
     let mode = match mode {
@@ -76,7 +80,15 @@ pub fn compensate<'py>(
         None => Vec::new(),
     };
     let locked = locked_by_name(&robot, &lock).py()?;
-    let joints = Joints::new(&robot, starts, locked).py()?;
+    let readings: Vec<(String, Vec<f64>)> = sensors.unwrap_or_default().into_iter().collect();
+    let joints = Joints {
+        sensors: if readings.is_empty() {
+            Vec::new()
+        } else {
+            vec![sensor_readings(&robot, &readings).py()?]
+        },
+        ..Joints::new(&robot, starts, locked).py()?
+    };
     let describe = |i: usize| format!("target {i}");
     let out = crate::interrupt::run(py, |cancel| {
         run(&robot, &targets, &joints, mode, frame, &describe, cancel)

@@ -203,7 +203,7 @@ fn map_by_name(
             point,
             torque: if same_joints { s.torque.clone() } else { None },
             // A sensor reading names a body of the tree it was read for.
-            gravity: if same_joints { s.gravity } else { None },
+            sensors: if same_joints { s.sensors } else { Default::default() },
             ..s.clone()
         });
     }
@@ -287,7 +287,7 @@ impl PyMeasurements {
                 torque: None,
                 fixed_point: None,
                 plane: None,
-                gravity: None,
+                sensors: Default::default(),
                 station: 0,
                 position_std: None,
             })

@@ -163,7 +163,7 @@ pub fn parse_measurements(text: &str, path: &Path, robot: &Robot) -> Result<Vec<
                 torque: None,
                 fixed_point: None,
                 plane: None,
-                gravity: None,
+                sensors: Default::default(),
                 station: 0,
                 position_std: None,
             });

@@ -31,7 +31,9 @@ pub struct Args {
     /// targets or one per target. Joints that do not move the tool (other limbs, the head) and
     /// locked joints keep these values; a joint without a column starts at the robot file's
     /// `hold` value (else 0, or the middle of its limits), one that moves the tool at the
-    /// middle of its limits.
+    /// middle of its limits. The columns of the robot's sensors (`[[sensors]]`, as in
+    /// measurement files) give the readings the robot stands at now, one row for all targets
+    /// or one per target: its tilt then turns and loads the model as a measured row's does.
     #[arg(long)]
     start: Option<PathBuf>,
     /// Joints to keep at their start values besides those that do not move the tool,
@@ -60,11 +62,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .collect();
     super::check_output(&args.out, &robot, &inputs)?;
     let targets = ops::read_targets(&args.targets, units, super::input_limits())?;
-    let starts = match &args.start {
+    let (starts, sensors) = match &args.start {
         Some(path) => ops::read_starts(path, &robot)?,
-        None => Vec::new(),
+        None => (Vec::new(), Vec::new()),
     };
-    let joints = ops::Joints::new(&robot, starts, ops::locked_by_name(&robot, &args.lock)?)?;
+    let joints = ops::Joints {
+        sensors,
+        ..ops::Joints::new(&robot, starts, ops::locked_by_name(&robot, &args.lock)?)?
+    };
     let mode = match args.mode {
         Mode::Paper => CompensationMode::Paper,
         Mode::Exact => CompensationMode::Exact,

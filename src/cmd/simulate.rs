@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use armcomp_core::algorithms::simulate::Contact;
-use armcomp_core::data::measurement::{parse_poses, write_csv, write_csv_with_sensor};
+use armcomp_core::data::measurement::{parse_poses, write_csv, write_csv_with_sensors};
 use armcomp_core::support::io::write_atomic;
 
 #[derive(clap::Args)]
@@ -23,8 +23,10 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0)]
     noise_mm: f64,
     /// Standard deviation (deg) of the base's tilt about its x and y axes, drawn anew at every
-    /// pose (or station, `--tilt-per station`); the robot file's sensor (`[[sensors]]`) reads it
-    /// and its columns are written.
+    /// pose (or station, `--tilt-per station`); the robot file's sensors (`[[sensors]]`) read it
+    /// (a link's with the bending below it, each with its mounting and noise) and their columns
+    /// are written. With a `measured_tilt` on a base sensor the tilt turns the measured points
+    /// too (a base rocking under a tracker on the ground), else only the loads.
     #[arg(long, default_value_t = 0.0)]
     tilt_deg: f64,
     /// Draw the tilt anew at every `row` (a carrier moving between measurements) or once per
@@ -183,7 +185,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for w in &set.warnings {
         eprintln!("warning: {w}");
     }
-    let text = write_csv_with_sensor(&set, truth.tree(), truth.units(), truth.gravity_sensor());
+    let text = write_csv_with_sensors(&set, truth.tree(), truth.units(), truth.sensors());
     write_atomic(&args.out, text.as_bytes())?;
     eprintln!(
         "wrote {} measurements of {} poses{} to {} (noise {} mm per axis, seed {})",

@@ -5,7 +5,10 @@ use std::path::Path;
 
 use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
 use armcomp_core::algorithms::ik::IkTarget;
-use armcomp_core::data::measurement::{CsvLayout, csv_text, joint_header, joint_row, parse_poses, split_header};
+use armcomp_core::data::measurement::{
+    CsvLayout, csv_text, joint_header, joint_row, parse_poses_with_sensors, split_header,
+};
+use armcomp_core::kinematics::sensor::{GravityReading, SensorReadings};
 use armcomp_core::model::tree::Coordinate;
 use armcomp_core::model::units::LengthUnit;
 use armcomp_core::support::cancel::Cancel;
@@ -60,6 +63,9 @@ pub struct Joints {
     pub starts: Vec<Vec<f64>>,
     /// Coordinates kept at their start value besides those that do not move the tool.
     pub locked: Vec<bool>,
+    /// The sensors' readings the robot stands at (its tilt now): one for every target, or one
+    /// per target; none when no sensor is read.
+    pub sensors: Vec<SensorReadings>,
 }
 
 impl Joints {
@@ -72,8 +78,66 @@ impl Joints {
                 .check_q(q)
                 .map_err(|source| Error::StartConfiguration { index: k + 1, source })?;
         }
-        Ok(Joints { starts, locked })
+        Ok(Joints {
+            starts,
+            locked,
+            sensors: Vec::new(),
+        })
     }
+}
+
+/// One reading of the robot's sensors from `(sensor name, cells)` pairs, the cells in SI as a
+/// measurement file's columns hold them (an accelerometer's x, y, z in m/s², or any common
+/// scale; an inclinometer's roll and pitch in rad). An unknown sensor, a wrong number of cells
+/// or a reading that gives no direction is refused, naming the sensor.
+pub fn sensor_readings(robot: &Robot, readings: &[(String, Vec<f64>)]) -> Result<SensorReadings> {
+    let bad = |reason: String| {
+        Error::Core(armcomp_core::Error::InvalidArgument {
+            what: "sensors".into(),
+            reason,
+        })
+    };
+    let mut out = SensorReadings::default();
+    for (name, cells) in readings {
+        let sensors = robot.sensors();
+        let Some(k) = sensors.iter().position(|s| &s.name == name) else {
+            let names: Vec<&str> = sensors.iter().map(|s| s.name.as_str()).collect();
+            return Err(bad(format!(
+                "`{}` is not a sensor of `{}`; its sensors are: {}",
+                shown(name),
+                robot.name(),
+                if names.is_empty() {
+                    "none".into()
+                } else {
+                    names.join(", ")
+                }
+            )));
+        };
+        let s = &sensors[k];
+        if cells.len() != s.kind.n_columns() || cells.iter().any(|v| !v.is_finite()) {
+            return Err(bad(format!(
+                "sensor `{name}`: an {} reads {} finite numbers ({}), got {:?}",
+                s.kind.name(),
+                s.kind.n_columns(),
+                s.kind.cells(),
+                cells
+            )));
+        }
+        let mut v = nalgebra::Vector4::zeros();
+        v.as_mut_slice()[..cells.len()].copy_from_slice(cells);
+        let direction = s
+            .kind
+            .gravity_direction(&v)
+            .map_err(|m| bad(format!("sensor `{name}`: {m}")))?;
+        out.set(
+            k,
+            Some(GravityReading {
+                body: s.body,
+                direction,
+            }),
+        );
+    }
+    Ok(out)
 }
 
 /// Per coordinate, whether `names` (coordinate names) lock it; a mimic joint is refused with
@@ -107,16 +171,24 @@ pub fn locked_by_name(robot: &Robot, names: &[String]) -> Result<Vec<bool>> {
 
 /// Start configurations from a CSV of joint columns (the rules of measurement files; a joint
 /// without a column starts where [`default_start`] puts it), one row per target or one row
-/// for all. The file is read within the robot's [input limits](Robot::input_limits).
-pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f64>>> {
+/// for all, with the readings of the robot's sensors whose columns it has (empty when it has
+/// none): the tilt the robot stands at. The file is read within the robot's
+/// [input limits](Robot::input_limits).
+pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<(Vec<Vec<f64>>, Vec<SensorReadings>)> {
     let text = armcomp_core::support::io::read_text(path, robot.input_limits())?;
     let layout = CsvLayout {
         hold: default_start(robot).into_iter().map(Some).collect(),
         ..robot.csv_layout()
     };
-    let starts = parse_poses(&text, path, &layout)?;
-    // A start file holds joint values only: a column of another name is a misspelt joint,
-    // which would leave that joint at its default start without a word.
+    let (starts, sensors): (Vec<Vec<f64>>, Vec<SensorReadings>) =
+        parse_poses_with_sensors(&text, path, &layout)?.into_iter().unzip();
+    let sensors = if sensors.iter().all(SensorReadings::is_empty) {
+        Vec::new()
+    } else {
+        sensors
+    };
+    // A start file holds joint values and sensor readings only: a column of another name is
+    // a misspelt joint, which would leave that joint at its default start without a word.
     let mut reader = csv::ReaderBuilder::new()
         .flexible(true)
         .trim(csv::Trim::All)
@@ -124,7 +196,10 @@ pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f
         .from_reader(text.as_bytes());
     if let Ok(header) = reader.headers() {
         let joints = robot.tree().coordinate_names();
-        if let Some(h) = header.iter().find(|h| !joints.iter().any(|j| j == split_header(h).0)) {
+        let known = |name: &str| {
+            joints.iter().any(|j| j == name) || robot.sensors().iter().any(|s| s.columns.iter().any(|c| c == name))
+        };
+        if let Some(h) = header.iter().find(|h| !known(split_header(h).0)) {
             let line = armcomp_core::data::measurement::line_at(&text, header.position());
             let names: Vec<&str> = joints.iter().map(String::as_str).collect();
             return Err(armcomp_core::Error::input_at(
@@ -132,7 +207,8 @@ pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f
                 Some(line),
                 Some(h),
                 format!(
-                    "column `{}` is not a joint of `{}`; a start file has a column per joint it sets, of {}",
+                    "column `{}` is not a joint of `{}`; a start file has a column per joint it sets, of {}, and \
+                     the columns of the sensors it gives readings of",
                     shown(h),
                     robot.name(),
                     armcomp_core::data::measurement::listed(&names)
@@ -148,7 +224,7 @@ pub fn read_starts(path: &Path, robot: &Robot) -> armcomp_core::Result<Vec<Vec<f
             "no start configurations".into(),
         ));
     }
-    Ok(starts)
+    Ok((starts, sensors))
 }
 
 /// The solver settings every caller uses.
@@ -184,6 +260,15 @@ pub fn run(
             });
         }
     };
+    let sensors = match joints.sensors.len() {
+        n if n <= 1 || n == targets.len() => &joints.sensors[..],
+        n => {
+            return Err(Error::StartCount {
+                starts: n,
+                targets: targets.len(),
+            });
+        }
+    };
     let t_meas_base = robot.t_meas_base();
     let to_base = match frame {
         Frame::Measurement => t_meas_base.inverse(),
@@ -199,6 +284,9 @@ pub fn run(
     };
     for (i, t) in targets.iter().enumerate() {
         cancel.check()?;
+        if let Some(&readings) = sensors.get(i.min(sensors.len().saturating_sub(1))) {
+            comp.set_sensors(readings);
+        }
         let c = comp
             .compensate_target(&ik_target(t, &to_base), &starts[i.min(starts.len() - 1)], mode)
             .map_err(|source| Error::Target {

@@ -25,6 +25,7 @@ use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use crate::algorithms::evaluate::predictor_input_into;
 use crate::algorithms::ik::{IkError, IkParams, IkReport, IkTarget, IkWorkspace, LinearOffset, Start, solve_from};
 use crate::error::{Error, Result};
+use crate::kinematics::sensor::SensorReadings;
 use crate::plugin::FittedPredictor;
 use crate::robot::Robot;
 use crate::robot::robot_file::PredictorFrame;
@@ -198,6 +199,12 @@ impl<'a> Compensator<'a> {
     /// Per coordinate, whether compensation keeps it at its start value.
     pub fn locked(&self) -> &[bool] {
         self.ik.locked()
+    }
+
+    /// Compensates the targets that follow under the sensors' `readings` (the robot's tilt
+    /// now), as a measured row's readings turn and load the model.
+    pub fn set_sensors(&mut self, readings: SensorReadings) {
+        self.params.ik.sensors = readings;
     }
 
     /// Whether a predictor takes part.

@@ -20,7 +20,8 @@
 use nalgebra::{Cholesky, Isometry3, Matrix3, Matrix3xX, Matrix6, Matrix6xX, Vector3, Vector6};
 
 use crate::error::Error;
-use crate::robot::{Robot, RobotWorkspace};
+use crate::kinematics::sensor::SensorReadings;
+use crate::robot::{Conditions, Robot, RobotWorkspace};
 
 /// What to reach.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,6 +97,20 @@ pub struct IkParams {
     pub max_step: f64,
     /// Temperature (°C) passed to error models that use it.
     pub temperature: Option<f64>,
+    /// The sensors' readings (the robot's current tilt), passed to error models as a measured
+    /// row's are.
+    pub sensors: SensorReadings,
+}
+
+impl IkParams {
+    /// The conditions the full model is evaluated under.
+    pub fn conditions(&self) -> Conditions {
+        Conditions {
+            temperature: self.temperature,
+            sensors: self.sensors,
+            ..Conditions::default()
+        }
+    }
 }
 
 impl Default for IkParams {
@@ -110,6 +125,7 @@ impl Default for IkParams {
             damping: 1e-6,
             max_step: 0.5,
             temperature: None,
+            sensors: SensorReadings::default(),
         }
     }
 }
@@ -347,7 +363,7 @@ pub fn solve_ik_with_offset(
 pub(crate) enum Start<'q> {
     /// These joint values.
     Given(&'q [f64]),
-    /// Where the last solve with the same robot, workspace and temperature ended
+    /// Where the last solve with the same robot, workspace and conditions ended
     /// ([`IkWorkspace::q`]), whose frames the workspace still holds: saves one evaluation of
     /// the full model when solves follow each other.
     Previous,
@@ -531,7 +547,8 @@ impl Solve<'_> {
         }
         if !previous {
             project(self.robot, &mut ws.q);
-            self.robot.forward_into(&ws.q, self.opts.temperature, &mut ws.robot);
+            self.robot
+                .forward_under_into(&ws.q, self.opts.conditions(), &mut ws.robot);
         }
     }
 
@@ -559,7 +576,8 @@ impl Solve<'_> {
             self.task_jacobian(ws);
             if !self.step(at, ws) {
                 // Restore the frames of the current iterate and give up on this start.
-                self.robot.forward_into(&ws.q, self.opts.temperature, &mut ws.robot);
+                self.robot
+                    .forward_under_into(&ws.q, self.opts.conditions(), &mut ws.robot);
                 break;
             }
             // Stall detection: the error must keep shrinking.
@@ -652,7 +670,8 @@ impl Solve<'_> {
                 ws.trial[k] = ws.q[k] + alpha * ws.dq[k];
             }
             project(self.robot, &mut ws.trial);
-            self.robot.forward_into(&ws.trial, opts.temperature, &mut ws.robot);
+            self.robot
+                .forward_under_into(&ws.trial, opts.conditions(), &mut ws.robot);
             let (e2, pe2, oe2) = self.error(&ws.robot, &ws.trial);
             let c2 = e2.norm_squared();
             if c2 < at.cost {
@@ -668,7 +687,8 @@ impl Solve<'_> {
     /// The failure: the closest configuration over all starts, left in `ws` with its frames.
     fn closest(&self, iterations: usize, ws: &mut IkWorkspace) -> IkError {
         ws.q.copy_from_slice(&ws.best);
-        self.robot.forward_into(&ws.q, self.opts.temperature, &mut ws.robot);
+        self.robot
+            .forward_under_into(&ws.q, self.opts.conditions(), &mut ws.robot);
         let (_, pe, oe) = self.error(&ws.robot, &ws.q);
         IkError::Unreachable {
             closest_q: ws.best.clone(),

@@ -134,8 +134,9 @@ pub fn gravity_loads(robot: &Robot, samples: &[Sample]) -> Vec<Vec<f64>> {
                 frames: &ws.rigid,
                 mass,
                 loads: &ws.loads,
-                gravity: robot.gravity_under(conditions, tree, &ws.rigid),
+                gravity: robot.gravity_under(conditions, tree, &ws.rigid, robot.error_values()),
                 temperature: conditions.temperature,
+                sensors: robot.sensor_readings(conditions, robot.error_values()),
             };
             (0..tree.joints().len())
                 .map(|j| joint_gravity_load(&state, j))

@@ -8,7 +8,7 @@ use rand_distr::{Distribution, Normal};
 use crate::error::{Error, Result};
 
 use crate::data::measurement::{MeasurementSet, Sample};
-use crate::kinematics::sensor::GravityReading;
+use crate::kinematics::sensor::{GravityReading, SensorReadings};
 use crate::robot::{Conditions, Robot, Station};
 
 /// Settings of a simulated measurement campaign.
@@ -35,8 +35,8 @@ pub const ABSURD_TILT: f64 = 0.5;
 /// through the full model (chain and error models; a rigid truth through the markers' batched
 /// point kinematics), plus Gaussian noise per axis. A truth with several stations measures the
 /// poses in as many consecutive blocks of (nearly) equal size, each from its station's frame,
-/// as a total station set up again for every data set does; a truth with a gravity
-/// sensor (`[[sensors]]`) reads the file's gravity, see [`simulate_tilted`].
+/// as a total station set up again for every data set does; a truth with sensors
+/// (`[[sensors]]`) stands level and they read it, see [`simulate_tilted`].
 pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Result<MeasurementSet> {
     simulate_tilted(truth, poses, params, 0.0, TiltDraw::PerRow)
 }
@@ -57,9 +57,16 @@ pub enum TiltDraw {
 /// standard deviation `tilt_std` (rad) with the noise's seed (a stream of its own, so the noise
 /// is that of [`simulate`]).
 /// Gravity in the base frame turns the other way (as `base_tilt` turns it) and the elastic
-/// models respond to it; the truth's sensor, which a tilt needs, reads it exactly. The tracker
-/// moves with the base (it is carried on the base, or the base frame is registered again at
-/// every station), so the tilt shows only through the loads.
+/// models respond to it. Every sensor of the truth (a tilt needs one) records its link's
+/// orientation against gravity as the truth stands, the bending below it included, through its
+/// mounting and with its noise; the truth itself is evaluated with the exact tilt.
+///
+/// What the tilt turns is the truth's to say: when it has a `measured_tilt` on a sensor of the
+/// base, the base rocks under a tracker standing on the ground and the tilt turns the measured
+/// points; otherwise the tracker moves with the base (it is carried on it, or the base frame is
+/// registered again at every station), so the tilt shows only through the loads. A truth's
+/// column leans through its elastic models: a `measured_tilt` on a sensor off the base would
+/// turn it by its own reading, and is refused.
 pub fn simulate_tilted(
     truth: &Robot,
     poses: &[Vec<f64>],
@@ -77,7 +84,7 @@ pub fn simulate_tilted(
             ),
         });
     }
-    if tilt_std > 0.0 && truth.gravity_sensor().is_none() {
+    if tilt_std > 0.0 && truth.sensors().is_empty() {
         return Err(Error::InvalidArgument {
             what: "tilt".into(),
             reason: "a tilted base needs a sensor in the truth's robot file (`[[sensors]]`) to read it".into(),
@@ -105,25 +112,29 @@ pub fn simulate_tilted(
     })?;
     let mut rng = StdRng::seed_from_u64(params.seed);
     let n_stations = truth.stations().len().max(1);
-    let (positions, readings) = match truth.gravity_sensor() {
-        Some(sensor) => {
-            let tilt = Normal::new(0.0, tilt_std).map_err(|e| Error::InvalidArgument {
-                what: "tilt".into(),
-                reason: e.to_string(),
-            })?;
-            let mut tilt_rng = StdRng::seed_from_u64(params.seed ^ 0x7117_5eed_0000_0001);
-            let mut next = || Vector3::new(tilt.sample(&mut tilt_rng), tilt.sample(&mut tilt_rng), 0.0);
-            match draw {
-                TiltDraw::PerRow => tilted_positions(truth, poses, sensor.body, |_| next())?,
-                TiltDraw::PerStation => {
-                    let tilts: Vec<Vector3<f64>> = (0..n_stations).map(|_| next()).collect();
-                    tilted_positions(truth, poses, sensor.body, |i| {
-                        tilts[station_of(i, n_stations, poses.len())]
-                    })?
-                }
+    let (positions, readings) = if truth.sensors().is_empty() {
+        (truth.point_positions_many(truth.markers(), poses)?, Vec::new())
+    } else {
+        let tilt = Normal::new(0.0, tilt_std).map_err(|e| Error::InvalidArgument {
+            what: "tilt".into(),
+            reason: e.to_string(),
+        })?;
+        let mut tilt_rng = StdRng::seed_from_u64(params.seed ^ 0x7117_5eed_0000_0001);
+        let mut next = || Vector3::new(tilt.sample(&mut tilt_rng), tilt.sample(&mut tilt_rng), 0.0);
+        // The sensors' noise is a stream of its own too.
+        let mut sensor_rng = StdRng::seed_from_u64(params.seed ^ 0x5e45_0a15_0000_0002);
+        match draw {
+            TiltDraw::PerRow => tilted_positions(truth, poses, |_| next(), &mut sensor_rng)?,
+            TiltDraw::PerStation => {
+                let tilts: Vec<Vector3<f64>> = (0..n_stations).map(|_| next()).collect();
+                tilted_positions(
+                    truth,
+                    poses,
+                    |i| tilts[station_of(i, n_stations, poses.len())],
+                    &mut sensor_rng,
+                )?
             }
         }
-        None => (truth.point_positions_many(truth.markers(), poses)?, Vec::new()),
     };
     let mut set = MeasurementSet::default();
     if params.noise_std > IMPLAUSIBLE_NOISE {
@@ -153,7 +164,7 @@ pub fn simulate_tilted(
                 torque: None,
                 fixed_point: None,
                 plane: None,
-                gravity: readings.get(i).copied(),
+                sensors: readings.get(i).copied().unwrap_or_default(),
                 station,
                 position_std: None,
             });
@@ -316,7 +327,7 @@ pub fn simulate_contacts(
                 torque: None,
                 fixed_point: matches!(contact, Contact::FixedPoint(_)).then(|| name.clone()),
                 plane: matches!(contact, Contact::Plane { .. }).then(|| name.clone()),
-                gravity: None,
+                sensors: Default::default(),
                 station: 0,
                 position_std: None,
             });
@@ -344,14 +355,30 @@ fn station_of(i: usize, n_stations: usize, n_poses: usize) -> usize {
 }
 
 /// The markers' positions (m, base frame) at `poses` with the base tilted by `tilt(i)` (a
-/// rotation vector, rad) at pose `i`, and the readings of a sensor on `body`.
+/// rotation vector, rad) at pose `i`, and the readings every sensor records there (see
+/// [`simulate_tilted`]), its noise drawn from `rng`.
 fn tilted_positions(
     truth: &Robot,
     poses: &[Vec<f64>],
-    body: usize,
     mut tilt: impl FnMut(usize) -> Vector3<f64>,
-) -> Result<(Vec<Vector3<f64>>, Vec<GravityReading>)> {
+    rng: &mut StdRng,
+) -> Result<(Vec<Vector3<f64>>, Vec<SensorReadings>)> {
     let tree = truth.tree();
+    let sensors = truth.sensors();
+    let values = truth.error_values();
+    let mountings: Vec<Option<UnitQuaternion<f64>>> =
+        (0..sensors.len()).map(|k| truth.sensor_mounting(k, values)).collect();
+    if let Some(k) = (0..sensors.len()).find(|&k| sensors[k].body != 0 && mountings[k].is_some()) {
+        return Err(Error::InvalidArgument {
+            what: "truth".into(),
+            reason: format!(
+                "turns its chain by the reading of sensor `{}`, which is off the base: a simulated truth leans \
+                 through its elastic models, and the sensor records the lean",
+                sensors[k].name
+            ),
+        });
+    }
+    let turns_base = (0..sensors.len()).any(|k| sensors[k].body == 0 && mountings[k].is_some());
     let mut ws = truth.workspace();
     let down = truth.gravity().try_normalize(0.0).unwrap_or(-Vector3::z());
     let mut positions = Vec::with_capacity(poses.len() * truth.markers().len());
@@ -361,14 +388,47 @@ fn tilted_positions(
         tree.forward_into(q, &mut ws.rigid);
         // Gravity seen from a tilted base turns the other way (as `base_tilt` turns it).
         let tilted = UnitQuaternion::from_scaled_axis(tilt(i)).inverse_transform_vector(&down);
-        let reading = GravityReading::of_base_direction(body, &tilted, tree, &ws.rigid);
+        // The truth is evaluated with the exact tilt: through the rigid frames, read so that
+        // its mountings turn the readings back to it.
+        let mut exact = SensorReadings::default();
+        for (k, s) in sensors.iter().enumerate() {
+            let r = GravityReading::of_base_direction(s.body, &tilted, tree, &ws.rigid);
+            let mounting = mountings[k].unwrap_or_default();
+            exact.set(
+                k,
+                Some(GravityReading {
+                    direction: mounting.inverse_transform_vector(&r.direction),
+                    ..r
+                }),
+            );
+        }
         let conditions = Conditions {
-            gravity: Some(reading),
+            sensors: exact,
             ..Conditions::default()
         };
-        truth.forward_with_into(tree, truth.error_values(), q, conditions, &mut ws);
+        truth.forward_with_into(tree, values, q, conditions, &mut ws);
         positions.extend(truth.markers().iter().map(|&m| ws.frames.point[m].translation.vector));
-        readings.push(reading);
+        // What the sensors record: the base's the tilt; a link's its orientation in the frames
+        // as the truth stands, which a base turned under the tracker expresses in the level
+        // frame.
+        let frame_down = if turns_base { down } else { tilted };
+        let mut recorded = SensorReadings::default();
+        for (k, s) in sensors.iter().enumerate() {
+            let at = match s.body {
+                0 => GravityReading::of_base_direction(0, &tilted, tree, &ws.rigid),
+                b => GravityReading::of_base_direction(b, &frame_down, tree, &ws.frames),
+            };
+            let reading = s
+                .simulated_reading(&at.direction, &mountings[k].unwrap_or_default(), || {
+                    rng.sample(rand_distr::StandardNormal)
+                })
+                .map_err(|m| Error::InvalidArgument {
+                    what: format!("sensor `{}` at pose {}", s.name, i + 1),
+                    reason: m,
+                })?;
+            recorded.set(k, Some(reading));
+        }
+        readings.push(recorded);
     }
     Ok((positions, readings))
 }

@@ -63,7 +63,7 @@ use nalgebra::Vector3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::algorithms::evaluate::{ErrorStats, position_errors};
+use crate::algorithms::evaluate::{ErrorStats, model_errors, position_errors};
 use crate::algorithms::residuals::{ResidualDescription, describe_residuals};
 use crate::analysis::held_out::{held_out_errors, measures_positions};
 use crate::calibrate::{
@@ -173,7 +173,8 @@ pub struct RankedCandidate {
     /// Whether its calibrations left it where it started (every parameter within
     /// [`NEUTRAL_Z`] standard deviations of its neutral value, on a bound, or fixed) in most
     /// folds: the effect itself did nothing, so whatever its fit gained came from elsewhere
-    /// (another minimum, other parameters) and it cannot be named.
+    /// (another minimum, other parameters) and it cannot be named. Never for an effect that
+    /// acts at its starting values (a measured tilt turning the chain by the readings).
     pub at_neutral: bool,
     /// Whether its calibrations needed values outside the range its model calls physically
     /// plausible (an eccentricity of degrees, a compliance that bends the arm by centimetres)
@@ -722,6 +723,11 @@ impl Search<'_> {
     /// score test.
     fn predicted_share(&self, fitted: &Robot, offer: &Offer) -> Option<f64> {
         let model = with_effect(fitted, offer).ok()?;
+        // The score test linearises at the current fit. An effect that moves the model already
+        // at its starting values starts elsewhere: it cannot be assessed so, and is refitted.
+        if acts_at_start(fitted, &model, self.samples) {
+            return None;
+        }
         let added = added_params(&model);
         score_test(&model, self.samples, &self.selection(&model), &added)
             .ok()
@@ -743,11 +749,18 @@ impl Search<'_> {
         let evaluated = (|| {
             let candidate = with_effect(model, offer)?;
             let names = added_params(&candidate);
-            Ok::<_, Error>((names, self.heldout(&candidate, &self.selection(&candidate), tick)?))
+            let acts = acts_at_start(model, &candidate, self.samples);
+            Ok::<_, Error>((
+                names,
+                acts,
+                self.heldout(&candidate, &self.selection(&candidate), tick)?,
+            ))
         })();
         match evaluated {
             Err(e) => out.error = Some(e.to_string()),
-            Ok((names, evaluation)) => judge(&mut out, &names, evaluation, current, self.floor, self.params),
+            Ok((names, acts, evaluation)) => {
+                judge(&mut out, &names, acts, evaluation, current, self.floor, self.params)
+            }
         }
         out
     }
@@ -1082,12 +1095,23 @@ fn added_params(model: &Robot) -> Vec<String> {
         .map_or(Vec::new(), |m| m.params().iter().map(|p| p.name.clone()).collect())
 }
 
+/// Whether `with`, a model with an effect added at its starting values, already evaluates
+/// `samples` differently from `without`: an effect that acts by the conditions of each row (a
+/// measured tilt turning the chain by the readings) rather than by its parameters' values.
+fn acts_at_start(without: &Robot, with: &Robot, samples: &[Sample]) -> bool {
+    let (before, after) = (model_errors(without, samples), model_errors(with, samples));
+    before.iter().zip(&after).any(|(a, b)| (a - b).norm() > 1e-9)
+}
+
 /// Applies the acceptance rule to `out`, a candidate whose parameters `names` were refitted
 /// to `evaluation`, against the held-out evaluation `current` of the model without it; `floor`
 /// is the mean squared held-out error per sample the noise alone gives (m², 0 for none).
+/// A candidate that `acts` at its starting values is never at its neutral value.
+#[allow(clippy::too_many_arguments)]
 fn judge(
     out: &mut RankedCandidate,
     names: &[String],
+    acts: bool,
     evaluation: Heldout,
     current: &Heldout,
     floor: f64,
@@ -1121,7 +1145,7 @@ fn judge(
                 .all(|p| p.fixed || p.at_bound || (p.value - p.initial).abs() <= NEUTRAL_Z * p.std)
         })
         .count();
-    out.at_neutral = 2 * neutral_folds > evaluation.params.len();
+    out.at_neutral = !acts && 2 * neutral_folds > evaluation.params.len();
     let implausible_folds = evaluation
         .params
         .iter()

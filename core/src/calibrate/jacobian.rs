@@ -210,7 +210,9 @@ impl Problem<'_> {
                         let (_, h) = step(theta, k, p);
                         let mut errors = d.errors.clone();
                         errors[i][k - space.error_offsets[i]] += h;
-                        if self.robot.error_models()[i].adjusts_loads() {
+                        // A sensor's mounting turns the readings every model and load sees.
+                        let model = &self.robot.error_models()[i];
+                        if model.adjusts_loads() || model.sensor_mounting(&d.errors[i]).is_some() {
                             ColumnPlan::Loads { errors, h }
                         } else {
                             ColumnPlan::Model { model: i, errors, h }
@@ -693,7 +695,7 @@ pub fn marker_samples(robot: &Robot, q: &[f64]) -> Vec<Sample> {
             torque: None,
             fixed_point: None,
             plane: None,
-            gravity: None,
+            sensors: Default::default(),
             station: 0,
             position_std: None,
         })

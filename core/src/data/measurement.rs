@@ -34,7 +34,7 @@ mod read;
 use read::parse_table;
 
 use crate::error::{Error, Location, Result};
-use crate::kinematics::sensor::{GravityReading, GravitySensor, SensorKind};
+use crate::kinematics::sensor::{GravitySensor, SensorKind, SensorReadings};
 use crate::model::tree::KinematicTree;
 use crate::model::units::Units;
 use crate::support::io::InputLimits;
@@ -63,8 +63,9 @@ pub struct Sample {
     /// The unknown plane the measured point (a contact frame) was pressed on, by name, for
     /// plane contacts (`position` is then unused).
     pub plane: Option<String>,
-    /// The direction of gravity the robot's sensor measured, when its columns are given.
-    pub gravity: Option<GravityReading>,
+    /// The readings of the robot's sensors whose columns are given (one slot per sensor, in
+    /// the robot file's order): the directions of gravity they measured.
+    pub sensors: SensorReadings,
     /// The station (instrument set-up) that measured it: an index into
     /// [`MeasurementSet::stations`] and, once the robot is given the data's stations
     /// ([`Robot::with_stations`](crate::Robot::with_stations)), into the robot's; 0 when the
@@ -151,8 +152,8 @@ enum Column {
     Payload(f64),
     Temperature(f64),
     Torque(usize),
-    /// A cell of the gravity sensor's reading, and its unit's scale to SI.
-    Sensor(usize, f64),
+    /// A cell of a sensor's reading: the sensor, the cell, and its unit's scale to SI.
+    Sensor(usize, usize, f64),
     Station,
     /// A column armcomp does not use (a timestamp, marker quality, another limb's joint).
     Ignored,
@@ -172,7 +173,7 @@ impl Column {
             Column::Torque(_) => Some((v, 1e9, "1e9 N·m")),
             // An accelerometer's scale is free (its direction is used); an inclinometer's
             // angles are checked against their ranges.
-            Column::Sensor(_, scale) => Some((v * scale, 1e6, "1e6")),
+            Column::Sensor(_, _, scale) => Some((v * scale, 1e6, "1e6")),
             // A quaternion's norm is checked to be 1.
             Column::Orientation(Spelling::Quaternion, ..) => None,
             Column::Orientation(_, _, scale) => Some((v * scale, 1e4, "10000 rad")),
@@ -334,9 +335,9 @@ pub struct CsvLayout<'a> {
     /// Whether the robot measures plane contacts: rows then name their plane in a `plane`
     /// column instead of giving a position.
     pub planes: bool,
-    /// The robot's sensor giving the direction of gravity per row, whose columns are read
-    /// when the file has them.
-    pub gravity_sensor: Option<GravitySensor>,
+    /// The robot's sensors, whose columns are read when the file has them (each all or
+    /// none).
+    pub sensors: Vec<GravitySensor>,
 }
 
 impl<'a> CsvLayout<'a> {
@@ -350,7 +351,7 @@ impl<'a> CsvLayout<'a> {
             orientation: false,
             fixed_points: false,
             planes: false,
-            gravity_sensor: None,
+            sensors: Vec::new(),
         }
     }
 
@@ -381,10 +382,23 @@ pub fn parse_csv(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Meas
 /// Parses a CSV of joint configurations only (joint columns, same header rules); other
 /// columns, if present, are ignored.
 pub fn parse_poses(text: &str, path: &Path, layout: &CsvLayout<'_>) -> Result<Vec<Vec<f64>>> {
+    Ok(parse_poses_with_sensors(text, path, layout)?
+        .into_iter()
+        .map(|(q, _)| q)
+        .collect())
+}
+
+/// [`parse_poses`] with each row's readings of the layout's sensors whose columns the table
+/// has (each sensor all its columns or none, its cells checked as in measurement files).
+pub fn parse_poses_with_sensors(
+    text: &str,
+    path: &Path,
+    layout: &CsvLayout<'_>,
+) -> Result<Vec<(Vec<f64>, SensorReadings)>> {
     Ok(parse_table(text, path, layout, false)?
         .samples
         .into_iter()
-        .map(|s| s.q)
+        .map(|s| (s.q, s.sensors))
         .collect())
 }
 
@@ -834,16 +848,17 @@ fn check_magnitudes(
 /// `x[unit]`, or the `fixed_point` or `plane` column of samples without a position); deterministic text for equal
 /// inputs.
 pub fn write_csv(set: &MeasurementSet, tree: &KinematicTree, units: Units) -> String {
-    write_csv_with_sensor(set, tree, units, None)
+    write_csv_with_sensors(set, tree, units, &[])
 }
 
-/// [`write_csv`] with the columns of `sensor` (an accelerometer's in g, an inclinometer's in
-/// the angle unit) for the samples' measured gravity, when every sample carries one.
-pub fn write_csv_with_sensor(
+/// [`write_csv`] with the columns of `sensors` (the robot's, in its order; an accelerometer's
+/// in g, an inclinometer's in the angle unit): those of each sensor every sample has a reading
+/// of.
+pub fn write_csv_with_sensors(
     set: &MeasurementSet,
     tree: &KinematicTree,
     units: Units,
-    sensor: Option<&GravitySensor>,
+    sensors: &[GravitySensor],
 ) -> String {
     let lu = units.length.symbol();
     let mut header = joint_header(tree, units);
@@ -881,8 +896,10 @@ pub fn write_csv_with_sensor(
     if with_temp {
         header.push("temperature[C]".into());
     }
-    let sensor = sensor.filter(|_| first.is_some() && set.samples.iter().all(|s| s.gravity.is_some()));
-    if let Some(g) = sensor {
+    let read: Vec<(usize, &GravitySensor)> = (sensors.iter().enumerate())
+        .filter(|(k, _)| first.is_some() && set.samples.iter().all(|s| s.sensors.get(*k).is_some()))
+        .collect();
+    for (_, g) in &read {
         let unit = match g.kind {
             SensorKind::Accelerometer => "g",
             SensorKind::Inclinometer => units.angle.symbol(),
@@ -921,7 +938,7 @@ pub fn write_csv_with_sensor(
         if with_temp {
             row.push(format!("{}", s.temperature.unwrap_or(20.0)));
         }
-        if let (Some(g), Some(reading)) = (sensor, s.gravity) {
+        for (reading, g) in read.iter().filter_map(|(k, g)| s.sensors.get(*k).map(|r| (r, g))) {
             let cells = g.kind.cells_for(&reading.direction);
             row.extend(cells.iter().take(g.columns.len()).map(|&v| match g.kind {
                 SensorKind::Accelerometer => format!("{v}"),

@@ -1,8 +1,9 @@
 //! Sensors read per measurement row: an accelerometer or inclinometer on a link gives the
-//! direction of gravity at every pose, so that a base standing on uneven ground loads the
-//! elastic models with the gravity it really had (see `docs/robot-files.md`, "Sensors").
+//! direction of gravity in that link's frame at every pose, so that a base standing on uneven
+//! ground loads the elastic models with the gravity it really had, and a `measured_tilt` error
+//! model can turn the chain at that link by it (see `docs/robot-files.md`, "Sensors").
 
-use nalgebra::{Vector3, Vector4};
+use nalgebra::{UnitQuaternion, Vector3, Vector4};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -42,6 +43,15 @@ impl SensorKind {
         match self {
             SensorKind::Accelerometer => "the reading along x, y, z",
             SensorKind::Inclinometer => "roll, pitch",
+        }
+    }
+
+    /// The standard deviation (SI) of a column beyond which a sensor of this kind says nothing
+    /// about gravity: 1 g for an accelerometer, 10 degrees for an inclinometer.
+    pub fn absurd_noise(self) -> f64 {
+        match self {
+            SensorKind::Accelerometer => STANDARD_GRAVITY,
+            SensorKind::Inclinometer => 10f64.to_radians(),
         }
     }
 
@@ -121,14 +131,23 @@ impl SensorKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 #[serde(deny_unknown_fields)]
 pub struct SensorSpec {
-    /// The sensor's name, for messages.
+    /// The sensor's name, for messages and for the error models that read it.
     pub name: String,
     /// What it measures: `accelerometer` (3 columns) or `inclinometer` (roll and pitch).
     pub kind: SensorKind,
-    /// The link it is fixed to; its columns are in that link's frame (a point's frame).
+    /// The link it is fixed to; its columns are in that link's frame (a point's frame). One
+    /// sensor per link.
     pub link: String,
     /// Its columns in measurement files, in order (x, y, z; or roll, pitch).
     pub columns: Vec<String>,
+    /// The standard deviation of each of its columns, in `noise_unit`: what `simulate` adds to
+    /// its readings. None: a perfect sensor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise: Option<f64>,
+    /// The unit of `noise`, as a column header gives it: `deg` or `rad` for an inclinometer
+    /// (default: the file's angle unit), `g` or `m/s2` for an accelerometer (default: m/s²).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub noise_unit: Option<String>,
 }
 
 /// A sensor of the built robot: its link's body and its columns.
@@ -142,6 +161,84 @@ pub struct GravitySensor {
     pub body: usize,
     /// Its column names, in order.
     pub columns: Vec<String>,
+    /// The standard deviation of each column (SI: rad for an inclinometer, m/s² for an
+    /// accelerometer); 0 for a perfect sensor.
+    pub noise: f64,
+}
+
+impl GravitySensor {
+    /// The reading of this sensor, mounted on its link turned by `mounting` (sensor frame to
+    /// link frame), when gravity points along unit `down` of its link's frame, with the
+    /// sensor's noise drawn by `draw` (one standard normal number per column): what a
+    /// simulated campaign records.
+    pub fn simulated_reading(
+        &self,
+        down: &Vector3<f64>,
+        mounting: &UnitQuaternion<f64>,
+        mut draw: impl FnMut() -> f64,
+    ) -> Result<GravityReading, String> {
+        let mut cells = self.kind.cells_for(&mounting.inverse_transform_vector(down));
+        // Cells of an accelerometer are in g.
+        let scale = match self.kind {
+            SensorKind::Accelerometer => self.noise / STANDARD_GRAVITY,
+            SensorKind::Inclinometer => self.noise,
+        };
+        for k in 0..self.kind.n_columns() {
+            cells[k] += scale * draw();
+        }
+        Ok(GravityReading {
+            body: self.body,
+            direction: self.kind.gravity_direction(&cells)?,
+        })
+    }
+}
+
+/// Among `sensors`, the one whose reading gives the elastic models their direction of gravity:
+/// the one on the base (the tree's root), which no bending turns, else the first declared.
+pub fn gravity_sensor_index(sensors: &[GravitySensor]) -> Option<usize> {
+    (sensors.iter().position(|s| s.body == 0)).or((!sensors.is_empty()).then_some(0))
+}
+
+/// Most sensors one robot may declare: their readings travel with every evaluation's
+/// conditions, which are copied into the forward kinematics' inner loops and so have a fixed
+/// size.
+pub const MAX_SENSORS: usize = 4;
+
+/// One row's readings, one slot per sensor of the robot in the order of its `[[sensors]]`;
+/// a slot is empty when the row has no reading of that sensor. Fixed-size and `Copy`, so
+/// evaluations carry it without allocating.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SensorReadings([Option<GravityReading>; MAX_SENSORS]);
+
+impl SensorReadings {
+    /// The reading of sensor `k`, if the row has one.
+    #[inline]
+    pub fn get(&self, k: usize) -> Option<&GravityReading> {
+        self.0.get(k).and_then(Option::as_ref)
+    }
+
+    /// Sets the reading of sensor `k` (< [`MAX_SENSORS`]; the robot's build refuses more).
+    #[inline]
+    pub fn set(&mut self, k: usize, reading: Option<GravityReading>) {
+        self.0[k] = reading;
+    }
+
+    /// Readings with only sensor `k`'s.
+    pub fn one(k: usize, reading: GravityReading) -> Self {
+        let mut r = SensorReadings::default();
+        r.set(k, Some(reading));
+        r
+    }
+
+    /// Whether no sensor is read.
+    pub fn is_empty(&self) -> bool {
+        self.0.iter().all(Option::is_none)
+    }
+
+    /// Every slot, in sensor order.
+    pub fn iter(&self) -> impl Iterator<Item = Option<&GravityReading>> {
+        self.0.iter().map(Option::as_ref)
+    }
 }
 
 /// One row's measured direction of gravity, in the frame of the link the sensor is on.
@@ -228,6 +325,46 @@ mod tests {
             let back = kind.gravity_direction(&kind.cells_for(&down)).unwrap();
             assert!((back - down).norm() < 1e-14, "{kind:?}");
         }
+    }
+
+    #[test]
+    fn a_simulated_reading_goes_through_the_mounting_with_its_noise_in_column_units() {
+        let sensor = |kind, noise| GravitySensor {
+            name: "s".into(),
+            kind,
+            body: 0,
+            columns: Vec::new(),
+            noise,
+        };
+        let down = Vector3::new(0.02, -0.01, -1.0).normalize();
+        // Mounted turned by 1° about x: it reads gravity turned back by that.
+        let mounting = UnitQuaternion::from_scaled_axis(Vector3::new(1f64.to_radians(), 0.0, 0.0));
+        for kind in [SensorKind::Accelerometer, SensorKind::Inclinometer] {
+            let r = sensor(kind, 0.0).simulated_reading(&down, &mounting, || 1.0).unwrap();
+            assert!((mounting * r.direction - down).norm() < 1e-14, "{kind:?}");
+        }
+        // One standard deviation on every cell: an inclinometer's 0.01° moves its roll and
+        // pitch by 0.01°; an accelerometer's 0.01 m/s² moves its cells (in g) by 0.01/g₀.
+        let incl = sensor(SensorKind::Inclinometer, 0.01f64.to_radians());
+        let r = incl
+            .simulated_reading(&down, &UnitQuaternion::identity(), || 1.0)
+            .unwrap();
+        let (a, b) = (
+            SensorKind::Inclinometer.cells_for(&down),
+            SensorKind::Inclinometer.cells_for(&r.direction),
+        );
+        assert!(((b - a).fixed_rows::<2>(0) - nalgebra::Vector2::repeat(0.01f64.to_radians())).norm() < 1e-12);
+        let acc = sensor(SensorKind::Accelerometer, 0.01);
+        let r = acc
+            .simulated_reading(&down, &UnitQuaternion::identity(), || 1.0)
+            .unwrap();
+        let shifted = -(down + Vector3::repeat(-0.01 / STANDARD_GRAVITY));
+        assert!((r.direction + shifted.normalize()).norm() < 1e-12, "{}", r.direction);
+        // Readings hold a slot per sensor.
+        let mut readings = SensorReadings::default();
+        assert!(readings.is_empty());
+        readings.set(2, Some(r));
+        assert!(readings.get(2).is_some() && readings.get(0).is_none() && readings.get(MAX_SENSORS).is_none());
     }
 
     #[test]

@@ -9,9 +9,10 @@ pub mod gravity;
 use std::fmt::Debug;
 use std::path::Path;
 
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
 
 use crate::error::{Issues, Result};
+use crate::kinematics::sensor::{GravitySensor, SensorReadings};
 use crate::kinematics::subtree_loads::SubtreeLoads;
 use crate::kinematics::workspace::TreeWorkspace;
 use crate::model::mass::MassModel;
@@ -99,6 +100,13 @@ pub struct ModelContext<'a> {
     pub tree: &'a KinematicTree,
     /// Masses, centres of mass and beam sections of the bodies.
     pub mass: &'a MassModel,
+    /// The robot's sensors (`[[sensors]]`), in the file's order: what
+    /// [`StaticState::sensors`] holds the readings of.
+    pub sensors: &'a [GravitySensor],
+    /// The sensor among them whose reading gives the direction of gravity, if any.
+    pub gravity_sensor: Option<usize>,
+    /// The robot file's gravity (m/s², base frame): the direction of a level base.
+    pub gravity: Vector3<f64>,
 }
 
 /// The static state an error model perturbs: joint values, the rigid frames, the loads.
@@ -118,6 +126,10 @@ pub struct StaticState<'a> {
     pub gravity: Vector3<f64>,
     /// Ambient temperature (°C), when the measurement gives one.
     pub temperature: Option<f64>,
+    /// The row's sensor readings, one slot per sensor of [`ModelContext::sensors`], already
+    /// turned from the sensor's frame into its link's by the mountings models identify
+    /// ([`ErrorModel::sensor_mounting`]).
+    pub sensors: SensorReadings,
 }
 
 /// A physical error model as written in a robot file.
@@ -151,6 +163,16 @@ pub trait ErrorModel: Debug + Send + Sync {
     /// Changes `loads` (the declared ones, or what earlier models made of them) for parameter
     /// `values`. Must not allocate.
     fn adjust_loads(&self, _values: &[f64], _loads: &mut Loads) {}
+    /// The sensor (an index into [`ModelContext::sensors`]) by whose reading this model turns
+    /// the chain at that sensor's link (a measured tilt), and at `values` the sensor's
+    /// mounting: the rotation from the sensor's frame to its link's frame. The robot turns the
+    /// sensor's readings by it before any model or load sees them (so the gravity of every
+    /// elastic model is corrected too); a simulated truth reads through it, and turns its
+    /// measured points by the tilt of a base that has one. Calibration differences the full
+    /// model for such a model's parameters. None, the default: the model reads no sensor.
+    fn sensor_mounting(&self, _values: &[f64]) -> Option<(usize, UnitQuaternion<f64>)> {
+        None
+    }
 }
 
 /// The loads error models respond to.

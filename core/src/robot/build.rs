@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Vector3};
 use crate::error::{Issue, Issues, Result};
 use crate::kinematics::collision::{BodyShape, CollisionGeometry, Fixture};
 use crate::kinematics::point_kinematics::PointKinematics;
-use crate::kinematics::sensor::GravitySensor;
+use crate::kinematics::sensor::{GravitySensor, MAX_SENSORS, SensorKind, gravity_sensor_index};
 use crate::model::geom::xyz_rpy;
 use crate::model::mass::{BeamRigidity, MassModel, Payload};
 use crate::model::shape::{Geometry, Shape};
@@ -117,7 +117,7 @@ impl Robot {
         let payload_point = resolve_payload(&file, &points, tool, &base_tree, &mut mass, &mut issues);
 
         let (t_meas_base, markers, hold) = measurement_setup(&file, &base_tree, &points, tool, &units, &mut issues);
-        let gravity_sensor = resolve_sensors(&file, &base_tree, &mut issues);
+        let sensors = resolve_sensors(&file, &base_tree, &mut issues);
         let stations = station_frames(&file, &units, &mut issues);
         let t_meas_base = stations.first().map_or(t_meas_base, |s| s.frame);
         let frame_link = (file.measurement.as_ref())
@@ -175,7 +175,8 @@ impl Robot {
             stations,
             frame_link,
             markers,
-            gravity_sensor,
+            gravity_sensor: gravity_sensor_index(&sensors),
+            sensors,
             hold,
             payload_point,
             collision,
@@ -239,80 +240,138 @@ fn check_column_name(name: &str, header: bool) -> std::result::Result<(), String
     Ok(())
 }
 
-/// The file's sensor on a link of `tree`, with its columns checked. One sensor for now: the
-/// physics takes one direction of gravity per row, and two sensors on different links disagree
-/// by the bending between them, which no rule of averaging would make right.
-fn resolve_sensors(file: &RobotFile, base_tree: &KinematicTree, issues: &mut Issues) -> Option<GravitySensor> {
-    if file.sensors.len() > 1 {
+/// The file's sensors on links of `tree`, with their columns and noise checked: at most
+/// [`MAX_SENSORS`], one per link, no column claimed twice.
+fn resolve_sensors(file: &RobotFile, base_tree: &KinematicTree, issues: &mut Issues) -> Vec<GravitySensor> {
+    if file.sensors.len() > MAX_SENSORS {
         issues.push(
-            "sensors[1]",
+            format!("sensors[{MAX_SENSORS}]"),
             format!(
-                "{} sensors declared; the direction of gravity is read from one sensor per robot",
+                "{} sensors declared; a robot reads at most {MAX_SENSORS} (their readings travel with every evaluation)",
                 file.sensors.len()
             ),
         );
     }
-    let spec = file.sensors.first()?;
-    let path = "sensors[0]";
-    let mut ok = true;
-    if let Err(m) = check_column_name(&spec.name, false) {
-        issues.push(
-            format!("{path}.name"),
-            format!("sensor name `{}` {m}", spec.name.escape_debug()),
-        );
-        ok = false;
-    }
-    let body = base_tree.body_index(&spec.link);
-    if body.is_none() {
-        issues.push(
-            format!("{path}.link"),
-            format!(
-                "sensor `{}` is on link `{}`, which does not exist; links are: {}",
-                spec.name,
-                spec.link,
-                body_names(base_tree)
-            ),
-        );
-    }
-    let n = spec.kind.n_columns();
-    if spec.columns.len() != n {
-        issues.push(
-            format!("{path}.columns"),
-            format!(
-                "an {} has {n} columns ({}), got {}",
-                spec.kind.name(),
-                spec.kind.cells(),
-                spec.columns.len()
-            ),
-        );
-        ok = false;
-    }
-    for (k, c) in spec.columns.iter().enumerate() {
-        let clash = if let Err(m) = check_column_name(c, true) {
-            Some(m)
-        } else if base_tree.coordinate_names().iter().any(|j| j == c) {
-            Some("is the name of a joint's column".to_string())
-        } else if crate::data::measurement::is_measurement_column(c) {
-            Some("is the name of a measurement CSV column (an orientation or a numbered position)".to_string())
-        } else if spec.columns[..k].contains(c) {
-            Some("appears twice".to_string())
-        } else {
-            None
-        };
-        if let Some(m) = clash {
+    let mut sensors = Vec::new();
+    for (i, spec) in file.sensors.iter().enumerate().take(MAX_SENSORS) {
+        let path = format!("sensors[{i}]");
+        let mut ok = true;
+        if let Err(m) = check_column_name(&spec.name, false) {
             issues.push(
-                format!("{path}.columns[{k}]"),
-                format!("column `{}` {m}", c.escape_debug()),
+                format!("{path}.name"),
+                format!("sensor name `{}` {m}", spec.name.escape_debug()),
+            );
+            ok = false;
+        } else if let Some(k) = file.sensors[..i].iter().position(|o| o.name == spec.name) {
+            issues.push(
+                format!("{path}.name"),
+                format!("sensor `{}` is declared twice (also sensors[{k}])", spec.name),
             );
             ok = false;
         }
+        let body = base_tree.body_index(&spec.link);
+        if body.is_none() {
+            issues.push(
+                format!("{path}.link"),
+                format!(
+                    "sensor `{}` is on link `{}`, which does not exist; links are: {}",
+                    spec.name,
+                    spec.link,
+                    body_names(base_tree)
+                ),
+            );
+        } else if let Some(k) = file.sensors[..i].iter().position(|o| o.link == spec.link) {
+            // Two sensors on one link read one orientation: the second adds nothing a model
+            // could use, and would make two turns of the same link.
+            issues.push(
+                format!("{path}.link"),
+                format!(
+                    "sensor `{}` is on link `{}`, which sensor `{}` (sensors[{k}]) is on already; one sensor per link",
+                    spec.name, spec.link, file.sensors[k].name
+                ),
+            );
+            ok = false;
+        }
+        let n = spec.kind.n_columns();
+        if spec.columns.len() != n {
+            issues.push(
+                format!("{path}.columns"),
+                format!(
+                    "an {} has {n} columns ({}), got {}",
+                    spec.kind.name(),
+                    spec.kind.cells(),
+                    spec.columns.len()
+                ),
+            );
+            ok = false;
+        }
+        for (k, c) in spec.columns.iter().enumerate() {
+            let clash = if let Err(m) = check_column_name(c, true) {
+                Some(m)
+            } else if base_tree.coordinate_names().iter().any(|j| j == c) {
+                Some("is the name of a joint's column".to_string())
+            } else if crate::data::measurement::is_measurement_column(c) {
+                Some("is the name of a measurement CSV column (an orientation or a numbered position)".to_string())
+            } else if spec.columns[..k].contains(c) {
+                Some("appears twice".to_string())
+            } else {
+                (file.sensors[..i].iter())
+                    .find(|o| o.columns.contains(c))
+                    .map(|o| format!("is a column of sensor `{}` too", o.name))
+            };
+            if let Some(m) = clash {
+                issues.push(
+                    format!("{path}.columns[{k}]"),
+                    format!("column `{}` {m}", c.escape_debug()),
+                );
+                ok = false;
+            }
+        }
+        let noise = match (
+            spec.noise,
+            spec.kind.column_scale(spec.noise_unit.as_deref(), file.units.angle),
+        ) {
+            (None, _) => 0.0,
+            (Some(_), Err(m)) => {
+                issues.push(
+                    format!("{path}.noise_unit"),
+                    format!("the noise is in a unit of its columns: {m}"),
+                );
+                ok = false;
+                0.0
+            }
+            (Some(v), Ok(scale)) if v.is_finite() && v >= 0.0 && v * scale < spec.kind.absurd_noise() => v * scale,
+            (Some(v), Ok(_)) => {
+                issues.push(
+                    format!("{path}.noise"),
+                    format!(
+                        "a standard deviation of {v} {} is no {}'s: expected zero or more, below {}",
+                        spec.noise_unit.as_deref().unwrap_or(match spec.kind {
+                            SensorKind::Accelerometer => "m/s2",
+                            SensorKind::Inclinometer => file.units.angle.symbol(),
+                        }),
+                        spec.kind.name(),
+                        match spec.kind {
+                            SensorKind::Accelerometer => "1 g",
+                            SensorKind::Inclinometer => "10 deg",
+                        }
+                    ),
+                );
+                ok = false;
+                0.0
+            }
+        };
+        if let Some(body) = body.filter(|_| ok) {
+            sensors.push(GravitySensor {
+                name: spec.name.clone(),
+                kind: spec.kind,
+                body,
+                columns: spec.columns.clone(),
+                noise,
+            });
+        }
     }
-    Some(GravitySensor {
-        name: spec.name.clone(),
-        kind: spec.kind,
-        body: body.filter(|_| ok)?,
-        columns: spec.columns.clone(),
-    })
+    sensors
 }
 
 /// The file's points on the links of `tree`, and the index of the tool among them.
@@ -799,6 +858,9 @@ impl Robot {
             },
             tree: &self.tree,
             mass: &self.mass,
+            sensors: &self.sensors,
+            gravity_sensor: self.gravity_sensor,
+            gravity: self.gravity,
         };
         Ok(spec.build(&ctx)?.params().iter().map(|p| p.name.clone()).collect())
     }
@@ -825,6 +887,9 @@ fn build_error_models(
             },
             tree: &robot.tree,
             mass: &robot.mass,
+            sensors: &robot.sensors,
+            gravity_sensor: robot.gravity_sensor,
+            gravity: robot.gravity,
         };
         match spec.build(&mctx) {
             Ok(m) => {

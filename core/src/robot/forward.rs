@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 
 use crate::error::Result;
-use crate::kinematics::sensor::GravitySensor;
+use crate::kinematics::sensor::{GravityReading, GravitySensor, SensorReadings};
 use crate::kinematics::subtree_loads::SubtreeLoads;
 use crate::kinematics::workspace::TreeWorkspace;
 use crate::model::mass::{MassModel, Payload};
@@ -24,6 +24,7 @@ impl Robot {
             loads: SubtreeLoads::default(),
             own_mass: true,
             gravity: self.gravity,
+            sensors: SensorReadings::default(),
         }
     }
 
@@ -34,6 +35,12 @@ impl Robot {
             temperature,
             ..Conditions::default()
         };
+        self.forward_under_into(q, conditions, ws);
+    }
+
+    /// [`forward_into`](Robot::forward_into) under all of `conditions` (temperature, payload,
+    /// the sensors' readings).
+    pub fn forward_under_into(&self, q: &[f64], conditions: Conditions, ws: &mut RobotWorkspace) {
         self.forward_with_into(&self.tree, &self.error_values, q, conditions, ws);
     }
 
@@ -103,6 +110,7 @@ impl Robot {
         let (own_mass, gravity) = self.loads_into(conditions, tree, &ws.rigid, error_values, &mut ws.mass);
         ws.own_mass = own_mass;
         ws.gravity = gravity;
+        ws.sensors = self.sensor_readings(conditions, error_values);
         let mass = if own_mass { &self.mass } else { &ws.mass };
         ws.loads.update(tree, &ws.rigid, mass);
         let state = StaticState {
@@ -113,6 +121,7 @@ impl Robot {
             loads: &ws.loads,
             gravity,
             temperature: conditions.temperature,
+            sensors: ws.sensors,
         };
         for (m, v) in self.error_models.iter().zip(error_values) {
             if !m.is_inactive(v) {
@@ -145,7 +154,7 @@ impl Robot {
     ) -> (bool, Vector3<f64>) {
         let adjusting = self.error_models.iter().any(|m| m.adjusts_loads());
         let own = self.mass_is_own(conditions, tree);
-        let gravity = self.gravity_under(conditions, tree, frames);
+        let gravity = self.gravity_under(conditions, tree, frames, error_values);
         if !adjusting {
             if !own {
                 self.mass_under(conditions, tree, scratch);
@@ -175,18 +184,61 @@ impl Robot {
     }
 
     /// Gravity in the base frame (m/s²) under `conditions`: the robot file's, or its magnitude
-    /// along a measured direction carried to the base frame by the rigid frames `frames` of
-    /// `tree` (the sensor's link where the row's joint values put it).
-    pub fn gravity_under(&self, conditions: Conditions, tree: &KinematicTree, frames: &TreeWorkspace) -> Vector3<f64> {
-        match conditions.gravity {
+    /// along the gravity sensor's reading (its mounting corrected by error-model `values`)
+    /// carried to the base frame by the rigid frames `frames` of `tree` (the sensor's link
+    /// where the row's joint values put it).
+    pub fn gravity_under(
+        &self,
+        conditions: Conditions,
+        tree: &KinematicTree,
+        frames: &TreeWorkspace,
+        error_values: &[Vec<f64>],
+    ) -> Vector3<f64> {
+        let readings = self.sensor_readings(conditions, error_values);
+        match self.gravity_sensor.and_then(|k| readings.get(k)) {
             Some(reading) => self.gravity.norm() * reading.in_base(tree, frames),
             None => self.gravity,
         }
     }
 
-    /// The sensor whose columns give the direction of gravity per measurement row, if any.
+    /// The sensor readings of `conditions` turned from each sensor's frame into its link's by
+    /// the mounting an error model identifies at `error_values` (one list per model), if any.
+    pub fn sensor_readings(&self, conditions: Conditions, error_values: &[Vec<f64>]) -> SensorReadings {
+        let mut readings = conditions.sensors;
+        for (m, v) in self.error_models.iter().zip(error_values) {
+            if let Some((k, mounting)) = m.sensor_mounting(v)
+                && let Some(r) = readings.get(k).copied()
+            {
+                readings.set(
+                    k,
+                    Some(GravityReading {
+                        direction: mounting * r.direction,
+                        ..r
+                    }),
+                );
+            }
+        }
+        readings
+    }
+
+    /// The mounting of sensor `k` an error model identifies at `error_values` (one list per
+    /// model): the rotation from the sensor's frame to its link's, if a model turns the chain
+    /// by that sensor's reading ([`ErrorModel::sensor_mounting`](crate::ErrorModel::sensor_mounting)).
+    pub fn sensor_mounting(&self, k: usize, error_values: &[Vec<f64>]) -> Option<nalgebra::UnitQuaternion<f64>> {
+        (self.error_models.iter().zip(error_values))
+            .find_map(|(m, v)| m.sensor_mounting(v).filter(|(s, _)| *s == k).map(|(_, r)| r))
+    }
+
+    /// The sensors read per measurement row, in the robot file's order (the slots of
+    /// [`Conditions::sensors`]).
+    pub fn sensors(&self) -> &[GravitySensor] {
+        &self.sensors
+    }
+
+    /// The sensor whose reading gives the elastic models the direction of gravity: the one on
+    /// the base, else the first declared; None without sensors.
     pub fn gravity_sensor(&self) -> Option<&GravitySensor> {
-        self.gravity_sensor.as_ref()
+        self.gravity_sensor.map(|k| &self.sensors[k])
     }
 
     /// The mass model under `conditions` with the points of `tree`: the robot's own, or a copy
@@ -253,6 +305,7 @@ impl Robot {
             loads: &ws.loads,
             gravity: ws.gravity,
             temperature: conditions.temperature,
+            sensors: ws.sensors,
         };
         self.error_models[model].perturb(&state, values, out);
     }

@@ -21,7 +21,7 @@ use crate::data::measurement::{CsvLayout, Sample};
 use crate::error::{Error, Result};
 use crate::kinematics::collision::CollisionGeometry;
 use crate::kinematics::point_kinematics::PointKinematics;
-use crate::kinematics::sensor::{GravityReading, GravitySensor};
+use crate::kinematics::sensor::{GravitySensor, SensorReadings};
 use crate::kinematics::subtree_loads::SubtreeLoads;
 use crate::kinematics::workspace::TreeWorkspace;
 use crate::model::geom::xyz_rpy;
@@ -78,8 +78,10 @@ pub struct Robot {
     /// The body of `[measurement] frame_link`, resolved once: the calibration asks per sample.
     frame_link: Option<usize>,
     markers: Vec<usize>,
-    /// The sensor giving the direction of gravity per measurement row, if the file has one.
-    gravity_sensor: Option<GravitySensor>,
+    /// The sensors read per measurement row, in the file's order.
+    sensors: Vec<GravitySensor>,
+    /// The one among them whose reading gives the elastic models the direction of gravity.
+    gravity_sensor: Option<usize>,
     /// Per coordinate, the value the robot file says it held while measuring (rad or m).
     hold: Vec<Option<f64>>,
     /// The point a payload hangs at (the file's payload point, else the tool); a payload given
@@ -100,9 +102,10 @@ pub struct Conditions {
     pub temperature: Option<f64>,
     /// Payload mass (kg) replacing the robot file's payload.
     pub payload: Option<f64>,
-    /// The measured direction of gravity (a sensor's reading), replacing the robot file's
-    /// direction; the file's magnitude is kept.
-    pub gravity: Option<GravityReading>,
+    /// The sensors' readings (one slot per sensor of the robot): the gravity sensor's
+    /// direction replaces the robot file's (its magnitude is kept), and error models such as
+    /// `measured_tilt` read theirs.
+    pub sensors: SensorReadings,
 }
 
 impl Conditions {
@@ -111,7 +114,7 @@ impl Conditions {
         Conditions {
             temperature: sample.temperature,
             payload: sample.payload,
-            gravity: sample.gravity,
+            sensors: sample.sensors,
         }
     }
 }
@@ -133,6 +136,9 @@ pub struct RobotWorkspace {
     /// and its gravity, as load-adjusting error models left them.
     own_mass: bool,
     gravity: Vector3<f64>,
+    /// The last evaluation's sensor readings, turned into their links' frames by the
+    /// mountings the error models identify.
+    sensors: SensorReadings,
 }
 
 /// Names of the base frame's six parameters (`base.<name>`), in the order of
@@ -342,7 +348,7 @@ impl Robot {
             orientation: self.measures_pose(),
             fixed_points: self.measures_fixed_points(),
             planes: self.measures_planes(),
-            gravity_sensor: self.gravity_sensor.clone(),
+            sensors: self.sensors.clone(),
         }
     }
 

@@ -6,7 +6,11 @@
 //! With a gravity sensor (`[[sensors]]`) the tilt turns the measured gravity, so it is the
 //! sensor's constant misalignment with the base, not the ground's slope: the sensor follows a
 //! tilt that changes from row to row, which one identified constant cannot, and the constant
-//! left between the sensor and the base frame is what the points can still tell.
+//! left between the sensor and the base frame is what the points can still tell. The tilt of
+//! each row then loads the elastic models only; to turn the chain by it too (a base rocking
+//! under a tracker on the ground), use [`measured_tilt`](crate::measured_tilt) instead, whose
+//! mounting is this misalignment (of opposite sign: the mounting turns the reading into the
+//! base frame, this tilt turns the reading's gravity back).
 use armcomp_core::{
     ErrorModel, ErrorModelSpec, Issues, Loads, ModelContext, ParamInfo, Perturbation, Quantity, StaticState,
 };
@@ -15,7 +19,7 @@ use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 use crate::common::check_finite;
-use crate::geometric_offsets::BaseAttachments;
+use crate::geometric_offsets::BodyAttachments;
 
 /// Base tilt as written in the robot file.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
@@ -31,7 +35,7 @@ pub struct BaseTiltSpec {
 pub struct BaseTiltModel {
     spec: BaseTiltSpec,
     units: armcomp_core::Units,
-    base: BaseAttachments,
+    base: BodyAttachments,
     params: Vec<ParamInfo>,
 }
 
@@ -50,16 +54,34 @@ impl ErrorModelSpec for BaseTiltSpec {
         Ok(Box::new(BaseTiltModel {
             spec: self.clone(),
             units: u,
-            base: BaseAttachments::new(ctx.tree),
-            params: vec![
-                // A base set on a slope or a sagging floor tilts by up to a few degrees.
-                ParamInfo::new("base_tilt.x", Quantity::Angle, u.ang(self.tilt[0]), 1f64.to_radians())
-                    .with_plausible(-5f64.to_radians(), 5f64.to_radians()),
-                ParamInfo::new("base_tilt.y", Quantity::Angle, u.ang(self.tilt[1]), 1f64.to_radians())
-                    .with_plausible(-5f64.to_radians(), 5f64.to_radians()),
-            ],
+            base: BodyAttachments::of(ctx.tree, 0),
+            // A base set on a slope or a sagging floor tilts by up to a few degrees.
+            params: tilt_params("base_tilt", &self.tilt, &u),
         }))
     }
+}
+
+/// Two small angles `<prefix>.x` and `<prefix>.y` about the x and y axes (SI, from `values` in
+/// the file's angle unit): prior 1°, plausible within ±5°. A base's tilt, a sensor's mounting.
+pub(crate) fn tilt_params(prefix: &str, values: &[f64; 2], units: &armcomp_core::Units) -> Vec<ParamInfo> {
+    ["x", "y"]
+        .iter()
+        .zip(values)
+        .map(|(axis, v)| {
+            ParamInfo::new(
+                format!("{prefix}.{axis}"),
+                Quantity::Angle,
+                units.ang(*v),
+                1f64.to_radians(),
+            )
+            .with_plausible(-5f64.to_radians(), 5f64.to_radians())
+        })
+        .collect()
+}
+
+/// The rotation of the two tilt angles `values` (rad, about x and y) of [`tilt_params`].
+pub(crate) fn tilt_rotation(values: &[f64]) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_scaled_axis(Vector3::new(values[0], values[1], 0.0))
 }
 
 impl ErrorModel for BaseTiltModel {
@@ -77,8 +99,7 @@ impl ErrorModel for BaseTiltModel {
     }
 
     fn adjust_loads(&self, values: &[f64], loads: &mut Loads) {
-        let tilt = UnitQuaternion::from_scaled_axis(Vector3::new(values[0], values[1], 0.0));
-        loads.gravity = tilt.inverse_transform_vector(&loads.gravity);
+        loads.gravity = tilt_rotation(values).inverse_transform_vector(&loads.gravity);
     }
 
     fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {

@@ -128,6 +128,20 @@ pub(crate) fn base_tilt(robot: &Robot) -> Vec<Candidate> {
     global("base tilt", json!({ "type": "base_tilt", "tilt": [0.0, 0.0] }))
 }
 
+/// Every sensor whose reading does not turn the chain yet: a base that rocks from row to row,
+/// a column that leans, shows in the points once its link turns by what the sensor reads.
+pub(crate) fn measured_tilt(robot: &Robot) -> Vec<Candidate> {
+    let values = robot.error_values();
+    (robot.sensors().iter().enumerate())
+        .filter(|(k, _)| robot.sensor_mounting(*k, values).is_none())
+        .map(|(_, s)| Candidate {
+            location: robot.tree().bodies()[s.body].name.clone(),
+            label: format!("measured tilt of sensor {}", s.name),
+            spec: json!({ "type": "measured_tilt", "sensor": s.name, "mounting": [0.0, 0.0] }),
+        })
+        .collect()
+}
+
 /// A wrong payload mass shows through what it bends, so it is tried once the robot has an
 /// elastic model.
 pub(crate) fn payload_mass_error(robot: &Robot) -> Vec<Candidate> {

@@ -113,6 +113,7 @@ pub fn solve_equilibrium(
             loads: &ws.loads,
             gravity,
             temperature,
+            sensors: Default::default(),
         };
         for (m, v) in robot.error_models().iter().zip(robot.error_values()) {
             m.perturb(&state, v, &mut ws.perturbation);

@@ -38,7 +38,7 @@ pub struct GeometricOffsetsSpec {
 pub struct GeometricOffsetsModel {
     spec: GeometricOffsetsSpec,
     units: armcomp_core::Units,
-    base: BaseAttachments,
+    base: BodyAttachments,
     tool: usize,
     params: Vec<ParamInfo>,
 }
@@ -71,29 +71,32 @@ pub(crate) fn frame_params(prefix: &str, values: &[f64; 6], units: &armcomp_core
         .collect()
 }
 
-/// The joints seated on the base and the points on it, which a rigid motion of the base moves.
+/// The joints seated on one body and the points on it, which a rigid motion of that body (the
+/// chain beyond it turning with it) moves.
 #[derive(Debug, Clone)]
-pub(crate) struct BaseAttachments {
+pub(crate) struct BodyAttachments {
     joints: Vec<usize>,
     points: Vec<usize>,
 }
 
-impl BaseAttachments {
-    pub fn new(tree: &KinematicTree) -> Self {
-        BaseAttachments {
+impl BodyAttachments {
+    /// Body `body`'s (the base's: 0).
+    pub fn of(tree: &KinematicTree, body: usize) -> Self {
+        BodyAttachments {
             joints: (0..tree.joints().len())
-                .filter(|&j| tree.joints()[j].parent == 0)
+                .filter(|&j| tree.joints()[j].parent == body)
                 .collect(),
             points: (0..tree.points().len())
-                .filter(|&p| tree.points()[p].body == 0)
+                .filter(|&p| tree.points()[p].body == body)
                 .collect(),
         }
     }
 
-    /// Adds the rigid motion `eps` of the base (base coordinates) as twists of its joints and
-    /// points. Their placements are read from `tree`, the one being evaluated: calibration
-    /// varies the placement of a joint on the base (its `alpha`, `d`, ...), and a twist mapped
-    /// through the placement the model was built with would turn the wrong way.
+    /// Adds the rigid motion `eps` of the body (in its body frame; the base's is the base
+    /// frame) as twists of its joints and points. Their placements are read from `tree`, the
+    /// one being evaluated: calibration varies the placement of a joint (its `alpha`, `d`,
+    /// ...), and a twist mapped through the placement the model was built with would turn the
+    /// wrong way.
     pub fn apply(&self, eps: &Vector6<f64>, tree: &KinematicTree, out: &mut Perturbation) {
         for &j in &self.joints {
             out.joint_twist[j] += adjoint(&tree.joints()[j].placement.inverse(), eps);
@@ -138,7 +141,7 @@ impl ErrorModelSpec for GeometricOffsetsSpec {
         Ok(Box::new(GeometricOffsetsModel {
             spec: self.clone(),
             units,
-            base: BaseAttachments::new(ctx.tree),
+            base: BodyAttachments::of(ctx.tree, 0),
             tool,
             params,
         }))

@@ -4,7 +4,7 @@
 //! compliance ([`joint_compliance`]) and lateral compliance ([`lateral_compliance`]), base and
 //! tool frame offsets ([`geometric_offsets`]), and the deflection paper's Eq. 5 mapping link
 //! differentials to the tool ([`differential`]). Further effects for the diagnosis workflow:
-//! [`backlash`], [`encoder_eccentricity`], [`thermal_growth`], [`base_tilt`],
+//! [`backlash`], [`encoder_eccentricity`], [`thermal_growth`], [`base_tilt`], [`measured_tilt`],
 //! [`payload_mass_error`], [`transmission_scale`]. [`equilibrium`] iterates the loads on the
 //! deformed arm for very elastic arms. Every model reads its loads from the mass model and
 //! gravity of the static state and writes small twists into the chain (paper Eq. 1–3).
@@ -23,6 +23,7 @@ pub mod equilibrium;
 pub mod geometric_offsets;
 pub mod joint_compliance;
 pub mod lateral_compliance;
+pub mod measured_tilt;
 pub mod payload_mass_error;
 pub mod thermal_growth;
 pub mod transmission_scale;
@@ -37,6 +38,7 @@ pub use equilibrium::{EquilibriumParams, EquilibriumReport, EquilibriumWorkspace
 pub use geometric_offsets::{GeometricOffsetsModel, GeometricOffsetsSpec};
 pub use joint_compliance::{JointComplianceModel, JointComplianceSpec};
 pub use lateral_compliance::{LateralComplianceModel, LateralComplianceSpec};
+pub use measured_tilt::{MeasuredTiltModel, MeasuredTiltSpec};
 pub use payload_mass_error::{PayloadMassErrorModel, PayloadMassErrorSpec};
 pub use thermal_growth::{ThermalGrowthModel, ThermalGrowthSpec};
 pub use transmission_scale::{TransmissionScaleModel, TransmissionScaleSpec};
@@ -109,6 +111,12 @@ pub fn plugins() -> Vec<PluginInfo> {
             BaseTiltSpec,
             Some(&candidates::base_tilt),
             "The base stands tilted by two small angles; the arm turns with it and every elastic model sees the tilted gravity"
+        ),
+        entry!(
+            "measured_tilt",
+            MeasuredTiltSpec,
+            Some(&candidates::measured_tilt),
+            "A gravity sensor's reading turns the chain at its link, row by row (a rocking base, a leaning column); identifies how the sensor is mounted"
         ),
         entry!(
             "payload_mass_error",

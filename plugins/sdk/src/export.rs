@@ -371,6 +371,12 @@ pub unsafe fn model_create(
             },
             tree: &tree,
             mass: &mass,
+            // Sensors do not cross the C ABI, nor the file's gravity, which only the models that
+            // read sensors look at: a run-time model reads none, and the standard gravity
+            // stands in.
+            sensors: &[],
+            gravity_sensor: None,
+            gravity: Vector3::new(0.0, 0.0, -armcomp_core::kinematics::sensor::STANDARD_GRAVITY),
         };
         let model = create(config, &mctx).map_err(Failure::Issues)?;
         let handle = Box::new(ModelHandle { model, tree });
@@ -490,6 +496,8 @@ pub unsafe fn model_perturb(
                 loads: &b.loads,
                 gravity: Vector3::from(s.gravity),
                 temperature: (!s.temperature.is_nan()).then_some(s.temperature),
+                // The C ABI carries gravity, not the readings: a run-time model sees none.
+                sensors: Default::default(),
             };
             h.model.perturb(&state, values, &mut b.perturbation);
             let p = &b.perturbation;

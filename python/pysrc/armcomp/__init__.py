@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from typing import Callable, Iterable, Optional, Sequence, Tuple, Union
+from typing import Callable, Dict, Iterable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -294,6 +294,7 @@ def compensate(
     frame: str = "measurement",
     start: Optional[np.ndarray] = None,
     lock: Union[None, str, Sequence[str]] = None,
+    sensors: Optional[Dict[str, Sequence[float]]] = None,
 ) -> Compensation:
     """Joint commands that put ``model``'s tool on ``targets`` (n × 3 positions in m, or
     n × 7 with a tool orientation ``qw, qx, qy, qz`` to keep), in one call, as
@@ -301,7 +302,10 @@ def compensate(
     residual) or ``paper`` (the two-step of the deflection paper); ``frame``: ``measurement``
     or ``base``. Only the joints that move the tool change; the others keep ``start`` (one
     configuration for all targets or one per target, SI; default: the robot file's ``hold``
-    values), and so do the joints named in ``lock`` (``"j1,j2"`` or a list)."""
+    values), and so do the joints named in ``lock`` (``"j1,j2"`` or a list). ``sensors`` maps
+    a sensor of the robot file to its reading now, as its columns hold it in SI (an
+    accelerometer's x, y, z in m/s²; an inclinometer's roll, pitch in rad): the tilt it
+    stands at turns and loads the model as a measured row's does."""
     q, corrected, std, unconverged = _native.compensate(
         model,
         np.atleast_2d(np.asarray(targets, dtype=float)),
@@ -309,6 +313,7 @@ def compensate(
         frame=frame,
         start=None if start is None else np.atleast_2d(np.asarray(start, dtype=float)),
         lock=_names(lock) or [],
+        sensors=None if sensors is None else {k: [float(v) for v in c] for k, c in sensors.items()},
     )
     return Compensation(q=q, corrected=corrected, std=std, unconverged=list(unconverged))
 

@@ -143,6 +143,7 @@ def compensate(
     frame: str = "measurement",
     start: Optional[_Array] = None,
     lock: List[str] = ...,
+    sensors: Optional[Mapping[str, List[float]]] = None,
 ) -> Tuple[np.ndarray, np.ndarray, Optional[np.ndarray], List[Tuple[int, float]]]: ...
 def plan(
     robot: Robot,

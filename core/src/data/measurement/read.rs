@@ -11,7 +11,7 @@ use super::{
     line_at, listed, numbered_position, open_table, split_header,
 };
 use crate::error::{Error, Result};
-use crate::kinematics::sensor::{GravityReading, GravitySensor};
+use crate::kinematics::sensor::{GravityReading, MAX_SENSORS, SensorReadings, gravity_sensor_index};
 use crate::model::units::{AngleUnit, LengthUnit};
 use crate::support::limits::{self, Cost};
 use crate::support::text::{check_name, shown};
@@ -55,7 +55,7 @@ struct Table<'t, 'l> {
 }
 
 /// The header read: what each column holds and how the rows are shaped.
-struct Header<'t> {
+struct Header {
     record: csv::StringRecord,
     /// Its cells as messages show them (see [`shown`]).
     shown: Vec<String>,
@@ -68,8 +68,8 @@ struct Header<'t> {
     slots: Vec<Option<usize>>,
     /// How the orientation is spelt, when the table gives one.
     spelling: Option<Spelling>,
-    /// The gravity sensor whose columns the table has.
-    sensor: Option<&'t GravitySensor>,
+    /// The sensors whose columns the table has (all of them), by index into the layout's.
+    sensors: Vec<usize>,
     has_torque: bool,
     /// Whether the rows give their positions' standard deviations (`sx, sy, sz`).
     has_position_std: bool,
@@ -78,7 +78,7 @@ struct Header<'t> {
     mixed_groups: Vec<usize>,
 }
 
-impl Header<'_> {
+impl Header {
     /// The column and kind of the contacts among measured positions: `fixed_point` rows,
     /// `plane` rows, or both.
     fn mixed_kind(&self) -> (&'static str, &'static str) {
@@ -105,7 +105,8 @@ struct Row<'c> {
     fixed_row: bool,
     kind_cell: Option<&'c str>,
     angles: [f64; 4],
-    sensor_reading: Vector4<f64>,
+    /// Per sensor of the layout, the cells of its reading.
+    sensor_cells: [Vector4<f64>; MAX_SENSORS],
     /// Per slot, the position and how many of its cells were empty.
     positions: Vec<(Vector3<f64>, usize)>,
     /// The position's standard deviations, and how many of their cells were empty.
@@ -171,7 +172,7 @@ impl<'t> Table<'t, '_> {
     }
 
     /// Reads the header's columns and checks that they fit together.
-    fn header(&self, record: csv::StringRecord, line: usize) -> Result<Header<'t>> {
+    fn header(&self, record: csv::StringRecord, line: usize) -> Result<Header> {
         let mut columns = Vec::new();
         let mut seen = HashSet::new();
         let mut ignored = Vec::new();
@@ -194,7 +195,7 @@ impl<'t> Table<'t, '_> {
             ignored,
             slots: Vec::new(),
             spelling: None,
-            sensor: None,
+            sensors: Vec::new(),
             has_torque: false,
             has_position_std: false,
             mixed_groups: Vec::new(),
@@ -202,7 +203,7 @@ impl<'t> Table<'t, '_> {
         self.check_joint_columns(&header)?;
         header.slots = self.position_slots(&header)?;
         header.spelling = self.orientation_spelling(&header)?;
-        header.sensor = self.sensor_columns(&header)?;
+        header.sensors = self.sensor_columns(&header)?;
         header.has_torque = header.has(|k| matches!(k, Column::Torque(_)));
         header.has_position_std = self.position_std_columns(&header)?;
         if self.with_positions && self.layout.group_column().is_none() {
@@ -250,17 +251,18 @@ impl<'t> Table<'t, '_> {
             };
             return Ok(Column::Joint { coord: c, scale });
         }
-        if !self.with_positions {
-            return Ok(Column::Ignored);
-        }
-        if let Some((sensor, cell)) =
-            (layout.gravity_sensor.as_ref()).and_then(|g| g.columns.iter().position(|c| c == name).map(|k| (g, k)))
+        // Poses (a compensation's start) carry the sensors' readings too: the tilt they stand at.
+        if let Some((k, sensor, cell)) = (layout.sensors.iter().enumerate())
+            .find_map(|(k, g)| g.columns.iter().position(|c| c == name).map(|cell| (k, g, cell)))
         {
             let scale = sensor
                 .kind
                 .column_scale(unit, units.angle)
                 .map_err(|m| self.err_in(line, h, format!("column `{shown_h}` of sensor `{}`: {m}", sensor.name)))?;
-            return Ok(Column::Sensor(cell, scale));
+            return Ok(Column::Sensor(k, cell, scale));
+        }
+        if !self.with_positions {
+            return Ok(Column::Ignored);
         }
         if let Some((axis, slot)) = numbered_position(name) {
             if slot >= layout.points.len() {
@@ -368,7 +370,7 @@ impl<'t> Table<'t, '_> {
     }
 
     /// Every joint that moves the measured points has its column, unless the layout holds it.
-    fn check_joint_columns(&self, header: &Header<'_>) -> Result<()> {
+    fn check_joint_columns(&self, header: &Header) -> Result<()> {
         let tree = self.layout.tree;
         let missing: Vec<String> = (tree.coordinate_names().iter().enumerate())
             .filter(|&(c, _)| {
@@ -392,7 +394,7 @@ impl<'t> Table<'t, '_> {
 
     /// The position columns' slots — plain `x, y, z`, or numbered triples, one per measured
     /// point — checked against what the robot measures.
-    fn position_slots(&self, header: &Header<'_>) -> Result<Vec<Option<usize>>> {
+    fn position_slots(&self, header: &Header) -> Result<Vec<Option<usize>>> {
         let mut slots: Vec<Option<usize>> = (header.columns.iter())
             .filter_map(|c| match c {
                 Column::Position { slot, .. } => Some(*slot),
@@ -451,7 +453,7 @@ impl<'t> Table<'t, '_> {
     }
 
     /// How the orientation is spelt: one spelling, all its cells, with one measured point.
-    fn orientation_spelling(&self, header: &Header<'_>) -> Result<Option<Spelling>> {
+    fn orientation_spelling(&self, header: &Header) -> Result<Option<Spelling>> {
         let mut spellings: Vec<Spelling> = (header.columns.iter())
             .filter_map(|c| match c {
                 Column::Orientation(s, ..) => Some(*s),
@@ -487,7 +489,7 @@ impl<'t> Table<'t, '_> {
 
     /// Whether the table gives its positions' standard deviations: all of `sx, sy, sz` or
     /// none, beside plain `x, y, z`.
-    fn position_std_columns(&self, header: &Header<'_>) -> Result<bool> {
+    fn position_std_columns(&self, header: &Header) -> Result<bool> {
         let given: Vec<usize> = (header.columns.iter())
             .filter_map(|c| match c {
                 Column::PositionStd { axis, .. } => Some(*axis),
@@ -505,36 +507,34 @@ impl<'t> Table<'t, '_> {
         }
     }
 
-    /// The gravity sensor the table gives readings of: all its columns or none.
-    fn sensor_columns(&self, header: &Header<'_>) -> Result<Option<&'t GravitySensor>> {
-        let cells = header
-            .columns
-            .iter()
-            .filter(|c| matches!(c, Column::Sensor(..)))
-            .count();
-        let Some(g) = self.layout.gravity_sensor.as_ref().filter(|_| cells > 0) else {
-            return Ok(None);
-        };
-        if cells == g.columns.len() {
-            return Ok(Some(g));
+    /// The sensors the table gives readings of: each with all its columns, or none of them.
+    fn sensor_columns(&self, header: &Header) -> Result<Vec<usize>> {
+        let mut given = Vec::new();
+        for (k, g) in self.layout.sensors.iter().enumerate() {
+            let has = |cell: usize| header.has(|c| matches!(c, Column::Sensor(s, i, _) if *s == k && *i == cell));
+            let missing: Vec<&str> = (g.columns.iter().enumerate())
+                .filter(|&(cell, _)| !has(cell))
+                .map(|(_, c)| c.as_str())
+                .collect();
+            if missing.is_empty() {
+                given.push(k);
+            } else if missing.len() < g.columns.len() {
+                return Err(self.err(
+                    Some(header.line),
+                    format!(
+                        "sensor `{}` needs all its columns ({}); missing {}",
+                        g.name,
+                        g.columns.join(", "),
+                        listed(&missing)
+                    ),
+                ));
+            }
         }
-        let missing: Vec<&str> = (g.columns.iter().enumerate())
-            .filter(|&(k, _)| !header.has(|c| matches!(c, Column::Sensor(cell, _) if *cell == k)))
-            .map(|(_, c)| c.as_str())
-            .collect();
-        Err(self.err(
-            Some(header.line),
-            format!(
-                "sensor `{}` needs all its columns ({}); missing {}",
-                g.name,
-                g.columns.join(", "),
-                listed(&missing)
-            ),
-        ))
+        Ok(given)
     }
 
     /// What the header alone tells the user: columns ignored, readings missing.
-    fn header_warnings(&self, header: &Header<'_>, set: &mut MeasurementSet) {
+    fn header_warnings(&self, header: &Header, set: &mut MeasurementSet) {
         let path = self.path.display();
         // A pose robot's file without orientation is a file of positions (another session's, a
         // tracker without a 6-DoF probe): its rows are point measurements, and the user is told.
@@ -544,13 +544,19 @@ impl<'t> Table<'t, '_> {
                  rz; or roll, pitch, yaw): its rows are used as positions only"
             ));
         }
-        if let Some(g) =
-            (self.layout.gravity_sensor.as_ref()).filter(|_| self.with_positions && header.sensor.is_none())
-        {
+        let gravity = gravity_sensor_index(&self.layout.sensors);
+        let missing = (self.layout.sensors.iter().enumerate())
+            .filter(|(k, _)| self.with_positions && !header.sensors.contains(k));
+        for (k, g) in missing {
             set.warnings.push(format!(
-                "{path}: no columns of sensor `{}` ({}): its rows are evaluated with the robot file's gravity",
+                "{path}: no columns of sensor `{}` ({}): its rows are evaluated without its reading{}",
                 g.name,
-                g.columns.join(", ")
+                g.columns.join(", "),
+                if gravity == Some(k) {
+                    ", with the robot file's gravity"
+                } else {
+                    ""
+                }
             ));
         }
         if !header.ignored.is_empty() {
@@ -564,7 +570,7 @@ impl<'t> Table<'t, '_> {
 
     /// Reads every row into `set`, then warns of joints outside their limits and of rows that
     /// measure nothing.
-    fn read_rows(&self, reader: &mut csv::Reader<&[u8]>, header: &Header<'_>, set: &mut MeasurementSet) -> Result<()> {
+    fn read_rows(&self, reader: &mut csv::Reader<&[u8]>, header: &Header, set: &mut MeasurementSet) -> Result<()> {
         let tree = self.layout.tree;
         let mut outside: Outside = vec![(0, 0, 0.0); tree.nq()];
         let mut rows_without_point = 0;
@@ -605,7 +611,7 @@ impl<'t> Table<'t, '_> {
         &self,
         record: &'c csv::StringRecord,
         line: usize,
-        header: &Header<'_>,
+        header: &Header,
         stations: &mut Vec<String>,
     ) -> Result<Row<'c>> {
         let layout = self.layout;
@@ -620,14 +626,14 @@ impl<'t> Table<'t, '_> {
                 torque: header.has_torque.then(|| vec![0.0; layout.tree.nq()]),
                 fixed_point: None,
                 plane: None,
-                gravity: None,
+                sensors: SensorReadings::default(),
                 station: 0,
                 position_std: None,
             },
             fixed_row: header.mixed_groups.iter().any(|&k| !record[k].is_empty()),
             kind_cell: None,
             angles: [0.0; 4],
-            sensor_reading: Vector4::zeros(),
+            sensor_cells: [Vector4::zeros(); MAX_SENSORS],
             positions: vec![(Vector3::zeros(), 0); header.slots.len()],
             position_std: (Vector3::zeros(), 0),
         };
@@ -673,7 +679,7 @@ impl<'t> Table<'t, '_> {
         &self,
         row: &mut Row<'c>,
         cell: &Cell<'c, '_>,
-        header: &Header<'_>,
+        header: &Header,
         stations: &mut Vec<String>,
     ) -> Result<bool> {
         let Cell { field, col, head, line } = *cell;
@@ -774,7 +780,7 @@ impl<'t> Table<'t, '_> {
     }
 
     /// Stores a cell's number `v` (as written; `field` is its text) where its column says.
-    fn number_cell(&self, row: &mut Row<'_>, v: f64, cell: &Cell<'_, '_>, header: &Header<'_>) -> Result<()> {
+    fn number_cell(&self, row: &mut Row<'_>, v: f64, cell: &Cell<'_, '_>, header: &Header) -> Result<()> {
         let Cell { field, col, head, line } = *cell;
         let s = &mut row.sample;
         match *col {
@@ -806,14 +812,14 @@ impl<'t> Table<'t, '_> {
                     t[c] = v;
                 }
             }
-            Column::Sensor(k, scale) => row.sensor_reading[k] = v * scale,
+            Column::Sensor(k, cell, scale) => row.sensor_cells[k][cell] = v * scale,
             Column::Point | Column::Kind | Column::Group { .. } | Column::Station | Column::Ignored => {}
         }
         Ok(())
     }
 
     /// What a row's cells give together: its orientation, its kind checked, its gravity.
-    fn finish_row(&self, row: &mut Row<'_>, line: usize, header: &Header<'_>) -> Result<()> {
+    fn finish_row(&self, row: &mut Row<'_>, line: usize, header: &Header) -> Result<()> {
         if let Some(spelling) = header.spelling.filter(|_| !row.fixed_row) {
             row.sample.orientation = Some(spelling.rotation(row.angles).map_err(|m| self.err(Some(line), m))?);
         }
@@ -834,17 +840,19 @@ impl<'t> Table<'t, '_> {
                 }
             };
         }
-        if let Some(g) = header.sensor {
-            let direction = g.kind.gravity_direction(&row.sensor_reading).map_err(|m| {
+        for &k in &header.sensors {
+            let g = &self.layout.sensors[k];
+            let direction = g.kind.gravity_direction(&row.sensor_cells[k]).map_err(|m| {
                 self.err(
                     Some(line),
                     format!("sensor `{}` (columns {}): {m}", g.name, g.columns.join(", ")),
                 )
             })?;
-            row.sample.gravity = Some(GravityReading {
+            let reading = GravityReading {
                 body: g.body,
                 direction,
-            });
+            };
+            row.sample.sensors.set(k, Some(reading));
         }
         Ok(())
     }
@@ -855,7 +863,7 @@ impl<'t> Table<'t, '_> {
         row: Row<'_>,
         index: usize,
         line: usize,
-        header: &Header<'_>,
+        header: &Header,
         set: &mut MeasurementSet,
     ) -> Result<bool> {
         let s = row.sample;

@@ -52,6 +52,7 @@ pub fn perturbation_of(
         loads: &loads,
         gravity: robot.gravity(),
         temperature,
+        sensors: Default::default(),
     };
     robot.error_models()[m].perturb(&state, values, &mut pert);
     (pert, rigid)

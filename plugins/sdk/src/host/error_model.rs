@@ -237,6 +237,7 @@ impl PluginErrorModel {
                 loads: &loads,
                 gravity: Vector3::new(0.0, 0.0, -9.81),
                 temperature,
+                sensors: Default::default(),
             };
             self.try_perturb(&state, &values, &mut out).map_err(|e| {
                 format!(

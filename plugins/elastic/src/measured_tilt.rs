@@ -1,0 +1,173 @@
+//! Measured tilt: a gravity sensor's reading turns the chain at the sensor's link, row by row.
+//!
+//! On soft or uneven ground a base rocks from pose to pose by hundredths of a degree, and a
+//! column leans under the arm's moment. A sensor (`[[sensors]]`) reads its link's orientation
+//! against gravity on every row. This model compares that reading with the direction of gravity
+//! the model predicts at the link, and turns the chain at the link by the smallest rotation
+//! between the two: about axes square to gravity only (roll and pitch), since gravity does not
+//! see a turn about itself. The joints seated on the link and the points on it move, in their
+//! own frames, as `geometric_offsets` moves the base's; everything beyond turns with them.
+//!
+//! The prediction is the robot file's gravity (a level base) for a sensor on the base. For a
+//! sensor on another link it is the gravity the elastic models see, carried to the link by the
+//! rigid chain, when that gravity is read on the base (so the base's own turn is not counted
+//! again, and what is left is the link's lean); otherwise the file's gravity. The bending that
+//! other error models put between the base and the link is not in the prediction: a lean this
+//! model turns should not be modelled by a compliance below the link as well.
+//!
+//! Its parameters are the sensor's mounting on its link: two small angles about the link's x
+//! and y axes (sensor frame to link frame). The robot turns every reading of the sensor by it
+//! before any model sees it ([`ErrorModel::sensor_mounting`]), so the elastic models load the
+//! arm with the corrected gravity too. A constant turn of the base is what the measurement
+//! frame already identifies; the mounting shows through what the corrected gravity bends.
+//!
+//! Against [`base_tilt`](crate::base_tilt): that model identifies one constant tilt of the base
+//! (with a sensor, the sensor's misalignment, the per-row tilt only loading the elastic models)
+//! and cannot follow a base that rocks from row to row; this one turns the chain by the tilt of
+//! every row, and identifies the same misalignment as its mounting. Use one or the other on a
+//! base sensor; both turn the measured gravity by two angles ([`tilt_rotation`]).
+
+use armcomp_core::{ErrorModel, ErrorModelSpec, Issues, ModelContext, ParamInfo, Perturbation, StaticState};
+use nalgebra::{UnitQuaternion, Vector3, Vector6};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::base_tilt::{tilt_params, tilt_rotation};
+use crate::common::{check_finite, name_list};
+use crate::geometric_offsets::BodyAttachments;
+
+/// A measured tilt as written in the robot file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[serde(deny_unknown_fields)]
+pub struct MeasuredTiltSpec {
+    /// The sensor (its `[[sensors]]` name) whose reading turns the chain at its link.
+    pub sensor: String,
+    /// How the sensor sits on its link: turned about the link's x and y axes, in the file's
+    /// angle unit.
+    #[serde(default)]
+    pub mounting: [f64; 2],
+}
+
+/// What the link's measured orientation is compared with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Reference {
+    /// The robot file's gravity: a level base.
+    Level,
+    /// The gravity the elastic models see, read on the base.
+    BaseReading,
+}
+
+/// The built measured-tilt model.
+#[derive(Debug, Clone)]
+pub struct MeasuredTiltModel {
+    spec: MeasuredTiltSpec,
+    units: armcomp_core::Units,
+    /// The sensor's index among the robot's.
+    sensor: usize,
+    /// Its link's body.
+    body: usize,
+    attachments: BodyAttachments,
+    reference: Reference,
+    /// The direction of the file's gravity (base frame).
+    level: Vector3<f64>,
+    params: Vec<ParamInfo>,
+}
+
+#[typetag::serde(name = "measured_tilt")]
+impl ErrorModelSpec for MeasuredTiltSpec {
+    fn build(&self, ctx: &ModelContext<'_>) -> Result<Box<dyn ErrorModel>, Issues> {
+        let path = ctx.build.path;
+        let mut issues = Issues::default();
+        for (k, v) in self.mounting.iter().enumerate() {
+            check_finite(&mut issues, &format!("{path}.mounting[{k}]"), *v);
+        }
+        let sensor = ctx.sensors.iter().position(|s| s.name == self.sensor);
+        if sensor.is_none() {
+            issues.push(
+                format!("{path}.sensor"),
+                match ctx.sensors {
+                    [] => format!(
+                        "sensor `{}` is not declared: the robot file has no `[[sensors]]`",
+                        self.sensor
+                    ),
+                    s => format!(
+                        "sensor `{}` is not declared; sensors are: {}",
+                        self.sensor,
+                        name_list(s.iter().map(|s| s.name.as_str()))
+                    ),
+                },
+            );
+        }
+        let level = ctx.gravity.try_normalize(0.0);
+        if level.is_none() {
+            issues.push(
+                format!("{path}.sensor"),
+                "the robot file's gravity is zero: a level base has no direction to compare the reading with",
+            );
+        }
+        let (Some(sensor), Some(level), true) = (sensor, level, issues.is_empty()) else {
+            return Err(issues);
+        };
+        let body = ctx.sensors[sensor].body;
+        let read_on_base = ctx.gravity_sensor.is_some_and(|g| ctx.sensors[g].body == 0);
+        let units = ctx.build.units;
+        Ok(Box::new(MeasuredTiltModel {
+            spec: self.clone(),
+            units,
+            sensor,
+            body,
+            attachments: BodyAttachments::of(ctx.tree, body),
+            reference: if body != 0 && read_on_base {
+                Reference::BaseReading
+            } else {
+                Reference::Level
+            },
+            level,
+            // A sensor is screwed on within a degree or so; beyond a few it was put on wrong.
+            params: tilt_params(&format!("measured_tilt.{}", self.sensor), &self.mounting, &units),
+        }))
+    }
+}
+
+impl ErrorModel for MeasuredTiltModel {
+    fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    fn perturb(&self, state: &StaticState<'_>, _values: &[f64], out: &mut Perturbation) {
+        // A row without the sensor's reading (a file without its columns) stands as modelled.
+        let Some(reading) = state.sensors.get(self.sensor) else {
+            return;
+        };
+        let tree = state.tree;
+        // Both directions in the link's body frame; the reading is in its convention frame,
+        // its mounting already applied (`sensor_mounting`).
+        let measured = tree.bodies()[self.body].convention_frame.rotation * reading.direction;
+        let reference = match self.reference {
+            Reference::Level => self.level,
+            Reference::BaseReading => state.gravity.try_normalize(0.0).unwrap_or(self.level),
+        };
+        let predicted = state.frames.body[self.body]
+            .rotation
+            .inverse_transform_vector(&reference);
+        // The link turned by this takes the measured gravity to where the model predicts it,
+        // as the tilted link really stands in the level frame. Opposite directions (a link
+        // upside down against its prediction) have no smallest turn: nothing is added.
+        let Some(turn) = UnitQuaternion::rotation_between(&measured, &predicted) else {
+            return;
+        };
+        let r = turn.scaled_axis();
+        self.attachments
+            .apply(&Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z), tree, out);
+    }
+
+    fn sensor_mounting(&self, values: &[f64]) -> Option<(usize, UnitQuaternion<f64>)> {
+        Some((self.sensor, tilt_rotation(values)))
+    }
+
+    fn spec_with(&self, values: &[f64]) -> Box<dyn ErrorModelSpec> {
+        let mut spec = self.spec.clone();
+        spec.mounting = [self.units.ang_out(values[0]), self.units.ang_out(values[1])];
+        Box::new(spec)
+    }
+}
