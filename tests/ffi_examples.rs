@@ -36,7 +36,10 @@ fn built_library() -> &'static Path {
             .current_dir(root())
             .status()
             .expect("cargo runs");
-        assert!(status.success(), "cargo build of the workspace's tests (with armcomp-ffi) failed");
+        assert!(
+            status.success(),
+            "cargo build of the workspace's tests (with armcomp-ffi) failed"
+        );
         dir
     })
 }
