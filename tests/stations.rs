@@ -626,7 +626,6 @@ fn diagnose_gives_the_robot_the_data_stations_and_registers_each() {
 }
 
 #[test]
-#[ignore = "fails since fit, diagnose and the stations were merged: the cause is not yet found"]
 fn fit_and_diagnose_read_stations_from_the_command_line() {
     use crate::cli::armcomp;
     let dir = crate::common::Scratch::new("fit-diagnose-stations");
@@ -649,16 +648,10 @@ fn fit_and_diagnose_read_stations_from_the_command_line() {
     assert_eq!(code, 0, "{err}");
     let out = dir.file("fitted.toml", "").display().to_string();
     for args in [
-        vec!["fit", "--folds", "3", "--predictor", "none", "--noise-mm", "0.05"],
-        vec![
-            "diagnose",
-            "--max-steps",
-            "1",
-            "--predictor",
-            "none",
-            "--noise-mm",
-            "0.05",
-        ],
+        // The noise is left to the data: the truth has effects the nominal robot lacks, so a
+        // declared 0.05 mm would rightly make `fit` exit 3 (far above the declared noise).
+        vec!["fit", "--folds", "3", "--predictor", "none"],
+        vec!["diagnose", "--max-steps", "1", "--predictor", "none"],
     ] {
         let mut args = args.clone();
         args.extend(["--robot", "robots/industrial-6dof.toml", "--data", &data, "--out", &out]);

@@ -110,17 +110,19 @@ pub fn calibration_for(
 }
 
 /// The model `diagnose --out` writes, and what became of the given model's predictor: `None`
-/// for the model as given (with its predictor and fit record) when no effect was added, so
-/// that a diagnosis that finds nothing never changes the model; else the diagnosed model, with
-/// the given model's predictor fitted again on what it leaves on `samples`, so that a predictor
-/// is never dropped without a word.
+/// for the model as given (with its predictor and fit record) when no effect was added to a
+/// fitted model (one with a predictor or a fit record), so that a diagnosis that finds nothing
+/// never changes what `fit` or `learn` left; else the diagnosed model (a nominal robot
+/// calibrated on the rows, with the data's stations), with the given model's predictor fitted
+/// again on what it leaves on `samples`, so that a predictor is never dropped without a word.
 pub fn output_model(
     given: &Robot,
     diagnosis: &Diagnosis,
     samples: &[Sample],
     control: &FitControl<'_>,
 ) -> armcomp_core::Result<(Option<Robot>, Option<String>)> {
-    if diagnosis.report.steps.is_empty() {
+    let fitted = given.predictor().is_some() || given.built_from().fitted.is_some();
+    if diagnosis.report.steps.is_empty() && fitted {
         let note = if given.predictor().is_some() {
             "no effect was added: the model is written as given, its fitted predictor kept"
         } else {

@@ -1094,7 +1094,7 @@ fn simplex_least_squares(gram: &DMatrix<f64>) -> Vec<f64> {
         };
         let x = chol.solve(&DVector::from_element(idx.len(), 1.0));
         let total = x.sum();
-        if !(total > 0.0) || x.iter().any(|&v| v <= 0.0) {
+        if total.is_nan() || total <= 0.0 || x.iter().any(|&v| v <= 0.0) {
             continue;
         }
         let w = x / total;
