@@ -357,3 +357,60 @@ fn registering_poses_uses_their_orientations() {
         );
     }
 }
+
+/// A pose's orientation error as a rotation vector: rows measured exactly, then turned by a
+/// known small rotation `d` in the measurement frame, read back as `d` (to round-off), and as
+/// its angle by `orientation_errors`.
+#[test]
+fn an_orientation_error_is_the_turn_from_the_model_to_the_measurement() {
+    use armcomp_core::algorithms::evaluate::{orientation_error_vectors, orientation_errors};
+    let robot = pose_robot("");
+    let mut samples = pose_samples(&robot, 4, 0.0, 0.0, 3);
+    let d = Vector3::new(0.003, -0.002, 0.01);
+    for s in &mut samples {
+        s.orientation = Some(UnitQuaternion::from_scaled_axis(d) * s.orientation.unwrap());
+    }
+    for (v, a) in orientation_error_vectors(&robot, &samples)
+        .into_iter()
+        .zip(orientation_errors(&robot, &samples))
+    {
+        let v = v.unwrap();
+        assert!((v - d).norm() < 1e-12, "{v}");
+        assert!((a.unwrap() - d.norm()).abs() < 1e-12);
+    }
+}
+
+/// `fit` scores poses as poses: rows of a truth with 0.01 mm position noise and 2 mrad
+/// orientation noise per axis. With the orientations, every candidate's held-out score holds
+/// at least the orientation noise's share, `√3 · 2 mrad × 100 mm` (the default noises' ratio)
+/// = 0.35 mm, less a tenth; the same rows as positions alone score far below it.
+#[test]
+fn the_ladder_scores_poses_by_position_and_orientation() {
+    use armcomp_core::analysis::ladder::{LadderParams, climb};
+    let nominal = pose_robot("");
+    let truth = truth_of(&nominal, &[("base.x", 0.01), ("base.yaw", 0.02)]);
+    let poses = pose_samples(&truth, 30, 1e-5, 2e-3, 7);
+    let params = LadderParams {
+        folds: 3,
+        repeats: 1,
+        ..LadderParams::new(CalibrationParams::default(), false)
+    };
+    let with = climb(&nominal, &poses, &params, &|_| {}).unwrap().report;
+    assert!(with.scored_by.starts_with("pose"), "{}", with.scored_by);
+    let floor = 3f64.sqrt() * 2e-3 * 0.1 * 1e3 * 0.9;
+    for c in &with.candidates {
+        assert!(c.rms_mm > floor, "{}: {} mm", c.label, c.rms_mm);
+    }
+    let positions: Vec<Sample> = poses
+        .iter()
+        .map(|s| Sample {
+            orientation: None,
+            ..s.clone()
+        })
+        .collect();
+    let without = climb(&nominal, &positions, &params, &|_| {}).unwrap().report;
+    let best = (without.candidates.iter())
+        .map(|c| c.rms_mm)
+        .fold(f64::INFINITY, f64::min);
+    assert!(best < floor / 3.0, "positions alone: {best} mm");
+}

@@ -139,14 +139,25 @@ impl AngleStats {
 /// has a measured orientation, through the robot's full model and measurement frame; `None`
 /// for the others.
 pub fn orientation_errors(robot: &Robot, samples: &[Sample]) -> Vec<Option<f64>> {
+    orientation_error_vectors(robot, samples)
+        .into_iter()
+        .map(|e| e.map(|e| e.norm()))
+        .collect()
+}
+
+/// The orientation error of each sample that has a measured orientation as a rotation vector
+/// (rad, measurement frame): the turn from the modelled orientation to the measured one,
+/// `log(R_measured · R_modelledᵀ)`, whose length is [`orientation_errors`]'s angle; `None` for
+/// the others.
+pub fn orientation_error_vectors(robot: &Robot, samples: &[Sample]) -> Vec<Option<Vector3<f64>>> {
     let mut ws = robot.workspace();
     samples
         .iter()
         .map(|s| {
             let measured = s.orientation?;
             robot.forward_with_into(robot.tree(), robot.error_values(), &s.q, Conditions::of(s), &mut ws);
-            let t = robot.station_frame(s.station);
-            Some(measured.angle_to(&(t.rotation * ws.frames.point[s.point].rotation)))
+            let modelled = robot.station_frame(s.station).rotation * ws.frames.point[s.point].rotation;
+            Some((measured * modelled.inverse()).scaled_axis())
         })
         .collect()
 }

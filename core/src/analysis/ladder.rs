@@ -29,7 +29,7 @@
 
 use std::time::Instant;
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3, Vector6};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -243,7 +243,9 @@ pub struct LadderReport {
     pub folds_by: String,
     /// What a held-out row's error is: `position` (its 3-D error), `plane height` (a contact's
     /// height above the plane its fold identified), `fixed-point distance` (a contact's
-    /// distance from where its fold's contacts put the point), `+`-joined for mixed data.
+    /// distance from where its fold's contacts put the point), `+`-joined for mixed data; for
+    /// measured poses, the position's error with the orientation's turn as a displacement
+    /// (`pose: ...`, naming the length).
     pub scored_by: String,
     /// Why the residual predictor was not tried although one was asked for, if so.
     pub predictor_not_tried: Option<String>,
@@ -443,9 +445,10 @@ fn json_error(e: serde_json::Error) -> Error {
 /// What one outer fold says of one scheme of a level.
 struct SchemeScore {
     /// The held-out error of each of the fold's test samples (m; `None` where its fold cannot
-    /// score it), without and with the predictor.
-    errors: Vec<Option<Vector3<f64>>>,
-    with_predictor: Option<Vec<Option<Vector3<f64>>>>,
+    /// score it), without and with the predictor: the position's, then for a pose its turn
+    /// ([`pose_lever`]).
+    errors: Vec<Option<Vector6<f64>>>,
+    with_predictor: Option<Vec<Option<Vector6<f64>>>>,
     not_sound: Option<String>,
     effective_params: f64,
 }
@@ -462,7 +465,20 @@ fn score_fold(
 ) -> Result<Vec<SchemeScore>> {
     let train = subset(samples, &split.train);
     let test = subset(samples, &split.test);
-    let errors = |model: &Robot| crate::analysis::held_out::held_out_errors(model, &train, &test);
+    let lever = pose_lever(params, samples);
+    let errors = |model: &Robot| -> Result<Vec<Option<Vector6<f64>>>> {
+        let positions = crate::analysis::held_out::held_out_errors(model, &train, &test)?;
+        let turns = match lever {
+            Some(_) => crate::algorithms::evaluate::orientation_error_vectors(model, &test),
+            None => vec![None; test.len()],
+        };
+        Ok((positions.into_iter().zip(turns))
+            .map(|(p, r)| {
+                let r = r.unwrap_or_else(Vector3::zeros) * lever.unwrap_or(0.0);
+                p.map(|p| Vector6::new(p.x, p.y, p.z, r.x, r.y, r.z))
+            })
+            .collect())
+    };
     fit_schemes(robot, &train, params, rung, &params.schemes, cancel)?
         .into_iter()
         .map(|fit| {
@@ -481,6 +497,18 @@ fn score_fold(
             })
         })
         .collect()
+}
+
+/// For data with measured orientations, the length (m) that turns an orientation error into a
+/// displacement in a held-out score: the noises' ratio `measurement_std / orientation_std`
+/// (0.1 mm per mrad, so 100 mm, by default), so that a pose is scored as the fit weighs it;
+/// `None` for positions alone.
+fn pose_lever(params: &LadderParams, samples: &[Sample]) -> Option<f64> {
+    let c = &params.calibration;
+    samples
+        .iter()
+        .any(|s| s.orientation.is_some())
+        .then(|| c.measurement_std / c.orientation_std)
 }
 
 /// The fold draws of [`climb`]: `repeats` seeds derived from `seed`, a draw that repeats an
@@ -657,7 +685,13 @@ pub fn climb(
             folds: draws.first().map_or(0, Vec::len),
             repeats: results.iter().filter(|l| l.iter().all(Option::is_some)).count(),
             folds_by,
-            scored_by: crate::analysis::held_out::scored_by(samples),
+            scored_by: match pose_lever(params, samples) {
+                Some(lever) => format!(
+                    "pose: position, and the orientation error times {:.1} mm (the noises' ratio)",
+                    lever * 1e3
+                ),
+                None => crate::analysis::held_out::scored_by(samples),
+            },
             predictor_not_tried,
             evidence: fit.evidence,
             interrupted,
@@ -777,7 +811,7 @@ fn gather(
 #[derive(Default)]
 struct Gathered {
     candidates: Vec<CandidateScore>,
-    errors: Vec<Vec<Vec<Option<Vector3<f64>>>>>,
+    errors: Vec<Vec<Vec<Option<Vector6<f64>>>>>,
     fold_of: Vec<Vec<Option<usize>>>,
 }
 
@@ -797,7 +831,7 @@ struct Summary {
     sample_sq: Vec<f64>,
 }
 
-fn summary(by_repeat: &[Vec<Option<Vector3<f64>>>], mask: &[bool]) -> Summary {
+fn summary(by_repeat: &[Vec<Option<Vector6<f64>>>], mask: &[bool]) -> Summary {
     let n = mask.len();
     let (mut sum, mut count) = (vec![0.0; n], vec![0usize; n]);
     let repeat_rms = by_repeat
@@ -884,11 +918,11 @@ struct Choice {
 impl Choice {
     /// Its held-out error of sample `i` in repeat `k`: the candidate's, or the weighted mean of
     /// the members' (the error of the weighted mean of their predictions).
-    fn error(&self, g: &Gathered, k: usize, i: usize) -> Option<Vector3<f64>> {
+    fn error(&self, g: &Gathered, k: usize, i: usize) -> Option<Vector6<f64>> {
         if self.stack.is_empty() {
             return g.errors[self.index][k][i];
         }
-        (self.stack.iter()).try_fold(Vector3::zeros(), |sum, &(c, w)| Some(sum + g.errors[c][k][i]? * w))
+        (self.stack.iter()).try_fold(Vector6::zeros(), |sum, &(c, w)| Some(sum + g.errors[c][k][i]? * w))
     }
 }
 
@@ -1024,7 +1058,7 @@ fn stack_of(g: &Gathered, members: &[usize], single: &[f64], groups: &[usize], m
     let m = members.len();
     let n = mask.len();
     let mut gram = DMatrix::<f64>::zeros(m, m);
-    let mut e = vec![Vector3::zeros(); m];
+    let mut e = vec![Vector6::zeros(); m];
     for k in 0..g.fold_of.len() {
         for i in (0..n).filter(|&i| mask[i]) {
             let all = members
