@@ -251,9 +251,9 @@ pub struct LadderReport {
     pub predictor_not_tried: Option<String>,
     /// The noise and priors chosen for the chosen candidate on all rows.
     pub evidence: EvidenceReport,
-    /// Whether a stop request ([`CalibrationParams::cancel`]) ended the cross-validation: the
-    /// candidates are scored on the repeats and levels whose every fold was fitted before it,
-    /// and the choice among them was fitted on all rows after it.
+    /// Whether a stop request ([`CalibrationParams::cancel`]) came: the candidates are scored
+    /// on the repeats and levels whose every fold was fitted before it, and the choice among
+    /// them was fitted on all rows all the same (a request during that fit lets it finish).
     pub interrupted: bool,
 }
 
@@ -635,8 +635,9 @@ pub fn climb(
             weight,
         })
         .collect();
-    // The choice is still fitted on all rows after a stop request; only a further one stops it.
-    let final_cancel = if interrupted { cancel.renewed() } else { cancel.clone() };
+    // The choice is fitted on all rows whether a stop request came before or during that fit;
+    // only a further one stops it.
+    let final_cancel = cancel.for_last_step();
     let schemes: Vec<PriorScheme> = if stack.is_empty() {
         vec![chosen.prior]
     } else {
@@ -694,7 +695,7 @@ pub fn climb(
             },
             predictor_not_tried,
             evidence: fit.evidence,
-            interrupted,
+            interrupted: interrupted || cancel.is_cancelled(),
         },
     })
 }

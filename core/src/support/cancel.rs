@@ -58,6 +58,19 @@ impl Cancel {
                 .map(|(requests, _)| (Arc::clone(requests), requests.load(Ordering::Relaxed))),
         )
     }
+
+    /// A token for the last step of a search (fitting the choice it found): when a request
+    /// ended the search, as [`renewed`](Self::renewed); when none did, one that the first
+    /// request does not stop either, so that a stop asked for during that step still gets its
+    /// result (the caller sees the request on `self`). Only a further request stops it.
+    pub fn for_last_step(&self) -> Self {
+        let pending = usize::from(!self.is_cancelled());
+        Cancel(
+            self.0
+                .as_ref()
+                .map(|(requests, _)| (Arc::clone(requests), requests.load(Ordering::Relaxed) + pending)),
+        )
+    }
 }
 
 /// Two tokens are equal when the same requests stop them (or both are the default): settings
@@ -108,5 +121,24 @@ mod tests {
         a.cancel();
         assert!(renewed.is_cancelled());
         assert!(!Cancel::default().renewed().is_cancelled());
+    }
+
+    #[test]
+    fn a_last_steps_token_outlives_the_first_request_only() {
+        // No request yet: the first one (made during the last step) leaves it running.
+        let a = Cancel::new();
+        let last = a.for_last_step();
+        a.cancel();
+        assert!(a.is_cancelled() && !last.is_cancelled());
+        a.cancel();
+        assert!(last.is_cancelled());
+        // A request ended the search: the next one stops the last step.
+        let b = Cancel::new();
+        b.cancel();
+        let last = b.for_last_step();
+        assert!(!last.is_cancelled());
+        b.cancel();
+        assert!(last.is_cancelled());
+        assert!(!Cancel::default().for_last_step().is_cancelled());
     }
 }
