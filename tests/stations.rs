@@ -663,3 +663,122 @@ fn fit_and_diagnose_read_stations_from_the_command_line() {
         assert_eq!(names, ["st1", "st2", "st3"], "{}", args[0]);
     }
 }
+
+/// `compensate` on a model of three stations: targets "in the measurement frame" are refused,
+/// naming the stations; with `--station st2` its commands are those for the same targets moved
+/// into the base frame by station st2's frame by hand and given with `--frame base`.
+#[test]
+fn compensate_takes_the_station_the_targets_are_given_in() {
+    use crate::cli::armcomp;
+    let dir = crate::common::Scratch::new("compensate-station");
+    let data = dir.file("all.csv", "").display().to_string();
+    let model = dir.file("model.toml", "").display().to_string();
+    let (code, _, err) = armcomp(&[
+        "simulate",
+        "--robot",
+        "robots/industrial-6dof-truth.toml",
+        "--stations",
+        "3",
+        "--n",
+        "60",
+        "--seed",
+        "4",
+        "--out",
+        &data,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = armcomp(&[
+        "calibrate",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--data",
+        &data,
+        "--out",
+        &model,
+    ]);
+    assert!(code == 0 || code == 2, "{err}");
+    let fitted = Robot::from_path(std::path::Path::new(&model)).unwrap();
+    assert_eq!(fitted.stations().len(), 3);
+    let st2 = fitted.station_frame(1);
+    // Reachable targets: where the model puts the tool at two configurations, in the base
+    // frame, and the same points in station st2's frame.
+    let in_base: Vec<nalgebra::Vector3<f64>> = crate::common::random_configurations(&fitted, 2, 5)
+        .iter()
+        .map(|q| fitted.forward(q).unwrap().point[fitted.tool()].translation.vector)
+        .collect();
+    let csv = |ps: &[nalgebra::Vector3<f64>]| {
+        let mut s = String::from("x[m],y[m],z[m]\n");
+        for p in ps {
+            s.push_str(&format!("{:?},{:?},{:?}\n", p.x, p.y, p.z));
+        }
+        s
+    };
+    let base_targets: Vec<nalgebra::Vector3<f64>> = in_base
+        .iter()
+        .map(|p| st2.transform_point(&(*p).into()).coords)
+        .collect();
+    let t_station = dir.file("station.csv", &csv(&base_targets)).display().to_string();
+    let t_base = dir.file("base.csv", &csv(&in_base)).display().to_string();
+    let out = |name: &str| dir.file(name, "").display().to_string();
+    let (o1, o2, o3) = (out("c1.csv"), out("c2.csv"), out("c3.csv"));
+    let (code, _, err) = armcomp(&["compensate", "--model", &model, "--targets", &t_station, "--out", &o1]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("3 stations") && err.contains("st2") && err.contains("--station"),
+        "{err}"
+    );
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        &model,
+        "--targets",
+        &t_station,
+        "--station",
+        "st2",
+        "--out",
+        &o2,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        &model,
+        "--targets",
+        &t_base,
+        "--frame",
+        "base",
+        "--out",
+        &o3,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let joints = |path: &str| -> Vec<f64> {
+        let text = std::fs::read_to_string(path).unwrap();
+        text.lines()
+            .skip(1)
+            .flat_map(|l| {
+                l.split(',')
+                    .take(6)
+                    .map(|v| v.parse::<f64>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    };
+    let (a, b) = (joints(&o2), joints(&o3));
+    assert_eq!(a.len(), 12);
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() < 1e-9, "{a:?} vs {b:?}");
+    }
+    let (code, _, err) = armcomp(&[
+        "compensate",
+        "--model",
+        &model,
+        "--targets",
+        &t_station,
+        "--station",
+        "nowhere",
+        "--out",
+        &o2,
+    ]);
+    assert_ne!(code, 0);
+    assert!(err.contains("nowhere") && err.contains("st1"), "{err}");
+}

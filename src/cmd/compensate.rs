@@ -27,6 +27,10 @@ pub struct Args {
     /// as in measurement files) or `base` (the robot base).
     #[arg(long, value_enum, default_value = "measurement")]
     frame: Frame,
+    /// For a model with several stations (each its own measurement frame), the station whose
+    /// frame the targets are given in, by the name the data's `station` column gave it.
+    #[arg(long)]
+    station: Option<String>,
     /// Start configurations: a CSV of joint columns as in measurement files, one row for all
     /// targets or one per target. Joints that do not move the tool (other limbs, the head) and
     /// locked joints keep these values; a joint without a column starts at the robot file's
@@ -74,9 +78,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Mode::Paper => CompensationMode::Paper,
         Mode::Exact => CompensationMode::Exact,
     };
-    let frame = match args.frame {
-        Frame::Measurement => ops::Frame::Measurement,
-        Frame::Base => ops::Frame::Base,
+    let frame = match (args.frame, &args.station) {
+        (Frame::Base, Some(_)) => {
+            anyhow::bail!("--station names a measurement frame; it does not go with --frame base")
+        }
+        (Frame::Measurement, Some(name)) => ops::Frame::Station(ops::station_index(&robot, name)?),
+        (Frame::Measurement, None) => ops::Frame::Measurement,
+        (Frame::Base, None) => ops::Frame::Base,
     };
     let (lines, targets): (Vec<usize>, Vec<ops::Target>) = targets.into_iter().unzip();
     let describe = |i: usize| format!("{}:{}", args.targets.display(), lines[i]);
@@ -92,9 +100,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             CompensationMode::Paper => "paper",
             CompensationMode::Exact => "exact",
         },
-        match args.frame {
-            Frame::Measurement => "measurement",
-            Frame::Base => "base",
+        match (args.frame, &args.station) {
+            (Frame::Measurement, Some(name)) => format!("station {name}'s measurement"),
+            (Frame::Measurement, None) => "measurement".to_string(),
+            (Frame::Base, _) => "base".to_string(),
         },
         if run.has_predictor {
             ", with the fitted predictor"

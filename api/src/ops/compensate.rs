@@ -22,10 +22,61 @@ use crate::error::{Error, LockReason, Result};
 /// The frame targets are given in and corrected targets are returned in.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Frame {
-    /// The tracker's, as in measurement files.
+    /// The tracker's, as in measurement files; for a model with several stations, ambiguous
+    /// (refused: name the station).
     Measurement,
+    /// The measurement frame of the model's station `k` (see [`station_index`]).
+    Station(usize),
     /// The robot base.
     Base,
+}
+
+/// The index of `robot`'s station called `name`, or an error that lists them.
+pub fn station_index(robot: &Robot, name: &str) -> Result<usize> {
+    let names: Vec<&str> = robot.stations().iter().map(|s| s.name.as_str()).collect();
+    names
+        .iter()
+        .position(|n| *n == name)
+        .ok_or_else(|| armcomp_core::Error::InvalidArgument {
+            what: "station".into(),
+            reason: if names.is_empty() {
+                format!(
+                    "the model has no stations (one measurement frame), so `{}` is none of them",
+                    shown(name)
+                )
+            } else {
+                format!(
+                    "`{}` is not a station of the model; its stations are {}",
+                    shown(name),
+                    armcomp_core::data::measurement::listed(&names)
+                )
+            },
+        })
+        .map_err(Error::from)
+}
+
+/// `T_meas_base` of the targets' frame `frame` (`None` for the base frame), or why it is
+/// ambiguous: targets "in the measurement frame" of a model with several stations could be in
+/// any of them.
+fn measurement_frame(robot: &Robot, frame: Frame) -> Result<Option<Isometry3<f64>>> {
+    match frame {
+        Frame::Base => Ok(None),
+        Frame::Station(k) => Ok(Some(robot.station_frame(k))),
+        Frame::Measurement if robot.stations().len() > 1 => {
+            let names: Vec<&str> = robot.stations().iter().map(|s| s.name.as_str()).collect();
+            Err(armcomp_core::Error::InvalidArgument {
+                what: "targets' frame".into(),
+                reason: format!(
+                    "the model has {} stations ({}), each its own measurement frame: name the one the targets are \
+                     given in (`--station NAME`), or give them in the base frame",
+                    names.len(),
+                    armcomp_core::data::measurement::listed(&names)
+                ),
+            }
+            .into())
+        }
+        Frame::Measurement => Ok(Some(robot.t_meas_base())),
+    }
 }
 
 /// One target: a position (m) and optionally the tool orientation to keep.
@@ -269,11 +320,8 @@ pub fn run(
             });
         }
     };
-    let t_meas_base = robot.t_meas_base();
-    let to_base = match frame {
-        Frame::Measurement => t_meas_base.inverse(),
-        Frame::Base => Isometry3::identity(),
-    };
+    let t_meas_base = measurement_frame(robot, frame)?;
+    let to_base = t_meas_base.map_or_else(Isometry3::identity, |t| t.inverse());
     let mut run = CompensationRun {
         q: Vec::with_capacity(targets.len()),
         corrected: Vec::with_capacity(targets.len()),
@@ -296,9 +344,9 @@ pub fn run(
         if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
             run.unconverged.push((i, c.mismatch));
         }
-        run.corrected.push(match frame {
-            Frame::Measurement => t_meas_base.transform_point(&Point3::from(c.corrected_target)).coords,
-            Frame::Base => c.corrected_target,
+        run.corrected.push(match t_meas_base {
+            Some(t) => t.transform_point(&Point3::from(c.corrected_target)).coords,
+            None => c.corrected_target,
         });
         run.q.push(comp.q().to_vec());
         run.std.push(comp.residual_std());
