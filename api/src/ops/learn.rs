@@ -149,9 +149,8 @@ pub fn run(
     let before = ErrorStats::from_errors(&model_errors(robot, samples));
     let after = ErrorStats::from_errors(&predictor_errors(robot, fitted.as_ref(), samples));
     let poses = armcomp_core::data::split::pose_groups(samples).len();
-    let fold_groups_again = fold_groups.clone();
+    let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups);
     let cross_validated = if poses >= CV_FOLDS {
-        let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups);
         Some(cross_validated_predictor_errors(
             robot, spec, samples, CV_FOLDS, 0, &by, control,
         )?)
@@ -159,10 +158,7 @@ pub fn run(
         None
     };
     let refitted = match (&cross_validated, armcomp_core::calibrate::before_fit(robot, samples)?) {
-        (Some((_, _)), Some(start)) if positions => {
-            let by = armcomp_core::data::split::FoldBy::choose(samples, fold_groups_again.clone());
-            Some(refitted_errors(robot, &start, spec, samples, &by, control)?)
-        }
+        (Some(_), Some(start)) if positions => Some(refitted_errors(robot, &start, spec, samples, &by, control)?),
         _ => None,
     };
     if let Some(spec) = predictor {

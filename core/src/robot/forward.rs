@@ -107,10 +107,11 @@ impl Robot {
         ws: &mut RobotWorkspace,
     ) {
         ws.perturbation.clear();
-        let (own_mass, gravity) = self.loads_into(conditions, tree, &ws.rigid, error_values, &mut ws.mass);
+        // The readings once: the loads' gravity and the models' state share them.
+        ws.sensors = self.sensor_readings(conditions, error_values);
+        let (own_mass, gravity) = self.loads_with(conditions, &ws.sensors, tree, &ws.rigid, error_values, &mut ws.mass);
         ws.own_mass = own_mass;
         ws.gravity = gravity;
-        ws.sensors = self.sensor_readings(conditions, error_values);
         let mass = if own_mass { &self.mass } else { &ws.mass };
         ws.loads.update(tree, &ws.rigid, mass);
         let state = StaticState {
@@ -152,9 +153,24 @@ impl Robot {
         error_values: &[Vec<f64>],
         scratch: &mut MassModel,
     ) -> (bool, Vector3<f64>) {
+        let readings = self.sensor_readings(conditions, error_values);
+        self.loads_with(conditions, &readings, tree, frames, error_values, scratch)
+    }
+
+    /// [`loads_into`](Self::loads_into) with the sensor readings of `conditions` already
+    /// turned by their mountings ([`sensor_readings`](Self::sensor_readings)).
+    fn loads_with(
+        &self,
+        conditions: Conditions,
+        readings: &SensorReadings,
+        tree: &KinematicTree,
+        frames: &TreeWorkspace,
+        error_values: &[Vec<f64>],
+        scratch: &mut MassModel,
+    ) -> (bool, Vector3<f64>) {
         let adjusting = self.error_models.iter().any(|m| m.adjusts_loads());
         let own = self.mass_is_own(conditions, tree);
-        let gravity = self.gravity_under(conditions, tree, frames, error_values);
+        let gravity = self.gravity_of(readings, tree, frames);
         if !adjusting {
             if !own {
                 self.mass_under(conditions, tree, scratch);
@@ -194,7 +210,11 @@ impl Robot {
         frames: &TreeWorkspace,
         error_values: &[Vec<f64>],
     ) -> Vector3<f64> {
-        let readings = self.sensor_readings(conditions, error_values);
+        self.gravity_of(&self.sensor_readings(conditions, error_values), tree, frames)
+    }
+
+    /// [`gravity_under`](Self::gravity_under) from readings already turned by their mountings.
+    fn gravity_of(&self, readings: &SensorReadings, tree: &KinematicTree, frames: &TreeWorkspace) -> Vector3<f64> {
         match self.gravity_sensor.and_then(|k| readings.get(k)) {
             Some(reading) => self.gravity.norm() * reading.in_base(tree, frames),
             None => self.gravity,
