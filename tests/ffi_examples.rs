@@ -25,13 +25,15 @@ fn target_profile_dir() -> PathBuf {
 /// Builds the library (static and shared) once per test run, so no test links one left over
 /// from an earlier build. The whole workspace's test build is asked for, not the library's
 /// alone: its features are then those `cargo test` unified, so after `cargo test` nothing is
-/// compiled again (`-p armcomp-ffi` alone rebuilt most dependencies, minutes on CI).
+/// compiled again (`-p armcomp-ffi` alone rebuilt most dependencies, minutes on CI). `--lib`
+/// is needed beside `--tests`: `--tests` builds each library as its test harness only, so on a
+/// clean clone the shared and static libraries would not exist.
 fn built_library() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = target_profile_dir();
         let status = Command::new(env!("CARGO"))
-            .args(["build", "--profile", "test", "--workspace", "--tests"])
+            .args(["build", "--profile", "test", "--workspace", "--lib", "--tests"])
             .env("CARGO_TARGET_DIR", dir.parent().unwrap())
             .current_dir(root())
             .status()

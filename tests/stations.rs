@@ -782,3 +782,94 @@ fn compensate_takes_the_station_the_targets_are_given_in() {
     assert_ne!(code, 0);
     assert!(err.contains("nowhere") && err.contains("st1"), "{err}");
 }
+
+/// Rows with no session, station or time structure: `fit` and `learn` say their expected
+/// error holds for these rows' conditions only, and offer the temperature column the data
+/// have; folds by blocks of it (`--group-by temperature:4`) end the note.
+#[test]
+fn folds_over_one_session_say_so_and_blocks_of_a_column_end_it() {
+    use crate::cli::armcomp;
+    let dir = crate::common::Scratch::new("one-session");
+    let plain = dir.file("plain.csv", "").display().to_string();
+    let (code, _, err) = armcomp(&[
+        "simulate",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--n",
+        "40",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        &plain,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let warm: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match i {
+            0 => format!("{l},temperature[C],operator"),
+            _ => format!("{l},{},ann", 20.0 + 0.25 * i as f64),
+        })
+        .collect();
+    let warm = dir.file("warm.csv", &(warm.join("\n") + "\n")).display().to_string();
+    let model = dir.file("m.toml", "").display().to_string();
+    let learned = dir.file("l.toml", "").display().to_string();
+    let (code, _, err) = armcomp(&[
+        "fit",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--data",
+        &plain,
+        "--predictor",
+        "none",
+        "--out",
+        &model,
+    ]);
+    assert!(code == 0 || code == 2, "{err}");
+    assert!(
+        err.contains("one session") && err.contains("--group-by COLUMN:N"),
+        "{err}"
+    );
+    let learn = |data: &str, extra: &[&str]| {
+        let mut args = vec![
+            "learn",
+            "--model",
+            &model,
+            "--data",
+            data,
+            "--predictor",
+            "ridge",
+            "--out",
+            &learned,
+        ];
+        args.extend_from_slice(extra);
+        armcomp(&args)
+    };
+    let (code, _, err) = learn(&plain, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("one session"), "{err}");
+    let (code, _, err) = learn(&warm, &[]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("`--group-by temperature:5`"), "{err}");
+    let (code, stdout, err) = learn(&warm, &["--group-by", "temperature:4"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(stdout.contains("grouped by `temperature` in 4 blocks"), "{stdout}");
+    assert!(!err.contains("one session"), "{err}");
+    // Blocks cut a numeric column; a text one is refused with its row.
+    let (code, _, err) = learn(&warm, &["--group-by", "operator:4"]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("data row 0, column `operator`: `ann` is not a number"),
+        "{err}"
+    );
+}
+
+/// Blocks of consecutive values, as many rows each, ties kept together: by hand.
+#[test]
+fn blocks_of_a_column_hold_consecutive_values() {
+    use armcomp_api::ops::fit::blocks_of;
+    assert_eq!(blocks_of(&[5.0, 1.0, 3.0, 2.0, 4.0, 6.0], 3), [2, 0, 1, 0, 1, 2]);
+    assert_eq!(blocks_of(&[1.0, 1.0, 1.0, 2.0], 2), [0, 0, 0, 1]);
+    assert_eq!(blocks_of(&[3.0, 1.0, 2.0, 4.0], 4), [2, 0, 1, 3]);
+}

@@ -104,6 +104,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for w in &ladder.calibration.report.warnings {
         eprintln!("warning: {w}");
     }
+    if let Some(note) = args.group.one_session_note(&data_files, &r.folds_by)? {
+        eprintln!("note: {note}");
+    }
     if r.interrupted {
         eprintln!(
             "interrupted: the model was chosen among the {} candidate(s) whose folds were all fitted before the stop",

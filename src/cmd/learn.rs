@@ -97,5 +97,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     for w in run.warnings() {
         eprintln!("warning: {w}");
     }
+    if let Some((_, folding)) = &run.cross_validated
+        && let Some(note) = args.group.one_session_note(&[&args.data], &folding.grouped_by)?
+    {
+        eprintln!("note: {note}");
+    }
     Ok(ExitCode::SUCCESS)
 }

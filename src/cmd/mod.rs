@@ -74,9 +74,11 @@ pub struct Rows {
 pub struct GroupBy {
     /// Hold out whole groups of this CSV column (a session, a day, a station) in each fold of
     /// the cross-validation rather than single poses: folds over clustered poses are
-    /// optimistic. Default: a set-up column the data have (`session`, `setup`, `set_up`,
-    /// `ground`, `day`), else by station for data from several, else by pose.
-    #[arg(long, value_name = "COLUMN")]
+    /// optimistic. `COLUMN:N` cuts a numeric column (a time, a temperature) into N blocks of
+    /// consecutive values, as many rows each, and holds out whole blocks. Default: a set-up
+    /// column the data have (`session`, `setup`, `set_up`, `ground`, `day`), else by station
+    /// for data from several, else by pose.
+    #[arg(long, value_name = "COLUMN[:N]")]
     pub group_by: Option<String>,
 }
 
@@ -89,8 +91,13 @@ impl GroupBy {
         for file in files {
             texts.push(armcomp_core::support::io::read_text(file, input_limits())?);
         }
-        let column = match &self.group_by {
-            Some(c) => c.clone(),
+        // `COLUMN:N`: blocks of a numeric column; a name that merely holds a colon is whole.
+        let (column, blocks) = match self.group_by.as_deref().and_then(|g| g.rsplit_once(':')) {
+            Some((c, n)) if n.trim().parse::<usize>().is_ok() => (Some(c.trim().to_string()), n.trim().parse().ok()),
+            _ => (self.group_by.clone(), None),
+        };
+        let column = match column {
+            Some(c) => c,
             None => {
                 let mut found = None;
                 for (text, file) in texts.iter().zip(files) {
@@ -107,10 +114,67 @@ impl GroupBy {
             }
         };
         let mut values = Vec::new();
+        let mut sources = Vec::new();
         for (text, file) in texts.iter().zip(files) {
-            values.extend(armcomp_core::data::measurement::column_values(text, file, &column)?);
+            let v = armcomp_core::data::measurement::column_values(text, file, &column)?;
+            sources.extend((0..v.len()).map(|r| (*file, r)));
+            values.extend(v);
         }
-        Ok(Some((column, armcomp_api::ops::fit::groups_of(&values, rows))))
+        let Some(blocks) = blocks else {
+            return Ok(Some((column, armcomp_api::ops::fit::groups_of(&values, rows))));
+        };
+        if blocks < 2 {
+            anyhow::bail!("--group-by {column}:{blocks}: expected at least 2 blocks to hold one out");
+        }
+        let numbers = rows
+            .iter()
+            .map(|&r| {
+                let (file, row) = sources[r];
+                values[r].parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "{}: data row {row}, column `{column}`: `{}` is not a number; --group-by {column}:{blocks} \
+                         cuts a numeric column into blocks",
+                        file.display(),
+                        values[r]
+                    )
+                })
+            })
+            .collect::<anyhow::Result<Vec<f64>>>()?;
+        let name = format!("`{column}` in {blocks} blocks");
+        Ok(Some((name, armcomp_api::ops::fit::blocks_of(&numbers, blocks))))
+    }
+
+    /// What to say when the folds held out single poses (`grouped_by` is `pose`) of rows that
+    /// carry no session, station or time structure the user named: the expected error then
+    /// holds for the conditions these rows were measured in, and a time or temperature column
+    /// the data have can give folds by blocks of it.
+    pub fn one_session_note(&self, files: &[&Path], grouped_by: &str) -> anyhow::Result<Option<String>> {
+        if self.group_by.is_some() || grouped_by != "pose" {
+            return Ok(None);
+        }
+        let mut ordering: Vec<String> = Vec::new();
+        for file in files {
+            let text = armcomp_core::support::io::read_text(file, input_limits())?;
+            for c in armcomp_core::data::measurement::ordering_columns(&text, file)? {
+                if !ordering.contains(&c) {
+                    ordering.push(c);
+                }
+            }
+        }
+        let offer = match ordering.first() {
+            Some(c) => format!(
+                "; the data have `{c}`: `--group-by {c}:5` holds out five blocks of it, which is what to expect \
+                 of another time or temperature"
+            ),
+            None => "; a session, day or station column (`--group-by COLUMN`) or a time or temperature column \
+                     (`--group-by COLUMN:N`, N blocks of it) would let the folds hold conditions out"
+                .to_string(),
+        };
+        Ok(Some(format!(
+            "the folds held out single poses of rows with no session, station or time structure: the expected \
+             error holds for the conditions these rows were measured in (one session), not for other days, \
+             temperatures or set-ups{offer}"
+        )))
     }
 }
 

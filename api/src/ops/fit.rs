@@ -95,3 +95,21 @@ pub fn groups_of(values: &[String], rows: &[usize]) -> Vec<usize> {
         })
         .collect()
 }
+
+/// Block numbers, one per sample, cutting the samples' `values` (a time, a temperature) into
+/// `blocks` runs of consecutive values with as many samples each; equal values share a block,
+/// so a block may hold a few more.
+pub fn blocks_of(values: &[f64], blocks: usize) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..values.len()).collect();
+    order.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
+    let mut out = vec![0; values.len()];
+    let mut block = 0;
+    for (rank, &i) in order.iter().enumerate() {
+        // A tie stays in the block its first value opened.
+        if rank > 0 && values[i] != values[order[rank - 1]] {
+            block = rank * blocks / values.len();
+        }
+        out[i] = block;
+    }
+    out
+}

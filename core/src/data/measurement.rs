@@ -517,6 +517,24 @@ pub fn set_up_column(text: &str, path: &Path) -> Result<Option<&'static str>> {
         .find(|c| headers.iter().any(|h| split_header(h).0 == *c)))
 }
 
+/// Words whose presence in a column's name marks it as ordering the rows in time or
+/// temperature: what folds by blocks of it (`--group-by COLUMN:N`) can hold out.
+const ORDERING_WORDS: [&str; 5] = ["time", "stamp", "date", "temp", "hour"];
+
+/// The columns of measurement CSV `text` whose names say they carry time or temperature
+/// (see [`ORDERING_WORDS`]), in header order.
+pub fn ordering_columns(text: &str, path: &Path) -> Result<Vec<String>> {
+    let (_, headers) = open_table(text, path)?;
+    Ok(headers
+        .iter()
+        .map(|h| split_header(h).0.to_string())
+        .filter(|name| {
+            let lower = name.to_ascii_lowercase();
+            ORDERING_WORDS.iter().any(|w| lower.contains(w))
+        })
+        .collect())
+}
+
 /// The values of column `name` of measurement CSV `text`, one per data row (header and
 /// comments excluded, as [`MeasurementSet::rows`] counts them), trimmed: what groups rows
 /// into sessions or stations. `path` is used in messages.

@@ -208,6 +208,185 @@ fn fits_boom_residual() {
     }
 }
 
+/// A set of 9 one-dimensional rows with 3 inducing rows, fixed hyper-parameters: the mean
+/// against `k*ᵀ (σ_n² K_mm + K_mn K_nm)⁻¹ K_mn y` worked out here (3 × 3 inverse by cofactors)
+/// on the inducing rows the model kept, and the standard deviation against the exact process
+/// on those rows alone.
+#[test]
+fn inducing_point_mean_matches_the_closed_form() {
+    let xs: Vec<f64> = (0..9).map(|i| -2.0 + 0.5 * i as f64).collect();
+    let ys: Vec<f64> = xs.iter().map(|x| (1.3 * x).sin() + 0.1 * x).collect();
+    let (ell, sf, sn) = (0.9, 1.1, 0.3);
+    let spec = GpSpec {
+        fixed: Some(GpHyperParams {
+            length_scales: vec![ell],
+            signal_std: sf,
+            noise_std: sn,
+        }),
+        exact_up_to: 0,
+        inducing: 3,
+        seed: 5,
+        ..GpSpec::default()
+    };
+    let model = spec
+        .fit(&TrainingSet {
+            inputs: &xs,
+            targets: &ys,
+            n_inputs: 1,
+            n_outputs: 1,
+            input_ranges: &[],
+        })
+        .unwrap();
+    let json = serde_json::to_value(&model).unwrap();
+    let u: Vec<f64> = serde_json::from_value(json["train_inputs"].clone()).unwrap();
+    assert_eq!(u.len(), 3, "the model keeps the inducing rows only");
+
+    let stats = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        let s = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / v.len() as f64).sqrt();
+        (m, s)
+    };
+    let ((mx, sx), (my, sy)) = (stats(&xs), stats(&ys));
+    let z: Vec<f64> = xs.iter().map(|x| (x - mx) / sx).collect();
+    let t: Vec<f64> = ys.iter().map(|y| (y - my) / sy).collect();
+    assert!(
+        u.iter().all(|ui| z.iter().any(|zi| (zi - ui).abs() < 1e-12)),
+        "inducing rows are rows"
+    );
+    let kern = |a: f64, b: f64| sf * sf * (-0.5 * (a - b).powi(2) / (ell * ell)).exp();
+    // A = σ² K_mm + K_mn K_nm, b = K_mn t.
+    let mut a = [[0.0; 3]; 3];
+    let mut b = [0.0; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            a[i][j] = sn * sn * kern(u[i], u[j]) + z.iter().map(|zr| kern(u[i], *zr) * kern(u[j], *zr)).sum::<f64>();
+        }
+        b[i] = z.iter().zip(&t).map(|(zr, tr)| kern(u[i], *zr) * tr).sum();
+    }
+    let (ainv, _) = inverse3(a);
+    let alpha: Vec<f64> = (0..3).map(|i| (0..3).map(|j| ainv[i][j] * b[j]).sum()).collect();
+    let mut kmm = [[0.0; 3]; 3];
+    for i in 0..3 {
+        for j in 0..3 {
+            kmm[i][j] = kern(u[i], u[j]) + if i == j { sn * sn } else { 0.0 };
+        }
+    }
+    let (kinv, _) = inverse3(kmm);
+    let mut scratch = Vec::new();
+    for x in [-2.2, -0.3, 0.8, 1.7, 4.0] {
+        let zs = (x - mx) / sx;
+        let ks: Vec<f64> = u.iter().map(|ui| kern(zs, *ui)).collect();
+        let mean = my + sy * (0..3).map(|i| ks[i] * alpha[i]).sum::<f64>();
+        let quad: f64 = (0..3)
+            .flat_map(|i| (0..3).map(move |j| (i, j)))
+            .map(|(i, j)| ks[i] * kinv[i][j] * ks[j])
+            .sum();
+        let std = sy * (sf * sf - quad).max(0.0).sqrt();
+        let (mut m, mut s) = ([0.0], [0.0]);
+        model.predict_into(&[x], &mut m, &mut scratch);
+        assert!(model.predict_std_into(&[x], &mut s, &mut scratch));
+        assert!((m[0] - mean).abs() < 1e-9, "mean at {x}: {} vs {mean}", m[0]);
+        assert!((s[0] - std).abs() < 1e-9, "std at {x}: {} vs {std}", s[0]);
+    }
+}
+
+/// The inducing-point process (1,000 of 3,000 rows) against the exact one on a smooth
+/// 4-input field with 5 % noise, over three seeds: its error against the noise-free truth on
+/// new rows is within 5 % of the exact process's (plus 1e-3 of the field's scale, so that two
+/// fits that both reach the truth are not told apart by rounding), and its model keeps 1,000
+/// rows.
+#[test]
+fn inducing_points_are_within_five_percent_of_the_exact_process() {
+    let truth = |r: &[f64]| (1.2 * r[0]).sin() * (0.8 * r[1]).cos() + 0.3 * r[2] * r[3] + 0.2 * (2.0 * r[3]).sin();
+    let d = 4;
+    for seed in [11, 12, 13] {
+        let mut rng = StdRng::seed_from_u64(seed);
+        let draw =
+            |n: usize, rng: &mut StdRng| -> Vec<f64> { (0..n * d).map(|_| rng.random_range(-2.0..2.0)).collect() };
+        let (n, n_test) = (3000, 500);
+        let x = draw(n, &mut rng);
+        let y: Vec<f64> = x
+            .chunks(d)
+            .map(|r| truth(r) + 0.05 * rng.random_range(-1.7..1.7))
+            .collect();
+        let x_test = draw(n_test, &mut rng);
+        let set = TrainingSet {
+            inputs: &x,
+            targets: &y,
+            n_inputs: d,
+            n_outputs: 1,
+            input_ranges: &[],
+        };
+        let rms = |spec: GpSpec| {
+            let model = spec.fit(&set).unwrap();
+            let mut scratch = Vec::new();
+            let sq: f64 = x_test
+                .chunks(d)
+                .map(|r| {
+                    let mut out = [0.0];
+                    model.predict_into(r, &mut out, &mut scratch);
+                    (out[0] - truth(r)).powi(2)
+                })
+                .sum();
+            let kept = serde_json::to_value(&model).unwrap()["train_inputs"]
+                .as_array()
+                .unwrap()
+                .len()
+                / d;
+            ((sq / n_test as f64).sqrt(), kept)
+        };
+        let (exact, kept_exact) = rms(GpSpec {
+            exact_up_to: n,
+            seed,
+            ..GpSpec::default()
+        });
+        let (sparse, kept_sparse) = rms(GpSpec {
+            seed,
+            ..GpSpec::default()
+        });
+        assert_eq!((kept_exact, kept_sparse), (n, 1000));
+        assert!(
+            sparse <= 1.05 * exact + 1e-3,
+            "seed {seed}: inducing points {sparse:.5} vs exact {exact:.5} against the truth"
+        );
+    }
+}
+
+/// A fit that would take more memory than `max_memory_mib` is refused at once, saying how much
+/// it would take: an exact process on 20,000 rows needs 3 GB for its kernel matrix.
+#[test]
+fn a_fit_over_its_memory_limit_is_refused_before_it_starts() {
+    let n = 20_000;
+    let x: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
+    let y: Vec<f64> = x.iter().map(|v| v.sin()).collect();
+    let set = TrainingSet {
+        inputs: &x,
+        targets: &y,
+        n_inputs: 1,
+        n_outputs: 1,
+        input_ranges: &[],
+    };
+    let spec = GpSpec {
+        exact_up_to: n,
+        ..GpSpec::default()
+    };
+    // 8 n² bytes for the matrix alone.
+    let need = spec.memory_bytes(n, 1);
+    assert!(need >= 8 * (n as u64).pow(2));
+    let err = spec.fit(&set).err().expect("refused").to_string();
+    assert!(
+        err.contains(&format!("about {} MiB", need.div_ceil(1 << 20))) && err.contains("max_memory_mib = 2048"),
+        "{err}"
+    );
+    // The same rows within the limit by default: the inducing-point process.
+    let fitted = GpSpec::default().fit(&set).unwrap();
+    let kept = serde_json::to_value(&fitted).unwrap()["train_inputs"]
+        .as_array()
+        .unwrap()
+        .len();
+    assert_eq!(kept, 1000);
+}
+
 /// Reading a model file's fitted GP (7 inputs, 3 outputs), as every command that loads the
 /// model does, at 3,000 and 12,000 rows (0.6 and 2.4 MB of TOML), and at 3,000 rows the first
 /// standard deviation, which factorises the kernel matrix as every read did before (its cost
