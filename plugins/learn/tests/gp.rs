@@ -373,7 +373,7 @@ fn a_fit_over_its_memory_limit_is_refused_before_it_starts() {
     // 8 n² bytes for the matrix alone.
     let need = spec.memory_bytes(n, 1);
     assert!(need >= 8 * (n as u64).pow(2));
-    let err = spec.fit(&set).err().expect("refused").to_string();
+    let err = spec.fit(&set).map(|_| ()).expect_err("refused").to_string();
     assert!(
         err.contains(&format!("about {} MiB", need.div_ceil(1 << 20))) && err.contains("max_memory_mib = 2048"),
         "{err}"
