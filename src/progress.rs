@@ -11,6 +11,16 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle, TermLike};
 /// The least time between two plain progress lines.
 const LINE_EVERY: Duration = Duration::from_secs(5);
 
+/// Seconds per stage (`geometry 12.1 s · …`) and the memory the process holds now (its
+/// resident set, where the platform tells it), for a long search's progress line.
+pub fn stages_and_memory(stages: &[(&str, f64)]) -> String {
+    let mut parts: Vec<String> = stages.iter().map(|(what, s)| format!("{what} {s:.1} s")).collect();
+    if let Some(m) = memory_stats::memory_stats() {
+        parts.push(format!("{} MiB held", m.physical_mem >> 20));
+    }
+    parts.join(" · ")
+}
+
 /// A progress display of `len` steps (`None`: a count without a total) drawn with `template`
 /// (indicatif's syntax; a `{bar}` or `{spinner}` in it is left out of plain lines).
 pub fn bar(len: Option<u64>, template: &str) -> ProgressBar {

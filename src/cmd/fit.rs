@@ -63,8 +63,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let predictor = (args.predictor.trim() != "none").then(|| args.predictor.trim().to_string());
     let bar = Mutex::new(crate::progress::bar(
         Some(0),
-        "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)",
+        "choosing the model {bar:30} {pos}/{len} fits  {elapsed} (about {eta} left)  {msg}",
     ));
+    // Seconds of fitting per rung so far (the folds run in parallel: their sum, not the wall
+    // time), shown beside the memory the process holds.
+    let stages: Mutex<Vec<(&'static str, f64)>> = Mutex::new(Vec::new());
     // Ctrl-C ends the cross-validation with the rungs fitted so far, the choice among them
     // fitted on all rows.
     let ladder = crate::stoppable(|cancel| {
@@ -79,9 +82,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             cancel: cancel.clone(),
         };
         armcomp_api::ops::fit::run(&robot, &data, params, &|p| {
-            if let Ok(b) = bar.lock() {
+            if let (Ok(b), Ok(mut stages)) = (bar.lock(), stages.lock()) {
                 b.set_length(p.total as u64);
                 b.set_position(p.done as u64);
+                if let Some((what, seconds)) = p.last {
+                    match stages.iter_mut().find(|(w, _)| *w == what) {
+                        Some((_, s)) => *s += seconds,
+                        None => stages.push((what, seconds)),
+                    }
+                    b.set_message(crate::progress::stages_and_memory(&stages));
+                }
             }
         })
     });

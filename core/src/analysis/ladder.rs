@@ -558,9 +558,9 @@ pub fn climb(
         .then(|| "fixed-point and plane rows give no 3-D error for a residual predictor to learn".to_string());
     let total = draws.iter().map(|d| d.len() * rungs.len()).sum::<usize>() + 1 + usize::from(predictor.is_some());
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let tick = || {
+    let tick = |last: Option<(&'static str, f64)>| {
         let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        progress(FitsProgress { done: d, total });
+        progress(FitsProgress { done: d, total, last });
     };
     let mut seconds = vec![0.0; rungs.len()];
     let mut results: Vec<Vec<LevelScores>> = Vec::new();
@@ -580,8 +580,9 @@ pub fn climb(
                 let Some(scores) = crate::support::cancel::finished(scored)? else {
                     return Ok(None);
                 };
-                tick();
-                Ok(Some((scores, start.elapsed().as_secs_f64())))
+                let seconds = start.elapsed().as_secs_f64();
+                tick(Some((rungs[r].label(), seconds)));
+                Ok(Some((scores, seconds)))
             })
             .collect::<Result<_>>()?;
         let mut it = fitted.into_iter();
@@ -643,6 +644,7 @@ pub fn climb(
     } else {
         stack.iter().map(|m| m.prior).collect()
     };
+    let start = Instant::now();
     let mut fits = fit_schemes(robot, samples, params, chosen.rung, &schemes, &final_cancel)?;
     let heaviest = schemes.iter().position(|&p| p == chosen.prior).unwrap_or(0);
     let stacked = (!stack.is_empty())
@@ -652,14 +654,16 @@ pub fn climb(
     if let Some(model) = stacked {
         fit.calibration.robot = model;
     }
-    tick();
+    tick(Some(("the choice on all rows", start.elapsed().as_secs_f64())));
     let fitted = &fit.calibration.robot;
+    let start = Instant::now();
     let mut file = match predictor.filter(|_| chosen.predictor) {
         Some(spec) => file_with_predictor(fitted, spec, samples, &final_cancel)?,
         None => fitted.to_file(),
     };
     if predictor.is_some() {
-        tick();
+        let what = if chosen.predictor { "its predictor on all rows" } else { "the model file" };
+        tick(Some((what, start.elapsed().as_secs_f64())));
     }
     let mut record = fit_record(robot, samples, params, chosen, &fit, expected_rms_mm);
     if !stack.is_empty() {

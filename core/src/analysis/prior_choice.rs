@@ -99,6 +99,7 @@ pub fn choose_prior_scale(
             progress(FitsProgress {
                 done: done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1,
                 total: jobs.len(),
+                last: None,
             });
             Ok(Some(scored))
         })

@@ -355,13 +355,16 @@ impl Default for CalibrationParams {
 }
 
 /// Progress of a search made of many calibrations (cross-validation folds, rungs, prior
-/// scales): fits done of the total.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// scales): fits done of the total, and what the fit just done was and took.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitsProgress {
     /// Fits done.
     pub done: usize,
     /// Fits in all.
     pub total: usize,
+    /// The fit just done: what it fitted (a rung of `fit`'s ladder) and its seconds, where
+    /// the search has such stages.
+    pub last: Option<(&'static str, f64)>,
 }
 
 /// One Levenberg–Marquardt iteration, for progress display.
