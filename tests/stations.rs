@@ -577,7 +577,7 @@ fn fit_gives_the_robot_the_data_stations_and_registers_each() {
         noise_mm: Some(NOISE * 1e3),
         noise_deg: None,
         folds: 3,
-        repeats: 1,
+        repeats: Some(1),
         seed: 0,
         fold_groups: None,
         predictor: None,

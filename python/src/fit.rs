@@ -11,7 +11,7 @@ use crate::robot::PyRobot;
 /// `groups`: one label per data row; folds then hold out whole groups. `progress`, when given,
 /// is called as `progress("model choice", done, total)` after every fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = 3))]
+#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
     py: Python<'_>,
@@ -24,7 +24,7 @@ pub fn fit(
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
     noise_deg: Option<f64>,
-    repeats: usize,
+    repeats: Option<usize>,
 ) -> PyResult<(PyRobot, String)> {
     let robot = robot.robot.clone();
     let set = data.resolve(&robot)?;

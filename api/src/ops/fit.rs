@@ -20,8 +20,9 @@ pub struct FitParams {
     pub noise_deg: Option<f64>,
     /// Outer folds.
     pub folds: usize,
-    /// How many times the folds are drawn (each draw with its own seed).
-    pub repeats: usize,
+    /// How many times the folds are drawn (each draw with its own seed); `None`:
+    /// [`default_repeats`] for the rows.
+    pub repeats: Option<usize>,
     /// Seed of the folds.
     pub seed: u64,
     /// A group per sample: folds hold out whole groups (`None`: whole poses).
@@ -31,6 +32,17 @@ pub struct FitParams {
     /// Ends the cross-validation with the rungs fitted so far, the choice among them fitted on
     /// all rows (a further request stops that too).
     pub cancel: Cancel,
+}
+
+/// Rows from which the folds are drawn once by default: the scores of folds that large move by
+/// a few hundredths of their spread from one draw to the next, and each draw costs a whole
+/// ladder of fits.
+pub const ONE_DRAW_FROM_ROWS: usize = 2000;
+
+/// How many times the folds are drawn by default for `rows` rows: three, so that the choice
+/// does not flip with one draw's folds, or once from [`ONE_DRAW_FROM_ROWS`] rows.
+pub fn default_repeats(rows: usize) -> usize {
+    if rows >= ONE_DRAW_FROM_ROWS { 1 } else { 3 }
 }
 
 /// Climbs the ladder for `robot` on `data`, the robot given the data's stations (each
@@ -58,7 +70,7 @@ pub fn run(
     let noise_declared = params.noise_mm.is_some() && (params.noise_deg.is_some() || !robot.measures_pose());
     let ladder = LadderParams {
         folds: params.folds,
-        repeats: params.repeats,
+        repeats: params.repeats.unwrap_or_else(|| default_repeats(data.samples.len())),
         seed: params.seed,
         fold_groups: params.fold_groups,
         predictor,

@@ -376,11 +376,6 @@ fn not_sound(calibration: &Calibration) -> Option<String> {
     (!implausible.is_empty()).then(|| format!("implausible values: {}", implausible.join(", ")))
 }
 
-/// `robot` with `spec` fitted on what it leaves on `samples`.
-fn with_predictor(robot: &Robot, spec: &dyn PredictorSpec, samples: &[Sample], cancel: &Cancel) -> Result<Robot> {
-    robot.rebuild(file_with_predictor(robot, spec, samples, cancel)?)
-}
-
 /// `robot`'s file with `spec` fitted on what it leaves on `samples`.
 fn file_with_predictor(
     robot: &Robot,
@@ -479,6 +474,10 @@ fn score_fold(
             })
             .collect())
     };
+    // The schemes of one fold leave near-identical residuals: the predictor's search (a GP's
+    // hyper-parameters) is made on the first scheme's and held for the others, which then
+    // differ by their residuals alone.
+    let mut held: Option<Box<dyn PredictorSpec>> = None;
     fit_schemes(robot, &train, params, rung, &params.schemes, cancel)?
         .into_iter()
         .map(|fit| {
@@ -486,9 +485,18 @@ fn score_fold(
             let effective_params = crate::calibrate::evidence::effective_parameters(&fit.calibration.linearisation);
             let mut model = fit.calibration.robot;
             register_held_out_stations(&mut model, &train, &test)?;
-            let with_predictor = predictor
-                .map(|spec| errors(&with_predictor(&model, spec, &train, cancel)?))
-                .transpose()?;
+            let with_predictor = match predictor {
+                Some(spec) => {
+                    let file = file_with_predictor(&model, held.as_deref().unwrap_or(spec), &train, cancel)?;
+                    if held.is_none() {
+                        held = (file.fitted_predictor.as_ref())
+                            .and_then(|f| f.searched())
+                            .and_then(|s| spec.holding(&s));
+                    }
+                    Some(errors(&model.rebuild(file)?)?)
+                }
+                None => None,
+            };
             Ok(SchemeScore {
                 errors: errors(&model)?,
                 with_predictor,

@@ -260,6 +260,13 @@ pub trait PredictorSpec: Debug + Send + Sync {
     fn resolve(&self, _ctx: &BuildContext<'_>) -> Result<Option<Box<dyn PredictorSpec>>, Issues> {
         Ok(None)
     }
+    /// This spec with what a fit of it chose by search held ([`FittedPredictor::searched`]:
+    /// a GP's hyper-parameters), so that fits on near-identical data (one fold's residuals
+    /// under several prior schemes) skip the search and differ only by their data; `None`,
+    /// the default: nothing to hold.
+    fn holding(&self, _searched: &serde_json::Value) -> Option<Box<dyn PredictorSpec>> {
+        None
+    }
 }
 
 /// A fitted residual predictor, stored in model files.
@@ -269,6 +276,11 @@ pub trait FittedPredictor: Debug + Send + Sync {
     fn n_inputs(&self) -> usize;
     /// Number of outputs it produces.
     fn n_outputs(&self) -> usize;
+    /// What its fit chose by search, for [`PredictorSpec::holding`]; `None`, the default:
+    /// nothing searched.
+    fn searched(&self) -> Option<serde_json::Value> {
+        None
+    }
     /// Predicts into `out` (length `n_outputs`). `scratch` is reused between calls, so after the
     /// first call nothing is allocated.
     fn predict_into(&self, input: &[f64], out: &mut [f64], scratch: &mut Vec<f64>);

@@ -241,13 +241,13 @@ def fit(
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
     noise_deg: Optional[float] = None,
-    repeats: int = 3,
+    repeats: Optional[int] = None,
 ) -> Tuple[Robot, FitReport]:
     """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
     offsets, geometry and the robot file's error models, each under several prior schemes
     (the evidence, the file's priors at five scales, none) and each with and without
     ``predictor`` (None for none), scored by cross-validation over ``folds`` folds drawn
-    ``repeats`` times (whole groups held out when ``groups`` gives a label per data row);
+    ``repeats`` times (None: 3, or 1 from 2,000 rows; whole groups held out when ``groups`` gives a label per data row);
     returns the chosen model fitted on all of ``data`` and the ladder.
     ``progress("model choice", done, total)`` is called after every fit. ``noise_mm`` and
     ``noise_deg`` (orientation noise of poses and plane contacts' tilts, degrees) declare the

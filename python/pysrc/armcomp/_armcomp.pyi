@@ -112,7 +112,7 @@ def fit(
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
     noise_deg: Optional[float] = None,
-    repeats: int = 3,
+    repeats: Optional[int] = None,
 ) -> Tuple[Robot, str]: ...
 def simulate(
     truth: Robot,

@@ -63,8 +63,8 @@ impl Default for GpSpec {
             noise_floor: 1e-6,
             fixed: None,
             seed: 0,
-            exact_up_to: 2000,
-            inducing: 1000,
+            exact_up_to: 1000,
+            inducing: 300,
             max_memory_mib: 2048,
         }
     }
@@ -190,6 +190,19 @@ impl GpSpec {
 
 #[typetag::serde(name = "gp")]
 impl PredictorSpec for GpSpec {
+    /// One kernel's hyper-parameters held as `fixed`; per-output kernels keep their search
+    /// (`fixed` is one set for all).
+    fn holding(&self, searched: &serde_json::Value) -> Option<Box<dyn PredictorSpec>> {
+        let hypers: Vec<GpHyperParams> = serde_json::from_value(searched.clone()).ok()?;
+        match (self.kernels, hypers.as_slice()) {
+            (KernelSharing::Shared, [hyper]) => Some(Box::new(GpSpec {
+                fixed: Some(hyper.clone()),
+                ..self.clone()
+            })),
+            _ => None,
+        }
+    }
+
     fn fit_with(&self, data: &TrainingSet<'_>, control: &FitControl<'_>) -> Result<Box<dyn FittedPredictor>> {
         self.check()?;
         let s = Samples::check(data, 2)?;

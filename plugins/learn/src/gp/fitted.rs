@@ -219,6 +219,12 @@ impl FittedPredictor for FittedGp {
         self.model.outputs.mean.len()
     }
 
+    /// The kernels' hyper-parameters, a list in kernel order.
+    fn searched(&self) -> Option<serde_json::Value> {
+        let hypers: Vec<&GpHyperParams> = self.model.kernels.iter().map(|k| &k.hyper).collect();
+        serde_json::to_value(hypers).ok()
+    }
+
     fn predict_into(&self, input: &[f64], out: &mut [f64], scratch: &mut Vec<f64>) {
         let d = self.n_inputs();
         assert_eq!(input.len(), d, "gp_fitted: input length");
