@@ -670,7 +670,11 @@ pub fn climb(
         None => fitted.to_file(),
     };
     if predictor.is_some() {
-        let what = if chosen.predictor { "its predictor on all rows" } else { "the model file" };
+        let what = if chosen.predictor {
+            "its predictor on all rows"
+        } else {
+            "the model file"
+        };
         tick(Some((what, start.elapsed().as_secs_f64())));
     }
     let mut record = fit_record(robot, samples, params, chosen, &fit, expected_rms_mm);
