@@ -465,33 +465,8 @@ fn the_command_line_carries_a_learned_predictor_to_another_station() {
 fn group_by_a_column_folds_every_cross_validation_and_says_so() {
     use crate::cli::armcomp;
     let dir = crate::common::Scratch::new("group-by");
-    let plain = dir.file("plain.csv", "").display().to_string();
-    let (code, _, err) = armcomp(&[
-        "simulate",
-        "--robot",
-        "robots/industrial-6dof.toml",
-        "--n",
-        "40",
-        "--noise-mm",
-        "0.05",
-        "--out",
-        &plain,
-    ]);
-    assert_eq!(code, 0, "{err}");
     // Four sessions of ten rows.
-    let text = std::fs::read_to_string(&plain).unwrap();
-    let with: Vec<String> = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| match i {
-            0 => format!("{l},session"),
-            _ => format!("{l},s{}", (i - 1) / 10),
-        })
-        .collect();
-    let data = dir
-        .file("sessions.csv", &(with.join("\n") + "\n"))
-        .display()
-        .to_string();
+    let (_, data) = forty_rows_with(&dir, "session", |row| format!("s{}", row / 10));
     let out = |name: &str| dir.file(name, "").display().to_string();
     let (m1, m2) = (out("m1.toml"), out("m2.toml"));
     let (code, stdout, err) = armcomp(&[
@@ -790,29 +765,9 @@ fn compensate_takes_the_station_the_targets_are_given_in() {
 fn folds_over_one_session_say_so_and_blocks_of_a_column_end_it() {
     use crate::cli::armcomp;
     let dir = crate::common::Scratch::new("one-session");
-    let plain = dir.file("plain.csv", "").display().to_string();
-    let (code, _, err) = armcomp(&[
-        "simulate",
-        "--robot",
-        "robots/industrial-6dof.toml",
-        "--n",
-        "40",
-        "--noise-mm",
-        "0.05",
-        "--out",
-        &plain,
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let text = std::fs::read_to_string(&plain).unwrap();
-    let warm: Vec<String> = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| match i {
-            0 => format!("{l},temperature[C],operator"),
-            _ => format!("{l},{},ann", 20.0 + 0.25 * i as f64),
-        })
-        .collect();
-    let warm = dir.file("warm.csv", &(warm.join("\n") + "\n")).display().to_string();
+    let (plain, warm) = forty_rows_with(&dir, "temperature[C],operator", |row| {
+        format!("{},ann", 20.25 + 0.25 * row as f64)
+    });
     let model = dir.file("m.toml", "").display().to_string();
     let learned = dir.file("l.toml", "").display().to_string();
     let (code, _, err) = armcomp(&[
@@ -872,4 +827,37 @@ fn blocks_of_a_column_hold_consecutive_values() {
     assert_eq!(blocks_of(&[5.0, 1.0, 3.0, 2.0, 4.0, 6.0], 3), [2, 0, 1, 0, 1, 2]);
     assert_eq!(blocks_of(&[1.0, 1.0, 1.0, 2.0], 2), [0, 0, 0, 1]);
     assert_eq!(blocks_of(&[3.0, 1.0, 2.0, 4.0], 4), [2, 0, 1, 3]);
+}
+
+/// 40 rows the industrial arm's nominal model simulates (0.05 mm noise), written plain and
+/// again with `columns` appended to the header and `cells(data row)` to each row: the paths
+/// of both files.
+fn forty_rows_with(dir: &crate::common::Scratch, columns: &str, cells: impl Fn(usize) -> String) -> (String, String) {
+    let plain = dir.file("plain.csv", "").display().to_string();
+    let (code, _, err) = crate::cli::armcomp(&[
+        "simulate",
+        "--robot",
+        "robots/industrial-6dof.toml",
+        "--n",
+        "40",
+        "--noise-mm",
+        "0.05",
+        "--out",
+        &plain,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let with: Vec<String> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| match i {
+            0 => format!("{l},{columns}"),
+            _ => format!("{l},{}", cells(i - 1)),
+        })
+        .collect();
+    let data = dir
+        .file("with-columns.csv", &(with.join("\n") + "\n"))
+        .display()
+        .to_string();
+    (plain, data)
 }

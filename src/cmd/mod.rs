@@ -92,9 +92,12 @@ impl GroupBy {
             texts.push(armcomp_core::support::io::read_text(file, input_limits())?);
         }
         // `COLUMN:N`: blocks of a numeric column; a name that merely holds a colon is whole.
-        let (column, blocks) = match self.group_by.as_deref().and_then(|g| g.rsplit_once(':')) {
-            Some((c, n)) if n.trim().parse::<usize>().is_ok() => (Some(c.trim().to_string()), n.trim().parse().ok()),
-            _ => (self.group_by.clone(), None),
+        let blocks_of_column = (self.group_by.as_deref())
+            .and_then(|g| g.rsplit_once(':'))
+            .and_then(|(c, n)| Some((c.trim().to_string(), n.trim().parse::<usize>().ok()?)));
+        let (column, blocks) = match blocks_of_column {
+            Some((c, n)) => (Some(c), Some(n)),
+            None => (self.group_by.clone(), None),
         };
         let column = match column {
             Some(c) => c,

@@ -24,6 +24,17 @@ fn inverse3(m: [[f64; 3]; 3]) -> ([[f64; 3]; 3], f64) {
     (inv, det)
 }
 
+/// Rows of `d` inputs and one output each.
+fn rows<'a>(inputs: &'a [f64], targets: &'a [f64], d: usize) -> TrainingSet<'a> {
+    TrainingSet {
+        inputs,
+        targets,
+        n_inputs: d,
+        n_outputs: 1,
+        input_ranges: &[],
+    }
+}
+
 /// Posterior mean and standard deviation on three 1-D points, fixed hyper-parameters, against
 /// `m = k*ᵀ K⁻¹ y`, `s² = σ_f² − k*ᵀ K⁻¹ k*` worked out here in standardised units; and the log
 /// marginal likelihood against `-½ yᵀK⁻¹y − ½ ln|K| − (n/2) ln 2π`.
@@ -40,15 +51,7 @@ fn posterior_matches_closed_form() {
         }),
         ..GpSpec::default()
     };
-    let model = spec
-        .fit(&TrainingSet {
-            inputs: &xs,
-            targets: &ys,
-            n_inputs: 1,
-            n_outputs: 1,
-            input_ranges: &[],
-        })
-        .unwrap();
+    let model = spec.fit(&rows(&xs, &ys, 1)).unwrap();
 
     // Standardisation by hand (population standard deviation).
     let stats = |v: &[f64; 3]| {
@@ -159,15 +162,7 @@ fn recovers_length_scale() {
         .chunks(2)
         .map(|r| (3.0 * r[0]).sin() + 0.01 * rng.random_range(-1.0..1.0))
         .collect();
-    let model = GpSpec::default()
-        .fit(&TrainingSet {
-            inputs: &x,
-            targets: &y,
-            n_inputs: 2,
-            n_outputs: 1,
-            input_ranges: &[],
-        })
-        .unwrap();
+    let model = GpSpec::default().fit(&rows(&x, &y, 2)).unwrap();
     let json = serde_json::to_value(&model).unwrap();
     let ell: Vec<f64> = serde_json::from_value(json["kernels"][0]["hyper"]["length_scales"].clone()).unwrap();
     // Standardised x₁ has std ≈ 4/√12 ≈ 1.15, so sin(3x₁) varies on ≈ 1/(3·1.15) ≈ 0.29.
@@ -228,15 +223,7 @@ fn inducing_point_mean_matches_the_closed_form() {
         seed: 5,
         ..GpSpec::default()
     };
-    let model = spec
-        .fit(&TrainingSet {
-            inputs: &xs,
-            targets: &ys,
-            n_inputs: 1,
-            n_outputs: 1,
-            input_ranges: &[],
-        })
-        .unwrap();
+    let model = spec.fit(&rows(&xs, &ys, 1)).unwrap();
     let json = serde_json::to_value(&model).unwrap();
     let u: Vec<f64> = serde_json::from_value(json["train_inputs"].clone()).unwrap();
     assert_eq!(u.len(), 3, "the model keeps the inducing rows only");
@@ -310,13 +297,7 @@ fn inducing_points_are_within_five_percent_of_the_exact_process() {
             .map(|r| truth(r) + 0.05 * rng.random_range(-1.7..1.7))
             .collect();
         let x_test = draw(n_test, &mut rng);
-        let set = TrainingSet {
-            inputs: &x,
-            targets: &y,
-            n_inputs: d,
-            n_outputs: 1,
-            input_ranges: &[],
-        };
+        let set = rows(&x, &y, d);
         let rms = |spec: GpSpec| {
             let model = spec.fit(&set).unwrap();
             let mut scratch = Vec::new();
@@ -359,13 +340,7 @@ fn a_fit_over_its_memory_limit_is_refused_before_it_starts() {
     let n = 20_000;
     let x: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
     let y: Vec<f64> = x.iter().map(|v| v.sin()).collect();
-    let set = TrainingSet {
-        inputs: &x,
-        targets: &y,
-        n_inputs: 1,
-        n_outputs: 1,
-        input_ranges: &[],
-    };
+    let set = rows(&x, &y, 1);
     let spec = GpSpec {
         exact_up_to: n,
         ..GpSpec::default()

@@ -15,9 +15,9 @@
 //! the weights, which every row's target enters, in O(n m²) time and O(m²) memory, so 100,000
 //! rows fit in seconds and a model file holds m rows, not n. The defaults keep a fit of a few
 //! thousand rows near 0.1 s, since `fit` fits the predictor on every candidate of every fold;
-//! on a smooth field 300 of 3,000 rows come within 5 % of the exact process (the tests). Drawn rows, not chosen ones
-//! (k-means centres, greedy selection): a uniform draw follows the data's own density, costs
-//! nothing and is reproducible from the seed. Its predictive standard deviation is the exact
+//! on a smooth field 300 of 3,000 rows come within 5 % of the exact process (the tests).
+//! Drawn rows, not chosen ones (k-means centres, greedy selection): a uniform draw follows the
+//! data's own density, costs nothing and is reproducible from the seed. Its predictive standard deviation is the exact
 //! process's on the inducing rows alone, which is larger than the full set's would be: it errs
 //! on the side of caution. A fit that would take more than `max_memory_mib` is refused before
 //! it starts.

@@ -26,8 +26,8 @@ pub(super) fn sparse_bytes(m: usize, outputs: usize) -> u64 {
 
 /// The weights α (row-major `m × g`) of the inducing rows `inducing` (length-scaled, `m × d`)
 /// for the length-scaled rows `scaled` (`n × d`) and their standardised targets `targets`
-/// (row-major `n × g`), with `jitter`, the diagonal the factorisation needed (a fraction of
-/// the matrix's mean diagonal, grown until it succeeds).
+/// (row-major `n × g`). A diagonal jitter (a fraction of the matrix's mean diagonal, grown
+/// until the factorisation succeeds) is added only when it fails.
 pub(super) fn sparse_weights(
     scaled: &[f64],
     inducing: &[f64],
