@@ -127,6 +127,49 @@ fn a_fit_that_stops_early_writes_the_model_it_reports() {
     }
 }
 
+/// A stop request anywhere in the last part of the cross-validation (from 40 % of the fits
+/// on) ends it with the candidates whose folds were all fitted: the choice among them is
+/// fitted on all rows and returned, marked interrupted, and its model evaluates to the
+/// report's figure (a stop in the last repeat once indexed the unscored draw and panicked).
+#[test]
+fn a_stop_request_late_in_the_search_keeps_the_best_model_so_far() {
+    use armcomp_core::algorithms::evaluate::{ErrorStats, position_errors};
+    use armcomp_core::support::cancel::Cancel;
+    let nominal = robot("industrial-6dof.toml");
+    let truth = truth(&nominal, |_| 3.0, 4);
+    let samples = measure(&truth, 24, 0.05e-3, 5);
+    for percent in [40, 70, 90, 99] {
+        let cancel = Cancel::new();
+        let params = LadderParams {
+            seed: 1,
+            ..LadderParams::new(
+                CalibrationParams {
+                    cancel: cancel.clone(),
+                    ..CalibrationParams::default()
+                },
+                false,
+            )
+        };
+        let stop = |p: armcomp_core::calibrate::FitsProgress| {
+            if 100 * p.done >= percent * p.total {
+                cancel.cancel();
+            }
+        };
+        let fit = climb(&nominal, &samples, &params, &stop).unwrap_or_else(|e| panic!("stopped at {percent} %: {e}"));
+        assert!(fit.report.interrupted, "stopped at {percent} %");
+        assert!(!fit.report.candidates.is_empty(), "stopped at {percent} %");
+        let rms = ErrorStats::from_errors(&position_errors(&fit.robot, &samples)).rms_mm;
+        assert!(
+            // A stack's model or a predictor's is not the one calibration's report describes.
+            (rms - fit.calibration.report.after.rms_mm).abs() < 1e-6
+                || fit.report.chosen.predictor
+                || !fit.report.stack.is_empty(),
+            "stopped at {percent} %: the model gives {rms} mm, the report {} mm",
+            fit.calibration.report.after.rms_mm
+        );
+    }
+}
+
 /// A loose geometry truth (×3 the file's priors) on 24 rows, where the priors matter: on three
 /// seeds, `diagnose` and `learn` on the model `fit` wrote score the model as `fit` did. The
 /// diagnosis' held-out RMS of the model as given, and learn's with the physical model fitted

@@ -29,13 +29,17 @@ pub fn read_robot(path: &Path, limits: InputLimits) -> Result<Robot> {
 /// names keeps its frame, a new one starts at the robot's measurement frame, which calibration
 /// then registers in closed form on the station's own samples and refines. `None` when `robot`
 /// has the data's stations already (or the data one and the robot none): use it as it is.
+/// Data with a station of fewer than three measured positions are refused
+/// ([`check_station_rows`](armcomp_core::calibrate::check_station_rows)).
 pub fn with_stations(robot: &Robot, data: &MeasurementSet) -> Result<Option<Robot>> {
     let known: Vec<&str> = robot.stations().iter().map(|s| s.name.as_str()).collect();
     let wanted: Vec<&str> = data.stations.iter().map(String::as_str).collect();
     if known == wanted || (known.is_empty() && wanted.len() <= 1) {
+        armcomp_core::calibrate::check_station_rows(robot, &data.samples)?;
         return Ok(None);
     }
     let mut adopted = robot.rebuild(robot.to_file())?;
     adopted.adopt_stations(&data.stations);
+    armcomp_core::calibrate::check_station_rows(&adopted, &data.samples)?;
     Ok(Some(adopted))
 }

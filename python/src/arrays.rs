@@ -21,21 +21,42 @@ pub fn vector_arg(a: &Bound<'_, PyAny>, what: &str, hint: &str) -> PyResult<Vec<
     if let Ok(v) = a.extract::<PyArrayLike1<'_, f64, AllowTypeChange>>() {
         return Ok(vector(&v));
     }
-    let shape = a
-        .py()
+    Err(input_error(
+        &format!("{what}: expected a 1-D array of floats, got {}; {hint}", shape_of(a)),
+        None,
+        None,
+        Some(what),
+    ))
+}
+
+/// The argument `what` as a 2-D array of floats (one row per configuration, target, ...);
+/// anything else (a 1-D array, strings) is an `InputError` naming the argument and the shape
+/// it has, with `hint`, rather than numpy's bare `TypeError`.
+pub fn matrix_arg<'py>(
+    a: &Bound<'py, PyAny>,
+    what: &str,
+    hint: &str,
+) -> PyResult<PyArrayLike2<'py, f64, AllowTypeChange>> {
+    a.extract().map_err(|_| {
+        input_error(
+            &format!("{what}: expected a 2-D array of floats, got {}; {hint}", shape_of(a)),
+            None,
+            None,
+            Some(what),
+        )
+    })
+}
+
+/// `shape [32] (1-D)`, or `no array shape` for what numpy cannot shape.
+fn shape_of(a: &Bound<'_, PyAny>) -> String {
+    a.py()
         .import("numpy")
         .and_then(|np| np.call_method1("shape", (a,)))
         .and_then(|s| s.extract::<Vec<usize>>())
         .map_or_else(
             |_| "no array shape".to_string(),
             |s| format!("shape {s:?} ({}-D)", s.len()),
-        );
-    Err(input_error(
-        &format!("{what}: expected a 1-D array of floats, got {shape}; {hint}"),
-        None,
-        None,
-        Some(what),
-    ))
+        )
 }
 
 /// A 2-D array (or nested sequence) as rows, checking the row width when `width` is given.

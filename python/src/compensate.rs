@@ -3,7 +3,7 @@
 use armcomp_api::ops::compensate::{Frame, Joints, Target, locked_by_name, orientation, run, sensor_readings};
 use armcomp_core::algorithms::compensate::CompensationMode;
 use nalgebra::Vector3;
-use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
+use numpy::PyArray2;
 use pyo3::prelude::*;
 
 use crate::errors::{IntoPy, input_error};
@@ -30,10 +30,10 @@ type Commands<'py> = (
 pub fn compensate<'py>(
     py: Python<'py>,
     model: PyRef<'_, PyRobot>,
-    targets: PyArrayLike2<'py, f64, AllowTypeChange>,
+    targets: &Bound<'py, PyAny>,
     mode: &str,
     frame: &str,
-    start: Option<PyArrayLike2<'py, f64, AllowTypeChange>>,
+    start: Option<Bound<'py, PyAny>>,
     lock: Vec<String>,
     sensors: Option<std::collections::BTreeMap<String, Vec<f64>>>,
 ) -> PyResult<Commands<'py>> {
@@ -53,6 +53,11 @@ pub fn compensate<'py>(
             ));
         }
     };
+    let targets = crate::arrays::matrix_arg(
+        targets,
+        "targets",
+        "one target per row (n × 3, or n × 7 with qw, qx, qy, qz)",
+    )?;
     let rows = crate::arrays::rows(&targets, "targets", None)?;
     let targets = rows
         .iter()
@@ -76,7 +81,10 @@ pub fn compensate<'py>(
         .collect::<PyResult<Vec<_>>>()?;
     let robot = model.robot.clone();
     let starts = match &start {
-        Some(s) => crate::arrays::rows(s, "start", Some(robot.tree().nq()))?,
+        Some(s) => {
+            let s = crate::arrays::matrix_arg(s, "start", "1 or n rows of joint values (SI)")?;
+            crate::arrays::rows(&s, "start", Some(robot.tree().nq()))?
+        }
         None => Vec::new(),
     };
     let locked = locked_by_name(&robot, &lock).py()?;

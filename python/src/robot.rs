@@ -9,9 +9,7 @@ use armcomp_core::support::io::{check_output, write_atomic};
 use armcomp_core::{BatchWorkspace, PointKinematicsWorkspace, Robot, RobotFile};
 use nalgebra::{IsometryMatrix3, Matrix6xX};
 use numpy::ndarray::Array2;
-use numpy::{
-    AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayLike2, PyArrayMethods, PyUntypedArrayMethods,
-};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -237,7 +235,12 @@ impl PyRobot {
     }
 
     /// The identifiable parameters: `(names, values, units)` with values in SI units (chain
-    /// geometry, error models, measurement frame `base.*` and marker offsets `marker.*`).
+    /// geometry, error models, measurement frame `base.*` and marker offsets `marker.*`), as a
+    /// calibration of this model starts from them. Marker offsets, and a URDF joint's small
+    /// rotations and `offset`, are corrections on the model's stored marker positions and
+    /// joint origins: they read 0 on every model, calibrated or not, since a calibrated model
+    /// holds what was found in those positions and origins. What a calibration changed is in
+    /// its report (each parameter's `initial` and `value`).
     #[getter]
     fn parameters<'py>(&self, py: Python<'py>) -> (Vec<String>, Bound<'py, PyArray1<f64>>, Vec<&'static str>) {
         let space = ParameterSpace::new(&self.robot);
@@ -268,12 +271,12 @@ impl PyRobot {
     /// With `tool=True` also the tool poses, `n × 4 × 4` homogeneous matrices: `(positions,
     /// tools)`.
     #[pyo3(signature = (q, tool = false))]
-    fn fk_many<'py>(
-        &self,
-        py: Python<'py>,
-        q: PyArrayLike2<'py, f64, AllowTypeChange>,
-        tool: bool,
-    ) -> PyResult<Bound<'py, PyAny>> {
+    fn fk_many<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>, tool: bool) -> PyResult<Bound<'py, PyAny>> {
+        let q = crate::arrays::matrix_arg(
+            q,
+            "Q",
+            "one configuration per row (n × joints); for one configuration use fk(q) or Q.reshape(1, -1)",
+        )?;
         let (n, nq) = q.as_array().dim();
         let tree = self.robot.tree();
         if nq != tree.nq() {

@@ -225,6 +225,21 @@ def test_fk_of_a_two_dimensional_array_names_the_argument_and_fk_many():
     assert "[2, 2]" in str(e.value) and "fk_many" in str(e.value)
 
 
+def test_fk_many_of_a_one_dimensional_array_names_the_argument_and_its_shape():
+    robot = armcomp.Robot.from_toml(PLANAR_2R)
+    with pytest.raises(armcomp.InputError) as e:
+        robot.fk_many(np.zeros(32))
+    assert e.value.field == "Q"
+    assert "[32]" in str(e.value) and "reshape(1, -1)" in str(e.value)
+
+
+def test_evaluation_errors_are_typed_as_an_array():
+    import typing
+
+    hints = typing.get_type_hints(armcomp.EvaluationReport)
+    assert hints["errors"] is np.ndarray
+
+
 def test_plan_with_an_unknown_method_lists_the_selection_methods():
     robot = armcomp.Robot.from_toml(PLANAR_2R)
     with pytest.raises(armcomp.InputError) as e:
@@ -233,13 +248,21 @@ def test_plan_with_an_unknown_method_lists_the_selection_methods():
     assert "d-optimal" in str(e.value) and "uncertainty" in str(e.value)
 
 
-def test_an_unreachable_orientation_is_armcomps_own_error():
+def test_a_target_out_of_reach_is_listed_and_the_others_are_still_solved():
     robot = armcomp.Robot.from_toml(PLANAR_2R)
-    # The planar arm's tool turns about z only: a tool tipped about x is out of reach.
-    half = np.sqrt(0.5)
-    with pytest.raises(armcomp.ArmcompError) as e:
-        armcomp.compensate(robot, [[0.8, 0.3, 0.0, half, half, 0.0, 0.0]], frame="base")
-    assert not isinstance(e.value, armcomp.InputError)
+    # The planar arm reaches 0.7 + 0.4 = 1.1 m at most: the second target, 3 m out, is not.
+    targets = [[0.8, 0.3, 0.0], [3.0, 0.0, 0.0], [0.5, 0.5, 0.0]]
+    c = armcomp.compensate(robot, targets, frame="base")
+    q, corrected, unconverged = c.q, c.corrected, c.unconverged
+    assert q.shape == (3, 2)
+    assert [i for i, _ in unconverged] == [1]
+    # Its command is the closest found: the arm stretched towards it, 1.9 m short.
+    assert abs(unconverged[0][1] - 1.9) < 1e-3
+    assert np.allclose(corrected[1], [1.1, 0.0, 0.0], atol=1e-3)
+    tool = robot.points.index("tool")
+    for k in (0, 2):
+        positions, _ = robot.fk(q[k])
+        assert np.allclose(positions[tool], targets[k], atol=1e-6)
 
 
 def test_measurements_never_replace_the_file_they_were_read_from(tmp_path, talos):

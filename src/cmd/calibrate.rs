@@ -383,6 +383,9 @@ fn print_report(r: &CalibrationReport, samples: &str) {
         let (s, _) = display(q, p.std);
         let std = if p.fixed {
             "fixed".to_string()
+        } else if s.is_infinite() {
+            // Nothing in the data or the priors fixes it.
+            "undetermined".to_string()
         } else {
             format!("{s:.4e}")
         };

@@ -133,14 +133,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     eprintln!(
-        "exact mode did not converge for {} target(s) within {} iterations; their commands are the closest found:",
+        "{} target(s) out of reach or not met within {} iterations of exact mode; their commands are the closest \
+         found:",
         run.unconverged.len(),
         ops::options().max_shifts
     );
     let lu = units.length.symbol();
     for &(i, miss) in &run.unconverged {
         eprintln!(
-            "  {}: the model with the residual misses by {} {lu}",
+            "  {}: the model with its residual misses by {} {lu}",
             describe(i),
             units.len_out(miss)
         );

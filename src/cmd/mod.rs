@@ -116,6 +116,17 @@ impl GroupBy {
                 }
             }
         };
+        let bare = armcomp_core::data::measurement::split_header(&column).0;
+        if let Some(what) = [("fixed_point", "fixed point"), ("plane", "plane")]
+            .iter()
+            .find_map(|&(c, what)| (bare == c).then_some(what))
+        {
+            anyhow::bail!(
+                "--group-by {column}: a fold that held out every row of a {what} would leave its position unknown \
+                 to the rows it is fitted on, so nothing could score it; fold by pose (leave --group-by out) or by \
+                 a set-up column"
+            );
+        }
         let mut values = Vec::new();
         let mut sources = Vec::new();
         for (text, file) in texts.iter().zip(files) {
@@ -186,6 +197,16 @@ pub fn at_least_one(text: &str) -> Result<usize, String> {
     match text.parse::<usize>() {
         Ok(0) => Err("expected at least 1".into()),
         Ok(n) => Ok(n),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A finite, positive number (`--spread-mm`): a size of zero, below zero or NaN describes
+/// nothing.
+pub fn positive(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!("expected a finite number above 0, got {v}")),
         Err(e) => Err(e.to_string()),
     }
 }

@@ -58,10 +58,10 @@ pub struct Args {
     #[arg(long)]
     trajectory: Option<PathBuf>,
     /// Points spread along the trajectory by arc length.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, value_parser = super::at_least_one)]
     trajectory_points: usize,
     /// Nearest pool poses taken per trajectory point.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = super::at_least_one)]
     per_point: usize,
     /// Seed of every random choice; the same seed gives the same bytes.
     #[arg(long, default_value_t = 0)]

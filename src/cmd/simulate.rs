@@ -49,7 +49,7 @@ pub struct Args {
     #[arg(long = "plane", value_name = "NAME=X,Y,Z,ROLL,PITCH,YAW")]
     planes: Vec<String>,
     /// Half the side of the square on each plane the contacts are drawn in, in mm.
-    #[arg(long, default_value_t = 80.0)]
+    #[arg(long, default_value_t = 80.0, value_parser = super::positive)]
     spread_mm: f64,
     /// Standard deviation of the joint encoders' noise, in degrees (fixed points, planes).
     #[arg(long, default_value_t = 0.0)]

@@ -49,7 +49,10 @@ pub fn check_noises(noise_mm: Option<f64>, noise_deg: Option<f64>) -> armcomp_co
     let check = |what: &str, value: Option<f64>, (low, high): (f64, f64), unit: &str| match value {
         Some(v) if !(low..=high).contains(&v) => Err(armcomp_core::Error::InvalidArgument {
             what: what.into(),
-            reason: format!("expected a noise per axis from {low:e} to {high} {unit}, got {v}"),
+            reason: format!(
+                "expected a noise per axis from {low:e} to {high} {unit}, got {}",
+                armcomp_core::support::text::number(v)
+            ),
         }),
         _ => Ok(()),
     };
@@ -116,6 +119,7 @@ pub fn run(
     fits: &(dyn Fn(FitsProgress) + Sync),
     observer: &mut dyn FnMut(&IterationInfo),
 ) -> armcomp_core::Result<CalibrationRun> {
+    armcomp_core::calibrate::check_station_rows(robot, samples)?;
     let Choices {
         prior,
         noise_declared,

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use armcomp_core::algorithms::compensate::{CompensationMode, CompensationParams, Compensator, default_start};
-use armcomp_core::algorithms::ik::IkTarget;
+use armcomp_core::algorithms::ik::{IkError, IkTarget};
 use armcomp_core::data::measurement::{
     CsvLayout, csv_text, joint_header, joint_row, parse_poses_with_sensors, split_header,
 };
@@ -98,7 +98,8 @@ pub struct CompensationRun {
     pub corrected: Vec<Vector3<f64>>,
     /// Per target, the predictor's standard deviation (m, measurement frame), when it gives one.
     pub std: Vec<Option<Vector3<f64>>>,
-    /// Exact-mode targets (index, miss in m) where the model with its residual still misses.
+    /// Targets (index, miss in m) out of reach (in either mode) or that exact mode's model
+    /// with its residual still misses: their commands are the closest found.
     pub unconverged: Vec<(usize, f64)>,
     /// Whether the model's fitted predictor took part.
     pub has_predictor: bool,
@@ -335,12 +336,32 @@ pub fn run(
         if let Some(&readings) = sensors.get(i.min(sensors.len().saturating_sub(1))) {
             comp.set_sensors(readings);
         }
-        let c = comp
-            .compensate_target(&ik_target(t, &to_base), &starts[i.min(starts.len() - 1)], mode)
-            .map_err(|source| Error::Target {
-                target: describe(i),
-                source: Box::new(source),
-            })?;
+        let c = match comp.compensate_target(&ik_target(t, &to_base), &starts[i.min(starts.len() - 1)], mode) {
+            Ok(c) => c,
+            // A target out of reach keeps the closest command found, listed with its miss as
+            // exact mode's misses are, so that one target does not cost the batch its others.
+            Err(IkError::Unreachable {
+                closest_q,
+                closest_point,
+                distance,
+                ..
+            }) => {
+                run.unconverged.push((i, distance));
+                run.corrected.push(match t_meas_base {
+                    Some(t) => t.transform_point(&Point3::from(closest_point)).coords,
+                    None => closest_point,
+                });
+                run.std.push(comp.residual_std_at(&closest_q));
+                run.q.push(closest_q);
+                continue;
+            }
+            Err(source) => {
+                return Err(Error::Target {
+                    target: describe(i),
+                    source: Box::new(source),
+                });
+            }
+        };
         if mode == CompensationMode::Exact && c.mismatch > options.tolerance {
             run.unconverged.push((i, c.mismatch));
         }

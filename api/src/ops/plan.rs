@@ -140,6 +140,23 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
         .clone()
         .unwrap_or_else(|| if p.next.is_some() { "uncertainty" } else { "sobol" }.to_string());
     let n = p.next.unwrap_or(p.n);
+    let contacts = robot.measures_fixed_points() || robot.measures_planes();
+    if contacts && !(matches!(p.pool, PlanPool::Measured(_)) && method.parse::<Criterion>().is_ok()) {
+        let what = if robot.measures_planes() {
+            "plane"
+        } else {
+            "fixed_point"
+        };
+        return Err(invalid(
+            "pool",
+            format!(
+                "this robot is measured by contacts (`kind = \"{what}\"`), and a configuration drawn from the joint \
+                 ranges touches no contact; plan picks among contact rows: give a pool file of configurations at \
+                 the contacts with their `{what}` column (measured, or from `armcomp simulate`) and the method \
+                 d-optimal, a-optimal or uncertainty"
+            ),
+        ));
+    }
     check_sizes(robot, p, &method, space, n)?;
     // Poses in collision (self-collision or fixtures) are never planned.
     let collision = CollisionModel::new(robot.tree(), robot.collision());
@@ -202,6 +219,14 @@ pub fn run(robot: &Robot, p: &PlanParams) -> Result<PlanRun> {
                     "method trajectory samples its pool; give the pool as a number of poses".into(),
                 ));
             };
+            for (what, v) in [("trajectory_points", p.trajectory_points), ("per_point", p.per_point)] {
+                if v == 0 {
+                    return Err(invalid(
+                        what,
+                        "expected at least 1: none gives no pose to measure".into(),
+                    ));
+                }
+            }
             let pool = sampled(if size == 0 { 2000 } else { size })?;
             let chosen = trajectory_similar(
                 robot,
@@ -290,15 +315,23 @@ fn check_sizes(robot: &Robot, p: &PlanParams, method: &str, space: Space, n: usi
     let rows = 3.0 * robot.markers().len().max(1) as f64;
     // A candidate's Jacobian rows, scaled and unscaled, and its samples.
     let candidate_bytes = 16.0 * rows * params + pose.bytes;
-    let scoring = |picks: usize| rows * params * (fk + params * picks as f64 * (1 + p.exchange_passes) as f64);
+    let scoring =
+        |picks: usize, passes: usize| rows * params * (fk + params * picks as f64 * passes.saturating_add(1) as f64);
     let (sampled, default_pool) = match p.pool {
         PlanPool::Sampled(size) => (true, (size == 0).then_some(10)),
         _ => (false, None),
     };
-    let cost = |pool: usize, picks: usize| {
+    let cost_with = |pool: usize, picks: usize, passes: usize| {
         let (bytes, flops) = if sampled { drawn } else { (0.0, 0.0) };
-        Cost::per_unit(pool, bytes + candidate_bytes, flops + scoring(picks))
+        Cost::per_unit(pool, bytes + candidate_bytes, flops + scoring(picks, passes))
     };
+    // The poses asked for first, then the passes: too many passes are too many for the
+    // smallest pool too, and the pool's message would then ask for fewer than no poses.
+    limits::check(n_name, n, "poses", &|n| cost_with(n, n, 0))?;
+    limits::check("--exchange-passes", p.exchange_passes, "passes", &|e| {
+        cost_with(n, n, e)
+    })?;
+    let cost = |pool: usize, picks: usize| cost_with(pool, picks, p.exchange_passes);
     let pool = match &p.pool {
         PlanPool::Sampled(size) => *size,
         PlanPool::Configurations(poses) => poses.len(),

@@ -301,9 +301,20 @@ impl<'a> Compensator<'a> {
     /// Predictive standard deviation of the residual at the last command (m, per axis of the
     /// predictor's frame), for predictors that have one.
     pub fn residual_std(&mut self) -> Option<Vector3<f64>> {
-        let p = self.predictor?;
         let nq = self.ik.q().len();
         self.input[..nq].copy_from_slice(self.ik.q());
+        self.std_of_input()
+    }
+
+    /// As [`residual_std`](Self::residual_std), at the joint values `q` (the closest
+    /// configuration to a target out of reach).
+    pub fn residual_std_at(&mut self, q: &[f64]) -> Option<Vector3<f64>> {
+        self.input[..q.len()].copy_from_slice(q);
+        self.std_of_input()
+    }
+
+    fn std_of_input(&mut self) -> Option<Vector3<f64>> {
+        let p = self.predictor?;
         p.predict_std_into(&self.input, &mut self.out, &mut self.scratch)
             .then(|| Vector3::from(self.out))
     }

@@ -555,7 +555,10 @@ pub fn climb(
     progress: &(dyn Fn(FitsProgress) + Sync),
 ) -> Result<Ladder> {
     // By the caller's groups, else by station for data from several, else by pose.
-    let by = FoldBy::choose(samples, params.fold_groups.clone().map(|g| ("groups".to_string(), g)));
+    let by = FoldBy::choose(
+        samples,
+        params.fold_groups.clone().map(|g| ("the given groups".to_string(), g)),
+    );
     let (draws, folds_by) = draws(samples, params, &by)?;
     let cancel = &params.calibration.cancel;
     let rungs = physical_rungs(robot);
@@ -750,8 +753,10 @@ fn gather(
     seconds: &[f64],
 ) -> Gathered {
     let mut out = Gathered {
+        // The draws a stop request left unscored have no errors: only those with results.
         fold_of: draws
             .iter()
+            .take(results.len())
             .map(|splits| {
                 let mut of = vec![None; n];
                 for (f, split) in splits.iter().enumerate() {

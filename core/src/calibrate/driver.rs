@@ -146,6 +146,40 @@ fn check_inputs(robot: &Robot, samples: &[Sample], params: &CalibrationParams) -
     Ok(())
 }
 
+/// Refuses data with a station whose measured positions are too few to fix its measurement
+/// frame: six unknowns need at least three points not in line (or one pose), and a
+/// calibration that had to find them from fewer would search a space the data leave flat.
+/// For the commands' whole data, not a fold's (a fold may leave a station few rows).
+pub fn check_station_rows(robot: &Robot, samples: &[Sample]) -> Result<()> {
+    let stations = robot.stations();
+    if stations.len() < 2 {
+        return Ok(());
+    }
+    let mut positions = vec![0usize; stations.len()];
+    let mut oriented = vec![false; stations.len()];
+    for s in samples.iter().filter(|s| s.kind() == SampleKind::Position) {
+        positions[s.station] += 1;
+        oriented[s.station] |= s.orientation.is_some();
+    }
+    let thin: Vec<usize> = (0..stations.len())
+        .filter(|&k| (1..3).contains(&positions[k]) && !oriented[k])
+        .collect();
+    let Some(&k) = thin.first() else {
+        return Ok(());
+    };
+    Err(Error::InvalidArgument {
+        what: format!("station `{}`", crate::support::text::shown(&stations[k].name)),
+        reason: format!(
+            "has {} measured position(s), and {} of the {} stations have fewer than three: a station's measurement \
+             frame has six unknowns, which need at least three poses not in line at each station (does the \
+             `station` column name a set-up, not a row?)",
+            positions[k],
+            thin.len(),
+            stations.len()
+        ),
+    })
+}
+
 /// Where the fit starts, and the model's errors there.
 struct Start {
     /// The priors' centre: the robot's values, the measurement frames as registered.

@@ -411,9 +411,32 @@ pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
     } else {
         f64::INFINITY
     };
-    let inv_diag = match scaled.try_inverse() {
-        Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
-        None => vec![f64::INFINITY; n],
+    // A direction the data and priors leave (numerically) undetermined gives an inverse of
+    // round-off, whose diagonal can be anything, negative too: the variance of every parameter
+    // with a share in such a direction is infinite, the others' the inverse's on the rest.
+    let tiny = 1e-12 * emax.max(f64::MIN_POSITIVE);
+    let inv_diag = if emin > tiny {
+        match scaled.try_inverse() {
+            Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
+            None => vec![f64::INFINITY; n],
+        }
+    } else {
+        (0..n)
+            .map(|c| {
+                let mut v = 0.0;
+                for (k, &l) in eig.eigenvalues.iter().enumerate() {
+                    let share = eig.eigenvectors[(c, k)].powi(2);
+                    if l <= tiny {
+                        if share > 1e-12 {
+                            return f64::INFINITY;
+                        }
+                    } else {
+                        v += share / l;
+                    }
+                }
+                v / (scale[c] * scale[c])
+            })
+            .collect()
     };
     (condition, inv_diag)
 }
@@ -475,5 +498,16 @@ mod tests {
         let (condition, inv_diag) = normal_equations(&DMatrix::from_row_slice(2, 2, &[f64::NAN, 0.0, 0.0, 1.0]));
         assert_eq!(condition, f64::INFINITY);
         assert_eq!(inv_diag, vec![f64::INFINITY; 2]);
+    }
+
+    #[test]
+    fn a_direction_nothing_determines_has_an_infinite_variance_and_the_others_keep_theirs() {
+        // Parameters 0 and 1 seen only as their sum (rows [1, 1] twice), parameter 2 alone with
+        // weight 4: 0 and 1 are undetermined, 2 has variance 1/4 exactly.
+        let a = DMatrix::from_row_slice(3, 3, &[2.0, 2.0, 0.0, 2.0, 2.0, 0.0, 0.0, 0.0, 4.0]);
+        let (condition, inv_diag) = normal_equations(&a);
+        assert!(condition > 1e6, "{condition}");
+        assert_eq!(&inv_diag[..2], &[f64::INFINITY; 2]);
+        assert!((inv_diag[2] - 0.25).abs() < 1e-12, "{inv_diag:?}");
     }
 }

@@ -44,7 +44,7 @@ mod score;
 mod solver;
 mod space;
 
-pub use driver::calibrate;
+pub use driver::{calibrate, check_station_rows};
 pub use identifiability::identifiability;
 use jacobian::to_meas;
 pub use jacobian::{identification_jacobian, marker_samples, samples_jacobian, samples_jacobian_by_sample};

@@ -541,7 +541,9 @@ pub fn ordering_columns(text: &str, path: &Path) -> Result<Vec<String>> {
 pub fn column_values(text: &str, path: &Path, name: &str) -> Result<Vec<String>> {
     let err = |line: Option<usize>, message: String| Error::input_at(path, line, Some(name), message);
     let (mut reader, headers) = open_table(text, path)?;
-    let Some(col) = headers.iter().position(|h| split_header(h).0 == name) else {
+    // The bare name or the header as written, unit and all (`x[mm]`), which the error lists.
+    let wanted = split_header(name).0;
+    let Some(col) = headers.iter().position(|h| split_header(h).0 == wanted) else {
         return Err(err(
             Some(line_at(text, headers.position())),
             format!(

@@ -200,6 +200,20 @@ pub fn folds(samples: &[Sample], k: usize, seed: u64, by: &FoldBy) -> Result<(Ve
         ids.dedup();
         let k = if k >= 2 { k.min(ids.len()) } else { k };
         let splits = grouped_kfold(groups, k, seed)?;
+        // A group that holds nearly every row leaves its fold too little to fit: say so here,
+        // not as a training set of one row deep inside a fit.
+        if let Some(thin) = splits.iter().find(|s| s.train.len() < 2 && ids.len() > 1) {
+            return Err(Error::InvalidArgument {
+                what: format!("folds grouped by {name}"),
+                reason: format!(
+                    "a fold that holds out {} of the {} rows leaves {} to fit on: the groups are too uneven to \
+                     cross-validate; group by a column of more, evener groups, or fold by pose",
+                    thin.test.len(),
+                    samples.len(),
+                    thin.train.len()
+                ),
+            });
+        }
         Ok((
             splits,
             Folding {

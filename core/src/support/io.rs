@@ -336,7 +336,9 @@ fn existing_target(out: &Path) -> Result<Option<std::fs::Metadata>> {
 /// (or the default ones for new files).
 fn temporary_in(out: &Path, existing: Option<&std::fs::Metadata>) -> std::io::Result<tempfile::NamedTempFile> {
     let name = out.file_name().map(|n| n.to_string_lossy()).unwrap_or_default();
-    let prefix = format!(".{name}.");
+    remove_orphaned_temporaries(out, &name);
+    // The process's id in the name tells a later write whether its writer still runs.
+    let prefix = format!(".{name}.{}.", std::process::id());
     let mut builder = tempfile::Builder::new();
     builder.prefix(&prefix).suffix(".tmp");
     #[cfg(unix)]
@@ -350,6 +352,44 @@ fn temporary_in(out: &Path, existing: Option<&std::fs::Metadata>) -> std::io::Re
         tmp.as_file().set_permissions(m.permissions())?;
     }
     Ok(tmp)
+}
+
+/// Removes the temporaries of earlier writes of `out` whose process no longer runs: a process
+/// killed outright (SIGKILL, a power cut) between writing and renaming leaves its temporary,
+/// which no signal handler could remove. Only regular files of this user named as
+/// [`temporary_in`] names them (`.<name>.<pid>.<random>.tmp`) are touched; where `/proc` does
+/// not tell whether a process runs, none is.
+fn remove_orphaned_temporaries(out: &Path, name: &str) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let Ok(entries) = std::fs::read_dir(folder_of(out)) else {
+            return;
+        };
+        let me = std::fs::metadata("/proc/self").map(|m| m.uid()).ok();
+        let prefix = format!(".{name}.");
+        for entry in entries.flatten() {
+            let file = entry.file_name().to_string_lossy().into_owned();
+            let Some(rest) = file.strip_prefix(&prefix).and_then(|r| r.strip_suffix(".tmp")) else {
+                continue;
+            };
+            let Some((pid, random)) = rest.split_once('.') else {
+                continue;
+            };
+            let ours = pid.parse::<u32>().is_ok_and(|p| p != std::process::id())
+                && !random.is_empty()
+                && random.chars().all(|c| c.is_ascii_alphanumeric());
+            let gone = ours && !Path::new(&format!("/proc/{pid}")).exists();
+            let regular = entry
+                .metadata()
+                .is_ok_and(|m| m.file_type().is_file() && Some(m.uid()) == me);
+            if gone && regular {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (out, name);
 }
 
 /// Gives `file` the owner of `target`, or says why the owner would change.
@@ -494,6 +534,30 @@ mod tests {
 
     fn scratch(tag: &str) -> tempfile::TempDir {
         tempfile::Builder::new().prefix(tag).tempdir().unwrap()
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_write_removes_the_temporary_a_killed_writer_left_and_nothing_else() {
+        let dir = scratch("armcomp-io");
+        let put = |name: &str| std::fs::write(dir.path().join(name), b"left").unwrap();
+        // Above Linux's largest process id, so never running; pid 1 always runs.
+        let orphan = ".out.csv.999999999.Ab3xYz.tmp";
+        let running = ".out.csv.1.Ab3xYz.tmp";
+        let other_output = ".other.csv.999999999.Ab3xYz.tmp";
+        let not_ours = ".out.csv.999999999.tmp";
+        for name in [orphan, running, other_output, not_ours] {
+            put(name);
+        }
+        write_atomic(&dir.path().join("out.csv"), b"new").unwrap();
+        let mut left: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        left.sort();
+        let mut kept = [not_ours, running, other_output, "out.csv"].map(String::from).to_vec();
+        kept.sort();
+        assert_eq!(left, kept);
     }
 
     #[test]

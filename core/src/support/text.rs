@@ -52,9 +52,31 @@ pub fn check_name(name: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// A number a user gave, as a message shows it: its shortest digits that read back the same,
+/// in scientific notation when very small or very large (`1e-308`, not 308 zeros).
+pub fn number(v: f64) -> String {
+    if v.is_finite() && v != 0.0 && !(1e-4..1e15).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbers_are_shown_short_and_read_back_the_same() {
+        assert_eq!(number(1e-308), "1e-308");
+        assert_eq!(number(2.5e20), "2.5e20");
+        assert_eq!(number(0.1), "0.1");
+        assert_eq!(number(-1500.25), "-1500.25");
+        assert_eq!(number(f64::NAN), "NaN");
+        for v in [1e-308, 3.3e-5, 0.1, 123.456, 7e18] {
+            assert_eq!(number(v).parse::<f64>().unwrap(), v);
+        }
+    }
 
     #[test]
     fn plain_text_is_shown_as_it_is() {

@@ -44,7 +44,11 @@ class Robot:
     def warnings(self) -> List[str]: ...
     @property
     def parameters(self) -> Tuple[List[str], np.ndarray, List[str]]:
-        """``(names, values, units)`` of the identifiable parameters, values in SI units."""
+        """``(names, values, units)`` of the identifiable parameters, values in SI units, as a
+        calibration of this model starts from them. Marker offsets and a URDF joint's small
+        rotations and ``offset`` are corrections on the stored marker positions and joint
+        origins, so they read 0 on every model, calibrated or not; what a calibration changed
+        is in its report (``initial`` and ``value`` of each parameter)."""
     def fk(self, q: _Joints) -> Tuple[np.ndarray, np.ndarray]:
         """Positions of every point (points × 3, m, base frame) and the tool pose (4 × 4)."""
     @overload

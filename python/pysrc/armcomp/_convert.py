@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import math
 import sys
 import typing
 from typing import Any, Dict, List, Type, TypeVar, Union
@@ -15,7 +16,9 @@ T = TypeVar("T")
 
 def _convert(tp: Any, value: Any) -> Any:
     if value is None:
-        return None
+        # JSON has no infinity: a number that is never missing but is infinite (the std of a
+        # parameter nothing determines, a singular problem's condition number) comes as null.
+        return math.inf if tp is float else None
     origin = typing.get_origin(tp)
     args = typing.get_args(tp)
     if origin is Union:

@@ -233,7 +233,8 @@ class EvaluationReport(Report):
     max_mm: float
     mean_abs_mm: AxisErrors
     per_point: Dict[str, ErrorStats] = field(default_factory=dict)
-    errors: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
+    # Always set by `armcomp.evaluate`; empty only for a report built from JSON alone.
+    errors: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False, compare=False)
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
