@@ -150,8 +150,9 @@ fn a_stop_request_late_in_the_search_keeps_the_best_model_so_far() {
                 false,
             )
         };
+        // One request, as one Ctrl-C: a second would stop the final fit too.
         let stop = |p: armcomp_core::calibrate::FitsProgress| {
-            if 100 * p.done >= percent * p.total {
+            if 100 * p.done >= percent * p.total && !cancel.is_cancelled() {
                 cancel.cancel();
             }
         };
