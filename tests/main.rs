@@ -25,6 +25,7 @@ mod learning_curve;
 mod malformed;
 mod measurement;
 mod measurement_kinds;
+mod model_report;
 mod mutated_inputs;
 mod plan;
 mod planes;

@@ -1,5 +1,6 @@
-//! The diagnosis report folder: an HTML page with the steps table and rankings, the JSON
-//! report, and SVG plots of the held-out RMS per step and of the held-out error histograms.
+//! The diagnosis report folder: an HTML page with the steps table and rankings and, drawn
+//! inline, the plots of the held-out RMS per step and of the held-out error histograms; the
+//! JSON report, and the plots again as SVG files.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -28,15 +29,20 @@ pub fn check(dir: &Path, inputs: &[std::path::PathBuf]) -> Result<()> {
 /// A plot that could not be drawn is an error writing its file, as in the demo's report.
 pub fn write(dir: &Path, report: &DiagnosisReport) -> Result<()> {
     let plot = |name: &str, svg: Svg| svg.map_err(|e| armcomp_core::Error::not_written(&dir.join(name), e.to_string()));
+    let (rms, residuals) = (
+        plot("heldout_rms.svg", rms_plot(report))?,
+        plot("residuals.svg", histogram(report))?,
+    );
+    let page = html(report, &[&rms, &residuals]);
     let files = [
-        ("heldout_rms.svg", plot("heldout_rms.svg", rms_plot(report))?),
-        ("residuals.svg", plot("residuals.svg", histogram(report))?),
+        ("heldout_rms.svg", rms),
+        ("residuals.svg", residuals),
         // Plain numbers, strings and lists: serialising cannot fail.
         (
             "report.json",
             serde_json::to_string_pretty(report).expect("the report serialises"),
         ),
-        ("index.html", html(report)),
+        ("index.html", page),
     ];
     let files: Vec<(String, Vec<u8>)> = files
         .into_iter()
@@ -135,7 +141,8 @@ pub fn rows_scored_by(r: &DiagnosisReport) -> String {
     }
 }
 
-fn html(r: &DiagnosisReport) -> String {
+/// The page, with `plots` (SVG documents) drawn inline: it needs no other file.
+fn html(r: &DiagnosisReport, plots: &[&str]) -> String {
     let mut h = page_start("armcomp diagnosis", "Diagnosis");
     let _ = writeln!(
         h,
@@ -179,7 +186,11 @@ fn html(r: &DiagnosisReport) -> String {
         }
         h.push_str("</table>\n");
     }
-    h.push_str("<p><img src=\"heldout_rms.svg\"> <img src=\"residuals.svg\"></p>\n");
+    h.push_str("<p>");
+    for svg in plots {
+        h.push_str(svg);
+    }
+    h.push_str("</p>\n");
     for (i, s) in r.steps.iter().enumerate() {
         let _ = writeln!(
             h,

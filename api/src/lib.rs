@@ -10,6 +10,7 @@ pub mod config;
 pub mod diagnosis_report;
 pub mod error;
 pub mod load;
+pub mod model_report;
 pub mod ops;
 pub mod registry;
 pub mod validate;

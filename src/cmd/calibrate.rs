@@ -78,6 +78,10 @@ pub struct Args {
     json: bool,
     #[command(flatten)]
     group: super::GroupBy,
+    /// Folder for a report (written atomically): index.html, one page with its plots inline
+    /// that needs no network, and report.json, every number and plot point of the page.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
@@ -85,6 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut robot = super::load_robot(&args.robot)?;
     let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
     check_output(&args.out, &robot, &data_files)?;
+    super::check_report(args.report.as_deref(), &robot, &data_files, Some(&args.out))?;
     let (mut data, _) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
     let params = CalibrationParams {
         identify: args.identify.clone(),
@@ -172,6 +177,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let (calibration, choice) = (&run.calibration, &run.prior_choice);
     let text = calibration.robot.to_text_for(&args.out)?;
     write_atomic(&args.out, text.as_bytes())?;
+    if let Some(dir) = &args.report {
+        let page = armcomp_api::model_report::for_calibrate(&robot, &data.samples, &data.rows, &run)?;
+        armcomp_api::model_report::write(dir, &page)?;
+    }
     let report = &calibration.report;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&run.to_json(&data.rows))?);
@@ -208,6 +217,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             println!("fitted predictor {verb}: {}", p.reason);
         }
         println!("wrote {}", args.out.display());
+        if let Some(dir) = &args.report {
+            println!("wrote {}", dir.join("index.html").display());
+        }
     }
     for w in &report.warnings {
         eprintln!("warning: {w}");

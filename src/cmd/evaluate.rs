@@ -43,14 +43,19 @@ pub struct Args {
     /// measurement frame and the model's length unit, the predictor included.
     #[arg(long, value_name = "FILE")]
     residuals: Option<PathBuf>,
+    /// Folder for a report (written atomically): index.html, one page with its plots inline
+    /// that needs no network, and report.json, every number and plot point of the page.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mut robot = super::load_robot(&args.model)?;
+    let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
     if let Some(out) = &args.residuals {
-        let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
         check_output(out, &robot, &data_files)?;
     }
+    super::check_report(args.report.as_deref(), &robot, &data_files, args.residuals.as_deref())?;
     let (data, new) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
     let register: Vec<usize> = if args.register {
         (0..robot.n_stations()).collect()
@@ -72,6 +77,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .collect();
     if let Some(out) = &args.residuals {
         write_atomic(out, report.residuals_csv(&robot, &data.samples).as_bytes())?;
+    }
+    if let Some(dir) = &args.report {
+        let page = armcomp_api::model_report::for_evaluate(&robot, &data.samples, &data.rows, &report)?;
+        armcomp_api::model_report::write(dir, &page)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report.to_json())?);
@@ -135,6 +144,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                 "measurement frame of station(s) {} registered in closed form on these data",
                 names.join(", ")
             );
+        }
+        if let Some(dir) = &args.report {
+            println!("wrote {}", dir.join("index.html").display());
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -51,12 +51,17 @@ pub struct Args {
     /// Print the ladder as JSON on stdout.
     #[arg(long)]
     json: bool,
+    /// Folder for a report (written atomically): index.html, one page with its plots inline
+    /// that needs no network, and report.json, every number and plot point of the page.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let robot = super::load_robot(&args.robot)?;
     let data_files: Vec<&std::path::Path> = args.data.iter().map(|p| p.as_path()).collect();
     check_output(&args.out, &robot, &data_files)?;
+    super::check_report(args.report.as_deref(), &robot, &data_files, Some(&args.out))?;
     let data = read_station_files(&robot, &args.data, args.rows.rows.as_ref())?;
     let grouping = args.group.groups(&data_files, &data.rows)?;
     let group_column = grouping.as_ref().map(|(c, _)| c.clone());
@@ -102,6 +107,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let ladder = ladder?;
     let text = ladder.robot.to_text_for(&args.out)?;
     write_atomic(&args.out, text.as_bytes())?;
+    if let Some(dir) = &args.report {
+        let given = armcomp_api::with_stations(&robot, &data)?;
+        let page =
+            armcomp_api::model_report::for_fit(given.as_ref().unwrap_or(&robot), &data.samples, &data.rows, &ladder)?;
+        armcomp_api::model_report::write(dir, &page)?;
+    }
     let r = &ladder.report;
     if args.json {
         println!(
@@ -111,6 +122,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         print_ladder(r, data.samples.len(), group_column.as_deref());
         println!("wrote {}", args.out.display());
+        if let Some(dir) = &args.report {
+            println!("wrote {}", dir.join("index.html").display());
+        }
     }
     for w in &ladder.calibration.report.warnings {
         eprintln!("warning: {w}");
@@ -166,10 +180,7 @@ fn print_ladder(r: &armcomp_core::analysis::ladder::LadderReport, rows: usize, g
         "candidate", "held-out RMS", "± spread", "excess", "params", "time"
     );
     for c in &r.candidates {
-        let in_stack = c.candidate.rung == r.chosen.rung
-            && c.candidate.predictor == r.chosen.predictor
-            && r.stack.iter().any(|m| m.prior == c.candidate.prior);
-        let mark = if c.candidate == r.chosen || in_stack {
+        let mark = if armcomp_api::ops::fit::in_choice(r, c) {
             '*'
         } else if c.within_noise {
             '~'
@@ -193,19 +204,7 @@ fn print_ladder(r: &armcomp_core::analysis::ladder::LadderReport, rows: usize, g
         println!("residual predictor not tried: {why}");
     }
     let e = &r.evidence;
-    let chosen = if r.stack.is_empty() {
-        r.chosen.label()
-    } else {
-        format!(
-            "{}, the weighted mean of {}{}",
-            r.chosen.rung.label(),
-            (r.stack.iter())
-                .map(|m| format!("{:.2} × {}", m.weight, m.label))
-                .collect::<Vec<_>>()
-                .join(" + "),
-            if r.chosen.predictor { ", + predictor" } else { "" }
-        )
-    };
+    let chosen = armcomp_api::ops::fit::choice_label(r);
     println!(
         "chosen (*): {}: {} (expected held-out RMS {:.3} mm, the choice itself cross-validated; ~ within the noise of the best); on all rows the noise is {:.4} ± {:.4} mm per axis, {:.1} of {} parameters determined",
         chosen, r.reason, r.expected_rms_mm, e.noise_mm, e.noise_std_mm, e.determined, e.n_free

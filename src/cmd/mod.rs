@@ -59,6 +59,28 @@ pub fn inputs(robot: &Robot, others: &[&Path]) -> Vec<PathBuf> {
     files
 }
 
+/// Checks, before any work, that the report folder `dir` (when one is asked for) may be
+/// written: see [`armcomp_api::model_report::check`]; and that the command's other output `out`
+/// does not lie in it, where the report's replacing the folder would remove it.
+pub fn check_report(dir: Option<&Path>, robot: &Robot, read: &[&Path], out: Option<&Path>) -> anyhow::Result<()> {
+    let Some(dir) = dir else { return Ok(()) };
+    armcomp_api::model_report::check(dir, &inputs(robot, read))?;
+    if let Some(out) = out {
+        let folder = |p: &Path| std::fs::canonicalize(p).ok();
+        let parent = out
+            .parent()
+            .map(|p| if p.as_os_str().is_empty() { Path::new(".") } else { p });
+        if parent.and_then(folder).is_some_and(|p| Some(p) == folder(dir)) {
+            anyhow::bail!(
+                "{} lies in the report folder {}, which the report replaces whole: write it elsewhere",
+                out.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// `--rows`, for every command that reads measurements.
 #[derive(clap::Args)]
 pub struct Rows {

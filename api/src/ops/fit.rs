@@ -2,7 +2,7 @@
 //! line names it, and its JSON report.
 
 use armcomp_core::Robot;
-use armcomp_core::analysis::ladder::{Ladder, LadderParams, climb};
+use armcomp_core::analysis::ladder::{CandidateScore, Ladder, LadderParams, LadderReport, climb};
 use armcomp_core::calibrate::CalibrationParams;
 use armcomp_core::calibrate::FitsProgress;
 use armcomp_core::calibrate::plausibility::implausibility;
@@ -91,6 +91,33 @@ pub fn to_json(ladder: &Ladder) -> serde_json::Value {
     let mut value = serde_json::to_value(&ladder.report).expect("the ladder serialises");
     value["calibration"] = serde_json::to_value(&ladder.calibration.report).expect("the report serialises");
     value
+}
+
+/// Whether the ladder's candidate `c` is its choice or a member of the chosen stack.
+pub fn in_choice(r: &LadderReport, c: &CandidateScore) -> bool {
+    c.candidate == r.chosen
+        || (c.candidate.rung == r.chosen.rung
+            && c.candidate.predictor == r.chosen.predictor
+            && r.stack.iter().any(|m| m.prior == c.candidate.prior))
+}
+
+/// The choice in words: the candidate's label, or for a stack its level and the weighted
+/// members (`geometry, the weighted mean of 0.62 × evidence per group + 0.38 × file ×10`).
+pub fn choice_label(r: &LadderReport) -> String {
+    if r.stack.is_empty() {
+        return r.chosen.label();
+    }
+    let members: Vec<String> = r
+        .stack
+        .iter()
+        .map(|m| format!("{:.2} × {}", m.weight, m.label))
+        .collect();
+    format!(
+        "{}, the weighted mean of {}{}",
+        r.chosen.rung.label(),
+        members.join(" + "),
+        if r.chosen.predictor { ", + predictor" } else { "" }
+    )
 }
 
 /// Group numbers, one per sample, from the values of a column per data row (`values`, indexed
