@@ -199,9 +199,12 @@ fn axes(r: &ModelReport) -> Plot {
     }
 }
 
+/// Which rows a bar gathers.
+type RowFilter<'a> = Box<dyn Fn(&RowResidual) -> bool + 'a>;
+
 /// The 3-D RMS per station and per kind of row, when the rows have several.
 fn groups(r: &ModelReport) -> Option<Plot> {
-    let mut categories: Vec<(String, Box<dyn Fn(&RowResidual) -> bool + '_>)> = Vec::new();
+    let mut categories: Vec<(String, RowFilter)> = Vec::new();
     let mut stations: Vec<&str> = r.rows.iter().map(|x| x.station.as_str()).collect();
     stations.dedup();
     stations.sort_unstable();
