@@ -384,6 +384,11 @@ fn calibrated_values_survive_the_model_file_and_export_urdf() {
         assert_eq!(exported.mass(), r.mass());
         let text = std::fs::read_to_string(&out).unwrap();
         assert!(text.contains("<inertia ixx=\"0\""), "links are kept as written");
+        let t = r.t_meas_base().translation.vector;
+        assert!(
+            text.contains(&format!("measurement frame: xyz=\"{} {} {}\"", t.x, t.y, t.z)),
+            "the measurement frame, which no link holds, is named: {text}"
+        );
     }
     // Refuses to overwrite its input, and a non-URDF model.
     let (code, _, err) = crate::cli::armcomp(&[
@@ -395,6 +400,32 @@ fn calibrated_values_survive_the_model_file_and_export_urdf() {
     ]);
     assert_eq!(code, 1);
     assert!(err.contains("type = \"urdf\""), "{err}");
+}
+
+#[test]
+fn a_model_names_its_urdf_relative_to_itself_and_moves_with_it() {
+    let s = Scratch::new("urdf-relative");
+    let cell = s.0.join("cell");
+    std::fs::create_dir_all(cell.join("models")).unwrap();
+    std::fs::write(cell.join("two.urdf"), TWO_ARMS).unwrap();
+    let robot_file = cell.join("cell.toml");
+    std::fs::write(
+        &robot_file,
+        "name = \"cell\"\ntool = \"tool\"\n[kinematics]\ntype = \"urdf\"\npath = \"two.urdf\"\n\
+         [[points]]\nname = \"tool\"\nlink = \"right_hand\"\nxyz = [0.01, 0, 0]\n",
+    )
+    .unwrap();
+    let robot = Robot::from_path(&robot_file).unwrap();
+    let model = cell.join("models").join("model.toml");
+    let text = robot.to_text_for(&model).unwrap();
+    assert!(text.contains("path = \"../two.urdf\""), "{text}");
+    std::fs::write(&model, text).unwrap();
+    // The folder moved whole: the model finds its URDF where it left it.
+    let moved = s.0.join("moved");
+    std::fs::rename(&cell, &moved).unwrap();
+    let again = Robot::from_path(&moved.join("models").join("model.toml")).unwrap();
+    let qs = random_configurations(&robot, 10, 4);
+    assert_same_fk(&robot, &again, &qs, 1e-12);
 }
 
 #[test]

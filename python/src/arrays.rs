@@ -90,3 +90,13 @@ pub fn points<'py>(py: Python<'py>, v: &[nalgebra::Vector3<f64>]) -> Bound<'py, 
         .expect("three values per point")
         .into_pyarray(py)
 }
+
+/// A parameter covariance handed to Python: the free parameters' names and their matrix.
+pub type Covariance<'py> = (Vec<String>, Bound<'py, PyArray2<f64>>);
+
+/// `covariance` as names and an `n × n` array (SI units).
+pub fn covariance<'py>(py: Python<'py>, covariance: &armcomp_core::calibrate::ParameterCovariance) -> Covariance<'py> {
+    let m = &covariance.matrix;
+    let matrix = Array2::from_shape_fn((m.nrows(), m.ncols()), |(r, c)| m[(r, c)]).into_pyarray(py);
+    (covariance.names.clone(), matrix)
+}

@@ -17,8 +17,11 @@ use crate::robot::PyRobot;
 /// calibration (`stage`: "model as given", "effect N", "learnable residual"). When the final
 /// model leaves rows far beyond the noise, the search is made again without them
 /// (`keep_outliers=True` keeps them); the report lists them (`gross_errors`) either way.
+/// `groups`: one label per data row, so that folds hold out whole groups (`--group-by`);
+/// `exhaustive`: refit every candidate on the folds (`--exhaustive`); `report`: a folder for
+/// the diagnosis page (`--report`).
 #[pyfunction]
-#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = None, identify = None, predictor = "gp", progress = None, keep_outliers = false))]
+#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = None, identify = None, predictor = "gp", progress = None, keep_outliers = false, groups = None, exhaustive = false, report = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
@@ -33,6 +36,9 @@ pub fn diagnose(
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
     keep_outliers: bool,
+    groups: Option<Vec<String>>,
+    exhaustive: bool,
+    report: Option<std::path::PathBuf>,
 ) -> PyResult<(PyRobot, String)> {
     let learnable_by = match predictor {
         Some("gp") => LearnableBy::Gp,
@@ -48,7 +54,13 @@ pub fn diagnose(
         }
     };
     let robot = robot.robot.clone();
+    if let Some(dir) = &report {
+        let mut inputs = robot.inputs();
+        inputs.extend(data.read_from.clone());
+        armcomp_api::diagnosis_report::check(dir, &inputs).py()?;
+    }
     let set = data.resolve(&robot)?;
+    let fold_groups = crate::measurements::fold_groups(groups, &set)?.map(|g| ("groups".to_string(), g));
     let given = CalibrationParams {
         identify: identify.unwrap_or_default(),
         measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,
@@ -62,7 +74,8 @@ pub fn diagnose(
         min_rms_reduction: min_reduction_percent / 100.0,
         max_steps,
         exclude_gross_errors: !keep_outliers,
-        ..DiagnoseParams::default()
+        exhaustive,
+        fold_groups,
     };
     let diagnosis = crate::interrupt::run(py, |cancel| {
         let mut params = params.clone();
@@ -77,6 +90,9 @@ pub fn diagnose(
         })
     })?
     .py()?;
+    if let Some(dir) = &report {
+        armcomp_api::diagnosis_report::write(dir, &diagnosis.report).py()?;
+    }
     let json = armcomp_api::ops::diagnose::to_json(&diagnosis.report, &set.rows).to_string();
     let control = armcomp_core::FitControl {
         progress: None,

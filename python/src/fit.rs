@@ -1,22 +1,28 @@
 //! `fit`: the model ladder, as `armcomp fit` climbs it.
 
+use std::path::PathBuf;
+
 use pyo3::prelude::*;
 
-use crate::errors::{IntoPy, input_error};
-use crate::measurements::PyMeasurements;
+use crate::arrays::Covariance;
+
+use crate::errors::IntoPy;
 use crate::robot::PyRobot;
 
-/// Chooses the model of `robot` from `data` by repeated cross-validation (`folds` drawn
-/// `repeats` times) and fits it on all of `data`; returns the model and the report as JSON text (what `armcomp fit --json` prints).
+/// Chooses the model of `robot` from `data` (one `Measurements` or a list, one station each)
+/// by repeated cross-validation (`folds` drawn `repeats` times) and fits it on all of `data`;
+/// returns the model, the report as JSON text (what `armcomp fit --json` prints), the chosen
+/// fit's parameter covariance and the report page's data when `report` names a folder to
+/// write it to.
 /// `groups`: one label per data row; folds then hold out whole groups. `progress`, when given,
 /// is called as `progress("model choice", done, total)` after every fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = None))]
+#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = None, report = None))]
 #[allow(clippy::too_many_arguments)]
-pub fn fit(
-    py: Python<'_>,
+pub fn fit<'py>(
+    py: Python<'py>,
     robot: PyRef<'_, PyRobot>,
-    data: PyRef<'_, PyMeasurements>,
+    data: &Bound<'py, PyAny>,
     noise_mm: Option<f64>,
     folds: usize,
     seed: u64,
@@ -25,24 +31,12 @@ pub fn fit(
     progress: Option<Py<PyAny>>,
     noise_deg: Option<f64>,
     repeats: Option<usize>,
-) -> PyResult<(PyRobot, String)> {
-    let robot = robot.robot.clone();
-    let set = data.resolve(&robot)?;
-    let fold_groups = match groups {
-        Some(labels) => {
-            let rows = set.rows.iter().max().map_or(0, |r| r + 1);
-            if labels.len() < rows {
-                return Err(input_error(
-                    &format!("groups: one label per data row expected ({rows}), got {}", labels.len()),
-                    None,
-                    None,
-                    Some("groups"),
-                ));
-            }
-            Some(armcomp_api::ops::fit::groups_of(&labels, &set.rows))
-        }
-        None => None,
-    };
+    report: Option<PathBuf>,
+) -> PyResult<(PyRobot, String, Covariance<'py>, Option<String>)> {
+    crate::report::check(report.as_deref(), &robot.robot, data)?;
+    let (set, adopted, _) = crate::measurements::resolve_stations(&robot.robot, data)?;
+    let robot = adopted.map_or_else(|| robot.robot.clone(), std::sync::Arc::new);
+    let fold_groups = crate::measurements::fold_groups(groups, &set)?;
     let predictor = predictor.filter(|p| *p != "none").map(str::to_string);
     let ladder = crate::interrupt::run(py, |cancel| {
         let params = armcomp_api::ops::fit::FitParams {
@@ -60,6 +54,10 @@ pub fn fit(
         })
     })?
     .py()?;
+    let page = crate::report::write(report.as_deref(), || {
+        armcomp_api::model_report::for_fit(&robot, &set.samples, &set.rows, &ladder)
+    })?;
     let json = serde_json::to_string(&armcomp_api::ops::fit::to_json(&ladder)).expect("JSON values print");
-    Ok((PyRobot::wrap(ladder.robot), json))
+    let covariance = crate::arrays::covariance(py, &ladder.calibration.report.covariance);
+    Ok((PyRobot::wrap(ladder.robot), json, covariance, page))
 }

@@ -10,15 +10,17 @@ use crate::robot::PyRobot;
 /// Fits `predictor` (a type with its default settings), or the predictor `model`'s
 /// `[predictor]` table describes, on `data`; returns the model with the fitted predictor and
 /// `(seconds, before, after)` with the training errors of the model alone and with the
-/// predictor as JSON text.
+/// predictor as JSON text. `groups`: one label per data row; the cross-validation then holds
+/// out whole groups, as `--group-by` does.
 #[pyfunction]
-#[pyo3(signature = (model, data, predictor = None, progress = None))]
+#[pyo3(signature = (model, data, predictor = None, progress = None, groups = None))]
 pub fn learn(
     py: Python<'_>,
     model: PyRef<'_, PyRobot>,
     data: PyRef<'_, PyMeasurements>,
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
+    groups: Option<Vec<String>>,
 ) -> PyResult<(PyRobot, String)> {
     let predictor = predictor
         .map(armcomp_api::ops::learn::default_predictor)
@@ -26,6 +28,7 @@ pub fn learn(
         .map_err(|e| crate::errors::input_error(&e.to_string(), None, None, Some("predictor")))?;
     let robot = model.robot.clone();
     let set = data.resolve(&robot)?;
+    let fold_groups = crate::measurements::fold_groups(groups, &set)?.map(|g| ("groups".to_string(), g));
     // The model's own description, every field kept (the command line re-reads its file).
     let value = serde_json::to_value(robot.built_from()).expect("a robot file serialises");
     let file: RobotFile = serde_json::from_value(value)
@@ -40,7 +43,7 @@ pub fn learn(
             progress: Some(&report),
             cancel: cancel.clone(),
         };
-        armcomp_api::ops::learn::run(&robot, file, &set.samples, predictor, None, &control)
+        armcomp_api::ops::learn::run(&robot, file, &set.samples, predictor, fold_groups.clone(), &control)
     })?
     .py()?;
     let json = serde_json::json!({

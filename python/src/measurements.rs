@@ -45,7 +45,7 @@ enum Source {
 pub struct PyMeasurements {
     source: Source,
     /// The CSV file the samples were read from, which `save` never replaces.
-    read_from: Option<PathBuf>,
+    pub read_from: Option<PathBuf>,
 }
 
 impl PyMeasurements {
@@ -59,6 +59,30 @@ impl PyMeasurements {
                 point_names: Some(tree.points().iter().map(|p| p.name.clone()).collect()),
             },
             read_from: None,
+        }
+    }
+
+    /// Measurements from CSV `text` (called `path` in messages), read against `robot` now when
+    /// given; `rows` as `read` takes them.
+    fn csv(
+        path: PathBuf,
+        text: String,
+        robot: Option<PyRef<'_, PyRobot>>,
+        rows: Option<&Bound<'_, PyAny>>,
+        read_from: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let rows = rows.map(row_selection).transpose()?;
+        let data = PyMeasurements {
+            source: Source::Csv {
+                path: path.clone(),
+                text,
+                rows,
+            },
+            read_from: read_from.clone(),
+        };
+        match robot {
+            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?).read_from(read_from)),
+            None => Ok(data),
         }
     }
 
@@ -109,6 +133,60 @@ impl PyMeasurements {
             ))),
         }
     }
+}
+
+/// `data`, one `Measurements` or a sequence of them (one station each, named by its file's
+/// name or, for arrays, `station1`, `station2`, ...; a `station` column of one set names its
+/// own), resolved against `robot` as `--data a.csv --data b.csv` reads them. Returns the
+/// samples, `robot` given their stations when they are not its own (a copy), and the indices of
+/// the stations new to it, whose frames need registering.
+pub fn resolve_stations(
+    robot: &Robot,
+    data: &Bound<'_, PyAny>,
+) -> PyResult<(MeasurementSet, Option<Robot>, Vec<usize>)> {
+    let set = match data.cast::<PyMeasurements>() {
+        Ok(one) => one.get().resolve(robot)?,
+        Err(_) => {
+            let list: Vec<PyRef<'_, PyMeasurements>> = data.extract().map_err(|_| {
+                input_error(
+                    "data: expected Measurements or a list of them (one station each)",
+                    None,
+                    None,
+                    Some("data"),
+                )
+            })?;
+            let names: Vec<String> = (list.iter().enumerate())
+                .map(|(k, m)| {
+                    (m.read_from.as_ref())
+                        .and_then(|p| p.file_stem())
+                        .map_or_else(|| format!("station{}", k + 1), |s| s.to_string_lossy().into_owned())
+                })
+                .collect();
+            if let Some((_, twice)) = names.iter().enumerate().find(|(i, n)| names[..*i].contains(n)) {
+                return Err(input_error(
+                    &format!(
+                        "two data sets are named `{twice}`: each is a station named by its file's name, so rename one \
+                         (or give the files a `station` column)"
+                    ),
+                    None,
+                    None,
+                    Some("data"),
+                ));
+            }
+            let sets = list.iter().map(|m| m.resolve(robot)).collect::<PyResult<Vec<_>>>()?;
+            MeasurementSet::from_files(sets, &names)
+        }
+    };
+    let known: Vec<&str> = robot.stations().iter().map(|s| s.name.as_str()).collect();
+    let wanted: Vec<&str> = set.stations.iter().map(String::as_str).collect();
+    if known == wanted || (known.is_empty() && wanted.len() <= 1) {
+        armcomp_core::calibrate::check_station_rows(robot, &set.samples).py()?;
+        return Ok((set, None, Vec::new()));
+    }
+    let mut adopted = robot.rebuild(robot.to_file()).py()?;
+    let new = adopted.adopt_stations(&set.stations);
+    armcomp_core::calibrate::check_station_rows(&adopted, &set.samples).py()?;
+    Ok((set, Some(adopted), new))
 }
 
 /// `set` with joint values in `robot`'s order and point indices of `robot`.
@@ -308,35 +386,134 @@ impl PyMeasurements {
         })
     }
 
-    /// Reads a measurement CSV (units in the headers, see the project's file formats); with
-    /// `robot` it is read against it now, else when first used. `rows` keeps some data rows
-    /// (0-based, header excluded): `"even"`, `"odd"`, `"N"`, `"A..B"`, comma-separated.
+    /// Reads a measurement CSV (units in the headers, see the project's file formats) from a
+    /// path, a file object or a `pandas.DataFrame` with the file's columns; with `robot` it is
+    /// read against it now, else when first used. `rows` keeps some data rows
+    /// (0-based, header excluded): `"even"`, `"odd"`, `"N"`, `"A..B"`, comma-separated, or a
+    /// sequence of row indices.
     #[classmethod]
-    #[pyo3(signature = (path, robot = None, rows = None))]
+    #[pyo3(signature = (source, robot = None, rows = None))]
     fn read(
         _cls: &Bound<'_, PyType>,
-        path: PathBuf,
+        source: &Bound<'_, PyAny>,
         robot: Option<PyRef<'_, PyRobot>>,
-        rows: Option<&str>,
+        rows: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        // A DataFrame is the CSV it writes: its columns are the file's, units in the names.
+        if source.hasattr("to_csv")? && source.hasattr("columns")? {
+            let kwargs = pyo3::types::PyDict::new(source.py());
+            kwargs.set_item("index", false)?;
+            let text: String = source.call_method("to_csv", (), Some(&kwargs))?.extract()?;
+            return PyMeasurements::csv(PathBuf::from("<DataFrame>"), text, robot, rows, None);
+        }
+        if source.hasattr("read")? {
+            let content = source.call_method0("read")?;
+            let text = match content.extract::<String>() {
+                Ok(t) => t,
+                Err(_) => String::from_utf8(content.extract::<Vec<u8>>()?).map_err(|e| {
+                    input_error(&format!("the file is not UTF-8 text: {e}"), None, None, Some("source"))
+                })?,
+            };
+            let name = (source.getattr("name").ok())
+                .and_then(|n| n.extract::<String>().ok())
+                .unwrap_or_else(|| "<file object>".into());
+            return PyMeasurements::csv(PathBuf::from(name), text, robot, rows, None);
+        }
+        let path: PathBuf = source.extract().map_err(|_| {
+            input_error(
+                &format!(
+                    "expected a path, a file object or a DataFrame, got {}",
+                    source.get_type()
+                ),
+                None,
+                None,
+                Some("source"),
+            )
+        })?;
         let text =
             armcomp_core::support::io::read_text(&path, crate::input_limits()).map_err(|e| file_error(&e, &path))?;
-        let rows = rows
-            .map(|r| r.parse::<RowSelection>())
-            .transpose()
-            .map_err(|m| input_error(&format!("rows: {m}"), None, None, Some("rows")))?;
-        let data = PyMeasurements {
-            source: Source::Csv {
-                path: path.clone(),
-                text,
-                rows,
-            },
-            read_from: Some(path.clone()),
-        };
-        match robot {
-            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?).read_from(Some(path))),
-            None => Ok(data),
+        PyMeasurements::csv(path.clone(), text, robot, rows, Some(path))
+    }
+
+    /// The measurement CSV `save` writes for `robot`, as a `pandas.DataFrame` (its columns
+    /// the file's, units in their names); `Measurements.read` reads it back.
+    fn to_dataframe<'py>(&self, py: Python<'py>, robot: PyRef<'_, PyRobot>) -> PyResult<Bound<'py, PyAny>> {
+        let set = self.resolve(&robot.robot)?;
+        let text = write_csv(&set, robot.robot.tree(), robot.robot.units());
+        let pandas = py
+            .import("pandas")
+            .map_err(|_| pyo3::exceptions::PyImportError::new_err("to_dataframe needs pandas: pip install pandas"))?;
+        let buffer = py.import("io")?.getattr("StringIO")?.call1((text,))?;
+        pandas.call_method1("read_csv", (buffer,))
+    }
+
+    /// Measurements from the text of a measurement CSV, as `read` reads a file; `name` is how
+    /// messages call it (`<text>` by default). `read` takes file objects and DataFrames
+    /// through it.
+    #[classmethod]
+    #[pyo3(signature = (text, robot = None, rows = None, name = None))]
+    fn parse(
+        _cls: &Bound<'_, PyType>,
+        text: String,
+        robot: Option<PyRef<'_, PyRobot>>,
+        rows: Option<&Bound<'_, PyAny>>,
+        name: Option<String>,
+    ) -> PyResult<Self> {
+        let limit = crate::input_limits().max_bytes;
+        if text.len() as u64 > limit {
+            return Err(input_error(
+                &format!("the CSV text is {} bytes, above the limit of {limit}", text.len()),
+                None,
+                None,
+                Some("text"),
+            ));
         }
+        PyMeasurements::csv(
+            PathBuf::from(name.unwrap_or_else(|| "<text>".into())),
+            text,
+            robot,
+            rows,
+            None,
+        )
+    }
+
+    /// The samples `index` picks: a row position, a slice or a sequence of positions (of
+    /// these measurements, not of the file's rows).
+    fn __getitem__(&self, index: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let (set, joint_names, point_names) = self.samples()?;
+        let n = set.samples.len();
+        let picked: Vec<usize> = if let Ok(slice) = index.cast::<pyo3::types::PySlice>() {
+            let i = slice.indices(n as isize)?;
+            (0..i.slicelength)
+                .map(|k| (i.start + k as isize * i.step) as usize)
+                .collect()
+        } else if let Ok(k) = index.extract::<isize>() {
+            vec![position(k, n)?]
+        } else {
+            let list: Vec<isize> = index.extract().map_err(|_| {
+                PyValueError::new_err(format!("index: expected a position, a slice or positions, got {index}"))
+            })?;
+            list.into_iter().map(|k| position(k, n)).collect::<PyResult<_>>()?
+        };
+        Ok(PyMeasurements {
+            source: Source::Samples {
+                set: MeasurementSet {
+                    samples: picked.iter().map(|&i| set.samples[i].clone()).collect(),
+                    rows: picked.iter().map(|&i| set.rows[i]).collect(),
+                    warnings: Vec::new(),
+                    stations: set.stations.clone(),
+                },
+                joint_names: joint_names.map(<[String]>::to_vec),
+                point_names: point_names.map(<[String]>::to_vec),
+            },
+            read_from: self.read_from.clone(),
+        })
+    }
+
+    /// The data rows of the samples (0-based, header excluded, as `rows` counts them).
+    #[getter]
+    fn rows(&self) -> PyResult<Vec<usize>> {
+        Ok(self.samples()?.0.rows.clone())
     }
 
     /// These measurements read against `robot` (joint values in its order, its points).
@@ -395,4 +572,63 @@ impl PyMeasurements {
             Source::Samples { set, .. } => format!("Measurements({} samples)", set.samples.len()),
         }
     }
+}
+
+/// `rows`: a selection as `--rows` writes it, or a sequence of 0-based data rows.
+fn row_selection(rows: &Bound<'_, PyAny>) -> PyResult<RowSelection> {
+    let text = match rows.extract::<String>() {
+        Ok(t) => t,
+        Err(_) => {
+            let list: Vec<usize> = rows.extract().map_err(|_| {
+                input_error(
+                    &format!("rows: expected a selection such as \"even\" or \"0..40\", or row indices, got {rows}"),
+                    None,
+                    None,
+                    Some("rows"),
+                )
+            })?;
+            let listed: Vec<String> = list.iter().map(usize::to_string).collect();
+            listed.join(",")
+        }
+    };
+    text.parse::<RowSelection>()
+        .map_err(|m| input_error(&format!("rows: {m}"), None, None, Some("rows")))
+}
+
+/// Position `k` of `n` samples, negative counting from the end as Python does.
+fn position(k: isize, n: usize) -> PyResult<usize> {
+    let i = if k < 0 { k + n as isize } else { k };
+    if i < 0 || i >= n as isize {
+        return Err(pyo3::exceptions::PyIndexError::new_err(format!(
+            "sample {k} out of range: there are {n}"
+        )));
+    }
+    Ok(i as usize)
+}
+
+/// The files `data` (one `Measurements` or a sequence) were read from, which no output may
+/// replace.
+pub fn files(data: &Bound<'_, PyAny>) -> Vec<PathBuf> {
+    match data.cast::<PyMeasurements>() {
+        Ok(one) => one.get().read_from.iter().cloned().collect(),
+        Err(_) => (data.extract::<Vec<PyRef<'_, PyMeasurements>>>())
+            .map(|list| list.iter().filter_map(|m| m.read_from.clone()).collect())
+            .unwrap_or_default(),
+    }
+}
+
+/// Each sample's group of `labels`, one label per data row (the folds then hold out whole
+/// groups), as `groups=` gives them; `None` without labels.
+pub fn fold_groups(labels: Option<Vec<String>>, set: &MeasurementSet) -> PyResult<Option<Vec<usize>>> {
+    let Some(labels) = labels else { return Ok(None) };
+    let rows = set.rows.iter().max().map_or(0, |r| r + 1);
+    if labels.len() < rows {
+        return Err(input_error(
+            &format!("groups: one label per data row expected ({rows}), got {}", labels.len()),
+            None,
+            None,
+            Some("groups"),
+        ));
+    }
+    Ok(Some(armcomp_api::ops::fit::groups_of(&labels, &set.rows)))
 }

@@ -4,10 +4,11 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, TryLockError};
 
 use armcomp_core::calibrate::ParameterSpace;
+use armcomp_core::data::measurement::Sample;
 use armcomp_core::robot::robot_file::{Format, SourceFile};
 use armcomp_core::support::io::{check_output, write_atomic};
-use armcomp_core::{BatchWorkspace, PointKinematicsWorkspace, Robot, RobotFile};
-use nalgebra::{IsometryMatrix3, Matrix6xX};
+use armcomp_core::{BatchWorkspace, Robot, RobotFile, RobotWorkspace, TreeWorkspace};
+use nalgebra::{Isometry3, IsometryMatrix3, Matrix6xX, Vector3};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -15,6 +16,7 @@ use pyo3::types::PyDict;
 
 use crate::arrays::{Matrix, vector_arg};
 use crate::errors::{IntoPy, file_error, input_error};
+use crate::frames::{Frames, Reference, jacobian_into};
 use crate::measurements::PyMeasurements;
 
 /// A robot: kinematics, points, error models and (for a model) identified values and a
@@ -22,7 +24,9 @@ use crate::measurements::PyMeasurements;
 #[pyclass(name = "Robot", module = "armcomp", frozen)]
 pub struct PyRobot {
     pub robot: Arc<Robot>,
-    /// The buffers of `fk`, `fk_many` and `jacobian`, kept so that a call allocates none.
+    /// Its points and links by name.
+    frames: Frames,
+    /// The buffers of `fk`, `fk_many`, `pose` and `jacobian`, kept so that a call allocates none.
     scratch: Mutex<Scratch>,
 }
 
@@ -30,16 +34,20 @@ pub struct PyRobot {
 struct Scratch {
     batch: BatchWorkspace,
     poses: Vec<IsometryMatrix3<f64>>,
-    point: PointKinematicsWorkspace,
+    /// The full model's evaluation (frame poses).
+    full: RobotWorkspace,
+    /// The rigid evaluation of the frames' tree (Jacobians).
+    rigid: TreeWorkspace,
     jacobian: Matrix6xX<f64>,
 }
 
 impl Scratch {
-    fn new(robot: &Robot) -> Self {
+    fn new(robot: &Robot, frames: &Frames) -> Self {
         Scratch {
             batch: robot.batch_workspace(),
             poses: vec![IsometryMatrix3::identity(); robot.tree().points().len()],
-            point: robot.kinematics().workspace(),
+            full: robot.workspace(),
+            rigid: TreeWorkspace::new(&frames.tree),
             jacobian: Matrix6xX::zeros(robot.tree().nq()),
         }
     }
@@ -53,8 +61,10 @@ impl PyRobot {
 
     /// Wraps a robot shared with another Python object.
     pub fn shared(robot: Arc<Robot>) -> Self {
+        let frames = Frames::of(robot.tree());
         PyRobot {
-            scratch: Mutex::new(Scratch::new(&robot)),
+            scratch: Mutex::new(Scratch::new(&robot, &frames)),
+            frames,
             robot,
         }
     }
@@ -73,64 +83,214 @@ impl PyRobot {
         match self.scratch.try_lock() {
             Ok(mut guard) => f(&mut guard),
             Err(TryLockError::Poisoned(e)) => f(&mut e.into_inner()),
-            Err(TryLockError::WouldBlock) => f(&mut Scratch::new(&self.robot)),
+            Err(TryLockError::WouldBlock) => f(&mut Scratch::new(&self.robot, &self.frames)),
         }
     }
 
-    /// Index of the point named `name`, or the tool.
-    fn point_index(&self, name: Option<&str>) -> PyResult<usize> {
-        let tree = self.robot.tree();
-        match name {
-            None => Ok(self.robot.tool()),
-            Some(n) => tree.point_index(n).ok_or_else(|| {
-                let names: Vec<&str> = tree.points().iter().map(|p| p.name.as_str()).collect();
-                input_error(
-                    &format!("the robot has no point `{n}`; its points are: {}", names.join(", ")),
-                    None,
-                    None,
-                    Some("point"),
-                )
-            }),
-        }
-    }
-
-    /// `q` checked against the robot's joints.
+    /// `q` checked against the robot's joints: values in the robot's order, or by joint name
+    /// (a dict, or a `pandas.Series` read by its index).
     pub(crate) fn configuration(&self, q: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
-        let q = match q.cast::<PyDict>() {
-            Ok(named) => self.named_configuration(named)?,
-            Err(_) => vector_arg(q, "q", "for several configurations, one a row, call fk_many")?,
+        let q = match named_values(q)? {
+            Some(pairs) => self.named_configuration(&pairs, "q")?,
+            None => vector_arg(q, "q", "for several configurations, one a row, call fk_many")?,
         };
         self.robot.tree().check_q(&q).py()?;
         Ok(q)
     }
 
-    /// Joint values given by name (`{"joint": value}`), in the robot's order: every joint
-    /// once, no other name, since another library's order is a silent error of metres.
-    fn named_configuration(&self, named: &Bound<'_, PyDict>) -> PyResult<Vec<f64>> {
-        let error = |message: String| input_error(&message, None, None, Some("q"));
-        let mut pairs = Vec::with_capacity(named.len());
-        for (key, value) in named.iter() {
-            let name: String = key
-                .extract()
-                .map_err(|_| error(format!("joint names are strings, got {key}")))?;
-            let v: f64 = value
-                .extract()
-                .map_err(|_| error(format!("joint `{name}`: expected a number, got {value}")))?;
-            pairs.push((name, v));
+    /// Configurations one a row: an `n × nq` array in the robot's order (read in place when
+    /// it is a C-ordered float64 array), or a `pandas.DataFrame` whose columns name joints (the
+    /// others at their `hold` values). `f` gets the values row after row and the row count.
+    fn with_configurations<R>(
+        &self,
+        q: &Bound<'_, PyAny>,
+        f: impl FnOnce(&[f64], usize) -> PyResult<R>,
+    ) -> PyResult<R> {
+        let tree = self.robot.tree();
+        if q.hasattr("columns")? && q.hasattr("to_numpy")? {
+            let names: Vec<String> = (q.getattr("columns")?.try_iter()?)
+                .map(|c| c.and_then(|c| c.str().map(|s| s.to_string())))
+                .collect::<PyResult<_>>()?;
+            let values = crate::arrays::matrix_arg(&q.call_method0("to_numpy")?, "Q", "numbers in every column")?;
+            let n = values.as_array().nrows();
+            let mut flat = Vec::with_capacity(n * tree.nq());
+            for row in values.as_array().rows() {
+                let pairs: Vec<(String, f64)> = names.iter().cloned().zip(row.iter().copied()).collect();
+                flat.extend(self.named_configuration(&pairs, "Q")?);
+            }
+            return f(&flat, n);
         }
+        let q = crate::arrays::matrix_arg(
+            q,
+            "Q",
+            "one configuration per row (n × joints); for one configuration use fk(q) or Q.reshape(1, -1)",
+        )?;
+        let (n, nq) = q.as_array().dim();
+        if nq != tree.nq() {
+            return Err(input_error(
+                &format!(
+                    "Q has {nq} columns but the robot has {} joints: {}",
+                    tree.nq(),
+                    tree.coordinate_names().join(", ")
+                ),
+                None,
+                None,
+                Some("Q"),
+            ));
+        }
+        match q.as_slice() {
+            Ok(s) if q.is_c_contiguous() => f(s, n),
+            _ => f(&q.as_array().iter().copied().collect::<Vec<f64>>(), n),
+        }
+    }
+
+    /// Joint values given by name, in the robot's order: a joint left out takes the robot
+    /// file's `hold` value, and one with none is an error, as is a name the robot lacks, since
+    /// another library's order is a silent error of metres.
+    fn named_configuration(&self, pairs: &[(String, f64)], field: &str) -> PyResult<Vec<f64>> {
         let tree = self.robot.tree();
         let q = tree
             .coordinates_by_name(pairs.iter().map(|(n, v)| (n.as_str(), *v)))
             .py()?;
+        let hold = self.robot.csv_layout().hold;
+        let q: Vec<Option<f64>> = q.into_iter().zip(hold).map(|(v, h)| v.or(h)).collect();
         let missing: Vec<&str> = (tree.coordinate_names().iter().zip(&q))
             .filter(|(_, v)| v.is_none())
             .map(|(n, _)| n.as_str())
             .collect();
         if !missing.is_empty() {
-            return Err(error(format!("no value for joint(s) {}", missing.join(", "))));
+            return Err(input_error(
+                &format!(
+                    "no value for joint(s) {}, which the robot file does not hold either",
+                    missing.join(", ")
+                ),
+                None,
+                None,
+                Some(field),
+            ));
         }
         Ok(q.into_iter().flatten().collect())
     }
+
+    /// The poses of `frames` (indices of [`Frames`]) through the full model at `q`, base frame.
+    fn frame_poses_into(&self, q: &[f64], frames: &[usize], s: &mut Scratch, out: &mut [f64]) {
+        self.robot.forward_into(q, None, &mut s.full);
+        let points = self.robot.tree().points();
+        for (&k, block) in frames.iter().zip(out.chunks_exact_mut(16)) {
+            let pose: Isometry3<f64> = match k.checked_sub(points.len()) {
+                None => s.full.frames.point[k],
+                Some(_) => s.full.frames.body[self.frames.tree.points()[k].body],
+            };
+            let h = pose.to_homogeneous();
+            for (i, v) in block.iter_mut().enumerate() {
+                *v = h[(i / 4, i % 4)];
+            }
+        }
+    }
+
+    /// `n` configurations of `qs`, one after the other, checked against the joints.
+    fn check_rows(&self, qs: &[f64], n: usize) -> PyResult<()> {
+        let tree = self.robot.tree();
+        for (i, q) in qs.chunks_exact(tree.nq().max(1)).take(n).enumerate() {
+            tree.check_q(q)
+                .map_err(|e| input_error(&format!("configuration {}: {e}", i + 1), None, None, Some("Q")))?;
+        }
+        Ok(())
+    }
+
+    /// A sample of `point` (default the first marker) measured from `station` under the given
+    /// conditions, at no configuration yet and measured at the origin.
+    fn prediction_sample(
+        &self,
+        point: Option<&str>,
+        station: Option<&str>,
+        temperature: Option<f64>,
+        payload: Option<f64>,
+    ) -> PyResult<Sample> {
+        let tree = self.robot.tree();
+        let point = match point {
+            None => self.robot.markers().first().copied().unwrap_or(self.robot.tool()),
+            Some(name) => tree.point_index(name).ok_or_else(|| {
+                let names: Vec<&str> = tree.points().iter().map(|p| p.name.as_str()).collect();
+                input_error(
+                    &format!("the robot has no point `{name}`; its points are: {}", names.join(", ")),
+                    None,
+                    None,
+                    Some("point"),
+                )
+            })?,
+        };
+        let stations = self.robot.stations();
+        let station = match station {
+            None => 0,
+            Some(name) => stations.iter().position(|s| s.name == name).ok_or_else(|| {
+                let names: Vec<&str> = stations.iter().map(|s| s.name.as_str()).collect();
+                input_error(
+                    &format!(
+                        "the robot has no station `{name}`; its stations are: {}",
+                        if names.is_empty() {
+                            "none (one measurement frame)".to_string()
+                        } else {
+                            names.join(", ")
+                        }
+                    ),
+                    None,
+                    None,
+                    Some("station"),
+                )
+            })?,
+        };
+        Ok(Sample {
+            q: Vec::new(),
+            point,
+            position: Vector3::zeros(),
+            orientation: None,
+            payload,
+            temperature,
+            torque: None,
+            fixed_point: None,
+            plane: None,
+            sensors: Default::default(),
+            station,
+            position_std: None,
+        })
+    }
+
+    /// The modelled measured positions of `samples` (measured at the origin): minus their
+    /// errors through the very path of `evaluate`, so that the two agree to the bit.
+    fn predicted(&self, samples: Vec<Sample>) -> Vec<Vector3<f64>> {
+        let errors = armcomp_core::algorithms::evaluate::position_errors(&self.robot, &samples);
+        errors.into_iter().map(|e| -e).collect()
+    }
+}
+
+/// `pose` as a 4 × 4 homogeneous matrix.
+fn homogeneous<'py>(py: Python<'py>, pose: &Isometry3<f64>) -> Matrix<'py> {
+    let h = pose.to_homogeneous();
+    Array2::from_shape_fn((4, 4), |(r, c)| h[(r, c)]).into_pyarray(py)
+}
+
+/// `(name, value)` pairs of joint values given by name: a dict, or a `pandas.Series` (anything
+/// with an `index` and `items()`); `None` for values by position.
+fn named_values(q: &Bound<'_, PyAny>) -> PyResult<Option<Vec<(String, f64)>>> {
+    let items = match q.cast::<PyDict>() {
+        Ok(d) => d.items().into_any(),
+        Err(_) if q.hasattr("index")? && q.hasattr("items")? => q.call_method0("items")?,
+        Err(_) => return Ok(None),
+    };
+    let error = |message: String| input_error(&message, None, None, Some("q"));
+    let mut pairs = Vec::new();
+    for item in items.try_iter()? {
+        let (key, value): (Bound<'_, PyAny>, Bound<'_, PyAny>) = item?.extract()?;
+        let name: String = key
+            .extract()
+            .map_err(|_| error(format!("joint names are strings, got {key}")))?;
+        let v: f64 = value
+            .extract()
+            .map_err(|_| error(format!("joint `{name}`: expected a number, got {value}")))?;
+        pairs.push((name, v));
+    }
+    Ok(Some(pairs))
 }
 
 /// Writes `text` to `path` atomically, never over a file `robot` was read from.
@@ -173,9 +333,11 @@ impl PyRobot {
     /// Pickling (multiprocessing): the robot file with this robot's values, rebuilt where its
     /// relative paths (a URDF) resolve as they did.
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (String, PathBuf))> {
-        let text = self.robot.to_text_for(Path::new("model.toml")).py()?;
+        // Its files named relative to the folder they are rebuilt from.
+        let base_dir = self.robot.base_dir();
+        let text = self.robot.to_text_for(&base_dir.join("model.toml")).py()?;
         let rebuild = py.get_type::<PyRobot>().getattr("from_toml")?;
-        Ok((rebuild, (text, self.robot.base_dir())))
+        Ok((rebuild, (text, base_dir)))
     }
 
     /// The robot's name.
@@ -272,83 +434,239 @@ impl PyRobot {
     /// tools)`.
     #[pyo3(signature = (q, tool = false))]
     fn fk_many<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>, tool: bool) -> PyResult<Bound<'py, PyAny>> {
-        let q = crate::arrays::matrix_arg(
-            q,
-            "Q",
-            "one configuration per row (n × joints); for one configuration use fk(q) or Q.reshape(1, -1)",
-        )?;
-        let (n, nq) = q.as_array().dim();
-        let tree = self.robot.tree();
-        if nq != tree.nq() {
-            return Err(input_error(
-                &format!(
-                    "Q has {nq} columns but the robot has {} joints: {}",
-                    tree.nq(),
-                    tree.coordinate_names().join(", ")
-                ),
-                None,
-                None,
-                Some("Q"),
-            ));
-        }
-        // A C-ordered float64 array is read in place; anything else is copied once.
-        let copy;
-        let qs = match q.as_slice() {
-            Ok(s) if q.is_c_contiguous() => s,
-            _ => {
-                copy = q.as_array().iter().copied().collect::<Vec<f64>>();
-                &copy
+        let points = self.robot.tree().points().len();
+        self.with_configurations(q, |qs, n| {
+            if tool {
+                // Whole poses: one buffer for the batch, then the two arrays from it.
+                let mut poses = vec![nalgebra::IsometryMatrix3::identity(); n * points];
+                py.detach(|| self.with_scratch(|s| self.robot.forward_many_into(n, qs, &mut poses, &mut s.batch)))
+                    .py()?;
+                let t = self.robot.tool();
+                let positions = numpy::ndarray::Array3::from_shape_fn((n, points, 3), |(i, p, k)| {
+                    poses[i * points + p].translation.vector[k]
+                });
+                let mut tools = numpy::ndarray::Array3::zeros((n, 4, 4));
+                for (i, mut m) in tools.outer_iter_mut().enumerate() {
+                    let h = poses[i * points + t].to_homogeneous();
+                    m.indexed_iter_mut().for_each(|((r, c), v)| *v = h[(r, c)]);
+                }
+                return Ok((positions.into_pyarray(py), tools.into_pyarray(py))
+                    .into_pyobject(py)?
+                    .into_any());
             }
-        };
-        let points = tree.points().len();
-        if tool {
-            // Whole poses: one buffer for the batch, then the two arrays from it.
-            let mut poses = vec![nalgebra::IsometryMatrix3::identity(); n * points];
-            py.detach(|| self.with_scratch(|s| self.robot.forward_many_into(n, qs, &mut poses, &mut s.batch)))
-                .py()?;
-            let t = self.robot.tool();
-            let positions = numpy::ndarray::Array3::from_shape_fn((n, points, 3), |(i, p, k)| {
-                poses[i * points + p].translation.vector[k]
-            });
-            let mut tools = numpy::ndarray::Array3::zeros((n, 4, 4));
-            for (i, mut m) in tools.outer_iter_mut().enumerate() {
-                let h = poses[i * points + t].to_homogeneous();
-                m.indexed_iter_mut().for_each(|((r, c), v)| *v = h[(r, c)]);
+            let out = PyArray3::<f64>::zeros(py, [n, points, 3], false);
+            {
+                let mut write = out.readwrite();
+                let slice = write.as_slice_mut().expect("a new array is contiguous");
+                py.detach(|| self.with_scratch(|s| self.robot.point_positions_many_into(n, qs, slice, &mut s.batch)))
+                    .py()?;
             }
-            return Ok((positions.into_pyarray(py), tools.into_pyarray(py))
-                .into_pyobject(py)?
-                .into_any());
-        }
-        let out = PyArray3::<f64>::zeros(py, [n, points, 3], false);
-        {
-            let mut write = out.readwrite();
-            let slice = write.as_slice_mut().expect("a new array is contiguous");
-            py.detach(|| self.with_scratch(|s| self.robot.point_positions_many_into(n, qs, slice, &mut s.batch)))
-                .py()?;
-        }
-        Ok(out.into_any())
+            Ok(out.into_any())
+        })
     }
 
-    /// The 6 × nq Jacobian of the tool (or the named point) at `q`: rows 0–2 its linear
-    /// velocity, rows 3–5 the angular velocity, base frame, of the chain at this robot's
-    /// geometry (the error models' deformation is not differentiated).
-    #[pyo3(signature = (q, point = None))]
+    /// Names of every frame `pose` and `jacobian` take: the points (as `points` lists them),
+    /// then each link of the kinematic tree no point is named after, at the link's origin.
+    #[getter]
+    fn frames(&self) -> Vec<String> {
+        self.frames.names.clone()
+    }
+
+    /// The pose of `frame` (a point or a link; default the tool) at `q` through the full
+    /// model: a 4 × 4 homogeneous matrix `t_base_frame` (m, base frame).
+    #[pyo3(signature = (q, frame = None))]
+    fn pose<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>, frame: Option<&str>) -> PyResult<Matrix<'py>> {
+        let q = self.configuration(q)?;
+        let k = self.frames.index(frame, self.robot.tool())?;
+        let mut h = [0.0; 16];
+        self.with_scratch(|s| self.frame_poses_into(&q, &[k], s, &mut h));
+        Ok(Array2::from_shape_vec((4, 4), h.to_vec())
+            .expect("16 values")
+            .into_pyarray(py))
+    }
+
+    /// The poses of `frames` (names; default every frame, in the order of `frames`) at each
+    /// configuration of `Q` (n × nq, or a DataFrame by joint name), through the full model:
+    /// `n × frames × 4 × 4` homogeneous matrices (m, base frame), computed without the GIL.
+    #[pyo3(signature = (q, frames = None))]
+    fn poses_many<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        frames: Option<Vec<String>>,
+    ) -> PyResult<Bound<'py, numpy::PyArray4<f64>>> {
+        let ks = self.frames.indices(frames, self.robot.tool())?;
+        let nq = self.robot.tree().nq();
+        self.with_configurations(q, |qs, n| {
+            self.check_rows(qs, n)?;
+            let out = numpy::PyArray4::<f64>::zeros(py, [n, ks.len(), 4, 4], false);
+            {
+                let mut write = out.readwrite();
+                let slice = write.as_slice_mut().expect("a new array is contiguous");
+                py.detach(|| {
+                    self.with_scratch(|s| {
+                        let per_row = ks.len() * 16;
+                        for (q, block) in qs.chunks_exact(nq).zip(slice.chunks_exact_mut(per_row.max(1))) {
+                            self.frame_poses_into(q, &ks, s, block);
+                        }
+                    })
+                });
+            }
+            Ok(out)
+        })
+    }
+
+    /// The 6 × nq Jacobian of `frame` (a point or a link; default the tool) at `q`: rows 0–2
+    /// linear, rows 3–5 angular velocity per unit joint speed, of the chain at this robot's
+    /// geometry (the error models' deformation is not differentiated). `reference`, as
+    /// pinocchio's `ReferenceFrame` (its values are accepted too): `"local_world_aligned"`
+    /// (default; the frame origin's velocity and the angular velocity in base axes),
+    /// `"world"` (the spatial velocity at the base origin) or `"local"` (both in the frame's
+    /// own axes).
+    #[pyo3(signature = (q, frame = None, reference = None))]
     fn jacobian<'py>(
         &self,
         py: Python<'py>,
         q: &Bound<'py, PyAny>,
-        point: Option<&str>,
+        frame: Option<&str>,
+        reference: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let q = self.configuration(q)?;
-        let p = self.point_index(point)?;
-        // The robot's point kinematics hold the tree's points in the tree's order.
-        let kinematics = self.robot.kinematics();
-        let jacobian = self.with_scratch(|Scratch { point, jacobian, .. }| {
-            kinematics.forward_into(&q, point);
-            kinematics.pose_jacobian_into(point, p, jacobian);
-            Array2::from_shape_fn((6, kinematics.nq()), |(r, c)| jacobian[(r, c)])
+        let k = self.frames.index(frame, self.robot.tool())?;
+        let reference = reference.map_or(Ok(Reference::LocalWorldAligned), Reference::parse)?;
+        let nq = self.robot.tree().nq();
+        let jacobian = self.with_scratch(|s| {
+            jacobian_into(&self.frames, &q, k, reference, &mut s.rigid, &mut s.jacobian);
+            Array2::from_shape_fn((6, nq), |(r, c)| s.jacobian[(r, c)])
         });
         Ok(jacobian.into_pyarray(py))
+    }
+
+    /// The Jacobians of `frames` (names; default the tool alone) at each configuration of `Q`
+    /// (n × nq, or a DataFrame by joint name) in `reference` (as `jacobian`): an
+    /// `n × frames × 6 × nq` array, computed without the GIL.
+    #[pyo3(signature = (q, frames = None, reference = None))]
+    fn jacobians_many<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        frames: Option<Vec<String>>,
+        reference: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, numpy::PyArray4<f64>>> {
+        let ks = match frames {
+            None => vec![self.robot.tool()],
+            names => self.frames.indices(names, self.robot.tool())?,
+        };
+        let reference = reference.map_or(Ok(Reference::LocalWorldAligned), Reference::parse)?;
+        let nq = self.robot.tree().nq();
+        self.with_configurations(q, |qs, n| {
+            self.check_rows(qs, n)?;
+            let out = numpy::PyArray4::<f64>::zeros(py, [n, ks.len(), 6, nq], false);
+            {
+                let mut write = out.readwrite();
+                let slice = write.as_slice_mut().expect("a new array is contiguous");
+                py.detach(|| {
+                    self.with_scratch(|s| {
+                        let per_frame = (6 * nq).max(1);
+                        let mut blocks = slice.chunks_exact_mut(per_frame);
+                        for q in qs.chunks_exact(nq.max(1)).take(n) {
+                            for &k in &ks {
+                                jacobian_into(&self.frames, q, k, reference, &mut s.rigid, &mut s.jacobian);
+                                let block = blocks.next().expect("sized for every frame of every row");
+                                for (i, v) in block.iter_mut().enumerate() {
+                                    *v = s.jacobian[(i / nq, i % nq)];
+                                }
+                            }
+                        }
+                    })
+                });
+            }
+            Ok(out)
+        })
+    }
+
+    /// The modelled position (m) of `point` (default the first marker) at `q` in the
+    /// measurement frame of `station` (its name; default the robot's one frame or first
+    /// station): the full model and, when the model carries one, its fitted residual
+    /// predictor: what a tracker would read, as `evaluate` compares it with the measured one.
+    /// `temperature` (°C) and `payload` (kg) are the conditions error models may read.
+    #[pyo3(signature = (q, point = None, station = None, temperature = None, payload = None))]
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        point: Option<&str>,
+        station: Option<&str>,
+        temperature: Option<f64>,
+        payload: Option<f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let q = self.configuration(q)?;
+        let at = self.prediction_sample(point, station, temperature, payload)?;
+        let predicted = self.predicted(vec![Sample { q, ..at }]);
+        Ok(numpy::ndarray::arr1(predicted[0].as_slice()).into_pyarray(py))
+    }
+
+    /// `predict` at each configuration of `Q` (n × nq, or a DataFrame by joint name): n × 3 (m,
+    /// measurement frame), computed without the GIL.
+    #[pyo3(signature = (q, point = None, station = None, temperature = None, payload = None))]
+    fn predict_many<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        point: Option<&str>,
+        station: Option<&str>,
+        temperature: Option<f64>,
+        payload: Option<f64>,
+    ) -> PyResult<Matrix<'py>> {
+        let at = self.prediction_sample(point, station, temperature, payload)?;
+        let nq = self.robot.tree().nq();
+        let samples = self.with_configurations(q, |qs, n| {
+            self.check_rows(qs, n)?;
+            Ok(qs
+                .chunks_exact(nq.max(1))
+                .take(n)
+                .map(|q| Sample {
+                    q: q.to_vec(),
+                    ..at.clone()
+                })
+                .collect::<Vec<_>>())
+        })?;
+        let predicted = py.detach(|| self.predicted(samples));
+        Ok(crate::arrays::points(py, &predicted))
+    }
+
+    /// The pose of the robot's base in its measurement frame, `t_measurement_base` (4 × 4, m):
+    /// a point `p` of the base frame is at `t @ [p, 1]` in the tracker's frame. For data from
+    /// several stations, `stations` gives each one's.
+    #[getter]
+    fn measurement_frame<'py>(&self, py: Python<'py>) -> Matrix<'py> {
+        homogeneous(py, &self.robot.t_meas_base())
+    }
+
+    /// Each station's `t_measurement_base` (4 × 4, m) by name; empty for a robot measured
+    /// from one place (see `measurement_frame`).
+    #[getter]
+    fn stations<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for s in self.robot.stations() {
+            out.set_item(&s.name, homogeneous(py, &s.frame))?;
+        }
+        Ok(out)
+    }
+
+    /// Each measured point's placement on its link: `{marker: (link, position)}` with the
+    /// position (3, m) in that link's frame, the frame `pose(q, link)` gives. The exported
+    /// URDF holds neither these nor the measurement frame; it names them in a comment.
+    #[getter]
+    fn marker_offsets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let tree = self.robot.tree();
+        let out = PyDict::new(py);
+        for &m in self.robot.markers() {
+            let p = &tree.points()[m];
+            let position = numpy::ndarray::arr1(p.local.translation.vector.as_slice()).into_pyarray(py);
+            out.set_item(&p.name, (tree.bodies()[p.body].name.clone(), position))?;
+        }
+        Ok(out)
     }
 
     /// The robot file with this robot's values as text (TOML, or JSON with `format="json"`).

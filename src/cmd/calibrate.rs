@@ -158,19 +158,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         calibrate_on(&data.samples, &data.rows, &Cancel::default())?
     };
-    let outlier_rows: Vec<usize> = run
-        .calibration
-        .report
-        .outliers
-        .iter()
-        .map(|o| data.rows[o.sample])
-        .collect();
+    let outlier_rows = run.outlier_rows(&data.rows);
     if args.exclude_outliers && !outlier_rows.is_empty() {
-        let keep: Vec<usize> = (0..data.samples.len())
-            .filter(|&i| !outlier_rows.contains(&data.rows[i]))
-            .collect();
-        data.samples = keep.iter().map(|&i| data.samples[i].clone()).collect();
-        data.rows = keep.iter().map(|&i| data.rows[i]).collect();
+        (data.samples, data.rows) = armcomp_api::ops::calibrate::without_rows(&data.samples, &data.rows, &outlier_rows);
         run = calibrate_on(&data.samples, &data.rows, &Cancel::default())?;
     }
     bar.finish_and_clear();

@@ -4,8 +4,6 @@ use std::process::ExitCode;
 use armcomp_core::algorithms::evaluate::ErrorStats;
 use armcomp_core::support::io::write_atomic;
 
-use armcomp_core::calibrate::register_stations_on_poses;
-
 use super::{check_output, read_stations};
 
 #[derive(clap::Args)]
@@ -62,19 +60,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         new
     };
-    let failed = register_stations_on_poses(&mut robot, &data.samples, &register)?;
-    if let Some(&k) = failed.first() {
-        anyhow::bail!(
-            "station {} cannot be registered: its measured points do not span a plane (measure at least three poses \
-             that are not in line)",
-            robot.stations().get(k).map_or("of the data", |s| s.name.as_str())
-        );
-    }
-    let mut report = armcomp_api::ops::evaluate::run(&robot, &data.samples)?;
-    report.registered = register
-        .iter()
-        .map(|&k| robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()))
-        .collect();
+    let report = armcomp_api::ops::evaluate::run_registered(&mut robot, &data.samples, &register)?;
     if let Some(out) = &args.residuals {
         write_atomic(out, report.residuals_csv(&robot, &data.samples).as_bytes())?;
     }

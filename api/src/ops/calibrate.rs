@@ -71,6 +71,15 @@ pub struct CalibrationRun {
     pub evidence: Option<EvidenceReport>,
 }
 
+/// `samples` and their data `rows` without the data rows `drop` (the gross errors a first fit
+/// found, for a second without them).
+pub fn without_rows(samples: &[Sample], rows: &[usize], drop: &[usize]) -> (Vec<Sample>, Vec<usize>) {
+    (samples.iter().zip(rows))
+        .filter(|(_, r)| !drop.contains(r))
+        .map(|(s, &r)| (s.clone(), r))
+        .unzip()
+}
+
 impl CalibrationRun {
     /// The report as `armcomp calibrate --json` prints it: the calibration report with
     /// `prior_choice`, `evidence` and `outlier_rows` (the data rows, as `--rows` counts them, of

@@ -33,6 +33,34 @@ pub struct EvaluationReport {
     pub registered: Vec<String>,
 }
 
+/// Registers the measurement frames of `stations` (indices into the robot's stations; 0 for
+/// a robot measured from one place) on `samples` in closed form, then evaluates `robot` on
+/// them: what `armcomp evaluate --register` scores, and what it does for stations the model
+/// does not know. The report names the stations registered (an empty name: the one frame).
+pub fn run_registered(
+    robot: &mut Robot,
+    samples: &[Sample],
+    stations: &[usize],
+) -> armcomp_core::Result<EvaluationReport> {
+    let failed = armcomp_core::calibrate::register_stations_on_poses(robot, samples, stations)?;
+    if let Some(&k) = failed.first() {
+        return Err(armcomp_core::Error::InvalidArgument {
+            what: format!(
+                "station {}",
+                robot.stations().get(k).map_or("of the data", |s| s.name.as_str())
+            ),
+            reason: "cannot be registered: its measured points do not span a plane (measure at least three poses \
+                     that are not in line)"
+                .into(),
+        });
+    }
+    let mut report = run(robot, samples)?;
+    report.registered = (stations.iter())
+        .map(|&k| robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()))
+        .collect();
+    Ok(report)
+}
+
 /// Evaluates `robot` (with its fitted predictor) on `samples`.
 pub fn run(robot: &Robot, samples: &[Sample]) -> armcomp_core::Result<EvaluationReport> {
     let mut errors = position_errors(robot, samples);

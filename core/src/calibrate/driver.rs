@@ -20,8 +20,9 @@ use super::space::apply;
 use super::space::prior_space;
 use super::{
     Assessment, Calibration, CalibrationParams, CalibrationReport, FAR_ABOVE_NOISE, IdentifiabilityReport,
-    IterationInfo, JacobianForm, Linearisation, Noise, PRIOR_BOX, ParamGroup, ParamResult, ParameterSpace,
-    PredictorCarried, Problem, RESTART_ABOVE_NOISE, RestartMoves, Stage, StageOutcome, mixes_fixed_points,
+    IterationInfo, JacobianForm, Linearisation, Noise, PRIOR_BOX, ParamGroup, ParamResult, ParameterCovariance,
+    ParameterSpace, PredictorCarried, Problem, RESTART_ABOVE_NOISE, RestartMoves, Stage, StageOutcome,
+    mixes_fixed_points,
 };
 use crate::algorithms::evaluate::{AngleStats, ErrorStats, per_station};
 use crate::data::measurement::{Sample, SampleKind};
@@ -446,7 +447,12 @@ impl Problem<'_> {
             Some((columns, j)) if columns == free => j,
             _ => self.jacobian(&theta, &d, &e, &free, JacobianForm::Exact)?,
         };
-        let (condition_number_free, std) = covariance(space, &free, &r, &j);
+        let (condition_number_free, covariance) = covariance(space, &free, &r, &j);
+        let std: Vec<f64> = covariance.diagonal().iter().map(|v| v.max(0.0).sqrt()).collect();
+        let covariance = ParameterCovariance {
+            names: free.iter().map(|&k| space.params[k].info.name.clone()).collect(),
+            matrix: covariance,
+        };
         identifiability.condition_number_free = condition_number_free;
         let params_out = self.parameter_results(space, selected, &free, &theta, &start.theta0, &std);
         // Measured minus modelled, once for the statistics, the gross errors and the trend.
@@ -523,6 +529,7 @@ impl Problem<'_> {
                 loss: params.loss,
                 downweighted,
                 fitted_predictor,
+                covariance,
             },
         })
     }
@@ -578,18 +585,17 @@ impl Problem<'_> {
 }
 
 /// The condition number of the free parameters' normal equations (priors of `space`
-/// included) and each one's standard deviation: the linearised covariance at the solution,
-/// scaled by the fit's own residual variance.
-fn covariance(space: &ParameterSpace, free: &[usize], r: &DVector<f64>, j: &DMatrix<f64>) -> (f64, Vec<f64>) {
+/// included) and their linearised covariance at the solution, scaled by the fit's own
+/// residual variance (SI units).
+fn covariance(space: &ParameterSpace, free: &[usize], r: &DVector<f64>, j: &DMatrix<f64>) -> (f64, DMatrix<f64>) {
     let mut a = j.transpose() * j;
     for (c, &k) in free.iter().enumerate() {
         a[(c, c)] += space.params[k].info.sigma.powi(-2);
     }
     let dof = (r.len() as f64 - free.len() as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
-    let (condition_number_free, inv_diag) = normal_equations(&a);
-    let std = inv_diag.iter().map(|v| (s2 * v).max(0.0).sqrt()).collect();
-    (condition_number_free, std)
+    let (condition_number_free, inverse) = normal_equations(&a);
+    (condition_number_free, inverse * s2)
 }
 
 /// What the fit's residuals say against the declared noise.

@@ -388,16 +388,18 @@ pub(super) fn assess(space: &ParameterSpace, jac: &DMatrix<f64>, selected: &[usi
 }
 
 /// The condition number of the normal matrix `a` (priors included) after scaling it to a unit
-/// diagonal, and the diagonal of its inverse (infinite when singular).
-pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
+/// diagonal, and its inverse: infinite on the diagonal and NaN off it for a parameter with a
+/// share in a direction the data leave undetermined, whose variance is infinite; all infinite
+/// when `a` holds a non-finite entry.
+pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, DMatrix<f64>) {
     let n = a.nrows();
     // No parameter left free: nothing is ill-conditioned. A non-finite entry (a noise of
     // zero or NaN upstream) would stall the eigen-solver, which iterates until convergence.
     if n == 0 {
-        return (1.0, Vec::new());
+        return (1.0, DMatrix::zeros(0, 0));
     }
     if a.iter().any(|v| !v.is_finite()) {
-        return (f64::INFINITY, vec![f64::INFINITY; n]);
+        return (f64::INFINITY, DMatrix::from_element(n, n, f64::INFINITY));
     }
     let scale = DVector::from_iterator(n, (0..n).map(|c| a[(c, c)].sqrt().max(1e-300)));
     let scaled = DMatrix::from_fn(n, n, |i, k| a[(i, k)] / (scale[i] * scale[k]));
@@ -411,34 +413,36 @@ pub(super) fn normal_equations(a: &DMatrix<f64>) -> (f64, Vec<f64>) {
     } else {
         f64::INFINITY
     };
+    // Symmetric to the bit, as a covariance is (an LU inverse is not quite); the diagonal is
+    // the inverse's own.
+    let unscaled =
+        |inv: DMatrix<f64>| DMatrix::from_fn(n, n, |i, k| (inv[(i, k)] + inv[(k, i)]) / 2.0 / (scale[i] * scale[k]));
     // A direction the data and priors leave (numerically) undetermined gives an inverse of
-    // round-off, whose diagonal can be anything, negative too: the variance of every parameter
-    // with a share in such a direction is infinite, the others' the inverse's on the rest.
+    // round-off, whose entries can be anything, negative variances too: the variance of every
+    // parameter with a share in such a direction is infinite, the others' the inverse's on the
+    // rest of the directions.
     let tiny = 1e-12 * emax.max(f64::MIN_POSITIVE);
-    let inv_diag = if emin > tiny {
-        match scaled.try_inverse() {
-            Some(inv) => (0..n).map(|c| inv[(c, c)] / (scale[c] * scale[c])).collect(),
-            None => vec![f64::INFINITY; n],
-        }
-    } else {
-        (0..n)
-            .map(|c| {
-                let mut v = 0.0;
-                for (k, &l) in eig.eigenvalues.iter().enumerate() {
-                    let share = eig.eigenvectors[(c, k)].powi(2);
-                    if l <= tiny {
-                        if share > 1e-12 {
-                            return f64::INFINITY;
-                        }
-                    } else {
-                        v += share / l;
-                    }
-                }
-                v / (scale[c] * scale[c])
-            })
-            .collect()
-    };
-    (condition, inv_diag)
+    if emin > tiny {
+        return match scaled.try_inverse() {
+            Some(inv) => (condition, unscaled(inv)),
+            None => (condition, DMatrix::from_element(n, n, f64::INFINITY)),
+        };
+    }
+    let determined: Vec<usize> = (0..n).filter(|&k| eig.eigenvalues[k] > tiny).collect();
+    let undetermined: Vec<bool> = (0..n)
+        .map(|c| (0..n).any(|k| eig.eigenvalues[k] <= tiny && eig.eigenvectors[(c, k)].powi(2) > 1e-12))
+        .collect();
+    let mut inv = unscaled(DMatrix::from_fn(n, n, |i, j| {
+        (determined.iter())
+            .map(|&k| eig.eigenvectors[(i, k)] * eig.eigenvectors[(j, k)] / eig.eigenvalues[k])
+            .sum()
+    }));
+    for (c, _) in undetermined.iter().enumerate().filter(|(_, u)| **u) {
+        inv.row_mut(c).fill(f64::NAN);
+        inv.column_mut(c).fill(f64::NAN);
+        inv[(c, c)] = f64::INFINITY;
+    }
+    (condition, inv)
 }
 
 /// How well measurements at the configurations of `samples` (their measured positions are not
@@ -487,17 +491,18 @@ mod tests {
     fn normal_equations_match_a_hand_calculation() {
         // Scaled to a unit diagonal, [[2, 1], [1, 2]] is [[1, ½], [½, 1]]: eigenvalues 3/2 and
         // 1/2, so the condition number is √3; the inverse is [[2, -1], [-1, 2]] / 3.
-        let (condition, inv_diag) = normal_equations(&DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 2.0]));
+        let (condition, inv) = normal_equations(&DMatrix::from_row_slice(2, 2, &[2.0, 1.0, 1.0, 2.0]));
         assert!((condition - 3f64.sqrt()).abs() < 1e-12, "{condition}");
-        assert!(inv_diag.iter().all(|v| (v - 2.0 / 3.0).abs() < 1e-12), "{inv_diag:?}");
+        let expected = [2.0 / 3.0, -1.0 / 3.0, -1.0 / 3.0, 2.0 / 3.0];
+        assert!(inv.iter().zip(expected).all(|(v, e)| (v - e).abs() < 1e-12), "{inv}");
     }
 
     #[test]
     fn normal_equations_of_no_parameter_or_of_non_finite_values_do_not_panic() {
-        assert_eq!(normal_equations(&DMatrix::zeros(0, 0)), (1.0, Vec::new()));
-        let (condition, inv_diag) = normal_equations(&DMatrix::from_row_slice(2, 2, &[f64::NAN, 0.0, 0.0, 1.0]));
+        assert_eq!(normal_equations(&DMatrix::zeros(0, 0)), (1.0, DMatrix::zeros(0, 0)));
+        let (condition, inv) = normal_equations(&DMatrix::from_row_slice(2, 2, &[f64::NAN, 0.0, 0.0, 1.0]));
         assert_eq!(condition, f64::INFINITY);
-        assert_eq!(inv_diag, vec![f64::INFINITY; 2]);
+        assert_eq!(inv.diagonal().as_slice(), &[f64::INFINITY; 2]);
     }
 
     #[test]
@@ -505,9 +510,11 @@ mod tests {
         // Parameters 0 and 1 seen only as their sum (rows [1, 1] twice), parameter 2 alone with
         // weight 4: 0 and 1 are undetermined, 2 has variance 1/4 exactly.
         let a = DMatrix::from_row_slice(3, 3, &[2.0, 2.0, 0.0, 2.0, 2.0, 0.0, 0.0, 0.0, 4.0]);
-        let (condition, inv_diag) = normal_equations(&a);
+        let (condition, inv) = normal_equations(&a);
         assert!(condition > 1e6, "{condition}");
-        assert_eq!(&inv_diag[..2], &[f64::INFINITY; 2]);
-        assert!((inv_diag[2] - 0.25).abs() < 1e-12, "{inv_diag:?}");
+        assert_eq!(&inv.diagonal().as_slice()[..2], &[f64::INFINITY; 2]);
+        assert!((inv[(2, 2)] - 0.25).abs() < 1e-12, "{inv}");
+        // Nothing says how an undetermined parameter varies with a determined one.
+        assert!(inv[(0, 2)].is_nan() && inv[(2, 1)].is_nan(), "{inv}");
     }
 }

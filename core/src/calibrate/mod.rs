@@ -521,6 +521,22 @@ pub struct CalibrationReport {
     pub downweighted: usize,
     /// What became of the fitted predictor the robot carried, when it carried one.
     pub fitted_predictor: Option<PredictorCarried>,
+    /// The free parameters' covariance, which `--json` leaves out: its size grows with the
+    /// square of the parameters.
+    #[serde(skip)]
+    pub covariance: ParameterCovariance,
+}
+
+/// The linearised covariance of the free parameters at the solution, scaled by the fit's own
+/// residual variance: the square of each parameter's [`ParamResult::std`] on its diagonal.
+/// Entries are in the parameters' SI units (m², m·rad, rad², ...); a parameter the data leave
+/// undetermined has an infinite variance and NaN covariances.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ParameterCovariance {
+    /// The free parameters, in the matrix's order.
+    pub names: Vec<String>,
+    /// `names.len()` × `names.len()`, symmetric.
+    pub matrix: DMatrix<f64>,
 }
 
 /// Whether a calibration kept the fitted residual predictor of the robot it started from, and

@@ -46,6 +46,10 @@ pub trait KinematicsSpec: Debug + Send + Sync {
     /// Checks the description and compiles it into a [`Chain`] (SI units). Every problem is
     /// reported with its field path relative to the file's root.
     fn build(&self, ctx: &BuildContext<'_>) -> Result<Box<dyn Chain>, Issues>;
+    /// Rewrites the absolute file paths it names (a URDF's) relative to `dir`, the folder of the
+    /// model file it is written to, so that the model moved with its files still loads. Paths
+    /// with no relative form (another drive) stay as they are; the default names no file.
+    fn paths_relative_to(&mut self, _dir: &std::path::Path) {}
 }
 
 /// A compiled convention: its identifiable parameters and the tree they produce.

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::robot::Robot;
 use crate::robot::robot_file::RobotFile;
 
@@ -15,16 +15,25 @@ impl Robot {
     /// The model's text for `path` (JSON for `.json`, else TOML). With a fitted predictor it is
     /// the description the robot was built from, whose values the predictor was fitted to (as
     /// `armcomp learn` writes a model); else the current values written back into it (as
-    /// `armcomp calibrate` does).
+    /// `armcomp calibrate` does). The files it names (a URDF) are named relative to `path`'s
+    /// folder, so that the model moved with them still loads.
     pub fn to_text_for(&self, path: &Path) -> Result<String> {
-        if self.predictor().is_some() {
-            self.file.to_text_for(path)
+        let mut file = if self.predictor().is_some() {
+            // Specs are trait objects without `Clone`; a round trip through JSON values copies
+            // every number exactly.
+            serde_json::to_value(&self.file)
+                .and_then(serde_json::from_value)
+                .map_err(|e| Error::not_written(path, format!("cannot copy the robot description: {e}")))?
         } else {
             // The values are the file's unless changed since the build; its fit record stays.
             let mut file = self.to_file();
             file.fitted = self.file.fitted.clone();
-            file.to_text_for(path)
+            file
+        };
+        if let Some(dir) = folder_of(path) {
+            file.kinematics.paths_relative_to(&dir);
         }
+        file.to_text_for(path)
     }
 
     /// The description with other chain and error-model values written back (file units).
@@ -64,4 +73,16 @@ impl Robot {
         }
         out
     }
+}
+
+/// The folder a file at `path` is in, absolute and with symbolic links resolved when it exists
+/// (as a URDF's resolved path is), so that the relative path between them is right.
+fn folder_of(path: &Path) -> Option<std::path::PathBuf> {
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::canonicalize(parent)
+        .or_else(|_| std::path::absolute(parent))
+        .ok()
 }

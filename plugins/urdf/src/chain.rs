@@ -96,7 +96,7 @@ struct CompiledJoint {
 pub struct UrdfChain {
     spec: UrdfSpec,
     units: Units,
-    /// The URDF file as resolved, written into model files so they load from anywhere.
+    /// The URDF file as resolved; model files name it relative to themselves.
     resolved: PathBuf,
     base: String,
     /// In placement order (parents first).
@@ -123,6 +123,15 @@ impl KinematicsSpec for UrdfSpec {
         let doc = UrdfDocument::read(&file, ctx.limits).map_err(to_issues)?;
         let order = doc.placement_order().map_err(to_issues)?;
         UrdfChain::compile(self, &doc, &order, ctx).map(|c| Box::new(c) as Box<dyn Chain>)
+    }
+
+    fn paths_relative_to(&mut self, dir: &std::path::Path) {
+        let path = std::path::Path::new(&self.path);
+        if path.is_absolute()
+            && let Some(relative) = pathdiff::diff_paths(path, dir)
+        {
+            self.path = relative.display().to_string();
+        }
     }
 }
 

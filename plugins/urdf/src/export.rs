@@ -124,7 +124,7 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
         what: path.display().to_string(),
         reason: "no closing `</robot>` to add the markers before".into(),
     })?;
-    text.insert_str(end, &added);
+    text.insert_str(end, &(added + &measurement_frames_comment(robot)));
     let offsets = joint_offsets(&doc, robot.tree());
     Ok(CalibratedUrdf {
         text,
@@ -134,6 +134,27 @@ pub fn calibrated_urdf(robot: &Robot) -> Result<CalibratedUrdf> {
         zeroed,
         offsets,
     })
+}
+
+/// The measurement frames as a comment: they are the tracker's, not the robot's, so no link
+/// holds them, but a user of the URDF needs them to compare it with the measurements.
+fn measurement_frames_comment(robot: &Robot) -> String {
+    let xyz_rpy = |t: &nalgebra::Isometry3<f64>| {
+        let (r, p, y) = t.rotation.euler_angles();
+        let v = t.translation.vector;
+        format!("xyz=\"{} {} {}\" rpy=\"{r} {p} {y}\"", v.x, v.y, v.z)
+    };
+    let frames: Vec<String> = match robot.stations() {
+        [] => vec![format!("  measurement frame: {}", xyz_rpy(&robot.t_meas_base()))],
+        stations => (stations.iter())
+            .map(|s| format!("  station {}: {}", s.name.replace("--", "- -"), xyz_rpy(&s.frame)))
+            .collect(),
+    };
+    format!(
+        "  <!-- The robot base's pose in the measurement frame (the tracker's; m, rad, the URDF's \
+         origin convention), which no link holds:\n{}\n  -->\n",
+        frames.join("\n")
+    )
 }
 
 /// The value offsets of `tree`'s joints relative to `doc`, the URDF it was built from: the

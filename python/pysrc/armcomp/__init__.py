@@ -25,6 +25,8 @@ from ._armcomp import Measurements, Robot
 from ._armcomp import __version__
 from ._convert import from_json
 from ._errors import ArmcompError, CalibrationWarning, InputError, NotConverged
+from ._joint_map import JointMap
+from ._page import ReportPage
 from ._reports import (
     AxisErrors,
     CalibrationReport,
@@ -70,6 +72,7 @@ __all__ = [
     "Identifiability",
     "IdentifiedValue",
     "InputError",
+    "JointMap",
     "LearnReport",
     "LearnableResidual",
     "Measurements",
@@ -79,6 +82,7 @@ __all__ = [
     "PriorChoice",
     "PriorScaleScore",
     "RankedCandidate",
+    "ReportPage",
     "CandidateScore",
     "Candidate",
     "Robot",
@@ -117,6 +121,9 @@ def calibrate(
     seed: int = 0,
     progress: Optional[Callable[[str, int, int], None]] = None,
     loss: str = "squared",
+    noise_deg: Optional[float] = None,
+    exclude_outliers: bool = False,
+    report: Union[None, str, "os.PathLike[str]"] = None,
 ) -> Tuple[Robot, CalibrationReport]:
     """Identifies a model of ``robot`` from ``data`` (Levenberg–Marquardt with priors), as
     ``armcomp calibrate`` does.
@@ -131,13 +138,18 @@ def calibrate(
     done, total)`` is called after every fit of ``prior="auto"``'s cross-validation.
     ``loss``: ``"squared"`` (least squares) or ``"huber"`` (squared up to 3 robust noises per
     axis, linear beyond, so that a few gross errors pull the fit little; ``report.downweighted``
-    counts the rows weighed less).
+    counts the rows weighed less). ``noise_deg``: the orientation noise of poses and plane
+    contacts' tilts (degrees), declared with ``noise_mm``. ``exclude_outliers``: fit again
+    without the rows of gross errors (``report.outlier_rows``), as ``--exclude-outliers``.
+    ``data`` may be a list of ``Measurements``, one station each (named by its file's name), as
+    several ``--data`` files are. ``report``: a folder for the report page (``--report``);
+    ``report.page`` then holds its data (``ReportPage``).
 
     Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's
     warnings, and a fit far above the declared noise, are issued as ``CalibrationWarning``.
     Raises ``NotConverged`` (with ``.model`` and ``.report``) when the fit did not converge.
     """
-    model, text, far = _native.calibrate(
+    model, text, far, covariance, page = _native.calibrate(
         robot,
         data,
         identify=_names(identify),
@@ -148,9 +160,13 @@ def calibrate(
         seed=seed,
         progress=progress,
         loss=loss,
+        noise_deg=noise_deg,
+        exclude_outliers=exclude_outliers,
+        report=report,
     )
     report = from_json(CalibrationReport, text)
     object.__setattr__(report, "far_above_noise", far)
+    _attach(report, covariance, page)
     for w in report.warnings:
         warnings.warn(w, CalibrationWarning, stacklevel=2)
     if far:
@@ -169,13 +185,34 @@ def calibrate(
     return model, report
 
 
-def evaluate(model: Robot, data: Measurements) -> EvaluationReport:
+def _attach(report: CalibrationReport, covariance, page: Optional[str]) -> None:
+    """The covariance and the page the native call returned beside the JSON."""
+    names, matrix = covariance
+    object.__setattr__(report, "covariance_names", list(names))
+    object.__setattr__(report, "covariance", matrix)
+    object.__setattr__(report, "page", _page_of(page))
+
+
+def _page_of(text: Optional[str]) -> Optional[ReportPage]:
+    return None if text is None else ReportPage.from_dict(json.loads(text))
+
+
+def evaluate(
+    model: Robot,
+    data: Union[Measurements, Sequence[Measurements]],
+    register: bool = False,
+    report: Union[None, str, "os.PathLike[str]"] = None,
+) -> EvaluationReport:
     """Position errors of ``model`` (with its fitted predictor) on ``data``, as
-    ``armcomp evaluate`` reports them."""
-    text, errors = _native.evaluate(model, data)
-    report = from_json(EvaluationReport, text)
-    object.__setattr__(report, "errors", errors)
-    return report
+    ``armcomp evaluate`` reports them. ``register``: register every station's measurement
+    frame on these data first (``--register``); a station the model does not know always is.
+    ``data`` may be a list of ``Measurements``, one station each. ``report``: a folder for the
+    report page; ``report.page`` then holds its data."""
+    text, errors, page = _native.evaluate(model, data, register=register, report=report)
+    result = from_json(EvaluationReport, text)
+    object.__setattr__(result, "errors", errors)
+    object.__setattr__(result, "page", _page_of(page))
+    return result
 
 
 def simulate(
@@ -204,6 +241,9 @@ def diagnose(
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
     keep_outliers: bool = False,
+    groups: Optional[Sequence[str]] = None,
+    exhaustive: bool = False,
+    report: Union[None, str, "os.PathLike[str]"] = None,
 ) -> Tuple[Robot, DiagnosisReport]:
     """Finds the effects ``robot`` misses, one by one, scored on held-out poses, as
     ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
@@ -214,7 +254,10 @@ def diagnose(
     (stage: "model as given", "effect N", "learnable residual"). When the final model leaves
     samples far beyond the noise (a broken line of sight), the search is made again without
     them unless ``keep_outliers``; ``report.gross_errors`` lists them either way, ``report.drift`` a
-    residual drifting with the row order."""
+    residual drifting with the row order. ``groups``: a label per data row (a session column),
+    so that folds hold out whole groups (``--group-by``); ``exhaustive``: refit every
+    candidate on the folds (``--exhaustive``); ``report``: a folder for the diagnosis page
+    (``--report``)."""
     model, text = _native.diagnose(
         robot,
         data,
@@ -227,6 +270,9 @@ def diagnose(
         predictor=predictor,
         progress=progress,
         keep_outliers=keep_outliers,
+        groups=None if groups is None else [str(g) for g in groups],
+        exhaustive=exhaustive,
+        report=report,
     )
     return model, from_json(DiagnosisReport, text)
 
@@ -242,6 +288,7 @@ def fit(
     progress: Optional[Callable[[str, int, int], None]] = None,
     noise_deg: Optional[float] = None,
     repeats: Optional[int] = None,
+    report: Union[None, str, "os.PathLike[str]"] = None,
 ) -> Tuple[Robot, FitReport]:
     """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
     offsets, geometry and the robot file's error models, each under several prior schemes
@@ -251,8 +298,10 @@ def fit(
     returns the chosen model fitted on all of ``data`` and the ladder.
     ``progress("model choice", done, total)`` is called after every fit. ``noise_mm`` and
     ``noise_deg`` (orientation noise of poses and plane contacts' tilts, degrees) declare the
-    noises instead of estimating them, as ``armcomp fit --noise-mm --noise-deg`` do."""
-    model, text = _native.fit(
+    noises instead of estimating them, as ``armcomp fit --noise-mm --noise-deg`` do.
+    ``report``: a folder for the report page (``--report``); ``report.page`` then holds its
+    data, and ``report.calibration.covariance`` the chosen fit's parameter covariance."""
+    model, text, covariance, page = _native.fit(
         robot,
         data,
         noise_mm=noise_mm,
@@ -263,8 +312,12 @@ def fit(
         groups=None if groups is None else [str(g) for g in groups],
         predictor=predictor,
         progress=progress,
+        report=report,
     )
-    return model, from_json(FitReport, text)
+    result = from_json(FitReport, text)
+    _attach(result.calibration, covariance, None)
+    object.__setattr__(result, "page", _page_of(page))
+    return model, result
 
 
 def learn(
@@ -272,6 +325,7 @@ def learn(
     data: Measurements,
     predictor: Optional[str] = None,
     progress: Optional[Callable[[str, int, int], None]] = None,
+    groups: Optional[Sequence[str]] = None,
 ) -> Tuple[Robot, LearnReport]:
     """Fits ``predictor`` (gp, mlp, ssa_bp, ridge or knn with default settings), or else the
     residual predictor ``model``'s ``[predictor]`` table describes, on ``data``, as
@@ -279,8 +333,15 @@ def learn(
     cross-validated ones. A predictor that memorises its rows, or does not help on rows it was
     not fitted on, is warned about (``CalibrationWarning``). ``progress(stage, done, total)``
     is called after every step of the training (stage ``gp``, ``adam``, ``lm`` or
-    ``sparrows``) and every fold of the cross-validation (``folds``)."""
-    fitted, text = _native.learn(model, data, predictor=predictor, progress=progress)
+    ``sparrows``) and every fold of the cross-validation (``folds``). ``groups``: a label per
+    data row, so that the cross-validation holds out whole groups (``--group-by``)."""
+    fitted, text = _native.learn(
+        model,
+        data,
+        predictor=predictor,
+        progress=progress,
+        groups=None if groups is None else [str(g) for g in groups],
+    )
     report = from_json(LearnReport, text)
     for w in report.warnings:
         warnings.warn(w, CalibrationWarning, stacklevel=2)

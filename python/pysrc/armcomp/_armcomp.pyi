@@ -1,7 +1,7 @@
 """Type stubs of the native module (``armcomp._armcomp``); use it through ``armcomp``."""
 
 from os import PathLike
-from typing import Callable, List, Literal, Mapping, Optional, Sequence, Tuple, Union, overload
+from typing import Any, Callable, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -10,6 +10,8 @@ _Path = Union[str, PathLike]
 _Array = npt.ArrayLike
 # Joint values in the robot's order, or by joint name.
 _Joints = Union[npt.ArrayLike, Mapping[str, float]]
+# One set of measurements, or one per station.
+_Data = Union["Measurements", Sequence["Measurements"]]
 
 __version__: str
 
@@ -58,8 +60,48 @@ class Robot:
     def fk_many(self, q: _Array, tool: bool = False) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
         """``n × nq`` configurations → ``n × points × 3`` positions (m), in one call; with
         ``tool=True`` also the ``n × 4 × 4`` tool poses."""
-    def jacobian(self, q: _Joints, point: Optional[str] = None) -> np.ndarray:
-        """6 × nq: linear (rows 0–2) and angular (rows 3–5) velocity of the tool or ``point``."""
+    @property
+    def frames(self) -> List[str]:
+        """Every frame ``pose`` and ``jacobian`` take: the points, then the links."""
+    def pose(self, q: _Joints, frame: Optional[str] = None) -> np.ndarray:
+        """4 × 4 ``t_base_frame`` of a point or link (default the tool), full model."""
+    def poses_many(self, q: _Array, frames: Optional[Sequence[str]] = None) -> np.ndarray:
+        """``n × frames × 4 × 4`` poses (default every frame)."""
+    def jacobian(self, q: _Joints, frame: Optional[str] = None, reference: Optional[object] = None) -> np.ndarray:
+        """6 × nq: linear (rows 0–2) and angular (rows 3–5) velocity of the tool or ``frame``, in
+        ``reference``: ``local_world_aligned`` (default), ``world`` or ``local`` (or pinocchio's
+        ``ReferenceFrame``)."""
+    def jacobians_many(
+        self, q: _Array, frames: Optional[Sequence[str]] = None, reference: Optional[object] = None
+    ) -> np.ndarray:
+        """``n × frames × 6 × nq`` Jacobians (default the tool)."""
+    def predict(
+        self,
+        q: _Joints,
+        point: Optional[str] = None,
+        station: Optional[str] = None,
+        temperature: Optional[float] = None,
+        payload: Optional[float] = None,
+    ) -> np.ndarray:
+        """The modelled position (3, m) of ``point`` in the measurement frame, predictor included."""
+    def predict_many(
+        self,
+        q: _Array,
+        point: Optional[str] = None,
+        station: Optional[str] = None,
+        temperature: Optional[float] = None,
+        payload: Optional[float] = None,
+    ) -> np.ndarray:
+        """``predict`` for each row of ``Q``: n × 3 (m)."""
+    @property
+    def measurement_frame(self) -> np.ndarray:
+        """4 × 4 ``t_measurement_base``: the base's pose in the tracker's frame."""
+    @property
+    def stations(self) -> Dict[str, np.ndarray]:
+        """Each station's ``t_measurement_base`` by name (empty for one frame)."""
+    @property
+    def marker_offsets(self) -> Dict[str, Tuple[str, np.ndarray]]:
+        """``{marker: (link, position in the link frame, m)}``."""
     def to_text(self, format: str = "toml") -> str:
         """The robot file with this robot's values (``toml`` or ``json``)."""
     def save(self, path: _Path) -> None:
@@ -78,8 +120,23 @@ class Measurements:
         joint_names: Optional[Sequence[str]] = None,
     ) -> None: ...
     @classmethod
-    def read(cls, path: _Path, robot: Optional[Robot] = None, rows: Optional[str] = None) -> Measurements:
-        """Reads a measurement CSV (against ``robot`` now, or when first used)."""
+    def read(
+        cls, source: Union[_Path, Any], robot: Optional[Robot] = None, rows: Union[None, str, Sequence[int]] = None
+    ) -> Measurements:
+        """Reads a measurement CSV from a path, a file object or a DataFrame (against ``robot``
+        now, or when first used)."""
+    @classmethod
+    def parse(
+        cls, text: str, robot: Optional[Robot] = None, rows: Union[None, str, Sequence[int]] = None,
+        name: Optional[str] = None,
+    ) -> Measurements:
+        """Measurements from a CSV's text."""
+    def to_dataframe(self, robot: Robot) -> Any:
+        """The CSV ``save`` writes, as a ``pandas.DataFrame``."""
+    def __getitem__(self, index: Union[int, slice, Sequence[int]]) -> Measurements: ...
+    @property
+    def rows(self) -> List[int]:
+        """The data rows of the samples (0-based)."""
     def for_robot(self, robot: Robot) -> Measurements: ...
     @property
     def joints(self) -> np.ndarray: ...
@@ -95,7 +152,7 @@ class Measurements:
 
 def calibrate(
     robot: Robot,
-    data: Measurements,
+    data: _Data,
     identify: Optional[List[str]] = None,
     noise_mm: Optional[float] = None,
     prior: Union[None, float, str] = None,
@@ -104,11 +161,16 @@ def calibrate(
     seed: int = 0,
     progress: Optional[Callable[[str, int, int], None]] = None,
     loss: str = "squared",
-) -> Tuple[Robot, str, bool]: ...
-def evaluate(model: Robot, data: Measurements) -> Tuple[str, np.ndarray]: ...
+    noise_deg: Optional[float] = None,
+    exclude_outliers: bool = False,
+    report: Optional[_Path] = None,
+) -> Tuple[Robot, str, bool, Tuple[List[str], np.ndarray], Optional[str]]: ...
+def evaluate(
+    model: Robot, data: _Data, register: bool = False, report: Optional[_Path] = None
+) -> Tuple[str, np.ndarray, Optional[str]]: ...
 def fit(
     robot: Robot,
-    data: Measurements,
+    data: _Data,
     noise_mm: Optional[float] = None,
     folds: int = 5,
     seed: int = 0,
@@ -117,7 +179,8 @@ def fit(
     progress: Optional[Callable[[str, int, int], None]] = None,
     noise_deg: Optional[float] = None,
     repeats: Optional[int] = None,
-) -> Tuple[Robot, str]: ...
+    report: Optional[_Path] = None,
+) -> Tuple[Robot, str, Tuple[List[str], np.ndarray], Optional[str]]: ...
 def simulate(
     truth: Robot,
     poses: Optional[_Array] = None,
@@ -138,8 +201,17 @@ def diagnose(
     predictor: Optional[str] = "gp",
     progress: Optional[Callable[[str, int, int], None]] = None,
     keep_outliers: bool = False,
+    groups: Optional[List[str]] = None,
+    exhaustive: bool = False,
+    report: Optional[_Path] = None,
 ) -> Tuple[Robot, str]: ...
-def learn(model: Robot, data: Measurements, predictor: Optional[str] = None) -> Tuple[Robot, str]: ...
+def learn(
+    model: Robot,
+    data: Measurements,
+    predictor: Optional[str] = None,
+    progress: Optional[Callable[[str, int, int], None]] = None,
+    groups: Optional[List[str]] = None,
+) -> Tuple[Robot, str]: ...
 def compensate(
     model: Robot,
     targets: _Array,

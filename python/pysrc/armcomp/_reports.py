@@ -122,7 +122,10 @@ class Evidence:
 
 @dataclass(frozen=True, repr=False)
 class CalibrationReport(Report):
-    """What calibration did and how well it fits (``armcomp calibrate --json``)."""
+    """What calibration did and how well it fits (``armcomp calibrate --json``). Beside the
+    JSON: ``covariance`` of the free parameters ``covariance_names`` (SI units; their
+    ``std`` squared on its diagonal), ``correlation``, and ``page``, the report page's data
+    (``ReportPage``) when ``report=`` wrote one."""
 
     n_samples: int
     measured_chain: List[str]
@@ -148,12 +151,28 @@ class CalibrationReport(Report):
     loss: str = "squared"
     downweighted: int = 0
     far_above_noise: bool = False
+    # Set by `armcomp.calibrate` and `armcomp.fit`; empty for a report built from JSON alone.
+    covariance_names: List[str] = field(default_factory=list, repr=False, compare=False)
+    covariance: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False, compare=False)
+    page: Optional[Any] = field(default=None, repr=False, compare=False)
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def parameters(self) -> Dict[str, Parameter]:
         """The parameters by name."""
         return {p.name: p for p in self.params}
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """The correlation matrix of the free parameters (``covariance_names``' order): the
+        covariance over the product of the standard deviations; NaN where a parameter is not
+        determined (infinite variance)."""
+        std = np.sqrt(np.diag(self.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            corr = self.covariance / np.outer(std, std)
+        corr[~np.isfinite(corr)] = np.nan
+        np.fill_diagonal(corr, np.where(np.isfinite(std) & (std > 0), 1.0, np.nan))
+        return corr
 
 
 @dataclass(frozen=True)
@@ -218,6 +237,7 @@ class FitReport(Report):
     folds_by: str
     evidence: Evidence
     calibration: CalibrationReport
+    page: Optional[Any] = field(default=None, repr=False, compare=False)
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
@@ -235,6 +255,7 @@ class EvaluationReport(Report):
     per_point: Dict[str, ErrorStats] = field(default_factory=dict)
     # Always set by `armcomp.evaluate`; empty only for a report built from JSON alone.
     errors: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False, compare=False)
+    page: Optional[Any] = field(default=None, repr=False, compare=False)
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
