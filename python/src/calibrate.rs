@@ -4,7 +4,7 @@ use armcomp_api::ops::calibrate::Prior;
 use std::path::PathBuf;
 
 use armcomp_core::calibrate::{CalibrationParams, Loss};
-use armcomp_core::data::measurement::Sample;
+use armcomp_core::data::measurement::MeasurementSet;
 use pyo3::prelude::*;
 
 use crate::arrays::Covariance;
@@ -32,8 +32,10 @@ fn prior(value: &Bound<'_, PyAny>) -> PyResult<Prior> {
 /// cross-validation (`prior = "auto"`). `loss`: `"squared"` (least squares) or `"huber"`
 /// (squared up to 3 robust noises, linear beyond: gross errors pull the fit little).
 /// `exclude_outliers`: fit again without the rows of gross errors, as `--exclude-outliers`.
+/// `groups` (a label per data row) or `group_by` (a CSV column) fold `prior = "auto"`'s
+/// cross-validation by whole groups, as `--group-by`; by default a set-up column of the CSV.
 #[pyfunction]
-#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0, progress = None, loss = "squared", noise_deg = None, exclude_outliers = false, report = None))]
+#[pyo3(signature = (robot, data, identify = None, noise_mm = None, prior = None, max_iterations = 100, restarts = 2, seed = 0, progress = None, loss = "squared", noise_deg = None, exclude_outliers = false, report = None, groups = None, group_by = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate<'py>(
     py: Python<'py>,
@@ -50,6 +52,8 @@ pub fn calibrate<'py>(
     noise_deg: Option<f64>,
     exclude_outliers: bool,
     report: Option<PathBuf>,
+    groups: Option<Vec<String>>,
+    group_by: Option<&str>,
 ) -> PyResult<Calibrated<'py>> {
     let loss = match loss {
         "squared" => Loss::Squared,
@@ -68,6 +72,14 @@ pub fn calibrate<'py>(
         None => Prior::Scale(1.0),
     };
     armcomp_api::ops::calibrate::check_noises(noise_mm, noise_deg).py()?;
+    if (groups.is_some() || group_by.is_some()) && prior != Prior::Auto {
+        return Err(input_error(
+            "groups and group_by fold the cross-validation of prior=\"auto\"; without it nothing is cross-validated",
+            None,
+            None,
+            Some("group_by"),
+        ));
+    }
     crate::report::check(report.as_deref(), &robot.robot, data)?;
     let (mut set, adopted, _) = crate::measurements::resolve_stations(&robot.robot, data)?;
     let robot = adopted.as_ref().unwrap_or(&robot.robot);
@@ -81,12 +93,17 @@ pub fn calibrate<'py>(
         loss,
         ..CalibrationParams::default()
     };
-    let choices = armcomp_api::ops::calibrate::Choices {
-        prior,
-        noise_declared: noise_mm.is_some() && (noise_deg.is_some() || !robot.measures_pose()),
-        fold_groups: None,
-    };
-    let calibrate_on = |samples: &[Sample]| {
+    let noise_declared = noise_mm.is_some() && (noise_deg.is_some() || !robot.measures_pose());
+    let calibrate_on = |set: &MeasurementSet| {
+        let choices = armcomp_api::ops::calibrate::Choices {
+            prior,
+            noise_declared,
+            fold_groups: match prior {
+                Prior::Auto => crate::measurements::fold_groups(data, set, groups.clone(), group_by)?,
+                _ => None,
+            },
+        };
+        let samples = &set.samples;
         crate::interrupt::run(py, |cancel| {
             armcomp_api::ops::calibrate::run(
                 robot,
@@ -95,18 +112,18 @@ pub fn calibrate<'py>(
                     cancel: cancel.clone(),
                     ..params.clone()
                 },
-                choices.clone(),
+                choices,
                 &|p| crate::progress::report(progress.as_ref(), "prior scale", p.done, p.total),
                 &mut |_| {},
             )
         })?
         .py()
     };
-    let mut run = calibrate_on(&set.samples)?;
+    let mut run = calibrate_on(&set)?;
     let outliers = run.outlier_rows(&set.rows);
     if exclude_outliers && !outliers.is_empty() {
         (set.samples, set.rows) = armcomp_api::ops::calibrate::without_rows(&set.samples, &set.rows, &outliers);
-        run = calibrate_on(&set.samples)?;
+        run = calibrate_on(&set)?;
     }
     let page = crate::report::write(report.as_deref(), || {
         armcomp_api::model_report::for_calibrate(robot, &set.samples, &set.rows, &run)

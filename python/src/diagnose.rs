@@ -17,16 +17,18 @@ use crate::robot::PyRobot;
 /// calibration (`stage`: "model as given", "effect N", "learnable residual"). When the final
 /// model leaves rows far beyond the noise, the search is made again without them
 /// (`keep_outliers=True` keeps them); the report lists them (`gross_errors`) either way.
-/// `groups`: one label per data row, so that folds hold out whole groups (`--group-by`);
+/// `groups`: one label per data row, or `group_by` a CSV column (`COLUMN:N`: blocks), so that
+/// folds hold out whole groups (`--group-by`; default a set-up column of the CSV);
 /// `exhaustive`: refit every candidate on the folds (`--exhaustive`); `report`: a folder for
-/// the diagnosis page (`--report`).
+/// the diagnosis page (`--report`); `library`: run-time plugin libraries whose error models
+/// join the candidates (`--library`), loaded only after `armcomp.allow_plugins()`.
 #[pyfunction]
-#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = None, identify = None, predictor = "gp", progress = None, keep_outliers = false, groups = None, exhaustive = false, report = None))]
+#[pyo3(signature = (robot, data, seed = 0, folds = 3, max_steps = 5, min_reduction_percent = 5.0, noise_mm = None, identify = None, predictor = "gp", progress = None, keep_outliers = false, groups = None, exhaustive = false, report = None, group_by = None, library = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
     robot: PyRef<'_, PyRobot>,
-    data: PyRef<'_, PyMeasurements>,
+    data: Bound<'_, PyMeasurements>,
     seed: u64,
     folds: usize,
     max_steps: usize,
@@ -39,7 +41,16 @@ pub fn diagnose(
     groups: Option<Vec<String>>,
     exhaustive: bool,
     report: Option<std::path::PathBuf>,
+    group_by: Option<&str>,
+    library: Option<Vec<std::path::PathBuf>>,
 ) -> PyResult<(PyRobot, String)> {
+    // A library runs its code: it loads only when `allow_plugins()` allowed it (or from a
+    // folder the user config trusts), as `--library` does with `--allow-plugins`.
+    let libraries: Vec<std::path::PathBuf> = library.unwrap_or_default();
+    for lib in &libraries {
+        armcomp_sdk::load_library(lib)
+            .map_err(|e| input_error(&format!("library {}: {e}", lib.display()), None, None, Some("library")))?;
+    }
     let learnable_by = match predictor {
         Some("gp") => LearnableBy::Gp,
         Some("ridge") => LearnableBy::Ridge,
@@ -56,11 +67,12 @@ pub fn diagnose(
     let robot = robot.robot.clone();
     if let Some(dir) = &report {
         let mut inputs = robot.inputs();
-        inputs.extend(data.read_from.clone());
+        inputs.extend(data.get().read_from.clone());
+        inputs.extend(libraries.iter().map(|l| armcomp_sdk::host::platform_library_path(l)));
         armcomp_api::diagnosis_report::check(dir, &inputs).py()?;
     }
-    let set = data.resolve(&robot)?;
-    let fold_groups = crate::measurements::fold_groups(groups, &set)?.map(|g| ("groups".to_string(), g));
+    let set = data.get().resolve(&robot)?;
+    let fold_groups = crate::measurements::fold_groups(data.as_any(), &set, groups, group_by)?;
     let given = CalibrationParams {
         identify: identify.unwrap_or_default(),
         measurement_std: noise_mm.unwrap_or(0.1) * 1e-3,

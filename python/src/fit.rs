@@ -14,10 +14,12 @@ use crate::robot::PyRobot;
 /// returns the model, the report as JSON text (what `armcomp fit --json` prints), the chosen
 /// fit's parameter covariance and the report page's data when `report` names a folder to
 /// write it to.
-/// `groups`: one label per data row; folds then hold out whole groups. `progress`, when given,
+/// `groups`: one label per data row, or `group_by` a column of the CSV (`COLUMN:N`: blocks of
+/// a numeric one), and folds hold out whole groups; without either, a set-up column of the
+/// CSV (`session`, ...) as the command line. `progress`, when given,
 /// is called as `progress("model choice", done, total)` after every fit.
 #[pyfunction]
-#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = None, report = None))]
+#[pyo3(signature = (robot, data, noise_mm = None, folds = 5, seed = 0, groups = None, predictor = Some("gp"), progress = None, noise_deg = None, repeats = None, report = None, group_by = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit<'py>(
     py: Python<'py>,
@@ -32,11 +34,12 @@ pub fn fit<'py>(
     noise_deg: Option<f64>,
     repeats: Option<usize>,
     report: Option<PathBuf>,
+    group_by: Option<&str>,
 ) -> PyResult<(PyRobot, String, Covariance<'py>, Option<String>)> {
     crate::report::check(report.as_deref(), &robot.robot, data)?;
     let (set, adopted, _) = crate::measurements::resolve_stations(&robot.robot, data)?;
     let robot = adopted.map_or_else(|| robot.robot.clone(), std::sync::Arc::new);
-    let fold_groups = crate::measurements::fold_groups(groups, &set)?;
+    let fold_groups = crate::measurements::fold_groups(data, &set, groups, group_by)?.map(|(_, g)| g);
     let predictor = predictor.filter(|p| *p != "none").map(str::to_string);
     let ladder = crate::interrupt::run(py, |cancel| {
         let params = armcomp_api::ops::fit::FitParams {

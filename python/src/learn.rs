@@ -10,25 +10,27 @@ use crate::robot::PyRobot;
 /// Fits `predictor` (a type with its default settings), or the predictor `model`'s
 /// `[predictor]` table describes, on `data`; returns the model with the fitted predictor and
 /// `(seconds, before, after)` with the training errors of the model alone and with the
-/// predictor as JSON text. `groups`: one label per data row; the cross-validation then holds
-/// out whole groups, as `--group-by` does.
+/// predictor as JSON text. `groups`: one label per data row, or `group_by` a column of the CSV
+/// (`COLUMN:N`: blocks of a numeric one); the cross-validation then holds out whole groups, as
+/// `--group-by` does.
 #[pyfunction]
-#[pyo3(signature = (model, data, predictor = None, progress = None, groups = None))]
+#[pyo3(signature = (model, data, predictor = None, progress = None, groups = None, group_by = None))]
 pub fn learn(
     py: Python<'_>,
     model: PyRef<'_, PyRobot>,
-    data: PyRef<'_, PyMeasurements>,
+    data: Bound<'_, PyMeasurements>,
     predictor: Option<&str>,
     progress: Option<Py<PyAny>>,
     groups: Option<Vec<String>>,
+    group_by: Option<&str>,
 ) -> PyResult<(PyRobot, String)> {
     let predictor = predictor
         .map(armcomp_api::ops::learn::default_predictor)
         .transpose()
         .map_err(|e| crate::errors::input_error(&e.to_string(), None, None, Some("predictor")))?;
     let robot = model.robot.clone();
-    let set = data.resolve(&robot)?;
-    let fold_groups = crate::measurements::fold_groups(groups, &set)?.map(|g| ("groups".to_string(), g));
+    let set = data.get().resolve(&robot)?;
+    let fold_groups = crate::measurements::fold_groups(data.as_any(), &set, groups, group_by)?;
     // The model's own description, every field kept (the command line re-reads its file).
     let value = serde_json::to_value(robot.built_from()).expect("a robot file serialises");
     let file: RobotFile = serde_json::from_value(value)

@@ -56,5 +56,6 @@ fn _armcomp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(validate::check_pose, m)?)?;
     m.add_function(wrap_pyfunction!(validate::schema, m)?)?;
     m.add_function(wrap_pyfunction!(validate::plugins, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::allow_plugins, m)?)?;
     Ok(())
 }

@@ -5,6 +5,7 @@
 //! results of `simulate` carry joint and point names and are matched to each robot by name.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use armcomp_core::Robot;
 use armcomp_core::data::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
@@ -46,6 +47,9 @@ pub struct PyMeasurements {
     source: Source,
     /// The CSV file the samples were read from, which `save` never replaces.
     pub read_from: Option<PathBuf>,
+    /// The CSV's text with the name messages give it, when the samples come from one: its
+    /// other columns (a session, a time) give the folds' groups.
+    table: Option<(PathBuf, Arc<String>)>,
 }
 
 impl PyMeasurements {
@@ -59,6 +63,7 @@ impl PyMeasurements {
                 point_names: Some(tree.points().iter().map(|p| p.name.clone()).collect()),
             },
             read_from: None,
+            table: None,
         }
     }
 
@@ -72,24 +77,27 @@ impl PyMeasurements {
         read_from: Option<PathBuf>,
     ) -> PyResult<Self> {
         let rows = rows.map(row_selection).transpose()?;
+        let text = Arc::new(text);
         let data = PyMeasurements {
             source: Source::Csv {
                 path: path.clone(),
-                text,
+                text: text.to_string(),
                 rows,
             },
             read_from: read_from.clone(),
+            table: Some((path, text)),
         };
         match robot {
-            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?).read_from(read_from)),
+            Some(r) => Ok(PyMeasurements::from_set(&r.robot, data.resolve(&r.robot)?).like(&data)),
             None => Ok(data),
         }
     }
 
-    /// The same samples, remembered as read from `path`.
-    fn read_from(self, path: Option<PathBuf>) -> Self {
+    /// The same samples, from where `other`'s came.
+    fn like(self, other: &PyMeasurements) -> Self {
         PyMeasurements {
-            read_from: path,
+            read_from: other.read_from.clone(),
+            table: other.table.clone(),
             ..self
         }
     }
@@ -383,6 +391,7 @@ impl PyMeasurements {
                 point_names,
             },
             read_from: None,
+            table: None,
         })
     }
 
@@ -507,6 +516,7 @@ impl PyMeasurements {
                 point_names: point_names.map(<[String]>::to_vec),
             },
             read_from: self.read_from.clone(),
+            table: self.table.clone(),
         })
     }
 
@@ -518,7 +528,7 @@ impl PyMeasurements {
 
     /// These measurements read against `robot` (joint values in its order, its points).
     fn for_robot(&self, robot: PyRef<'_, PyRobot>) -> PyResult<Self> {
-        Ok(PyMeasurements::from_set(&robot.robot, self.resolve(&robot.robot)?).read_from(self.read_from.clone()))
+        Ok(PyMeasurements::from_set(&robot.robot, self.resolve(&robot.robot)?).like(self))
     }
 
     /// Joint values, one row per sample (SI), in the order of `joint_names`.
@@ -617,18 +627,55 @@ pub fn files(data: &Bound<'_, PyAny>) -> Vec<PathBuf> {
     }
 }
 
-/// Each sample's group of `labels`, one label per data row (the folds then hold out whole
-/// groups), as `groups=` gives them; `None` without labels.
-pub fn fold_groups(labels: Option<Vec<String>>, set: &MeasurementSet) -> PyResult<Option<Vec<usize>>> {
-    let Some(labels) = labels else { return Ok(None) };
-    let rows = set.rows.iter().max().map_or(0, |r| r + 1);
-    if labels.len() < rows {
-        return Err(input_error(
-            &format!("groups: one label per data row expected ({rows}), got {}", labels.len()),
-            None,
-            None,
-            Some("groups"),
-        ));
+/// The folds' groups of `set` (read from `data`, one `Measurements` or a list): `labels`, one
+/// per data row; else the CSV column `group_by` names (`COLUMN:N`: blocks of a numeric one);
+/// else, as the command line, the set-up column (`session`, ...) every CSV has. Returns the
+/// grouping's name and each sample's group, or `None` (folds by station or by pose).
+pub fn fold_groups(
+    data: &Bound<'_, PyAny>,
+    set: &MeasurementSet,
+    labels: Option<Vec<String>>,
+    group_by: Option<&str>,
+) -> PyResult<Option<(String, Vec<usize>)>> {
+    if let Some(labels) = labels {
+        if group_by.is_some() {
+            return Err(input_error(
+                "give groups or group_by, not both",
+                None,
+                None,
+                Some("group_by"),
+            ));
+        }
+        let rows = set.rows.iter().max().map_or(0, |r| r + 1);
+        if labels.len() < rows {
+            return Err(input_error(
+                &format!("groups: one label per data row expected ({rows}), got {}", labels.len()),
+                None,
+                None,
+                Some("groups"),
+            ));
+        }
+        return Ok(Some((
+            "groups".into(),
+            armcomp_api::ops::fit::groups_of(&labels, &set.rows),
+        )));
     }
-    Ok(Some(armcomp_api::ops::fit::groups_of(&labels, &set.rows)))
+    let list: Vec<PyRef<'_, PyMeasurements>> = match data.cast::<PyMeasurements>() {
+        Ok(one) => vec![one.borrow()],
+        Err(_) => data.extract()?,
+    };
+    let tables: Option<Vec<(&str, &std::path::Path)>> = (list.iter())
+        .map(|m| m.table.as_ref().map(|(p, t)| (t.as_str(), p.as_path())))
+        .collect();
+    match tables {
+        Some(tables) => armcomp_api::ops::fit::groups_by_column(group_by, &tables, &set.rows).py(),
+        None if group_by.is_some() => Err(input_error(
+            "group_by reads a column of the measurement CSV, and these measurements come from arrays; give \
+             groups= (a label per row) instead",
+            None,
+            None,
+            Some("group_by"),
+        )),
+        None => Ok(None),
+    }
 }

@@ -1,4 +1,4 @@
-//! `armcomp validate`, `armcomp schema`, `armcomp plugins` and `armcomp check-pose` from Python.
+//! `armcomp validate`, `armcomp schema`, `armcomp plugins`, `armcomp check-pose` and `--allow-plugins` from Python.
 
 use std::path::PathBuf;
 
@@ -39,4 +39,17 @@ pub fn check_pose(py: Python<'_>, robot: &PyRobot, q: &Bound<'_, PyAny>) -> PyRe
     let mut ws = model.workspace();
     let contacts = py.detach(|| model.check(&q, &mut ws));
     Ok(serde_json::to_string(&contacts).expect("contacts serialise"))
+}
+
+/// Lets robot files load the run-time plugin libraries they name inside their own folder, and
+/// `diagnose(library=...)` the libraries it names, for the rest of the process (or stops it
+/// with `allow=False`), as `--allow-plugins` does for one command. Loading a library runs its
+/// code: allow it only for files you trust. Libraries in the user config's `plugin_dirs`
+/// load without it.
+#[pyfunction]
+#[pyo3(signature = (allow = true))]
+pub fn allow_plugins(allow: bool) -> PyResult<()> {
+    armcomp_api::config::apply(allow)
+        .map(|_| ())
+        .map_err(|e| crate::errors::core_error(&e, None))
 }

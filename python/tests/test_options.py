@@ -124,6 +124,58 @@ def test_groups_fold_learn_and_diagnose_by_whole_groups(simulated, tmp_path):
     assert (tmp_path / "diagnosis" / "index.html").exists()
 
 
+def test_group_by_reads_the_csv_column_as_the_command_line(simulated, tmp_path):
+    tmp, data = simulated
+    rows = (tmp / "cli.csv").read_text().splitlines()
+    sessions = [f"s{i // 10}" for i in range(len(rows) - 1)]
+    (tmp_path / "sessions.csv").write_text(
+        "\n".join([rows[0] + ",session"] + [r + "," + s for r, s in zip(rows[1:], sessions)]) + "\n"
+    )
+    truth = armcomp.Robot.load(TRUTH)
+    with_sessions = armcomp.Measurements.read(tmp_path / "sessions.csv", truth)
+    args = ["calibrate", "--robot", TRUTH, "--data", tmp_path / "sessions.csv", "--noise-mm", 0.05,
+            "--identify", GEOMETRY, "--prior", "auto", "--out", tmp_path / "cli.toml"]
+    # A set-up column folds by itself; group_by names it; groups gives the labels.
+    expected = cli_json(*args)
+    assert expected["prior_choice"]["grouped_by"] == "session"
+    for how in [{}, {"group_by": "session"}]:
+        _, report = armcomp.calibrate(truth, with_sessions, noise_mm=0.05, identify=GEOMETRY, prior="auto", **how)
+        assert report.to_dict() == expected
+    _, by_labels = armcomp.calibrate(truth, data, noise_mm=0.05, identify=GEOMETRY, prior="auto", groups=sessions)
+    assert by_labels.to_dict()["prior_choice"]["scores"] == expected["prior_choice"]["scores"]
+    blocks = cli_json(*args, "--group-by", "x:2")
+    _, report = armcomp.calibrate(
+        truth, with_sessions, noise_mm=0.05, identify=GEOMETRY, prior="auto", group_by="x:2"
+    )
+    assert report.to_dict() == blocks
+    assert blocks["prior_choice"]["grouped_by"] == "`x` in 2 blocks"
+    with pytest.raises(armcomp.InputError, match="data row 0, column `session`: `s0` is not a number"):
+        armcomp.calibrate(truth, with_sessions, prior="auto", group_by="session:2")
+    with pytest.raises(armcomp.InputError, match="arrays"):
+        armcomp.learn(truth, armcomp.simulate(truth, n=10), predictor="ridge", group_by="session")
+    with pytest.raises(armcomp.InputError, match="prior=\"auto\""):
+        armcomp.calibrate(truth, with_sessions, group_by="session")
+
+
+def test_plugin_libraries_load_only_when_allowed(simulated):
+    from conftest import ROOT
+
+    library = ROOT / "target" / "debug" / "cable_sag"
+    if not (ROOT / "target" / "debug" / "libcable_sag.so").exists():
+        pytest.skip("the example plugin library is built by `cargo test` (tests/runtime_plugins.rs)")
+    _, data = simulated
+    truth = armcomp.Robot.load(TRUTH)
+    with pytest.raises(armcomp.InputError, match="library"):
+        armcomp.diagnose(truth, data, predictor=None, max_steps=0, library=library)
+    assert "cable_sag" not in [p["type"] for p in armcomp.plugins()]
+    armcomp.allow_plugins()
+    try:
+        armcomp.diagnose(truth, data, predictor=None, max_steps=0, library=library)
+    finally:
+        armcomp.allow_plugins(False)
+    assert "cable_sag" in [p["type"] for p in armcomp.plugins()]
+
+
 def test_measurements_from_dataframes_file_objects_slices_and_row_lists(talos):
     robot, data = talos
     with open(TALOS_DATA) as f:

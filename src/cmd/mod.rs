@@ -113,71 +113,12 @@ impl GroupBy {
         for file in files {
             texts.push(armcomp_core::support::io::read_text(file, input_limits())?);
         }
-        // `COLUMN:N`: blocks of a numeric column; a name that merely holds a colon is whole.
-        let blocks_of_column = (self.group_by.as_deref())
-            .and_then(|g| g.rsplit_once(':'))
-            .and_then(|(c, n)| Some((c.trim().to_string(), n.trim().parse::<usize>().ok()?)));
-        let (column, blocks) = match blocks_of_column {
-            Some((c, n)) => (Some(c), Some(n)),
-            None => (self.group_by.clone(), None),
-        };
-        let column = match column {
-            Some(c) => c,
-            None => {
-                let mut found = None;
-                for (text, file) in texts.iter().zip(files) {
-                    let c = armcomp_core::data::measurement::set_up_column(text, file)?;
-                    if c.is_none() || (found.is_some() && found != c) {
-                        return Ok(None);
-                    }
-                    found = c;
-                }
-                match found {
-                    Some(c) => c.to_string(),
-                    None => return Ok(None),
-                }
-            }
-        };
-        let bare = armcomp_core::data::measurement::split_header(&column).0;
-        if let Some(what) = [("fixed_point", "fixed point"), ("plane", "plane")]
-            .iter()
-            .find_map(|&(c, what)| (bare == c).then_some(what))
-        {
-            anyhow::bail!(
-                "--group-by {column}: a fold that held out every row of a {what} would leave its position unknown \
-                 to the rows it is fitted on, so nothing could score it; fold by pose (leave --group-by out) or by \
-                 a set-up column"
-            );
-        }
-        let mut values = Vec::new();
-        let mut sources = Vec::new();
-        for (text, file) in texts.iter().zip(files) {
-            let v = armcomp_core::data::measurement::column_values(text, file, &column)?;
-            sources.extend((0..v.len()).map(|r| (*file, r)));
-            values.extend(v);
-        }
-        let Some(blocks) = blocks else {
-            return Ok(Some((column, armcomp_api::ops::fit::groups_of(&values, rows))));
-        };
-        if blocks < 2 {
-            anyhow::bail!("--group-by {column}:{blocks}: expected at least 2 blocks to hold one out");
-        }
-        let numbers = rows
-            .iter()
-            .map(|&r| {
-                let (file, row) = sources[r];
-                values[r].parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                    anyhow::anyhow!(
-                        "{}: data row {row}, column `{column}`: `{}` is not a number; --group-by {column}:{blocks} \
-                         cuts a numeric column into blocks",
-                        file.display(),
-                        values[r]
-                    )
-                })
-            })
-            .collect::<anyhow::Result<Vec<f64>>>()?;
-        let name = format!("`{column}` in {blocks} blocks");
-        Ok(Some((name, armcomp_api::ops::fit::blocks_of(&numbers, blocks))))
+        let tables: Vec<(&str, &Path)> = texts.iter().map(String::as_str).zip(files.iter().copied()).collect();
+        Ok(armcomp_api::ops::fit::groups_by_column(
+            self.group_by.as_deref(),
+            &tables,
+            rows,
+        )?)
     }
 
     /// What to say when the folds held out single poses (`grouped_by` is `pose`) of rows that

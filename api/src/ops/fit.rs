@@ -135,6 +135,91 @@ pub fn groups_of(values: &[String], rows: &[usize]) -> Vec<usize> {
         .collect()
 }
 
+/// The folds' groups as `--group-by` gives them, from the measurement CSVs `tables` (each
+/// text with its path, their data rows numbered on from one to the next): the grouping's name
+/// and each of `rows`' group. `group_by` names a column, or `COLUMN:N` cuts a numeric column
+/// into N blocks of consecutive values; without it, the first set-up column (`session`,
+/// `setup`, ...) every table has; `None` when there is none.
+pub fn groups_by_column(
+    group_by: Option<&str>,
+    tables: &[(&str, &std::path::Path)],
+    rows: &[usize],
+) -> armcomp_core::Result<Option<(String, Vec<usize>)>> {
+    use armcomp_core::data::measurement::{column_values, set_up_column, split_header};
+    let invalid = |what: String, reason: String| armcomp_core::Error::InvalidArgument { what, reason };
+    // `COLUMN:N`: blocks of a numeric column; a name that merely holds a colon is whole.
+    let blocks_of_column = group_by
+        .and_then(|g| g.rsplit_once(':'))
+        .and_then(|(c, n)| Some((c.trim().to_string(), n.trim().parse::<usize>().ok()?)));
+    let (column, blocks) = match blocks_of_column {
+        Some((c, n)) => (Some(c), Some(n)),
+        None => (group_by.map(str::to_string), None),
+    };
+    let column = match column {
+        Some(c) => c,
+        None => {
+            let mut found = None;
+            for &(text, file) in tables {
+                let c = set_up_column(text, file)?;
+                if c.is_none() || (found.is_some() && found != c) {
+                    return Ok(None);
+                }
+                found = c;
+            }
+            match found {
+                Some(c) => c.to_string(),
+                None => return Ok(None),
+            }
+        }
+    };
+    let bare = split_header(&column).0;
+    if let Some(what) = [("fixed_point", "fixed point"), ("plane", "plane")]
+        .iter()
+        .find_map(|&(c, what)| (bare == c).then_some(what))
+    {
+        return Err(invalid(
+            format!("--group-by {column}"),
+            format!(
+                "a fold that held out every row of a {what} would leave its position unknown to the rows it is \
+                 fitted on, so nothing could score it; fold by pose (leave --group-by out) or by a set-up column"
+            ),
+        ));
+    }
+    let mut values = Vec::new();
+    let mut sources = Vec::new();
+    for &(text, file) in tables {
+        let v = column_values(text, file, &column)?;
+        sources.extend((0..v.len()).map(|r| (file, r)));
+        values.extend(v);
+    }
+    let Some(blocks) = blocks else {
+        return Ok(Some((column, groups_of(&values, rows))));
+    };
+    if blocks < 2 {
+        return Err(invalid(
+            format!("--group-by {column}:{blocks}"),
+            "expected at least 2 blocks to hold one out".into(),
+        ));
+    }
+    let numbers = rows
+        .iter()
+        .map(|&r| {
+            let (file, row) = sources[r];
+            values[r].parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
+                invalid(
+                    format!("{}: data row {row}, column `{column}`", file.display()),
+                    format!(
+                        "`{}` is not a number; --group-by {column}:{blocks} cuts a numeric column into blocks",
+                        values[r]
+                    ),
+                )
+            })
+        })
+        .collect::<armcomp_core::Result<Vec<f64>>>()?;
+    let name = format!("`{column}` in {blocks} blocks");
+    Ok(Some((name, blocks_of(&numbers, blocks))))
+}
+
 /// Block numbers, one per sample, cutting the samples' `values` (a time, a temperature) into
 /// `blocks` runs of consecutive values with as many samples each; equal values share a block,
 /// so a block may hold a few more.

@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import os
 import warnings
-from typing import Callable, Dict, Iterable, Optional, Sequence, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -98,7 +98,13 @@ __all__ = [
     "check_pose",
     "schema",
     "plugins",
+    "allow_plugins",
 ]
+
+
+def _labels(groups: Optional[Iterable[Any]]) -> Optional[list]:
+    """One group label per data row as text (a pandas column's values too)."""
+    return None if groups is None else [str(g) for g in groups]
 
 
 def _names(value: Union[None, str, Iterable[str]]) -> Optional[list]:
@@ -124,6 +130,8 @@ def calibrate(
     noise_deg: Optional[float] = None,
     exclude_outliers: bool = False,
     report: Union[None, str, "os.PathLike[str]"] = None,
+    groups: Optional[Sequence[str]] = None,
+    group_by: Optional[str] = None,
 ) -> Tuple[Robot, CalibrationReport]:
     """Identifies a model of ``robot`` from ``data`` (Levenberg–Marquardt with priors), as
     ``armcomp calibrate`` does.
@@ -143,7 +151,10 @@ def calibrate(
     without the rows of gross errors (``report.outlier_rows``), as ``--exclude-outliers``.
     ``data`` may be a list of ``Measurements``, one station each (named by its file's name), as
     several ``--data`` files are. ``report``: a folder for the report page (``--report``);
-    ``report.page`` then holds its data (``ReportPage``).
+    ``report.page`` then holds its data (``ReportPage``). ``groups`` (a label per data row) or
+    ``group_by`` (a CSV column; ``"COLUMN:N"`` cuts a numeric one into N blocks) fold
+    ``prior="auto"``'s cross-validation by whole groups, as ``--group-by``; by default a set-up
+    column of the CSV (``session``, ...).
 
     Returns ``(model, report)``; ``model.save(path)`` writes the model file. The report's
     warnings, and a fit far above the declared noise, are issued as ``CalibrationWarning``.
@@ -163,6 +174,8 @@ def calibrate(
         noise_deg=noise_deg,
         exclude_outliers=exclude_outliers,
         report=report,
+        groups=_labels(groups),
+        group_by=group_by,
     )
     report = from_json(CalibrationReport, text)
     object.__setattr__(report, "far_above_noise", far)
@@ -244,6 +257,8 @@ def diagnose(
     groups: Optional[Sequence[str]] = None,
     exhaustive: bool = False,
     report: Union[None, str, "os.PathLike[str]"] = None,
+    group_by: Optional[str] = None,
+    library: Union[None, str, "os.PathLike[str]", Sequence[Union[str, "os.PathLike[str]"]]] = None,
 ) -> Tuple[Robot, DiagnosisReport]:
     """Finds the effects ``robot`` misses, one by one, scored on held-out poses, as
     ``armcomp diagnose`` does. Returns the improved model and the report, whose ``steps``
@@ -254,10 +269,12 @@ def diagnose(
     (stage: "model as given", "effect N", "learnable residual"). When the final model leaves
     samples far beyond the noise (a broken line of sight), the search is made again without
     them unless ``keep_outliers``; ``report.gross_errors`` lists them either way, ``report.drift`` a
-    residual drifting with the row order. ``groups``: a label per data row (a session column),
-    so that folds hold out whole groups (``--group-by``); ``exhaustive``: refit every
+    residual drifting with the row order. ``groups``: a label per data row, or ``group_by`` a
+    column of the CSV (``"COLUMN:N"``: N blocks of a numeric one), so that folds hold out whole
+    groups (``--group-by``; by default a set-up column of the CSV); ``exhaustive``: refit every
     candidate on the folds (``--exhaustive``); ``report``: a folder for the diagnosis page
-    (``--report``)."""
+    (``--report``); ``library``: run-time plugin libraries whose error models join the
+    candidates (``--library``), loaded only after ``armcomp.allow_plugins()``."""
     model, text = _native.diagnose(
         robot,
         data,
@@ -270,9 +287,11 @@ def diagnose(
         predictor=predictor,
         progress=progress,
         keep_outliers=keep_outliers,
-        groups=None if groups is None else [str(g) for g in groups],
+        groups=_labels(groups),
         exhaustive=exhaustive,
         report=report,
+        group_by=group_by,
+        library=None if library is None else [library] if isinstance(library, (str, os.PathLike)) else list(library),
     )
     return model, from_json(DiagnosisReport, text)
 
@@ -289,12 +308,14 @@ def fit(
     noise_deg: Optional[float] = None,
     repeats: Optional[int] = None,
     report: Union[None, str, "os.PathLike[str]"] = None,
+    group_by: Optional[str] = None,
 ) -> Tuple[Robot, FitReport]:
     """Chooses the model from ``data`` alone, as ``armcomp fit`` does: registration, joint
     offsets, geometry and the robot file's error models, each under several prior schemes
     (the evidence, the file's priors at five scales, none) and each with and without
     ``predictor`` (None for none), scored by cross-validation over ``folds`` folds drawn
-    ``repeats`` times (None: 3, or 1 from 2,000 rows; whole groups held out when ``groups`` gives a label per data row);
+    ``repeats`` times (None: 3, or 1 from 2,000 rows; whole groups held out when ``groups`` gives a label per data row
+    or ``group_by`` names a CSV column, ``"COLUMN:N"`` for N blocks of a numeric one; by default a set-up column of the CSV);
     returns the chosen model fitted on all of ``data`` and the ladder.
     ``progress("model choice", done, total)`` is called after every fit. ``noise_mm`` and
     ``noise_deg`` (orientation noise of poses and plane contacts' tilts, degrees) declare the
@@ -309,10 +330,11 @@ def fit(
         folds=folds,
         repeats=repeats,
         seed=seed,
-        groups=None if groups is None else [str(g) for g in groups],
+        groups=_labels(groups),
         predictor=predictor,
         progress=progress,
         report=report,
+        group_by=group_by,
     )
     result = from_json(FitReport, text)
     _attach(result.calibration, covariance, None)
@@ -326,6 +348,7 @@ def learn(
     predictor: Optional[str] = None,
     progress: Optional[Callable[[str, int, int], None]] = None,
     groups: Optional[Sequence[str]] = None,
+    group_by: Optional[str] = None,
 ) -> Tuple[Robot, LearnReport]:
     """Fits ``predictor`` (gp, mlp, ssa_bp, ridge or knn with default settings), or else the
     residual predictor ``model``'s ``[predictor]`` table describes, on ``data``, as
@@ -334,13 +357,15 @@ def learn(
     not fitted on, is warned about (``CalibrationWarning``). ``progress(stage, done, total)``
     is called after every step of the training (stage ``gp``, ``adam``, ``lm`` or
     ``sparrows``) and every fold of the cross-validation (``folds``). ``groups``: a label per
-    data row, so that the cross-validation holds out whole groups (``--group-by``)."""
+    data row, or ``group_by`` a CSV column (``"COLUMN:N"``: N blocks of a numeric one), so that
+    the cross-validation holds out whole groups (``--group-by``; by default a set-up column)."""
     fitted, text = _native.learn(
         model,
         data,
         predictor=predictor,
         progress=progress,
-        groups=None if groups is None else [str(g) for g in groups],
+        groups=_labels(groups),
+        group_by=group_by,
     )
     report = from_json(LearnReport, text)
     for w in report.warnings:
@@ -447,6 +472,15 @@ def check_pose(robot: Robot, q) -> list:
 def schema() -> str:
     """The JSON Schema of robot files (JSON text), as ``armcomp schema`` prints it."""
     return _native.schema()
+
+
+def allow_plugins(allow: bool = True) -> None:
+    """Lets robot files load the run-time plugin libraries they name inside their own folder,
+    and ``diagnose(library=...)`` the ones it names, for the rest of the process (``False``
+    stops it), as ``--allow-plugins`` does for one command. Loading a library runs its code:
+    allow it only for files you trust. Libraries in the user config's ``plugin_dirs`` load
+    without it."""
+    _native.allow_plugins(allow)
 
 
 def plugins() -> list:

@@ -164,6 +164,8 @@ def calibrate(
     noise_deg: Optional[float] = None,
     exclude_outliers: bool = False,
     report: Optional[_Path] = None,
+    groups: Optional[List[str]] = None,
+    group_by: Optional[str] = None,
 ) -> Tuple[Robot, str, bool, Tuple[List[str], np.ndarray], Optional[str]]: ...
 def evaluate(
     model: Robot, data: _Data, register: bool = False, report: Optional[_Path] = None
@@ -180,6 +182,7 @@ def fit(
     noise_deg: Optional[float] = None,
     repeats: Optional[int] = None,
     report: Optional[_Path] = None,
+    group_by: Optional[str] = None,
 ) -> Tuple[Robot, str, Tuple[List[str], np.ndarray], Optional[str]]: ...
 def simulate(
     truth: Robot,
@@ -204,6 +207,8 @@ def diagnose(
     groups: Optional[List[str]] = None,
     exhaustive: bool = False,
     report: Optional[_Path] = None,
+    group_by: Optional[str] = None,
+    library: Optional[List[_Path]] = None,
 ) -> Tuple[Robot, str]: ...
 def learn(
     model: Robot,
@@ -211,6 +216,7 @@ def learn(
     predictor: Optional[str] = None,
     progress: Optional[Callable[[str, int, int], None]] = None,
     groups: Optional[List[str]] = None,
+    group_by: Optional[str] = None,
 ) -> Tuple[Robot, str]: ...
 def compensate(
     model: Robot,
@@ -241,3 +247,4 @@ def plan(
 def validate(path: _Path) -> str: ...
 def check_pose(robot: Robot, q: _Joints) -> str: ...
 def schema() -> str: ...
+def allow_plugins(allow: bool = True) -> None: ...
