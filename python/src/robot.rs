@@ -655,8 +655,9 @@ impl PyRobot {
     }
 
     /// Each measured point's placement on its link: `{marker: (link, position)}` with the
-    /// position (3, m) in that link's frame, the frame `pose(q, link)` gives. The exported
-    /// URDF holds neither these nor the measurement frame; it names them in a comment.
+    /// position (3, m) in that link's frame, the frame `pose(q, link)` gives. `to_urdf` writes
+    /// the markers as fixed frames and names the measurement frame, which no link holds, in a
+    /// comment.
     #[getter]
     fn marker_offsets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let tree = self.robot.tree();
@@ -696,7 +697,8 @@ impl PyRobot {
     }
 
     /// Writes the model's URDF with the identified joint origins and axes (every other byte
-    /// of its URDF kept) to `path`. Error models and a fitted predictor, which URDF cannot
+    /// of its URDF kept, the markers added as fixed frames, the measurement frame named in a
+    /// comment) to `path`. Error models and a fitted predictor, which URDF cannot
     /// hold, are refused unless `rigid_only`; with `data` it returns how far (m) dropping them
     /// moves the measured points, else None.
     #[pyo3(signature = (path, rigid_only = false, data = None))]

@@ -310,11 +310,8 @@ fn scale_text(s: f64) -> String {
 
 /// A value in the unit people read it in: mm for lengths, degrees for angles, SI otherwise.
 fn display(q: Quantity, v: f64) -> (f64, &'static str) {
-    match q {
-        Quantity::Length => (v * 1e3, "mm"),
-        Quantity::Angle => (v.to_degrees(), "deg"),
-        other => (v, other.si_unit()),
-    }
+    let (scale, unit) = q.display_unit();
+    (v * scale, unit)
 }
 
 /// How many samples of each kind: `61 measured positions`, or for mixed data `40 samples (20

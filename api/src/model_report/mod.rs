@@ -15,7 +15,6 @@ use armcomp_core::Robot;
 use armcomp_core::analysis::ladder::Ladder;
 use armcomp_core::calibrate::{CalibrationReport, ParamResult};
 use armcomp_core::data::measurement::{Sample, SampleKind};
-use armcomp_core::model::param::Quantity;
 use armcomp_core::support::io::{check_report_folder, write_folder_atomic};
 use serde::Serialize;
 
@@ -366,14 +365,10 @@ fn parameter_rows(params: &[ParamResult]) -> Vec<ParameterRow> {
     params
         .iter()
         .map(|p| {
-            let (scale, unit) = match p.quantity {
-                Quantity::Length => (1e3, "mm".to_string()),
-                Quantity::Angle => (180.0 / std::f64::consts::PI, "deg".to_string()),
-                q => (1.0, q.si_unit().to_string()),
-            };
+            let (scale, unit) = p.quantity.display_unit();
             ParameterRow {
                 name: p.name.clone(),
-                unit,
+                unit: unit.to_string(),
                 initial: p.initial * scale,
                 value: p.value * scale,
                 std: (!p.fixed && p.std.is_finite()).then_some(p.std * scale),

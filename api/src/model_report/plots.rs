@@ -393,58 +393,55 @@ fn draw_bars(root: &DrawingArea<SVGBackend, Shift>, p: &Plot) -> Drawn {
         let c0 = q[0] - 0.4 + if p.horizontal { 0.0 } else { width * i as f64 };
         (c0, c0 + width, q[1])
     };
-    let mut builder = ChartBuilder::on(root);
-    builder.caption(&p.title, ("sans-serif", 15)).margin(8);
-    if p.horizontal {
-        let longest = p.categories.iter().map(|c| c.chars().count()).max().unwrap_or(0);
-        let mut chart = builder
-            .x_label_area_size(36)
-            .y_label_area_size((longest as u32 * 6 + 16).min(420))
-            .build_cartesian_2d(value, category)?;
-        let count = p.categories.len().max(1);
-        chart
-            .configure_mesh()
-            .x_desc(&p.x_label)
-            .y_labels(count)
-            .y_label_formatter(&label)
-            .light_line_style(WHITE)
-            .draw()?;
-        for (i, s) in p.series.iter().enumerate() {
-            let colour = series_colour(p, i);
-            chart.draw_series(s.points.iter().map(|q| {
-                let (c0, c1, v) = bar(i, q);
-                Rectangle::new([(0.0, c0), (v, c1)], colour.mix(0.6).filled())
-            }))?;
-            chart.draw_series(s.points.iter().zip(&s.error_bars).map(|(q, e)| {
-                let c = (bar(i, q).0 + bar(i, q).1) / 2.0;
-                PathElement::new(vec![(q[1] - e, c), (q[1] + e, c)], BLACK)
-            }))?;
-        }
+    // One chart for both orientations: `at` puts a (category, value) point where the
+    // orientation draws it.
+    let at = |c: f64, v: f64| if p.horizontal { (v, c) } else { (c, v) };
+    let (x_range, y_range) = if p.horizontal {
+        (value, category)
     } else {
-        let mut chart = builder
-            .x_label_area_size(36)
-            .y_label_area_size(56)
-            .build_cartesian_2d(category, value)?;
-        let count = p.categories.len().max(1);
+        (category, value)
+    };
+    let longest = p.categories.iter().map(|c| c.chars().count()).max().unwrap_or(0);
+    let mut chart = ChartBuilder::on(root)
+        .caption(&p.title, ("sans-serif", 15))
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(if p.horizontal {
+            (longest as u32 * 6 + 16).min(420)
+        } else {
+            56
+        })
+        .build_cartesian_2d(x_range, y_range)?;
+    let count = p.categories.len().max(1);
+    let mut mesh = chart.configure_mesh();
+    mesh.light_line_style(WHITE);
+    if p.horizontal {
+        mesh.x_desc(&p.x_label).y_labels(count).y_label_formatter(&label);
+    } else {
+        mesh.y_desc(&p.y_label).x_labels(count).x_label_formatter(&label);
+    }
+    mesh.draw()?;
+    for (i, s) in p.series.iter().enumerate() {
+        let colour = series_colour(p, i);
         chart
-            .configure_mesh()
-            .y_desc(&p.y_label)
-            .x_labels(count)
-            .x_label_formatter(&label)
-            .light_line_style(WHITE)
-            .draw()?;
-        for (i, s) in p.series.iter().enumerate() {
-            let colour = series_colour(p, i);
-            chart
-                .draw_series(s.points.iter().map(|q| {
-                    let (c0, c1, v) = bar(i, q);
-                    Rectangle::new([(c0, 0.0), (c1, v)], colour.mix(0.6).filled())
-                }))?
-                .label(&s.name)
-                .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 10, y + 4)], colour.mix(0.6).filled()));
-        }
+            .draw_series(s.points.iter().map(|q| {
+                let (c0, c1, v) = bar(i, q);
+                Rectangle::new([at(c0, 0.0), at(c1, v)], colour.mix(0.6).filled())
+            }))?
+            .label(&s.name)
+            .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 10, y + 4)], colour.mix(0.6).filled()));
+        chart.draw_series(s.points.iter().zip(&s.error_bars).map(|(q, e)| {
+            let (c0, c1, _) = bar(i, q);
+            let c = (c0 + c1) / 2.0;
+            PathElement::new(vec![at(c, q[1] - e), at(c, q[1] + e)], BLACK)
+        }))?;
+    }
+    // A legend of one series would only hide bars. Upper right: the ladder's best rungs, the
+    // shortest bars, come first.
+    if p.series.len() > 1 {
         chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()?;

@@ -37,6 +37,16 @@ impl Quantity {
         }
     }
 
+    /// The factor from SI to the unit people read values of this quantity in, and that unit:
+    /// mm for lengths, degrees for angles, SI otherwise (as reports show parameters).
+    pub fn display_unit(&self) -> (f64, &'static str) {
+        match self {
+            Quantity::Length => (1e3, "mm"),
+            Quantity::Angle => (180.0 / std::f64::consts::PI, "deg"),
+            q => (1.0, q.si_unit()),
+        }
+    }
+
     /// The SI unit symbol.
     pub fn si_unit(&self) -> &'static str {
         match self {
