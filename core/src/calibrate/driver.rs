@@ -8,7 +8,7 @@ use rand::rngs::StdRng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::identifiability::assess;
-use super::identifiability::normal_equations;
+use super::identifiability::{normal_equations, prior_normal_matrix};
 use super::jacobian::to_meas;
 use super::jacobian::typical_size;
 use super::registration::register_base;
@@ -588,10 +588,8 @@ impl Problem<'_> {
 /// included) and their linearised covariance at the solution, scaled by the fit's own
 /// residual variance (SI units).
 fn covariance(space: &ParameterSpace, free: &[usize], r: &DVector<f64>, j: &DMatrix<f64>) -> (f64, DMatrix<f64>) {
-    let mut a = j.transpose() * j;
-    for (c, &k) in free.iter().enumerate() {
-        a[(c, c)] += space.params[k].info.sigma.powi(-2);
-    }
+    // `j` holds the free parameters' columns alone.
+    let a = prior_normal_matrix(space, j, free, free);
     let dof = (r.len() as f64 - free.len() as f64).max(1.0);
     let s2 = r.norm_squared() / dof;
     let (condition_number_free, inverse) = normal_equations(&a);

@@ -19,19 +19,16 @@ use crate::robot::Robot;
 /// (0.2 and more on the diagnosis sweep's robots), unseen ones at round-off (1e-13).
 const UNSEEN: f64 = 1e-6;
 
-/// The parameters of `free` with a prior that the data barely determine: with the data their
-/// standard deviation (linearised at the start, `jac` holding the columns of `selected`) is
-/// still above half their prior's, so the data adds less than three times the prior's
-/// information. A model error can push such a parameter far along a direction the data hardly
-/// sees (a prismatic joint's length against a marker); its prior then bounds it.
-pub(super) fn barely_seen(
+/// The normal matrix of the parameters `free` with their priors, `JᵀJ + diag(σ⁻²)` (an
+/// unbounded prior adds nothing), `jac` holding the Jacobian columns of `selected`: what the
+/// calibration's covariance, the identifiability and the priors' checks invert.
+pub(super) fn prior_normal_matrix(
     space: &ParameterSpace,
     jac: &DMatrix<f64>,
     selected: &[usize],
     free: &[usize],
-) -> Vec<usize> {
-    let cols: Vec<usize> = free
-        .iter()
+) -> DMatrix<f64> {
+    let cols: Vec<usize> = (free.iter())
         .map(|k| {
             selected
                 .iter()
@@ -44,6 +41,21 @@ pub(super) fn barely_seen(
     for (c, &k) in free.iter().enumerate() {
         a[(c, c)] += space.params[k].info.sigma.powi(-2);
     }
+    a
+}
+
+/// The parameters of `free` with a prior that the data barely determine: with the data their
+/// standard deviation (linearised at the start, `jac` holding the columns of `selected`) is
+/// still above half their prior's, so the data adds less than three times the prior's
+/// information. A model error can push such a parameter far along a direction the data hardly
+/// sees (a prismatic joint's length against a marker); its prior then bounds it.
+pub(super) fn barely_seen(
+    space: &ParameterSpace,
+    jac: &DMatrix<f64>,
+    selected: &[usize],
+    free: &[usize],
+) -> Vec<usize> {
+    let a = prior_normal_matrix(space, jac, selected, free);
     let Some(chol) = a.cholesky() else {
         return Vec::new();
     };
@@ -74,22 +86,7 @@ fn undetermined(
 ) -> Vec<Undetermined> {
     let mut held = Vec::new();
     loop {
-        let cols: Vec<usize> = (free.iter())
-            .map(|k| {
-                selected
-                    .iter()
-                    .position(|s| s == k)
-                    .expect("free parameters are selected")
-            })
-            .collect();
-        let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
-        let mut a = j.transpose() * &j;
-        for (c, &k) in free.iter().enumerate() {
-            let sigma = space.params[k].info.sigma;
-            if sigma.is_finite() {
-                a[(c, c)] += sigma.powi(-2);
-            }
-        }
+        let a = prior_normal_matrix(space, jac, selected, free);
         // Scaled to a unit diagonal with a ridge far below any real information, so that a
         // direction nothing holds (priors widened without bound) reads as a huge standard
         // deviation instead of failing the factorisation.
@@ -465,21 +462,7 @@ pub fn identifiability(robot: &Robot, samples: &[Sample], params: &CalibrationPa
     let jac = problem.jacobian(&theta, &d, &e, &selected, JacobianForm::Exact)?;
     let Assessment { mut report, free, .. } = assess(&space, &jac, &selected, params.rank_tolerance);
     note_measurement_kinds(robot, &space, &selected, &mut report);
-    let cols: Vec<usize> = free
-        .iter()
-        .map(|k| {
-            selected
-                .iter()
-                .position(|s| s == k)
-                .expect("free parameters are selected")
-        })
-        .collect();
-    let j = DMatrix::from_fn(jac.nrows(), cols.len(), |r, c| jac[(r, cols[c])]);
-    let mut a = j.transpose() * &j;
-    for (c, &k) in free.iter().enumerate() {
-        a[(c, c)] += space.params[k].info.sigma.powi(-2);
-    }
-    report.condition_number_free = normal_equations(&a).0;
+    report.condition_number_free = normal_equations(&prior_normal_matrix(&space, &jac, &selected, &free)).0;
     Ok(report)
 }
 
