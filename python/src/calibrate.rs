@@ -81,7 +81,8 @@ pub fn calibrate<'py>(
         ));
     }
     crate::report::check(report.as_deref(), &robot.robot, data)?;
-    let (mut set, adopted, _) = crate::measurements::resolve_stations(&robot.robot, data)?;
+    let mut set = crate::measurements::resolve_stations(&robot.robot, data)?;
+    let adopted = armcomp_api::with_stations(&robot.robot, &set).py()?;
     let robot = adopted.as_ref().unwrap_or(&robot.robot);
     let params = CalibrationParams {
         identify: identify.unwrap_or_default(),

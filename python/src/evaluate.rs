@@ -23,17 +23,21 @@ pub fn evaluate<'py>(
     report: Option<PathBuf>,
 ) -> PyResult<(String, Bound<'py, PyArray2<f64>>, Option<String>)> {
     crate::report::check(report.as_deref(), &model.robot, data)?;
-    let (set, adopted, new) = crate::measurements::resolve_stations(&model.robot, data)?;
-    // A copy of the model only when its frames change.
-    let mut owned = match adopted {
-        Some(r) => Some(r),
-        None if register => Some(model.robot.rebuild(model.robot.to_file()).py()?),
-        None => None,
-    };
-    let stations: Vec<usize> = match &owned {
-        Some(r) if register => (0..r.n_stations()).collect(),
-        _ => new,
-    };
+    let set = crate::measurements::resolve_stations(&model.robot, data)?;
+    // As the command line: the model takes the data's stations, a copy with its fitted
+    // predictor, only when its frames may change.
+    let mut owned = None;
+    let mut stations = Vec::new();
+    if register || !set.stations.is_empty() {
+        let mut copy = crate::robot::copy_of(&model.robot).py()?;
+        let new = copy.adopt_stations(&set.stations);
+        stations = if register {
+            (0..copy.n_stations()).collect()
+        } else {
+            new
+        };
+        owned = Some(copy);
+    }
     let given = model.robot.clone();
     let evaluation = crate::interrupt::run(py, |_| match owned.as_mut() {
         Some(r) => armcomp_api::ops::evaluate::run_registered(r, &set.samples, &stations),

@@ -37,7 +37,8 @@ pub fn fit<'py>(
     group_by: Option<&str>,
 ) -> PyResult<(PyRobot, String, Covariance<'py>, Option<String>)> {
     crate::report::check(report.as_deref(), &robot.robot, data)?;
-    let (set, adopted, _) = crate::measurements::resolve_stations(&robot.robot, data)?;
+    let set = crate::measurements::resolve_stations(&robot.robot, data)?;
+    let adopted = armcomp_api::with_stations(&robot.robot, &set).py()?;
     let robot = adopted.map_or_else(|| robot.robot.clone(), std::sync::Arc::new);
     let fold_groups = crate::measurements::fold_groups(data, &set, groups, group_by)?.map(|(_, g)| g);
     let predictor = predictor.filter(|p| *p != "none").map(str::to_string);

@@ -103,17 +103,10 @@ impl Reference {
     }
 }
 
-/// The 6 × nq Jacobian of frame `k` of `frames` at `q` in `reference` into `out` (rows 0–2
-/// linear, 3–5 angular), of the rigid chain; `ws` holds the rigid evaluation after the call.
-pub fn jacobian_into(
-    frames: &Frames,
-    q: &[f64],
-    k: usize,
-    reference: Reference,
-    ws: &mut TreeWorkspace,
-    out: &mut Matrix6xX<f64>,
-) {
-    frames.tree.forward_into(q, ws);
+/// The 6 × nq Jacobian of frame `k` of `frames` in `reference` into `out` (rows 0–2 linear,
+/// 3–5 angular), of the rigid chain at the configuration `ws` holds the evaluation of
+/// (`frames.tree.forward_into(q, ws)`, once for all frames of one configuration).
+pub fn jacobian_into(frames: &Frames, k: usize, reference: Reference, ws: &TreeWorkspace, out: &mut Matrix6xX<f64>) {
     frames.tree.pose_jacobian_into(ws, k, out);
     let pose = ws.point[k];
     match reference {

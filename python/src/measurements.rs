@@ -28,7 +28,7 @@ enum Source {
     /// A CSV's text, read against a robot when used.
     Csv {
         path: PathBuf,
-        text: String,
+        text: Arc<String>,
         rows: Option<RowSelection>,
     },
     /// Samples whose joint values follow `joint_names` (`None`: the robot's own order) and
@@ -81,7 +81,7 @@ impl PyMeasurements {
         let data = PyMeasurements {
             source: Source::Csv {
                 path: path.clone(),
-                text: text.to_string(),
+                text: text.clone(),
                 rows,
             },
             read_from: read_from.clone(),
@@ -145,14 +145,10 @@ impl PyMeasurements {
 
 /// `data`, one `Measurements` or a sequence of them (one station each, named by its file's
 /// name or, for arrays, `station1`, `station2`, ...; a `station` column of one set names its
-/// own), resolved against `robot` as `--data a.csv --data b.csv` reads them. Returns the
-/// samples, `robot` given their stations when they are not its own (a copy), and the indices of
-/// the stations new to it, whose frames need registering.
-pub fn resolve_stations(
-    robot: &Robot,
-    data: &Bound<'_, PyAny>,
-) -> PyResult<(MeasurementSet, Option<Robot>, Vec<usize>)> {
-    let set = match data.cast::<PyMeasurements>() {
+/// own), resolved against `robot` as `--data a.csv --data b.csv` reads them; the robot takes
+/// their stations with `armcomp_api::with_stations`.
+pub fn resolve_stations(robot: &Robot, data: &Bound<'_, PyAny>) -> PyResult<MeasurementSet> {
+    Ok(match data.cast::<PyMeasurements>() {
         Ok(one) => one.get().resolve(robot)?,
         Err(_) => {
             let list: Vec<PyRef<'_, PyMeasurements>> = data.extract().map_err(|_| {
@@ -184,17 +180,7 @@ pub fn resolve_stations(
             let sets = list.iter().map(|m| m.resolve(robot)).collect::<PyResult<Vec<_>>>()?;
             MeasurementSet::from_files(sets, &names)
         }
-    };
-    let known: Vec<&str> = robot.stations().iter().map(|s| s.name.as_str()).collect();
-    let wanted: Vec<&str> = set.stations.iter().map(String::as_str).collect();
-    if known == wanted || (known.is_empty() && wanted.len() <= 1) {
-        armcomp_core::calibrate::check_station_rows(robot, &set.samples).py()?;
-        return Ok((set, None, Vec::new()));
-    }
-    let mut adopted = robot.rebuild(robot.to_file()).py()?;
-    let new = adopted.adopt_stations(&set.stations);
-    armcomp_core::calibrate::check_station_rows(&adopted, &set.samples).py()?;
-    Ok((set, Some(adopted), new))
+    })
 }
 
 /// `set` with joint values in `robot`'s order and point indices of `robot`.

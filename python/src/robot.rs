@@ -111,12 +111,12 @@ impl PyRobot {
             let names: Vec<String> = (q.getattr("columns")?.try_iter()?)
                 .map(|c| c.and_then(|c| c.str().map(|s| s.to_string())))
                 .collect::<PyResult<_>>()?;
+            let columns = self.joint_columns(&names, "Q")?;
             let values = crate::arrays::matrix_arg(&q.call_method0("to_numpy")?, "Q", "numbers in every column")?;
             let n = values.as_array().nrows();
             let mut flat = Vec::with_capacity(n * tree.nq());
             for row in values.as_array().rows() {
-                let pairs: Vec<(String, f64)> = names.iter().cloned().zip(row.iter().copied()).collect();
-                flat.extend(self.named_configuration(&pairs, "Q")?);
+                flat.extend(columns.iter().map(|c| c.map_or_else(|held| held, |c| row[c])));
             }
             return f(&flat, n);
         }
@@ -144,18 +144,33 @@ impl PyRobot {
         }
     }
 
-    /// Joint values given by name, in the robot's order: a joint left out takes the robot
-    /// file's `hold` value, and one with none is an error, as is a name the robot lacks, since
-    /// another library's order is a silent error of metres.
+    /// Joint values given by name, in the robot's order (see [`joint_columns`](Self::joint_columns)).
     fn named_configuration(&self, pairs: &[(String, f64)], field: &str) -> PyResult<Vec<f64>> {
+        let names: Vec<String> = pairs.iter().map(|(n, _)| n.clone()).collect();
+        let columns = self.joint_columns(&names, field)?;
+        Ok(columns
+            .iter()
+            .map(|c| c.map_or_else(|held| held, |c| pairs[c].1))
+            .collect())
+    }
+
+    /// For each of the robot's joints, the position of its value among values given by the
+    /// joint `names`, or the robot file's `hold` value when `names` leave it out. A joint with
+    /// neither is an error, as is a name the robot lacks or gives twice, since another
+    /// library's order is a silent error of metres. Found once for a whole batch.
+    fn joint_columns(&self, names: &[String], field: &str) -> PyResult<Vec<Result<usize, f64>>> {
         let tree = self.robot.tree();
-        let q = tree
-            .coordinates_by_name(pairs.iter().map(|(n, v)| (n.as_str(), *v)))
+        // The names' positions travel as the values: small integers are exact in f64, and the
+        // names are checked as values by name always are.
+        let given = tree
+            .coordinates_by_name(names.iter().enumerate().map(|(c, n)| (n.as_str(), c as f64)))
             .py()?;
         let hold = self.robot.csv_layout().hold;
-        let q: Vec<Option<f64>> = q.into_iter().zip(hold).map(|(v, h)| v.or(h)).collect();
-        let missing: Vec<&str> = (tree.coordinate_names().iter().zip(&q))
-            .filter(|(_, v)| v.is_none())
+        let columns: Vec<Option<Result<usize, f64>>> = (given.iter().zip(&hold))
+            .map(|(c, h)| c.map(|c| Ok(c as usize)).or(h.map(Err)))
+            .collect();
+        let missing: Vec<&str> = (tree.coordinate_names().iter().zip(&columns))
+            .filter(|(_, c)| c.is_none())
             .map(|(n, _)| n.as_str())
             .collect();
         if !missing.is_empty() {
@@ -169,7 +184,7 @@ impl PyRobot {
                 Some(field),
             ));
         }
-        Ok(q.into_iter().flatten().collect())
+        Ok(columns.into_iter().flatten().collect())
     }
 
     /// The poses of `frames` (indices of [`Frames`]) through the full model at `q`, base frame.
@@ -293,6 +308,25 @@ fn named_values(q: &Bound<'_, PyAny>) -> PyResult<Option<Vec<(String, f64)>>> {
     Ok(Some(pairs))
 }
 
+/// `robot`'s model file as text with the folder its relative paths (a URDF) resolve against:
+/// what rebuilds it, its fitted predictor included.
+fn model_text(robot: &Robot) -> armcomp_core::Result<(String, PathBuf)> {
+    let base_dir = robot.base_dir();
+    Ok((robot.to_text_for(&base_dir.join("model.toml"))?, base_dir))
+}
+
+/// A copy of `robot` to change (its stations' frames), its fitted predictor kept, which
+/// [`Robot::to_file`] leaves out.
+pub fn copy_of(robot: &Robot) -> armcomp_core::Result<Robot> {
+    let (text, base_dir) = model_text(robot)?;
+    let src = SourceFile {
+        path: base_dir.join("<copy>"),
+        text,
+        format: Format::Toml,
+    };
+    Robot::from_source(src.parse()?, &src, crate::input_limits())
+}
+
 /// Writes `text` to `path` atomically, never over a file `robot` was read from.
 pub fn write_output(robot: &Robot, path: &Path, text: &str) -> PyResult<()> {
     check_output(path, &robot.inputs()).py()?;
@@ -333,11 +367,8 @@ impl PyRobot {
     /// Pickling (multiprocessing): the robot file with this robot's values, rebuilt where its
     /// relative paths (a URDF) resolve as they did.
     fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (String, PathBuf))> {
-        // Its files named relative to the folder they are rebuilt from.
-        let base_dir = self.robot.base_dir();
-        let text = self.robot.to_text_for(&base_dir.join("model.toml")).py()?;
         let rebuild = py.get_type::<PyRobot>().getattr("from_toml")?;
-        Ok((rebuild, (text, base_dir)))
+        Ok((rebuild, model_text(&self.robot).py()?))
     }
 
     /// The robot's name.
@@ -536,7 +567,8 @@ impl PyRobot {
         let reference = reference.map_or(Ok(Reference::LocalWorldAligned), Reference::parse)?;
         let nq = self.robot.tree().nq();
         let jacobian = self.with_scratch(|s| {
-            jacobian_into(&self.frames, &q, k, reference, &mut s.rigid, &mut s.jacobian);
+            self.frames.tree.forward_into(&q, &mut s.rigid);
+            jacobian_into(&self.frames, k, reference, &s.rigid, &mut s.jacobian);
             Array2::from_shape_fn((6, nq), |(r, c)| s.jacobian[(r, c)])
         });
         Ok(jacobian.into_pyarray(py))
@@ -570,8 +602,9 @@ impl PyRobot {
                         let per_frame = (6 * nq).max(1);
                         let mut blocks = slice.chunks_exact_mut(per_frame);
                         for q in qs.chunks_exact(nq.max(1)).take(n) {
+                            self.frames.tree.forward_into(q, &mut s.rigid);
                             for &k in &ks {
-                                jacobian_into(&self.frames, q, k, reference, &mut s.rigid, &mut s.jacobian);
+                                jacobian_into(&self.frames, k, reference, &s.rigid, &mut s.jacobian);
                                 let block = blocks.next().expect("sized for every frame of every row");
                                 for (i, v) in block.iter_mut().enumerate() {
                                     *v = s.jacobian[(i / nq, i % nq)];

@@ -85,6 +85,19 @@ def test_several_stations_as_several_data_files(simulated, tmp_path):
     )
 
 
+def test_registering_keeps_the_models_fitted_predictor(simulated, tmp_path):
+    tmp, data = simulated
+    truth = armcomp.Robot.load(TRUTH)
+    model, _ = armcomp.calibrate(truth, data, noise_mm=0.05, identify=GEOMETRY)
+    learned, _ = quiet(armcomp.learn, model, data, predictor="ridge")
+    learned.save(tmp_path / "learned.toml")
+    expected = cli_json("evaluate", "--model", tmp_path / "learned.toml", "--data", tmp / "cli.csv", "--register")
+    registered = armcomp.evaluate(learned, data, register=True)
+    assert registered.to_dict() == expected
+    # The predictor still counts: without it the errors are larger.
+    assert registered.rms_mm < armcomp.evaluate(model, data, register=True).rms_mm
+
+
 def test_report_pages_hold_what_the_command_line_writes(talos, tmp_path):
     robot, data = talos
     cli_json(
