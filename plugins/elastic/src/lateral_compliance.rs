@@ -3,6 +3,13 @@
 //! `δ_u = c_u · M_u`, `δ_v = c_v · M_v`, with `M` the gravity moment of everything beyond the
 //! joint about the joint origin. The axes are the joint frame's x made perpendicular to the
 //! motion axis (`u`) and `v = axis × u` (for MDH joints: the joint frame's x and y).
+//!
+//! A telescopic section (a prismatic joint) leans in its guide the same way, about the joint's
+//! frame before the motion, where it leaves the guide. With an `overlap`, the length of the
+//! section inside its guide at joint value 0, the compliance is the one at that overlap and grows
+//! as `(overlap / (overlap − q))²` as the section slides out by `q`: the guide's bearings, spread
+//! over less length, hold the moment with forces that grow as one over their spacing, and the
+//! lean is their play-free deflection over that spacing.
 
 use std::collections::BTreeMap;
 
@@ -22,7 +29,17 @@ use armcomp_core::plugin::gravity::subtree_wrench;
 pub struct LateralComplianceSpec {
     /// Per joint name: `[c_u, c_v]` in rad/(N m) about the two axes perpendicular to its axis.
     pub compliance: BTreeMap<String, [f64; 2]>,
+    /// Per prismatic joint of `compliance` (a telescopic section): how far the section reaches
+    /// into its guide at joint value 0, in the file's length unit. Its compliance is the one at
+    /// that overlap, scaled by `(overlap / (overlap − q))²` as it slides out by `q`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub overlap: BTreeMap<String, f64>,
 }
+
+/// The shortest overlap, as a share of the overlap at joint value 0, the scaling follows: a
+/// section out beyond this is about to leave its guide, and the lean is held at that value
+/// rather than grow without bound.
+const MIN_OVERLAP_SHARE: f64 = 0.1;
 
 #[derive(Debug, Clone)]
 struct LateralJoint {
@@ -30,6 +47,8 @@ struct LateralJoint {
     /// The perpendicular axes in joint-frame coordinates.
     u: Vector3<f64>,
     v: Vector3<f64>,
+    /// For a telescopic section: its overlap with the guide at joint value 0 (m).
+    overlap: Option<f64>,
 }
 
 /// The built lateral-compliance model.
@@ -90,7 +109,28 @@ impl ErrorModelSpec for LateralComplianceSpec {
             }
             let u = u.normalize();
             let v = axis.cross(&u);
-            joints.push((j, LateralJoint { joint: j, u, v }, *c));
+            let overlap = match self.overlap.get(name) {
+                None => None,
+                Some(&o) => {
+                    let p = format!("{path}.overlap.{name}");
+                    if !matches!(tree.joints()[j].motion, Motion::Prismatic(_)) {
+                        issues.push(p, "an overlap is for a prismatic joint (a telescopic section in its guide)");
+                        continue;
+                    }
+                    if !(o.is_finite() && o > 0.0) {
+                        issues.push(p, format!("expected a positive length, got {o}"));
+                        continue;
+                    }
+                    Some(ctx.build.units.len(o))
+                }
+            };
+            joints.push((j, LateralJoint { joint: j, u, v, overlap }, *c));
+        }
+        for name in self.overlap.keys().filter(|n| !self.compliance.contains_key(*n)) {
+            issues.push(
+                format!("{path}.overlap.{name}"),
+                format!("joint `{name}` has no compliance here; give it one in `compliance` too"),
+            );
         }
         if !issues.is_empty() {
             return Err(issues);
@@ -126,9 +166,15 @@ impl ErrorModel for LateralComplianceModel {
 
     fn perturb(&self, state: &StaticState<'_>, values: &[f64], out: &mut Perturbation) {
         for (i, l) in self.joints.iter().enumerate() {
-            let (cu, cv) = (values[2 * i], values[2 * i + 1]);
+            let (mut cu, mut cv) = (values[2 * i], values[2 * i + 1]);
             if cu == 0.0 && cv == 0.0 {
                 continue;
+            }
+            if let Some(o) = l.overlap {
+                let left = (o - state.tree.joint_value(l.joint, state.q)).max(MIN_OVERLAP_SHARE * o);
+                let scale = (o / left).powi(2);
+                cu *= scale;
+                cv *= scale;
             }
             let frame = &state.frames.joint_frame[l.joint];
             let origin = frame.translation.vector;

@@ -5,8 +5,11 @@
 //! against gravity on every row. This model compares that reading with the direction of gravity
 //! the model predicts at the link, and turns the chain at the link by the smallest rotation
 //! between the two: about axes square to gravity only (roll and pitch), since gravity does not
-//! see a turn about itself. The joints seated on the link and the points on it move, in their
-//! own frames, as `geometric_offsets` moves the base's; everything beyond turns with them.
+//! see a turn about itself. On the base, the joints seated on it and the points on it move, in
+//! their own frames, as `geometric_offsets` moves the base's; everything beyond turns with them.
+//! A link off the base turns where it is seated: about its joint's frame before the joint's
+//! motion. For a revolute joint that is the link's own origin; a telescopic section (a prismatic
+//! joint) leans about where it leaves its guide, not about its far end that slides out.
 //!
 //! The prediction is the robot file's gravity (a level base) for a sensor on the base. For a
 //! sensor on another link it is the gravity the elastic models see, carried to the link by the
@@ -57,6 +60,15 @@ enum Reference {
     BaseReading,
 }
 
+/// Where a measured tilt turns the chain.
+#[derive(Debug, Clone)]
+enum Turned {
+    /// The base: the joints seated on it and its points.
+    Base(BodyAttachments),
+    /// The joint (its frame before the motion) whose child is the sensor's link.
+    Joint(usize),
+}
+
 /// The built measured-tilt model.
 #[derive(Debug, Clone)]
 pub struct MeasuredTiltModel {
@@ -66,7 +78,8 @@ pub struct MeasuredTiltModel {
     sensor: usize,
     /// Its link's body.
     body: usize,
-    attachments: BodyAttachments,
+    /// What the turn moves: the base's attachments, or the joint the link is seated on.
+    turned: Turned,
     reference: Reference,
     /// The direction of the file's gravity (base frame).
     level: Vector3<f64>,
@@ -116,7 +129,11 @@ impl ErrorModelSpec for MeasuredTiltSpec {
             units,
             sensor,
             body,
-            attachments: BodyAttachments::of(ctx.tree, body),
+            // Body `b > 0` is the child of joint `b − 1` (see `KinematicTree`).
+            turned: match body {
+                0 => Turned::Base(BodyAttachments::of(ctx.tree, 0)),
+                b => Turned::Joint(b - 1),
+            },
             reference: if body != 0 && read_on_base {
                 Reference::BaseReading
             } else {
@@ -157,8 +174,16 @@ impl ErrorModel for MeasuredTiltModel {
             return;
         };
         let r = turn.scaled_axis();
-        self.attachments
-            .apply(&Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z), tree, out);
+        match &self.turned {
+            Turned::Base(attachments) => attachments.apply(&Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z), tree, out),
+            Turned::Joint(j) => {
+                // The turn in the link's frame, carried into the joint's frame before its
+                // motion (for a prismatic joint the same axes; for a revolute one turned by q).
+                let motion = state.frames.joint_frame[*j].rotation.inverse() * state.frames.body[self.body].rotation;
+                let r = motion * r;
+                out.joint_twist[*j] += Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z);
+            }
+        }
     }
 
     fn sensor_mounting(&self, values: &[f64]) -> Option<(usize, UnitQuaternion<f64>)> {
