@@ -23,6 +23,11 @@ pub struct Args {
     /// geometry, error models and predictor stay the model's.
     #[arg(long)]
     register: bool,
+    /// Register the stations on these rows of the data only (a station's stationing points, in
+    /// --rows' syntax: `0..12,225..237`), as --register does, and evaluate on the others (those
+    /// of --rows that are not among them). Every station of the data needs rows here.
+    #[arg(long, value_name = "ROWS", conflicts_with = "register")]
+    register_on: Option<armcomp_core::data::measurement::RowSelection>,
     #[command(flatten)]
     rows: super::Rows,
     /// Print JSON: {"n", "mean_mm", "std_mm", "rms_mm", "max_mm", "mean_abs_mm": {"x", "y", "z"}},
@@ -54,13 +59,36 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         check_output(out, &robot, &data_files)?;
     }
     super::check_report(args.report.as_deref(), &robot, &data_files, args.residuals.as_deref())?;
-    let (data, new) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
-    let register: Vec<usize> = if args.register {
-        (0..robot.n_stations()).collect()
-    } else {
-        new
+    let (data, report) = match &args.register_on {
+        None => {
+            let (data, new) = read_stations(&mut robot, &args.data, args.rows.rows.as_ref())?;
+            let register: Vec<usize> = if args.register {
+                (0..robot.n_stations()).collect()
+            } else {
+                new
+            };
+            let report = armcomp_api::ops::evaluate::run_registered(&mut robot, &data.samples, &register)?;
+            (data, report)
+        }
+        Some(on) => {
+            let (all, _) = read_stations(&mut robot, &args.data, None)?;
+            let stationing = all.rows_where(|r| on.contains(r));
+            let rows = args.rows.rows.as_ref();
+            let evaluated = all.rows_where(|r| !on.contains(r) && rows.is_none_or(|s| s.contains(r)));
+            if evaluated.samples.is_empty() {
+                anyhow::bail!("--register-on takes every row --rows leaves; keep some rows to evaluate on");
+            }
+            let mut stations: Vec<usize> = evaluated.samples.iter().map(|s| s.station).collect();
+            stations.sort_unstable();
+            stations.dedup();
+            if let Some(&k) = stations.iter().find(|&&k| stationing.samples.iter().all(|s| s.station != k)) {
+                let name = robot.stations().get(k).map_or("of the data", |s| s.name.as_str());
+                anyhow::bail!("--register-on gives station {name} no rows; give each station's stationing points");
+            }
+            let report = armcomp_api::ops::evaluate::register_then_run(&mut robot, &stationing.samples, &evaluated.samples, &stations)?;
+            (evaluated, report)
+        }
     };
-    let report = armcomp_api::ops::evaluate::run_registered(&mut robot, &data.samples, &register)?;
     if let Some(out) = &args.residuals {
         write_atomic(out, report.residuals_csv(&robot, &data.samples).as_bytes())?;
     }

@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::algorithms::simulate::Contact;
+use armcomp_core::algorithms::simulate::{Contact, Ground, TiltDraw};
 use armcomp_core::data::measurement::{parse_poses, write_csv, write_csv_with_sensors};
 use armcomp_core::support::io::write_atomic;
 
@@ -55,14 +55,46 @@ pub struct Args {
     #[arg(long, default_value_t = 0.0)]
     joint_noise_deg: f64,
     /// Measure from this many stations (total-station set-ups), each its own measurement
-    /// frame drawn from --seed around the truth's (see `armcomp_core::algorithms::simulate::random_stations`):
-    /// the poses in as many consecutive blocks, and a `station` column (`st1`, `st2`, ...).
-    /// Default: the truth's stations, or one.
+    /// frame drawn from --seed around the truth's (the first is the truth's; every other turned
+    /// about the vertical at random, tilted by up to 2 deg and moved by up to 2 m): the poses in
+    /// as many consecutive blocks, and a `station` column (`st1`, `st2`, ...). Default: the
+    /// truth's stations, or one.
     #[arg(long, value_parser = super::at_least_one)]
     stations: Option<usize>,
+    /// A ground the robot stands on, measured from a station of its own, as
+    /// `name=tilt,rocking` in degrees: the base tilted by `tilt` about a horizontal axis drawn
+    /// from --seed, and rocking from pose to pose about its x and y axes with a standard
+    /// deviation of `rocking` (soft ground; 0 or left out on firm ground). Repeat for several
+    /// (e.g. `--ground flat=0 --ground slope=3,0.005 --ground soft=0.5,0.03`): the poses in as
+    /// many consecutive blocks, the station column naming the ground. The truth's sensors read
+    /// it, as for --tilt-deg, which it replaces.
+    #[arg(long = "ground", value_name = "NAME=TILT[,ROCKING]", conflicts_with_all = ["stations", "tilt_deg", "tilt_per"])]
+    grounds: Vec<String>,
     /// Output CSV (written atomically; in the robot file's units).
     #[arg(long)]
     out: PathBuf,
+}
+
+/// `name=tilt[,rocking]` (deg) → the name and the ground (rad).
+fn ground(text: &str) -> anyhow::Result<(String, Ground)> {
+    let parsed = text.split_once('=').and_then(|(name, v)| {
+        let v: Vec<f64> = v.split(',').map(|c| c.trim().parse().ok()).collect::<Option<_>>()?;
+        let name = name.trim();
+        let ok = matches!(v.len(), 1 | 2) && v.iter().all(|x| x.is_finite() && *x >= 0.0);
+        (ok && !name.is_empty() && !name.contains(',')).then(|| {
+            let ground = Ground {
+                tilt: v[0].to_radians(),
+                rocking: v.get(1).copied().unwrap_or(0.0).to_radians(),
+            };
+            (name.to_string(), ground)
+        })
+    });
+    parsed.ok_or_else(|| {
+        anyhow::anyhow!(
+            "--ground `{text}`: expected name=tilt,rocking in degrees, both zero or more, e.g. soft=0.5,0.03 (the \
+             rocking may be left out: slope=3)"
+        )
+    })
 }
 
 /// `name=x,y,z` (mm) → the name and the point (m).
@@ -154,14 +186,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => armcomp_api::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
-    if let Some(k) = args.stations {
+    let grounds = args.grounds.iter().map(|g| ground(g)).collect::<anyhow::Result<Vec<_>>>()?;
+    for (k, (name, _)) in grounds.iter().enumerate() {
+        if grounds[..k].iter().any(|(n, _)| n == name) {
+            anyhow::bail!("--ground `{name}` is given twice; each ground needs a name of its own");
+        }
+    }
+    if let Some(k) = args.stations.or((!grounds.is_empty()).then_some(grounds.len())) {
         // A stream of its own: the same seed draws the same poses whatever the stations.
         let seed = args.seed.wrapping_add(0x5851_f42d_4c95_7f2d);
-        truth.set_stations(armcomp_api::ops::simulate::stations(&truth, k, poses.len(), seed)?);
+        let mut stations = armcomp_api::ops::simulate::stations(&truth, k, poses.len(), seed)?;
+        for (station, (name, _)) in stations.iter_mut().zip(&grounds) {
+            station.name.clone_from(name);
+        }
+        truth.set_stations(stations);
     }
     let draw = match args.tilt_per.as_str() {
-        "station" => armcomp_core::algorithms::simulate::TiltDraw::PerStation,
-        _ => armcomp_core::algorithms::simulate::TiltDraw::PerRow,
+        _ if !grounds.is_empty() => TiltDraw::Grounds(grounds.into_iter().map(|(_, g)| g).collect()),
+        "station" => TiltDraw::PerStation,
+        _ => TiltDraw::PerRow,
     };
     let mut set =
         armcomp_api::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;

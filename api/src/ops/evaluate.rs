@@ -42,7 +42,18 @@ pub fn run_registered(
     samples: &[Sample],
     stations: &[usize],
 ) -> armcomp_core::Result<EvaluationReport> {
-    let failed = armcomp_core::calibrate::register_stations_on_poses(robot, samples, stations)?;
+    register_then_run(robot, samples, samples, stations)
+}
+
+/// [`run_registered`] with the frames registered on `stationing` (a station's stationing points)
+/// and the model evaluated on `samples`, other rows of the same stations.
+pub fn register_then_run(
+    robot: &mut Robot,
+    stationing: &[Sample],
+    samples: &[Sample],
+    stations: &[usize],
+) -> armcomp_core::Result<EvaluationReport> {
+    let failed = armcomp_core::calibrate::register_stations_on_poses(robot, stationing, stations)?;
     if let Some(&k) = failed.first() {
         return Err(armcomp_core::Error::InvalidArgument {
             what: format!(

@@ -3,7 +3,7 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
-use rand_distr::{Distribution, Normal};
+use rand_distr::{Distribution, Normal, StandardNormal};
 
 use crate::error::{Error, Result};
 
@@ -42,7 +42,7 @@ pub fn simulate(truth: &Robot, poses: &[Vec<f64>], params: SimulateParams) -> Re
 }
 
 /// How often a simulated base tilt is drawn anew.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub enum TiltDraw {
     /// At every pose: a carrier that moves between measurements.
     #[default]
@@ -50,6 +50,20 @@ pub enum TiltDraw {
     /// Once per station: a carrier parked on different ground for each set-up, standing still
     /// while that station measures.
     PerStation,
+    /// One ground per station, in the truth's station order: the base stands on each tilted by
+    /// its own angle and rocks on it from pose to pose. The per-ground values replace the
+    /// standard deviation `tilt_std`, which must be 0.
+    Grounds(Vec<Ground>),
+}
+
+/// A ground the robot stands on while one station measures it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ground {
+    /// How far the ground tilts the base (rad), about a horizontal axis drawn from the seed.
+    pub tilt: f64,
+    /// Standard deviation (rad) of the base's rocking about its x and y axes, drawn anew at
+    /// every pose: soft ground giving under the moving arm.
+    pub rocking: f64,
 }
 
 /// [`simulate`] with the base standing tilted by a different angle at every pose (or station,
@@ -84,7 +98,14 @@ pub fn simulate_tilted(
             ),
         });
     }
-    if tilt_std > 0.0 && truth.sensors().is_empty() {
+    let tilted = match &draw {
+        TiltDraw::Grounds(grounds) => {
+            check_grounds(grounds, tilt_std, truth.stations().len().max(1))?;
+            grounds.iter().any(|g| g.tilt > 0.0 || g.rocking > 0.0)
+        }
+        _ => tilt_std > 0.0,
+    };
+    if tilted && truth.sensors().is_empty() {
         return Err(Error::InvalidArgument {
             what: "tilt".into(),
             reason: "a tilted base needs a sensor in the truth's robot file (`[[sensors]]`) to read it".into(),
@@ -120,17 +141,37 @@ pub fn simulate_tilted(
             reason: e.to_string(),
         })?;
         let mut tilt_rng = StdRng::seed_from_u64(params.seed ^ 0x7117_5eed_0000_0001);
-        let mut next = || Vector3::new(tilt.sample(&mut tilt_rng), tilt.sample(&mut tilt_rng), 0.0);
+        let next = |rng: &mut StdRng| Vector3::new(tilt.sample(rng), tilt.sample(rng), 0.0);
         // The sensors' noise is a stream of its own too.
         let mut sensor_rng = StdRng::seed_from_u64(params.seed ^ 0x5e45_0a15_0000_0002);
-        match draw {
-            TiltDraw::PerRow => tilted_positions(truth, poses, |_| next(), &mut sensor_rng)?,
+        match &draw {
+            TiltDraw::PerRow => tilted_positions(truth, poses, |_| next(&mut tilt_rng), &mut sensor_rng)?,
             TiltDraw::PerStation => {
-                let tilts: Vec<Vector3<f64>> = (0..n_stations).map(|_| next()).collect();
+                let tilts: Vec<Vector3<f64>> = (0..n_stations).map(|_| next(&mut tilt_rng)).collect();
                 tilted_positions(
                     truth,
                     poses,
                     |i| tilts[station_of(i, n_stations, poses.len())],
+                    &mut sensor_rng,
+                )?
+            }
+            TiltDraw::Grounds(grounds) => {
+                // Each ground's tilt about a horizontal axis of its own, then its rocking.
+                let standing: Vec<Vector3<f64>> = (grounds.iter())
+                    .map(|g| {
+                        let heading = tilt_rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+                        Vector3::new(heading.cos(), heading.sin(), 0.0) * g.tilt
+                    })
+                    .collect();
+                tilted_positions(
+                    truth,
+                    poses,
+                    |i| {
+                        let s = station_of(i, n_stations, poses.len());
+                        let rock = grounds[s].rocking;
+                        standing[s]
+                            + Vector3::new(tilt_rng.sample(StandardNormal), tilt_rng.sample(StandardNormal), 0.0) * rock
+                    },
                     &mut sensor_rng,
                 )?
             }
@@ -347,6 +388,38 @@ pub fn simulate_contacts(
         }
     }
     Ok(set)
+}
+
+/// Checks grounds against the truth's `n_stations` (one each) and their angles.
+fn check_grounds(grounds: &[Ground], tilt_std: f64, n_stations: usize) -> Result<()> {
+    let fail = |reason: String| {
+        Err(Error::InvalidArgument {
+            what: "grounds".into(),
+            reason,
+        })
+    };
+    if tilt_std != 0.0 {
+        return fail("each ground gives its own tilt and rocking; give no tilt beside them".into());
+    }
+    if grounds.len() != n_stations {
+        return fail(format!(
+            "{} grounds for {n_stations} station(s); each ground is measured from a station of its own",
+            grounds.len()
+        ));
+    }
+    for (k, g) in grounds.iter().enumerate() {
+        for (what, v) in [("tilt", g.tilt), ("rocking", g.rocking)] {
+            if !(v.is_finite() && (0.0..=ABSURD_TILT).contains(&v)) {
+                return fail(format!(
+                    "ground {}: expected a {what} between 0 and {:.0} deg, got {} deg",
+                    k + 1,
+                    ABSURD_TILT.to_degrees(),
+                    v.to_degrees()
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The station that measures pose `i` of `n_poses`: consecutive blocks of (nearly) equal size.

@@ -750,11 +750,39 @@ impl RowSelection {
 impl MeasurementSet {
     /// The samples of the selected rows, and their rows.
     pub fn select_rows(&self, selection: &RowSelection) -> MeasurementSet {
-        let (samples, rows) = self
-            .samples
-            .iter()
-            .zip(&self.rows)
-            .filter(|(_, r)| selection.contains(**r))
+        self.select_rows_by(|r| selection.contains(r))
+    }
+
+    /// The samples of the data rows `keep` keeps, and their rows. A station none of them
+    /// belongs to is dropped (the kept samples' station indices follow), so a selection of one
+    /// station's rows is data of one set-up, and no command sees a station without rows.
+    pub fn select_rows_by(&self, keep: impl Fn(usize) -> bool) -> MeasurementSet {
+        let mut set = self.rows_where(keep);
+        let used: Vec<bool> = (0..set.stations.len())
+            .map(|k| set.samples.iter().any(|s| s.station == k))
+            .collect();
+        let index: Vec<usize> = (used.iter())
+            .scan(0, |next, &u| {
+                let k = *next;
+                *next += usize::from(u);
+                Some(k)
+            })
+            .collect();
+        for s in &mut set.samples {
+            if let Some(&k) = index.get(s.station) {
+                s.station = k;
+            }
+        }
+        let mut kept = used.iter();
+        set.stations.retain(|_| kept.next().copied().unwrap_or(true));
+        set
+    }
+
+    /// The samples of the data rows `keep` keeps, and their rows, every station kept with its
+    /// index (for subsets of data whose stations a robot has already adopted).
+    pub fn rows_where(&self, keep: impl Fn(usize) -> bool) -> MeasurementSet {
+        let (samples, rows) = (self.samples.iter().zip(&self.rows))
+            .filter(|(_, r)| keep(**r))
             .map(|(s, r)| (s.clone(), *r))
             .unzip();
         MeasurementSet {
