@@ -837,16 +837,31 @@ fn the_telescopic_twin_reaches_the_noise_on_every_ground_with_its_sensors() {
         let rms = |file: &str| -> Vec<f64> {
             let model = dir.file("model.toml", "").display().to_string();
             let (code, _, err) = armcomp(&[
-                "calibrate", "--robot", "robots/telescopic-arm.toml", "--data", file, "--rows", "0..200",
-                "--out", &model,
+                "calibrate",
+                "--robot",
+                "robots/telescopic-arm.toml",
+                "--data",
+                file,
+                "--rows",
+                "0..200",
+                "--out",
+                &model,
             ]);
             assert!(code == 0 || code == 2, "{err}");
             (1..4)
                 .map(|k| {
                     let (a, b) = (200 * k, 200 * (k + 1));
                     let (code, out, err) = armcomp(&[
-                        "evaluate", "--model", &model, "--data", file, "--rows", &format!("{a}..{b}"),
-                        "--register-on", &format!("{a}..{}", a + 12), "--json",
+                        "evaluate",
+                        "--model",
+                        &model,
+                        "--data",
+                        file,
+                        "--rows",
+                        &format!("{a}..{b}"),
+                        "--register-on",
+                        &format!("{a}..{}", a + 12),
+                        "--json",
                     ]);
                     assert_eq!(code, 0, "{err}");
                     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
@@ -858,8 +873,16 @@ fn the_telescopic_twin_reaches_the_noise_on_every_ground_with_its_sensors() {
         let with = rms(&data);
         let without = rms(&bare);
         for (k, (w, wo)) in with.iter().zip(&without).enumerate() {
-            assert!(*w < 1.8 * floor, "seed {seed}, {}: {w:.4} mm with the sensors", grounds[k + 1]);
-            assert!(*wo > 5.0 * w, "seed {seed}, {}: {wo:.4} mm without, {w:.4} with", grounds[k + 1]);
+            assert!(
+                *w < 1.8 * floor,
+                "seed {seed}, {}: {w:.4} mm with the sensors",
+                grounds[k + 1]
+            );
+            assert!(
+                *wo > 5.0 * w,
+                "seed {seed}, {}: {wo:.4} mm without, {w:.4} with",
+                grounds[k + 1]
+            );
         }
     }
 }
@@ -920,4 +943,64 @@ xyz = [1000.0, 0.0, 0.0]
             "q {q_mm} mm: moved {moved:?}, expected {expected:?}"
         );
     }
+}
+
+/// On the telescopic twin's soft ground, `diagnose` from the shipped nominal without its two
+/// `measured_tilt`s names both, the base's rocking and the top section's lean, in its first two
+/// steps, and ends within 1.3 times the tracker's noise held out.
+#[test]
+fn the_diagnosis_names_the_rocking_and_the_column_lean_of_the_telescopic_twin() {
+    use crate::cli::armcomp;
+    let dir = crate::common::Scratch::new("telescopic-diagnose");
+    let root = crate::common::root();
+    let text = std::fs::read_to_string(root.join("robots/telescopic-arm.toml")).unwrap();
+    let start = text.find("[[error_models]]\ntype = \"measured_tilt\"").unwrap();
+    let end = text.find("[[error_models]]\ntype = \"joint_compliance\"").unwrap();
+    let urdf = root
+        .join("robots/telescopic-arm.urdf")
+        .display()
+        .to_string()
+        .replace('\\', "/");
+    let bare = (text[..start].to_string() + &text[end..])
+        .replace("path = \"telescopic-arm.urdf\"", &format!("path = \"{urdf}\""));
+    let bare = dir.file("bare.toml", &bare).display().to_string();
+    let data = dir.file("soft.csv", "").display().to_string();
+    let (code, _, err) = armcomp(&[
+        "simulate",
+        "--robot",
+        "robots/telescopic-arm-truth.toml",
+        "--n",
+        "300",
+        "--noise-mm",
+        "0.05",
+        "--seed",
+        "4",
+        "--ground",
+        "soft=0.5,0.03",
+        "--out",
+        &data,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let (code, out, err) = armcomp(&[
+        "diagnose",
+        "--robot",
+        &bare,
+        "--data",
+        &data,
+        "--max-steps",
+        "2",
+        "--json",
+    ]);
+    assert!(code == 0 || code == 2, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    let mut named: Vec<String> = steps
+        .iter()
+        .map(|s| format!("{} {}", s["effect"].as_str().unwrap(), s["location"].as_str().unwrap()))
+        .collect();
+    named.sort();
+    // A measured tilt is located at its sensor's link.
+    assert_eq!(named, ["measured_tilt base_link", "measured_tilt section2"], "{out}");
+    let last = steps.last().unwrap()["heldout_after"]["rms_mm"].as_f64().unwrap();
+    assert!(last < 1.3 * noise_rms_mm(0.05e-3), "{last} mm at the end");
 }

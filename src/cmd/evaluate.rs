@@ -81,11 +81,19 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             let mut stations: Vec<usize> = evaluated.samples.iter().map(|s| s.station).collect();
             stations.sort_unstable();
             stations.dedup();
-            if let Some(&k) = stations.iter().find(|&&k| stationing.samples.iter().all(|s| s.station != k)) {
+            if let Some(&k) = stations
+                .iter()
+                .find(|&&k| stationing.samples.iter().all(|s| s.station != k))
+            {
                 let name = robot.stations().get(k).map_or("of the data", |s| s.name.as_str());
                 anyhow::bail!("--register-on gives station {name} no rows; give each station's stationing points");
             }
-            let report = armcomp_api::ops::evaluate::register_then_run(&mut robot, &stationing.samples, &evaluated.samples, &stations)?;
+            let report = armcomp_api::ops::evaluate::register_then_run(
+                &mut robot,
+                &stationing.samples,
+                &evaluated.samples,
+                &stations,
+            )?;
             (evaluated, report)
         }
     };

@@ -186,7 +186,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => armcomp_api::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
-    let grounds = args.grounds.iter().map(|g| ground(g)).collect::<anyhow::Result<Vec<_>>>()?;
+    let grounds = args
+        .grounds
+        .iter()
+        .map(|g| ground(g))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     for (k, (name, _)) in grounds.iter().enumerate() {
         if grounds[..k].iter().any(|(n, _)| n == name) {
             anyhow::bail!("--ground `{name}` is given twice; each ground needs a name of its own");

@@ -114,7 +114,10 @@ impl ErrorModelSpec for LateralComplianceSpec {
                 Some(&o) => {
                     let p = format!("{path}.overlap.{name}");
                     if !matches!(tree.joints()[j].motion, Motion::Prismatic(_)) {
-                        issues.push(p, "an overlap is for a prismatic joint (a telescopic section in its guide)");
+                        issues.push(
+                            p,
+                            "an overlap is for a prismatic joint (a telescopic section in its guide)",
+                        );
                         continue;
                     }
                     if !(o.is_finite() && o > 0.0) {
@@ -124,7 +127,16 @@ impl ErrorModelSpec for LateralComplianceSpec {
                     Some(ctx.build.units.len(o))
                 }
             };
-            joints.push((j, LateralJoint { joint: j, u, v, overlap }, *c));
+            joints.push((
+                j,
+                LateralJoint {
+                    joint: j,
+                    u,
+                    v,
+                    overlap,
+                },
+                *c,
+            ));
         }
         for name in self.overlap.keys().filter(|n| !self.compliance.contains_key(*n)) {
             issues.push(
