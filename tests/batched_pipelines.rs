@@ -61,9 +61,14 @@ fn simulation_measures_every_marker_through_the_full_model() {
         };
         let set = simulate(&r, &poses, params).unwrap();
         assert_eq!(set.samples.len(), poses.len() * r.markers().len(), "{name}");
-        let expected = poses.iter().flat_map(|q| r.markers().iter().map(move |&m| (q, m)));
-        for (s, (q, m)) in set.samples.iter().zip(expected) {
-            assert_eq!((&s.q, s.point), (q, m), "{name}");
+        let expected = (poses.iter().enumerate()).flat_map(|(i, q)| r.markers().iter().map(move |&m| (i, q, m)));
+        assert_eq!(set.rows.len(), set.samples.len(), "{name}: a data row for every sample");
+        for ((s, &row), (i, q, m)) in set.samples.iter().zip(&set.rows).zip(expected) {
+            assert_eq!(
+                (row, &s.q, s.point),
+                (i, q, m),
+                "{name}: a pose is a row, shared by its points"
+            );
             let p = r.t_meas_base() * nalgebra::Point3::from(full_model_position(&r, q, m));
             let d = (s.position - p.coords).norm();
             assert!(d <= tolerance(rigid), "{name}: {d:e} m");

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use armcomp_core::Robot;
-use armcomp_core::data::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv};
+use armcomp_core::data::measurement::{MeasurementSet, RowSelection, Sample, parse_csv, write_csv_with_sensors};
 use armcomp_core::support::io::{check_output, write_atomic};
 use nalgebra::Vector3;
 use numpy::{AllowTypeChange, PyArray2, PyArrayLike2};
@@ -76,7 +76,7 @@ impl PyMeasurements {
         rows: Option<&Bound<'_, PyAny>>,
         read_from: Option<PathBuf>,
     ) -> PyResult<Self> {
-        let rows = rows.map(row_selection).transpose()?;
+        let rows = rows.map(|r| row_selection(r, "rows")).transpose()?;
         let text = Arc::new(text);
         let data = PyMeasurements {
             source: Source::Csv {
@@ -434,7 +434,7 @@ impl PyMeasurements {
     /// the file's, units in their names); `Measurements.read` reads it back.
     fn to_dataframe<'py>(&self, py: Python<'py>, robot: PyRef<'_, PyRobot>) -> PyResult<Bound<'py, PyAny>> {
         let set = self.resolve(&robot.robot)?;
-        let text = write_csv(&set, robot.robot.tree(), robot.robot.units());
+        let text = write_csv_with_sensors(&set, robot.robot.tree(), robot.robot.units(), robot.robot.sensors());
         let pandas = py
             .import("pandas")
             .map_err(|_| pyo3::exceptions::PyImportError::new_err("to_dataframe needs pandas: pip install pandas"))?;
@@ -554,7 +554,7 @@ impl PyMeasurements {
         inputs.extend(self.read_from.clone());
         check_output(&path, &inputs).py()?;
         let set = self.resolve(&robot.robot)?;
-        let text = write_csv(&set, robot.robot.tree(), robot.robot.units());
+        let text = write_csv_with_sensors(&set, robot.robot.tree(), robot.robot.units(), robot.robot.sensors());
         write_atomic(&path, text.as_bytes()).py()
     }
 
@@ -570,17 +570,18 @@ impl PyMeasurements {
     }
 }
 
-/// `rows`: a selection as `--rows` writes it, or a sequence of 0-based data rows.
-fn row_selection(rows: &Bound<'_, PyAny>) -> PyResult<RowSelection> {
+/// `rows` (the argument `what`): a selection as `--rows` writes it, or a sequence of 0-based
+/// data rows.
+pub fn row_selection(rows: &Bound<'_, PyAny>, what: &str) -> PyResult<RowSelection> {
     let text = match rows.extract::<String>() {
         Ok(t) => t,
         Err(_) => {
             let list: Vec<usize> = rows.extract().map_err(|_| {
                 input_error(
-                    &format!("rows: expected a selection such as \"even\" or \"0..40\", or row indices, got {rows}"),
+                    &format!("{what}: expected a selection such as \"even\" or \"0..40\", or row indices, got {rows}"),
                     None,
                     None,
-                    Some("rows"),
+                    Some(what),
                 )
             })?;
             let listed: Vec<String> = list.iter().map(usize::to_string).collect();
@@ -588,7 +589,7 @@ fn row_selection(rows: &Bound<'_, PyAny>) -> PyResult<RowSelection> {
         }
     };
     text.parse::<RowSelection>()
-        .map_err(|m| input_error(&format!("rows: {m}"), None, None, Some("rows")))
+        .map_err(|m| input_error(&format!("{what}: {m}"), None, None, Some(what)))
 }
 
 /// Position `k` of `n` samples, negative counting from the end as Python does.

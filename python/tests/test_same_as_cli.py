@@ -296,3 +296,45 @@ def test_fit_and_diagnose_score_fixed_points_as_the_command_line(tmp_path):
     _, report = armcomp.diagnose(robot, data, folds=3, max_steps=1, predictor=None, seed=2)
     assert report.to_dict() == expected
     assert expected["scored_by"] == "fixed-point distance"
+
+
+def test_simulate_on_grounds_and_evaluate_registered_on_stationing_points(tmp_path):
+    """The telescopic twin on two grounds: the same file as ``simulate --ground``, its two
+    accelerometers' columns included, and ``register_on`` gives ``evaluate --register-on``'s
+    report."""
+    truth_path = ROOT / "robots" / "telescopic-arm-truth.toml"
+    model_path = ROOT / "robots" / "telescopic-arm.toml"
+    cli(
+        "simulate", "--robot", truth_path, "--n", 60, "--noise-mm", 0.05, "--seed", 4,
+        "--ground", "flat=0,0.004", "--ground", "soft=0.5,0.03", "--out", tmp_path / "cli.csv",
+    )
+    truth = armcomp.Robot.load(truth_path)
+    data = armcomp.simulate(
+        truth, n=60, noise_mm=0.05, seed=4, grounds={"flat": (0.0, 0.004), "soft": (0.5, 0.03)}
+    )
+    data.save(tmp_path / "py.csv", truth)
+    assert (tmp_path / "py.csv").read_bytes() == (tmp_path / "cli.csv").read_bytes()
+    header, rows = read_table(tmp_path / "py.csv")
+    assert "station" in header and any("acc" in h or "sensor" in h or "[m/s^2]" in h for h in header)
+    assert {r[header.index("station")] for r in rows} == {"flat", "soft"}
+    with pytest.raises(armcomp.InputError):
+        armcomp.simulate(truth, n=10, grounds={"flat": (-1.0, 0.0)})
+    with pytest.raises(armcomp.InputError):
+        armcomp.simulate(truth, n=10, grounds={"flat": 1.0}, stations=2)
+
+    model = armcomp.Robot.load(model_path)
+    # The file both read: the same inputs to the last bit.
+    data = armcomp.Measurements.read(tmp_path / "cli.csv", model)
+    report = armcomp.evaluate(model, data, register_on="0..6,30..36")
+    expected = cli_json(
+        "evaluate", "--model", model_path, "--data", tmp_path / "cli.csv", "--register-on", "0..6,30..36"
+    )
+    assert report.to_dict() == expected
+    assert report.n == 48 and report.errors.shape == (48, 3)
+    assert report.registered_stations == ["flat", "soft"]
+    assert [s.station for s in report.per_station] == ["flat", "soft"]
+    with pytest.raises(armcomp.InputError):
+        armcomp.evaluate(model, data, register=True, register_on="0..6,30..36")
+    # The soft ground's rows are evaluated, but none of them registers its frame.
+    with pytest.raises(armcomp.InputError, match="station soft has none"):
+        armcomp.evaluate(model, data, register_on="0..6")

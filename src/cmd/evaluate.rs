@@ -72,28 +72,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         Some(on) => {
             let (all, _) = read_stations(&mut robot, &args.data, None)?;
-            let stationing = all.rows_where(|r| on.contains(r));
-            let rows = args.rows.rows.as_ref();
-            let evaluated = all.rows_where(|r| !on.contains(r) && rows.is_none_or(|s| s.contains(r)));
-            if evaluated.samples.is_empty() {
-                anyhow::bail!("--register-on takes every row --rows leaves; keep some rows to evaluate on");
-            }
-            let mut stations: Vec<usize> = evaluated.samples.iter().map(|s| s.station).collect();
-            stations.sort_unstable();
-            stations.dedup();
-            if let Some(&k) = stations
-                .iter()
-                .find(|&&k| stationing.samples.iter().all(|s| s.station != k))
-            {
-                let name = robot.stations().get(k).map_or("of the data", |s| s.name.as_str());
-                anyhow::bail!("--register-on gives station {name} no rows; give each station's stationing points");
-            }
-            let report = armcomp_api::ops::evaluate::register_then_run(
-                &mut robot,
-                &stationing.samples,
-                &evaluated.samples,
-                &stations,
-            )?;
+            let (evaluated, report) =
+                armcomp_api::ops::evaluate::register_on_then_run(&mut robot, &all, on, args.rows.rows.as_ref())?;
             (evaluated, report)
         }
     };

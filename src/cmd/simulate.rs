@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use armcomp_core::algorithms::simulate::{Contact, Ground, TiltDraw};
+use armcomp_core::algorithms::simulate::{Contact, Ground};
 use armcomp_core::data::measurement::{parse_poses, write_csv, write_csv_with_sensors};
 use armcomp_core::support::io::write_atomic;
 
@@ -186,32 +186,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         None => armcomp_api::ops::simulate::draw_poses(&truth, &args.sampler, args.n, args.seed)?,
     };
-    let grounds = args
-        .grounds
-        .iter()
-        .map(|g| ground(g))
-        .collect::<anyhow::Result<Vec<_>>>()?;
-    for (k, (name, _)) in grounds.iter().enumerate() {
-        if grounds[..k].iter().any(|(n, _)| n == name) {
-            anyhow::bail!("--ground `{name}` is given twice; each ground needs a name of its own");
-        }
-    }
-    if let Some(k) = args.stations.or((!grounds.is_empty()).then_some(grounds.len())) {
-        // A stream of its own: the same seed draws the same poses whatever the stations.
-        let seed = args.seed.wrapping_add(0x5851_f42d_4c95_7f2d);
-        let mut stations = armcomp_api::ops::simulate::stations(&truth, k, poses.len(), seed)?;
-        for (station, (name, _)) in stations.iter_mut().zip(&grounds) {
-            station.name.clone_from(name);
-        }
-        truth.set_stations(stations);
-    }
-    let draw = match args.tilt_per.as_str() {
-        _ if !grounds.is_empty() => TiltDraw::Grounds(grounds.into_iter().map(|(_, g)| g).collect()),
-        "station" => TiltDraw::PerStation,
-        _ => TiltDraw::PerRow,
+    let stand = armcomp_api::ops::simulate::Stand {
+        stations: args.stations,
+        grounds: args
+            .grounds
+            .iter()
+            .map(|g| ground(g))
+            .collect::<anyhow::Result<Vec<_>>>()?,
+        tilt_deg: args.tilt_deg,
+        tilt_per_station: args.tilt_per == "station",
     };
-    let mut set =
-        armcomp_api::ops::simulate::run_tilted(&truth, &poses, args.noise_mm, args.tilt_deg, draw, args.seed)?;
+    let mut set = armcomp_api::ops::simulate::run_standing(&mut truth, &poses, args.noise_mm, &stand, args.seed)?;
     // Fixed points or planes named for a truth that measures positions: mixed data, the
     // tracker's rows then the contacts'.
     let contacts = (args.fixed_points.iter())

@@ -8,7 +8,9 @@ use armcomp_core::algorithms::evaluate::{
     position_errors,
 };
 use armcomp_core::calibrate::{PlaneEvaluation, evaluate_planes};
-use armcomp_core::data::measurement::{Sample, SampleKind, csv_text, joint_header, joint_row};
+use armcomp_core::data::measurement::{
+    MeasurementSet, RowSelection, Sample, SampleKind, csv_text, joint_header, joint_row,
+};
 use nalgebra::Vector3;
 
 /// How far a model is from measurements.
@@ -70,6 +72,40 @@ pub fn register_then_run(
         .map(|&k| robot.stations().get(k).map_or_else(String::new, |s| s.name.clone()))
         .collect();
     Ok(report)
+}
+
+/// [`register_then_run`] with the stationing points given as rows of `set`, the data of all of
+/// its stations: the stations of the evaluated rows (`rows`, or all of them, without those of
+/// `on`) are registered on the rows `on` selects, and the model is evaluated on the others.
+/// Returns those rows and the report. Every station evaluated needs stationing rows.
+pub fn register_on_then_run(
+    robot: &mut Robot,
+    set: &MeasurementSet,
+    on: &RowSelection,
+    rows: Option<&RowSelection>,
+) -> armcomp_core::Result<(MeasurementSet, EvaluationReport)> {
+    let invalid = |reason: String| armcomp_core::Error::InvalidArgument {
+        what: "the rows to register on".into(),
+        reason,
+    };
+    let stationing = set.rows_where(|r| on.contains(r));
+    let evaluated = set.rows_where(|r| !on.contains(r) && rows.is_none_or(|s| s.contains(r)));
+    if evaluated.samples.is_empty() {
+        return Err(invalid(
+            "they take every row selected; keep some rows to evaluate on".into(),
+        ));
+    }
+    let mut stations: Vec<usize> = evaluated.samples.iter().map(|s| s.station).collect();
+    stations.sort_unstable();
+    stations.dedup();
+    if let Some(&k) = (stations.iter()).find(|&&k| stationing.samples.iter().all(|s| s.station != k)) {
+        let name = robot.stations().get(k).map_or("of the data", |s| s.name.as_str());
+        return Err(invalid(format!(
+            "station {name} has none; give each station's stationing points"
+        )));
+    }
+    let report = register_then_run(robot, &stationing.samples, &evaluated.samples, &stations)?;
+    Ok((evaluated, report))
 }
 
 /// Evaluates `robot` (with its fitted predictor) on `samples`.

@@ -1,7 +1,7 @@
 //! `simulate`: measurements of a truth robot at drawn or given poses, with tracker noise.
 
 use armcomp_core::Robot;
-use armcomp_core::algorithms::simulate::{SimulateParams, TiltDraw, random_stations, simulate_tilted};
+use armcomp_core::algorithms::simulate::{Ground, SimulateParams, TiltDraw, random_stations, simulate_tilted};
 use armcomp_core::data::measurement::MeasurementSet;
 use armcomp_core::model::sampling::{Sampler, configurations};
 use armcomp_core::robot::Station;
@@ -59,4 +59,62 @@ pub fn run_tilted(
         seed: seed.wrapping_add(0x9e37_79b9_7f4a_7c15),
     };
     simulate_tilted(truth, poses, params, tilt_deg.to_radians(), draw)
+}
+
+/// Where a simulated robot stands while it is measured (see [`run_standing`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stand {
+    /// Measured from this many stations, in as many consecutive blocks of the poses; `None`:
+    /// the truth's own stations.
+    pub stations: Option<usize>,
+    /// The grounds it stands on, each measured from a station named after it (in place of
+    /// `stations` and the tilt).
+    pub grounds: Vec<(String, Ground)>,
+    /// Standard deviation of the base's tilt about its x and y axes (deg).
+    pub tilt_deg: f64,
+    /// The tilt drawn once per station rather than at every pose.
+    pub tilt_per_station: bool,
+}
+
+/// [`run_tilted`] with `truth` standing as `stand` says: the stations drawn (a stream of the
+/// seed's own, so that the same seed draws the same poses whatever the stations) and given to
+/// `truth`, named by the grounds when there are any.
+pub fn run_standing(
+    truth: &mut Robot,
+    poses: &[Vec<f64>],
+    noise_mm: f64,
+    stand: &Stand,
+    seed: u64,
+) -> armcomp_core::Result<MeasurementSet> {
+    let grounds = &stand.grounds;
+    let invalid = |reason: String| armcomp_core::Error::InvalidArgument {
+        what: "grounds".into(),
+        reason,
+    };
+    let twice = (grounds.iter().enumerate()).find(|(k, (n, _))| grounds[..*k].iter().any(|(m, _)| m == n));
+    if let Some((_, (name, _))) = twice {
+        return Err(invalid(format!(
+            "`{name}` is given twice; each ground needs a name of its own"
+        )));
+    }
+    if !grounds.is_empty() && (stand.stations.is_some() || stand.tilt_deg != 0.0 || stand.tilt_per_station) {
+        return Err(invalid(
+            "each ground is a station with its own tilt: give the grounds alone, without stations or a tilt".into(),
+        ));
+    }
+    if let Some(k) = stand.stations.or((!grounds.is_empty()).then_some(grounds.len())) {
+        let mut stations = self::stations(truth, k, poses.len(), seed.wrapping_add(0x5851_f42d_4c95_7f2d))?;
+        for (station, (name, _)) in stations.iter_mut().zip(grounds) {
+            station.name.clone_from(name);
+        }
+        truth.set_stations(stations);
+    }
+    let draw = if !grounds.is_empty() {
+        TiltDraw::Grounds(grounds.iter().map(|(_, g)| g.clone()).collect())
+    } else if stand.tilt_per_station {
+        TiltDraw::PerStation
+    } else {
+        TiltDraw::PerRow
+    };
+    run_tilted(truth, poses, noise_mm, stand.tilt_deg, draw, seed)
 }

@@ -38,8 +38,8 @@ pub struct StationStats {
     pub stats: ErrorStats,
 }
 
-/// [`ErrorStats`] of `errors` (one per sample of `samples`, m) per station of `robot`, in the
-/// robot's order; empty when it has one station.
+/// [`ErrorStats`] of `errors` (one per sample of `samples`, m) per station of `robot` that has
+/// samples, in the robot's order; empty when the robot has one station.
 pub fn per_station(robot: &Robot, samples: &[Sample], errors: &[Vector3<f64>]) -> Vec<StationStats> {
     if robot.stations().len() < 2 {
         return Vec::new();
@@ -48,17 +48,18 @@ pub fn per_station(robot: &Robot, samples: &[Sample], errors: &[Vector3<f64>]) -
         .stations()
         .iter()
         .enumerate()
-        .map(|(k, station)| {
+        .filter_map(|(k, station)| {
             let e: Vec<Vector3<f64>> = samples
                 .iter()
                 .zip(errors)
                 .filter(|(s, _)| s.station == k)
                 .map(|(_, e)| *e)
                 .collect();
-            StationStats {
+            // A station without rows here (data of other set-ups) has nothing to say.
+            (!e.is_empty()).then(|| StationStats {
                 station: station.name.clone(),
                 stats: ErrorStats::from_errors(&e),
-            }
+            })
         })
         .collect()
 }

@@ -195,6 +195,8 @@ pub fn simulate_tilted(
             for k in 0..3 {
                 p[k] += normal.sample(&mut rng);
             }
+            // A pose is a data row, shared by its points as a file writes them.
+            set.rows.push(i);
             set.samples.push(Sample {
                 q: q.clone(),
                 point: m,

@@ -49,6 +49,7 @@ from ._reports import (
     PriorChoice,
     PriorScaleScore,
     RankedCandidate,
+    StationErrors,
     CandidateScore,
     Candidate,
 )
@@ -83,6 +84,7 @@ __all__ = [
     "PriorScaleScore",
     "RankedCandidate",
     "ReportPage",
+    "StationErrors",
     "CandidateScore",
     "Candidate",
     "Robot",
@@ -215,13 +217,18 @@ def evaluate(
     data: Union[Measurements, Sequence[Measurements]],
     register: bool = False,
     report: Union[None, str, "os.PathLike[str]"] = None,
+    register_on: Union[None, str, Sequence[int]] = None,
 ) -> EvaluationReport:
     """Position errors of ``model`` (with its fitted predictor) on ``data``, as
     ``armcomp evaluate`` reports them. ``register``: register every station's measurement
     frame on these data first (``--register``); a station the model does not know always is.
-    ``data`` may be a list of ``Measurements``, one station each. ``report``: a folder for the
-    report page; ``report.page`` then holds its data."""
-    text, errors, page = _native.evaluate(model, data, register=register, report=report)
+    ``register_on``: register the stations on these rows only (each station's stationing
+    points: a selection such as ``"0..40"`` or row indices) and evaluate on the others
+    (``--register-on``). ``data`` may be a list of ``Measurements``, one station each.
+    ``report``: a folder for the report page; ``report.page`` then holds its data."""
+    text, errors, page = _native.evaluate(
+        model, data, register=register, register_on=register_on, report=report
+    )
     result = from_json(EvaluationReport, text)
     object.__setattr__(result, "errors", errors)
     object.__setattr__(result, "page", _page_of(page))
@@ -235,11 +242,30 @@ def simulate(
     sampler: str = "sobol",
     noise_mm: float = 0.0,
     seed: int = 0,
+    stations: Optional[int] = None,
+    tilt_deg: float = 0.0,
+    tilt_per: str = "row",
+    grounds: Optional[Dict[str, Union[float, Tuple[float, float]]]] = None,
 ) -> Measurements:
     """Measurements of ``truth`` at ``poses`` (n × joints, SI) or at ``n`` poses drawn by
     ``sampler`` (sobol, halton, random, grid), with ``noise_mm`` of noise per axis, as
-    ``armcomp simulate`` makes them; the same seed gives the same values."""
-    return _native.simulate(truth, poses=poses, n=n, sampler=sampler, noise_mm=noise_mm, seed=seed)
+    ``armcomp simulate`` makes them; the same seed gives the same values. ``stations``: measured
+    from that many stations (``--stations``); ``tilt_deg``, ``tilt_per`` ("row" or "station"):
+    the base's tilt (``--tilt-deg``, ``--tilt-per``); ``grounds``: ground name → tilt in degrees
+    or (tilt, rocking) in degrees, one station each (``--ground``). The truth's sensors are
+    read on every row; ``truth`` itself is left as it was."""
+    return _native.simulate(
+        truth,
+        poses=poses,
+        n=n,
+        sampler=sampler,
+        noise_mm=noise_mm,
+        seed=seed,
+        stations=stations,
+        tilt_deg=tilt_deg,
+        tilt_per=tilt_per,
+        grounds=grounds,
+    )
 
 
 def diagnose(

@@ -168,7 +168,11 @@ def calibrate(
     group_by: Optional[str] = None,
 ) -> Tuple[Robot, str, bool, Tuple[List[str], np.ndarray], Optional[str]]: ...
 def evaluate(
-    model: Robot, data: _Data, register: bool = False, report: Optional[_Path] = None
+    model: Robot,
+    data: _Data,
+    register: bool = False,
+    register_on: Union[None, str, Sequence[int]] = None,
+    report: Optional[_Path] = None,
 ) -> Tuple[str, np.ndarray, Optional[str]]: ...
 def fit(
     robot: Robot,
@@ -191,6 +195,10 @@ def simulate(
     sampler: str = "sobol",
     noise_mm: float = 0.0,
     seed: int = 0,
+    stations: Optional[int] = None,
+    tilt_deg: float = 0.0,
+    tilt_per: str = "row",
+    grounds: Optional[Dict[str, Union[float, Tuple[float, float]]]] = None,
 ) -> Measurements: ...
 def diagnose(
     robot: Robot,

@@ -33,6 +33,13 @@ class ErrorStats(Report):
     _raw: Dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
+@dataclass(frozen=True, repr=False)
+class StationErrors(ErrorStats):
+    """:class:`ErrorStats` of one station's samples (``per_station`` in ``evaluate --json``)."""
+
+    station: str = ""
+
+
 @dataclass(frozen=True)
 class Parameter:
     """One calibrated parameter before and after, in its SI ``unit``."""
@@ -253,6 +260,9 @@ class EvaluationReport(Report):
     max_mm: float
     mean_abs_mm: AxisErrors
     per_point: Dict[str, ErrorStats] = field(default_factory=dict)
+    # With several stations: each one's errors, and those registered on these data.
+    per_station: List[StationErrors] = field(default_factory=list)
+    registered_stations: List[str] = field(default_factory=list)
     # Always set by `armcomp.evaluate`; empty only for a report built from JSON alone.
     errors: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)), repr=False, compare=False)
     page: Optional[Any] = field(default=None, repr=False, compare=False)
