@@ -85,7 +85,7 @@ pub fn register_on_then_run(
     rows: Option<&RowSelection>,
 ) -> armcomp_core::Result<(MeasurementSet, EvaluationReport)> {
     let invalid = |reason: String| armcomp_core::Error::InvalidArgument {
-        what: "the rows to register on".into(),
+        what: "--register-on".into(),
         reason,
     };
     let stationing = set.rows_where(|r| on.contains(r));

@@ -88,7 +88,7 @@ pub fn run_standing(
 ) -> armcomp_core::Result<MeasurementSet> {
     let grounds = &stand.grounds;
     let invalid = |reason: String| armcomp_core::Error::InvalidArgument {
-        what: "grounds".into(),
+        what: "--ground".into(),
         reason,
     };
     let twice = (grounds.iter().enumerate()).find(|(k, (n, _))| grounds[..*k].iter().any(|(m, _)| m == n));
@@ -97,7 +97,8 @@ pub fn run_standing(
             "`{name}` is given twice; each ground needs a name of its own"
         )));
     }
-    if !grounds.is_empty() && (stand.stations.is_some() || stand.tilt_deg != 0.0 || stand.tilt_per_station) {
+    // A tilt beside the grounds is refused where the grounds are drawn (`simulate_tilted`).
+    if !grounds.is_empty() && (stand.stations.is_some() || stand.tilt_per_station) {
         return Err(invalid(
             "each ground is a station with its own tilt: give the grounds alone, without stations or a tilt".into(),
         ));

@@ -201,10 +201,14 @@ impl ErrorModel for MeasuredTiltModel {
                 let motion = state.frames.joint_frame[*j].rotation.inverse() * state.frames.body[self.body].rotation;
                 let mut r = motion * r;
                 if let Some(a) = axis {
-                    // The part about gravity that makes the turn square to the axis (module docs).
-                    let down = motion * predicted.normalize();
+                    // The part about gravity that makes the turn square to the axis (module docs);
+                    // none near a level axis, where `c` may be zero.
+                    let down = motion * predicted;
                     let c = down.dot(a);
-                    r -= down * (square_weight(c.abs()) * r.dot(a) / c);
+                    let w = square_weight(c.abs());
+                    if w > 0.0 {
+                        r -= down * (w * r.dot(a) / c);
+                    }
                 }
                 out.joint_twist[*j] += Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z);
             }
